@@ -1,0 +1,216 @@
+"""Finding, loading and checking profiles (``profiles/<id>/profile.yaml``).
+
+Search order: directories named in ``SERVODESK_PROFILE_DIRS``, then the profiles packaged in
+the wheel (``servodesk/_profiles``), then the checkout's top-level ``profiles/``. The first
+profile with a given id wins, so a user can shadow a shipped profile.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+import pydantic
+import yaml
+
+from servodesk.domain.datatypes import DataType
+from servodesk.domain.profile import DeviceProfile, resolve_value
+from servodesk.errors import NotFoundError, ProfileError
+
+try:  # libyaml is ~10x faster on the large profiles.
+    _Loader: Any = yaml.CSafeLoader
+except AttributeError:  # pragma: no cover - libyaml missing
+    _Loader = yaml.SafeLoader
+
+PROFILE_FILE = "profile.yaml"
+
+
+def default_profile_dirs(extra: Iterable[Path] = ()) -> list[Path]:
+    here = Path(__file__).resolve()
+    dirs = [Path(p) for p in extra]
+    dirs.append(here.parent.parent / "_profiles")  # In the wheel.
+    dirs.append(here.parents[3] / "profiles")  # In a checkout: backend/servodesk/domain.
+    return [d for d in dirs if d.is_dir()]
+
+
+def read_profile_file(path: Path) -> DeviceProfile:
+    """Parse and validate one profile file (without resolving ``extends``)."""
+    try:
+        data = yaml.load(path.read_text(encoding="utf-8"), Loader=_Loader)
+    except OSError as exc:
+        raise ProfileError(f"cannot read: {exc.strerror}", path=str(path)) from exc
+    except yaml.YAMLError as exc:
+        raise ProfileError(f"not valid YAML: {exc}", path=str(path)) from exc
+    if not isinstance(data, dict):
+        raise ProfileError("the file must hold a mapping at the top", path=str(path))
+    return parse_profile(data, source=str(path))
+
+
+def parse_profile(data: dict[str, Any], source: str = "<profile>") -> DeviceProfile:
+    try:
+        return DeviceProfile.model_validate(data)
+    except pydantic.ValidationError as exc:
+        first = exc.errors()[0]
+        where = ".".join(str(p) for p in first["loc"])
+        more = f" (and {exc.error_count() - 1} more problems)" if exc.error_count() > 1 else ""
+        raise ProfileError(f"{where}: {first['msg']}{more}", path=source) from exc
+
+
+def merge(base: DeviceProfile, child: DeviceProfile) -> DeviceProfile:
+    """The child profile with the base's objects and errors it does not redefine."""
+    own_idx = {e.index for e in child.objects}
+    objects = sorted(
+        [e for e in base.objects if e.index not in own_idx] + list(child.objects),
+        key=lambda e: e.index,
+    )
+    own_codes = {(e.table, e.code) for e in child.errors}
+    errors = [e for e in base.errors if (e.table, e.code) not in own_codes] + list(child.errors)
+    groups = list(child.groups) + [g for g in base.groups if g.id not in {c.id for c in child.groups}]
+    return child.model_copy(
+        update={"objects": tuple(objects), "errors": tuple(errors), "groups": tuple(groups)}
+    )
+
+
+def check_profile(p: DeviceProfile) -> list[str]:
+    """Consistency problems of a loaded profile; an empty list means it is consistent."""
+    problems: list[str] = []
+    seen: set[tuple[int, int]] = set()
+    for entry in p.objects:
+        subs: set[int] = set()
+        for spec in entry.specs():
+            key = (spec.index, spec.subindex)
+            where = f"{spec.address} {spec.name}"
+            if spec.subindex in subs:
+                problems.append(f"{where}: duplicate subindex")
+            subs.add(spec.subindex)
+            if key in seen and spec.subindex == 0 and len(subs) == 1:
+                problems.append(f"{where}: duplicate index")
+            seen.add(key)
+            problems.extend(_check_value_fields(spec, where))
+            if spec.pdo_mapping.value != "none" and spec.bits == 0:
+                problems.append(f"{where}: PDO-mappable but {spec.data_type.name} has no size")
+            if spec.pdo_mapping.rx and not spec.access.writable:
+                problems.append(f"{where}: RPDO-mappable but not writable ({spec.access.value})")
+    idx_count: dict[int, int] = {}
+    for entry in p.objects:
+        idx_count[entry.index] = idx_count.get(entry.index, 0) + 1
+    problems.extend(f"0x{i:04X}: defined {n} times" for i, n in idx_count.items() if n > 1)
+    codes: dict[tuple[str, int], int] = {}
+    for e in p.errors:
+        codes[(e.table, e.code)] = codes.get((e.table, e.code), 0) + 1
+    problems.extend(
+        f"error table {t!r}: code 0x{c:X} defined {n} times" for (t, c), n in codes.items() if n > 1
+    )
+    group_ids = {g.id for g in p.groups}
+    if group_ids:
+        for spec in p.variables.values():
+            if spec.group and spec.group not in group_ids:
+                problems.append(f"{spec.address} {spec.name}: group {spec.group!r} not in groups")
+    for m in p.modes:
+        if not -128 <= m <= 127:
+            problems.append(f"mode {m} does not fit 6060h (INTEGER8)")
+    for h in p.homing_methods:
+        if not -128 <= h <= 127:
+            problems.append(f"homing method {h} does not fit 6098h (INTEGER8)")
+    return problems
+
+
+def _check_value_fields(spec: Any, where: str) -> list[str]:
+    out: list[str] = []
+    dt: DataType = spec.data_type
+    rng = dt.range
+    for name in ("min", "max"):
+        v = getattr(spec, name)
+        if v is None:
+            continue
+        if rng is not None and not (rng[0] <= v <= rng[1]):
+            out.append(f"{where}: {name} {v} does not fit {dt.name}")
+        if isinstance(v, float) and not math.isfinite(v):
+            out.append(f"{where}: {name} is not finite")
+    if spec.min is not None and spec.max is not None and spec.min > spec.max:
+        out.append(f"{where}: min {spec.min} is above max {spec.max}")
+    try:
+        d = resolve_value(spec.default, dt, node_id=1)
+    except (ValueError, ProfileError) as exc:
+        return [*out, f"{where}: default {spec.default!r}: {exc}"]
+    except Exception as exc:  # servodesk ValidationError from coercion
+        return [*out, f"{where}: default {spec.default!r}: {exc}"]
+    if isinstance(d, int | float) and not isinstance(d, bool) and dt.is_numeric:
+        lo, hi = spec.limits()
+        if isinstance(spec.default, str) and "$NODEID" in spec.default.upper():
+            return out  # Checked per node when the device is built.
+        if lo is not None and d < lo:
+            out.append(f"{where}: default {d} is below min {lo}")
+        if hi is not None and d > hi:
+            out.append(f"{where}: default {d} is above max {hi}")
+    return out
+
+
+class ProfileCatalog:
+    """All profiles found on the search path, loaded lazily and cached by id."""
+
+    def __init__(self, dirs: Sequence[Path] | None = None) -> None:
+        self.dirs = list(dirs) if dirs is not None else default_profile_dirs()
+        self._paths: dict[str, Path] | None = None
+        self._cache: dict[str, DeviceProfile] = {}
+        self._extra: dict[str, DeviceProfile] = {}
+
+    def _index(self) -> dict[str, Path]:
+        if self._paths is None:
+            paths: dict[str, Path] = {}
+            for d in self.dirs:
+                for f in sorted(d.glob(f"*/{PROFILE_FILE}")):
+                    paths.setdefault(f.parent.name, f)
+            self._paths = paths
+        return self._paths
+
+    def ids(self) -> list[str]:
+        return sorted(set(self._index()) | set(self._extra))
+
+    def add(self, profile: DeviceProfile) -> None:
+        """Register a profile made at run time (e.g. imported from an EDS)."""
+        self._extra[profile.id] = profile
+        self._cache.pop(profile.id, None)
+
+    def get(self, profile_id: str) -> DeviceProfile:
+        if profile_id in self._cache:
+            return self._cache[profile_id]
+        if profile_id in self._extra:
+            p = self._extra[profile_id]
+        else:
+            path = self._index().get(profile_id)
+            if path is None:
+                raise NotFoundError(
+                    f"no profile {profile_id!r}",
+                    hint=f"known profiles: {', '.join(self.ids()) or 'none'}",
+                )
+            p = read_profile_file(path)
+            if p.id != profile_id:
+                raise ProfileError(f"id {p.id!r} differs from its folder name", path=str(path))
+        if p.extends:
+            if p.extends == p.id:
+                raise ProfileError(f"profile {p.id} extends itself")
+            p = merge(self.get(p.extends), p)
+        self._cache[profile_id] = p
+        return p
+
+    def all(self) -> list[DeviceProfile]:
+        return [self.get(i) for i in self.ids()]
+
+    def match(
+        self,
+        vendor_id: int | None,
+        product_code: int | None,
+        revision: int | None,
+        device_name: str | None = None,
+    ) -> DeviceProfile | None:
+        """The profile whose identity matches 1018h (most specific first)."""
+        best: tuple[int, DeviceProfile] | None = None
+        for p in self.all():
+            if p.identity.matches(vendor_id, product_code, revision, device_name):
+                score = (p.identity.vendor_id is not None) + bool(p.identity.product_codes) * 2
+                if best is None or score > best[0]:
+                    best = (score, p)
+        return best[1] if best else None

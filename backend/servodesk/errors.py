@@ -1,0 +1,127 @@
+"""The one exception tree of servodesk.
+
+Every failure a user can meet is a :class:`ServodeskError`. Subclasses carry structured
+fields (a protocol code, the object address, the profile file) so that the API and the CLI
+can render one clear message without parsing strings::
+
+    ServodeskError
+     +-- ProfileError               a profile or device-description file is invalid
+     +-- ValidationError            a value or request is refused before anything is sent
+     +-- LinkError                  the bus or the device is unreachable or misbehaves
+     |    +-- LinkTimeoutError      (also a TimeoutError) no answer in time
+     |    +-- LinkUnavailableError  a fieldbus backend's library is missing
+     |    +-- LinkClosedError       the link was closed while the call waited
+     +-- ObjectAccessError          the device refused an access (SDO abort, ...)
+     +-- DriveStateError            a CiA 402 command is not possible in this state
+     +-- NotFoundError              no such session, profile or object
+     +-- ConflictError              another client holds control of the drive
+"""
+
+from __future__ import annotations
+
+
+class ServodeskError(Exception):
+    """Root of every servodesk error.
+
+    ``hint`` says what the user can do about it; the API returns it beside the message.
+    """
+
+    def __init__(self, message: str, *, hint: str | None = None) -> None:
+        super().__init__(message)
+        self.message = message
+        self.hint = hint
+
+    def to_dict(self) -> dict[str, object]:
+        out: dict[str, object] = {"error": type(self).__name__, "message": self.message}
+        if self.hint:
+            out["hint"] = self.hint
+        return out
+
+
+class ProfileError(ServodeskError):
+    """A profile or imported device description is invalid.
+
+    Example: ``profiles/x/profile.yaml: objects[12].default: 70000 is above max 65535``.
+    """
+
+    def __init__(self, message: str, *, path: str | None = None, hint: str | None = None):
+        super().__init__(f"{path}: {message}" if path else message, hint=hint)
+        self.path = path
+
+
+class ValidationError(ServodeskError):
+    """A request is refused before it reaches the bus (type, range, access, limits)."""
+
+    def __init__(self, message: str, *, field: str | None = None, hint: str | None = None):
+        super().__init__(message, hint=hint)
+        self.field = field
+
+    def to_dict(self) -> dict[str, object]:
+        out = super().to_dict()
+        if self.field:
+            out["field"] = self.field
+        return out
+
+
+class NotFoundError(ServodeskError):
+    """No such session, profile, object or file."""
+
+
+class ConflictError(ServodeskError):
+    """Another client holds control of the drive (or another operation runs)."""
+
+
+class LinkError(ServodeskError):
+    """The bus or the device cannot be reached or misbehaves."""
+
+
+class LinkTimeoutError(LinkError, TimeoutError):
+    """The device did not answer in time (SDO timeout, no heartbeat)."""
+
+
+class LinkUnavailableError(LinkError, NotImplementedError):
+    """A fieldbus backend cannot be used here, e.g. its library is not installed."""
+
+
+class LinkClosedError(LinkError):
+    """The link was closed while a call was pending or before it started."""
+
+
+class ObjectAccessError(ServodeskError):
+    """The device refused a read or write.
+
+    ``code`` is the protocol's own code (SDO abort code for CANopen/CoE, PROFIdrive error
+    number, SLMP end code), ``protocol`` names which, ``meaning`` is its text.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        code: int,
+        meaning: str,
+        protocol: str = "sdo",
+        address: str | None = None,
+        hint: str | None = None,
+    ) -> None:
+        super().__init__(message, hint=hint)
+        self.code = code
+        self.meaning = meaning
+        self.protocol = protocol
+        self.address = address
+
+    def to_dict(self) -> dict[str, object]:
+        out = super().to_dict()
+        out.update(
+            code=self.code,
+            code_hex=f"0x{self.code:08X}",
+            meaning=self.meaning,
+            protocol=self.protocol,
+        )
+        if self.address:
+            out["address"] = self.address
+        return out
+
+
+class DriveStateError(ServodeskError):
+    """A CiA 402 command or operation is not possible in the drive's current state."""

@@ -1,0 +1,235 @@
+"""The link contract: object access and process data, whatever the fieldbus.
+
+Public methods do the shared work once (serialising access to one device, timeouts,
+logging, error mapping, running blocking library calls off the event loop); a fieldbus
+implements the small ``_`` hooks, which are plain blocking functions run in a worker thread.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import threading
+import time
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, TypeVar
+
+from servodesk.domain.address import ObjectAddress
+from servodesk.errors import LinkClosedError, LinkError, LinkTimeoutError, ServodeskError
+
+log = logging.getLogger(__name__)
+T = TypeVar("T")
+
+
+@dataclass(frozen=True, slots=True)
+class LinkParams:
+    """Where a drive is: python-can style bus options plus the node."""
+
+    interface: str = "virtual"
+    channel: str = "servodesk"
+    bitrate: int | None = None
+    node_id: int = 1
+    #: Per-request timeout in seconds (SDO response time-out).
+    timeout: float = 1.0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def bus_key(self) -> tuple[str, str]:
+        return (self.interface, self.channel)
+
+
+@dataclass(frozen=True, slots=True)
+class Identity:
+    """Identity object (1018h) and names (1008h-100Ah) or the fieldbus equivalent."""
+
+    vendor_id: int | None = None
+    product_code: int | None = None
+    revision: int | None = None
+    serial: int | None = None
+    device_name: str | None = None
+    hardware_version: str | None = None
+    software_version: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class LinkEvent:
+    """Something the device or the link reported, fanned out to the session.
+
+    ``kind``: "emcy" (code, register, data), "nmt" (state), "heartbeat_lost",
+    "link_lost", "link_restored".
+    """
+
+    kind: str
+    time: float
+    data: dict[str, Any] = field(default_factory=dict)
+
+
+EventCallback = Callable[[LinkEvent], None]
+
+
+class ObjectAccess(ABC):
+    """Read and write object dictionary entries as raw bytes."""
+
+    @abstractmethod
+    async def read(self, address: ObjectAddress) -> bytes: ...
+
+    @abstractmethod
+    async def write(self, address: ObjectAddress, data: bytes) -> None: ...
+
+    async def read_many(self, addresses: Sequence[ObjectAddress]) -> list[bytes | ServodeskError]:
+        """Read several objects; a failed one yields its error instead of stopping the rest."""
+        out: list[bytes | ServodeskError] = []
+        for a in addresses:
+            try:
+                out.append(await self.read(a))
+            except ServodeskError as exc:
+                out.append(exc)
+        return out
+
+    async def write_many(
+        self, items: Sequence[tuple[ObjectAddress, bytes]]
+    ) -> list[ServodeskError | None]:
+        out: list[ServodeskError | None] = []
+        for a, d in items:
+            try:
+                await self.write(a, d)
+                out.append(None)
+            except ServodeskError as exc:
+                out.append(exc)
+        return out
+
+
+class DriveLink(ObjectAccess):
+    """A connection to one drive (node / slave / axis) on a fieldbus.
+
+    Subclasses implement ``_open``, ``_close``, ``_read``, ``_write`` and, where the
+    fieldbus has them, ``_nmt`` and ``_scan``. Hooks are blocking and run in a worker
+    thread while holding this link's lock, so a hook never runs twice at once (the canopen
+    SDO client is not safe for concurrent use).
+    """
+
+    #: Registry name, e.g. "canopen".
+    fieldbus: str = ""
+
+    def __init__(self, params: LinkParams) -> None:
+        self.params = params
+        self._lock = threading.Lock()
+        self._alock: asyncio.Lock | None = None
+        self._closed = True
+        self._callbacks: list[EventCallback] = []
+        self.requests = 0
+        self.failures = 0
+
+    # Lifecycle ---------------------------------------------------------------------
+
+    async def open(self) -> None:
+        await self._call(self._open, check_open=False)
+        self._closed = False
+
+    async def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        await asyncio.to_thread(self._close_locked)
+
+    def _close_locked(self) -> None:
+        with self._lock:
+            self._close()
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    async def __aenter__(self) -> DriveLink:
+        await self.open()
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.close()
+
+    # Object access -------------------------------------------------------------------
+
+    async def read(self, address: ObjectAddress) -> bytes:
+        return await self._call(self._read, address)
+
+    async def write(self, address: ObjectAddress, data: bytes) -> None:
+        await self._call(self._write, address, bytes(data))
+
+    async def identity(self) -> Identity:
+        return await self._call(self._identity)
+
+    async def nmt(self, command: str) -> None:
+        """Send a network-management command: start, stop, preop, reset, reset_comm."""
+        await self._call(self._nmt, command)
+
+    async def network_state(self) -> str:
+        return await self._call(self._network_state)
+
+    # Events -----------------------------------------------------------------------------
+
+    def add_event_callback(self, cb: EventCallback) -> None:
+        """``cb`` is called from a bus thread; it must not block."""
+        self._callbacks.append(cb)
+
+    def remove_event_callback(self, cb: EventCallback) -> None:
+        if cb in self._callbacks:
+            self._callbacks.remove(cb)
+
+    def _emit(self, kind: str, **data: Any) -> None:
+        ev = LinkEvent(kind, time.time(), data)
+        for cb in list(self._callbacks):
+            try:
+                cb(ev)
+            except Exception:  # A subscriber's bug must not stop bus processing.
+                log.exception("event callback failed for %s", kind)
+
+    # Shared machinery ----------------------------------------------------------------
+
+    async def _call(self, fn: Callable[..., T], *args: Any, check_open: bool = True) -> T:
+        if check_open and self._closed:
+            raise LinkClosedError("the link is closed", hint="open the session again")
+        if self._alock is None:
+            self._alock = asyncio.Lock()
+        # The asyncio lock queues callers fairly without holding threads; the thread
+        # lock guards against callers from other loops or threads.
+        async with self._alock:
+            return await asyncio.to_thread(self._locked, fn, *args)
+
+    def _locked(self, fn: Callable[..., T], *args: Any) -> T:
+        with self._lock:
+            self.requests += 1
+            try:
+                return fn(*args)
+            except ServodeskError:
+                self.failures += 1
+                raise
+            except TimeoutError as exc:
+                self.failures += 1
+                raise LinkTimeoutError(f"no answer from the device: {exc}") from exc
+            except OSError as exc:
+                self.failures += 1
+                raise LinkError(f"bus error: {exc}") from exc
+
+    # Hooks ---------------------------------------------------------------------------
+
+    @abstractmethod
+    def _open(self) -> None: ...
+
+    @abstractmethod
+    def _close(self) -> None: ...
+
+    @abstractmethod
+    def _read(self, address: ObjectAddress) -> bytes: ...
+
+    @abstractmethod
+    def _write(self, address: ObjectAddress, data: bytes) -> None: ...
+
+    def _identity(self) -> Identity:
+        return Identity()
+
+    def _nmt(self, command: str) -> None:
+        raise LinkError(f"{self.fieldbus} has no network management command {command!r}")
+
+    def _network_state(self) -> str:
+        return "unknown"

@@ -1,0 +1,68 @@
+"""Fieldbus name -> link class, imported lazily (python-can's interface registry pattern).
+
+A link whose library is missing is reported by :meth:`LinkRegistry.available`, not fatal at
+import time.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+
+from servodesk.errors import LinkUnavailableError, NotFoundError
+from servodesk.links.base import DriveLink
+
+
+@dataclass(frozen=True, slots=True)
+class LinkEntry:
+    name: str
+    module: str
+    cls: str
+    description: str
+
+
+class LinkRegistry:
+    def __init__(self) -> None:
+        self._entries: dict[str, LinkEntry] = {}
+
+    def register(self, name: str, module: str, cls: str, description: str = "") -> None:
+        self._entries[name] = LinkEntry(name, module, cls, description)
+
+    def names(self) -> list[str]:
+        return sorted(self._entries)
+
+    def get(self, name: str) -> type[DriveLink]:
+        entry = self._entries.get(name)
+        if entry is None:
+            raise NotFoundError(
+                f"no fieldbus link {name!r}", hint=f"known links: {', '.join(self.names())}"
+            )
+        try:
+            mod = importlib.import_module(entry.module)
+        except ImportError as exc:
+            raise LinkUnavailableError(
+                f"the {name} link cannot be loaded: {exc}",
+                hint="install servodesk with its dependencies (make setup)",
+            ) from exc
+        cls: type[DriveLink] = getattr(mod, entry.cls)
+        return cls
+
+    def available(self) -> dict[str, str | None]:
+        """Each link name -> None when usable, else the reason it is not."""
+        out: dict[str, str | None] = {}
+        for name in self.names():
+            try:
+                self.get(name)
+                out[name] = None
+            except LinkUnavailableError as exc:
+                out[name] = exc.message
+        return out
+
+
+registry = LinkRegistry()
+registry.register(
+    "canopen",
+    "servodesk.links.canopen_link",
+    "CanopenLink",
+    "CANopen over any python-can interface (virtual, udp_multicast, socketcan, pcan, kvaser, ...)",
+)
