@@ -18,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, Value, coerce_int
+from servodesk.errors import ServodeskError
 
 Scalar = int | float | str | None
 
@@ -69,7 +70,10 @@ _STRICT = ConfigDict(extra="forbid", frozen=True, use_enum_values=False)
 
 def _parse_data_type(v: Any) -> Any:
     if isinstance(v, str):
-        return DataType.from_name(v)
+        try:
+            return DataType.from_name(v)
+        except ServodeskError as exc:  # pydantic reports ValueErrors with their place.
+            raise ValueError(f"{exc.message} ({exc.hint})") from None
     return v
 
 
@@ -338,7 +342,10 @@ class Identity(BaseModel):
     device_name: str | None = None
 
     def matches(
-        self, vendor_id: int | None, product_code: int | None, revision: int | None,
+        self,
+        vendor_id: int | None,
+        product_code: int | None,
+        revision: int | None,
         device_name: str | None = None,
     ) -> bool:
         if self.vendor_id is None and not self.device_name:
@@ -352,9 +359,7 @@ class Identity(BaseModel):
                 return False
             if self.revision_max is not None and revision > self.revision_max:
                 return False
-        if self.device_name and not re.search(self.device_name, device_name or ""):
-            return False
-        return True
+        return not (self.device_name and not re.search(self.device_name, device_name or ""))
 
 
 class Manual(BaseModel):
@@ -470,7 +475,9 @@ class DeviceProfile(BaseModel):
         return sorted({e.table for e in self.errors})
 
 
-_NODEID = re.compile(r"^\s*\$NODEID\s*([+-])\s*(0x[0-9a-f]+|\d+)\s*$|^\s*(0x[0-9a-f]+|\d+)\s*\+\s*\$NODEID\s*$", re.I)
+_NODEID = re.compile(
+    r"^\s*\$NODEID\s*([+-])\s*(0x[0-9a-f]+|\d+)\s*$|^\s*(0x[0-9a-f]+|\d+)\s*\+\s*\$NODEID\s*$", re.I
+)
 
 
 def resolve_value(raw: Scalar, data_type: DataType, node_id: int = 0) -> Value | None:

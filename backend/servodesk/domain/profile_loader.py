@@ -67,7 +67,9 @@ def merge(base: DeviceProfile, child: DeviceProfile) -> DeviceProfile:
     )
     own_codes = {(e.table, e.code) for e in child.errors}
     errors = [e for e in base.errors if (e.table, e.code) not in own_codes] + list(child.errors)
-    groups = list(child.groups) + [g for g in base.groups if g.id not in {c.id for c in child.groups}]
+    groups = list(child.groups) + [
+        g for g in base.groups if g.id not in {c.id for c in child.groups}
+    ]
     return child.model_copy(
         update={"objects": tuple(objects), "errors": tuple(errors), "groups": tuple(groups)}
     )

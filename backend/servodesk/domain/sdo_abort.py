@@ -38,7 +38,8 @@ ABORT_CODES: dict[int, str] = {
     0x08000020: "Data cannot be transferred or stored to the application",
     0x08000021: "Data cannot be transferred or stored to the application because of local control",
     0x08000022: (
-        "Data cannot be transferred or stored to the application because of the present device state"
+        "Data cannot be transferred or stored to the application because of the present "
+        "device state"
     ),
     0x08000023: "Object dictionary dynamic generation fails or no object dictionary is present",
     0x08000024: "No data available",
@@ -56,7 +57,9 @@ ABORT_HINTS: dict[int, str] = {
     0x06070010: "the value's size does not match the object's data type",
     0x06070012: "the value has more bytes than the object's data type",
     0x06070013: "the value has fewer bytes than the object's data type",
-    0x08000022: "the drive refuses this in its present state (e.g. disable it or go to PRE-OPERATIONAL)",
+    0x08000022: (
+        "the drive refuses this in its present state (e.g. disable it or go to PRE-OPERATIONAL)"
+    ),
     0x05040000: "the drive did not answer in time; check the node id, bitrate and cabling",
 }
 

@@ -1,0 +1,73 @@
+# servodesk: one-command setup, demo and test on a fresh machine (Python 3.11, Node 20, root).
+#
+#   make demo   set everything up and serve the UI with simulated drives on http://127.0.0.1:8000
+#   make test   set everything up and run the whole suite (lint, types, unit, integration, browser)
+
+PYTHON ?= python3.11
+UV_VERSION := 0.13.9
+TOOLS := .tools
+UV := $(TOOLS)/bin/uv
+VENV := .venv
+PY := $(VENV)/bin/python
+FRONTEND := frontend
+WEB_DIST := backend/servodesk/web/dist
+HOST ?= 127.0.0.1
+PORT ?= 8000
+
+export UV_PYTHON_DOWNLOADS := never
+export UV_PROJECT_ENVIRONMENT := $(VENV)
+
+.PHONY: setup demo test lint typecheck unit browser build clean chromium bench openapi
+
+setup: $(VENV)/.synced $(WEB_DIST)/index.html
+
+$(UV):
+	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "servodesk needs $(PYTHON) (set PYTHON=...)"; exit 2; }
+	$(PYTHON) -m venv $(TOOLS)
+	$(TOOLS)/bin/pip install --quiet --disable-pip-version-check uv==$(UV_VERSION)
+
+# The Python environment, exactly as pinned in uv.lock (dev tools included).
+$(VENV)/.synced: $(UV) pyproject.toml uv.lock
+	$(UV) sync --frozen --python $(PYTHON)
+	@touch $@
+
+# The browser UI, exactly as pinned in frontend/package-lock.json, built into the package.
+$(FRONTEND)/node_modules/.package-lock.json: $(FRONTEND)/package.json $(FRONTEND)/package-lock.json
+	cd $(FRONTEND) && npm ci --no-audit --no-fund --loglevel=error
+
+$(WEB_DIST)/index.html: $(FRONTEND)/node_modules/.package-lock.json $(shell find $(FRONTEND)/src $(FRONTEND)/index.html $(FRONTEND)/vite.config.ts -type f 2>/dev/null)
+	cd $(FRONTEND) && npm run build
+
+build: $(WEB_DIST)/index.html
+
+# Debian's Chromium for the browser tests (never a downloaded browser build).
+chromium:
+	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || \
+	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium >/dev/null; }
+
+demo: setup
+	$(VENV)/bin/servodesk serve --sim --host $(HOST) --port $(PORT)
+
+lint: $(VENV)/.synced
+	$(VENV)/bin/ruff check backend tests bench
+	$(VENV)/bin/ruff format --check backend tests bench
+
+typecheck: $(VENV)/.synced $(FRONTEND)/node_modules/.package-lock.json
+	$(VENV)/bin/mypy
+	cd $(FRONTEND) && npm run --silent typecheck
+
+unit: setup
+	cd $(FRONTEND) && npm test --silent
+
+test: setup chromium lint typecheck unit
+	$(VENV)/bin/pytest -q -p no:cacheprovider
+
+bench: setup
+	$(PY) bench/bench_sdo.py --json
+	$(PY) bench/bench_sim.py --json
+
+openapi: $(VENV)/.synced
+	$(VENV)/bin/servodesk openapi > backend/openapi.json
+
+clean:
+	rm -rf $(VENV) $(TOOLS) $(FRONTEND)/node_modules $(WEB_DIST)

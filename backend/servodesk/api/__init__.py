@@ -1,0 +1,1 @@
+"""HTTP and WebSocket API (FastAPI): thin routes over the services."""

@@ -1,0 +1,102 @@
+"""Application assembly: ``create_app(settings)`` wires services, routes and the UI."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+from collections.abc import AsyncIterator
+from pathlib import Path
+
+from fastapi import FastAPI
+from fastapi.openapi.docs import get_swagger_ui_html
+from fastapi.responses import HTMLResponse
+from fastapi.staticfiles import StaticFiles
+
+from servodesk import __version__
+from servodesk.api import errors
+from servodesk.api.auth import TokenMiddleware
+from servodesk.api.deps import AppState
+from servodesk.api.routes import sessions, system
+from servodesk.api.ws import router as ws_router
+from servodesk.domain.profile_loader import ProfileCatalog, default_profile_dirs
+from servodesk.services.events import EventHub
+from servodesk.services.manager import SessionManager
+from servodesk.settings import Settings
+
+log = logging.getLogger(__name__)
+
+WEB_DIST = Path(__file__).resolve().parent.parent / "web" / "dist"
+
+_NO_UI = """<!doctype html><title>servodesk</title>
+<h1>servodesk API is running</h1>
+<p>The browser UI has not been built. Run <code>make build</code> (or
+<code>cd frontend && npm ci && npm run build</code>) and reload. The API docs are at
+<a href="/docs">/docs</a>.</p>"""
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    settings = settings or Settings()
+    catalog = ProfileCatalog(default_profile_dirs(settings.profile_paths()))
+    hub = EventHub()
+    manager = SessionManager(
+        catalog, hub, sdo_timeout=settings.sdo_timeout, poll_hz=settings.poll_hz
+    )
+    state = AppState(settings=settings, catalog=catalog, hub=hub, manager=manager)
+
+    @contextlib.asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        if settings.sim:
+            from servodesk.services.simulation import start_simulation
+
+            state.sim = await start_simulation(settings, catalog, manager)
+        try:
+            yield
+        finally:
+            await manager.close_all()
+            if state.sim is not None:
+                state.sim.stop()
+                state.sim = None
+
+    app = FastAPI(
+        title="servodesk",
+        version=__version__,
+        description="Commissioning API for CiA 402 servo drives.",
+        lifespan=lifespan,
+        docs_url=None,
+        redoc_url=None,
+    )
+    app.state.servodesk = state
+    errors.install(app)
+    app.include_router(system.router, prefix="/api/v1")
+    app.include_router(sessions.router, prefix="/api/v1")
+    app.include_router(ws_router, prefix="/api/v1")
+
+    swagger = WEB_DIST / "vendor" / "swagger-ui"
+
+    @app.get("/docs", include_in_schema=False)
+    async def docs() -> HTMLResponse:
+        # Served from the bundled swagger-ui-dist so the docs work offline.
+        if (swagger / "swagger-ui-bundle.js").is_file():
+            return get_swagger_ui_html(
+                openapi_url="/openapi.json",
+                title="servodesk API",
+                swagger_js_url="/vendor/swagger-ui/swagger-ui-bundle.js",
+                swagger_css_url="/vendor/swagger-ui/swagger-ui.css",
+                swagger_favicon_url="/favicon.svg",
+            )
+        return HTMLResponse(
+            "<p>The offline API docs need the built frontend (make build). "
+            'The schema is at <a href="/openapi.json">/openapi.json</a>.</p>'
+        )
+
+    if (WEB_DIST / "index.html").is_file():
+        app.mount("/", StaticFiles(directory=WEB_DIST, html=True), name="ui")
+    else:
+
+        @app.get("/", include_in_schema=False)
+        async def no_ui() -> HTMLResponse:
+            return HTMLResponse(_NO_UI)
+
+    if settings.token:
+        app.add_middleware(TokenMiddleware, token=settings.token)
+    return app

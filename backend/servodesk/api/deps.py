@@ -1,0 +1,30 @@
+"""FastAPI dependencies: the application state as typed aliases."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Annotated, Any
+
+from fastapi import Depends, Request
+
+from servodesk.domain.profile_loader import ProfileCatalog
+from servodesk.services.events import EventHub
+from servodesk.services.manager import SessionManager
+from servodesk.settings import Settings
+
+
+@dataclass
+class AppState:
+    settings: Settings
+    catalog: ProfileCatalog
+    hub: EventHub
+    manager: SessionManager
+    sim: Any = None
+
+
+def get_state(request: Request) -> AppState:
+    state: AppState = request.app.state.servodesk
+    return state
+
+
+StateDep = Annotated[AppState, Depends(get_state)]

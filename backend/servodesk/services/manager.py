@@ -1,0 +1,225 @@
+"""Opening, listing and closing drive sessions; scanning a bus for drives."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from dataclasses import asdict
+from typing import Any
+
+from servodesk.domain.profile import DeviceProfile
+from servodesk.domain.profile_loader import ProfileCatalog
+from servodesk.domain.address import ObjectAddress
+from servodesk.errors import (
+    ConflictError,
+    LinkError,
+    LinkTimeoutError,
+    NotFoundError,
+    ObjectAccessError,
+    ServodeskError,
+    ValidationError,
+)
+from servodesk.links.base import DriveLink, Identity, LinkParams
+from servodesk.links.registry import LinkRegistry
+from servodesk.links.registry import registry as default_registry
+from servodesk.services.events import EventHub
+from servodesk.services.session import Session
+
+log = logging.getLogger(__name__)
+
+GENERIC = "cia402-generic"
+
+#: What the UI says about a twin whose own fieldbus link does not exist yet.
+_TWIN_NOTE = (
+    "{vendor} {name} speaks {fieldbus}; its simulated twin runs on CANopen "
+    "until the {fieldbus} link exists."
+)
+
+
+class SessionManager:
+    def __init__(
+        self,
+        catalog: ProfileCatalog,
+        hub: EventHub,
+        *,
+        links: LinkRegistry = default_registry,
+        sdo_timeout: float = 0.5,
+        poll_hz: float = 20.0,
+    ) -> None:
+        self.catalog = catalog
+        self.hub = hub
+        self.links = links
+        self.sdo_timeout = sdo_timeout
+        self.poll_hz = poll_hz
+        self._sessions: dict[str, Session] = {}
+        self._lock = asyncio.Lock()
+
+    def all(self) -> list[Session]:
+        return list(self._sessions.values())
+
+    def get(self, sid: str) -> Session:
+        s = self._sessions.get(sid)
+        if s is None:
+            raise NotFoundError(
+                f"no session {sid!r}",
+                hint=f"open sessions: {', '.join(self._sessions) or 'none'}",
+            )
+        return s
+
+    async def open(
+        self,
+        params: LinkParams,
+        profile_id: str | None = None,
+        *,
+        fieldbus: str = "canopen",
+        simulated: bool = False,
+    ) -> Session:
+        async with self._lock:
+            for s in self._sessions.values():
+                p = s.link.params
+                if p.bus_key() == params.bus_key() and p.node_id == params.node_id:
+                    raise ConflictError(
+                        f"node {params.node_id} on {params.interface}:{params.channel} is "
+                        f"already open as session {s.id}",
+                        hint="use that session or close it first",
+                    )
+            chosen = self.catalog.get(profile_id) if profile_id else None
+            link_cls = self.links.get(fieldbus)
+            link = link_cls(params)
+            try:
+                await link.open()
+            except LinkError as exc:
+                # The bus itself cannot be opened: the request names a bad interface/channel.
+                raise ValidationError(exc.message, field="interface", hint=exc.hint) from exc
+            try:
+                await self._probe(link, params)
+                identity = await link.identity()
+                note = None
+                profile = chosen or self._detect(identity)
+                if profile is None:
+                    profile = self.catalog.get(GENERIC)
+                    note = (
+                        f"No profile matches vendor 0x{identity.vendor_id or 0:08X} product "
+                        f"0x{identity.product_code or 0:08X}; using the generic CiA 402 profile."
+                    )
+                if profile.fieldbus != link.fieldbus:
+                    note = _TWIN_NOTE.format(
+                        vendor=profile.vendor, name=profile.name, fieldbus=_bus_name(profile)
+                    )
+                sid = self._new_id(profile, params.node_id)
+                session = Session(
+                    sid,
+                    link,
+                    profile,
+                    self.hub,
+                    identity=identity,
+                    simulated=simulated,
+                    note=note,
+                    poll_hz=self.poll_hz,
+                )
+                await session.start()
+            except BaseException:
+                await link.close()
+                raise
+            self._sessions[sid] = session
+        self.publish_sessions()
+        log.info("opened session %s (%s)", sid, profile.id)
+        return session
+
+    @staticmethod
+    async def _probe(link: DriveLink, params: LinkParams) -> None:
+        """Fail fast with 'not found' when no device answers at that node."""
+        try:
+            await link.read(ObjectAddress(0x1000))
+        except LinkTimeoutError as exc:
+            raise NotFoundError(
+                f"node {params.node_id} does not answer on {params.interface} "
+                f"channel {params.channel}",
+                hint="scan the bus to see which nodes answer; check the node id and bitrate",
+            ) from exc
+        except ObjectAccessError:
+            pass  # It answered (with an abort): the device is there.
+
+    def _detect(self, ident: Identity) -> DeviceProfile | None:
+        return self.catalog.match(
+            ident.vendor_id, ident.product_code, ident.revision, ident.device_name
+        )
+
+    def _new_id(self, profile: DeviceProfile, node_id: int) -> str:
+        base = f"{profile.id}-{node_id}"
+        sid, n = base, 2
+        while sid in self._sessions:
+            sid, n = f"{base}-{n}", n + 1
+        return sid
+
+    async def close(self, sid: str) -> None:
+        session = self.get(sid)
+        del self._sessions[sid]
+        await session.close()
+        self.publish_sessions()
+
+    async def close_all(self) -> None:
+        for sid in list(self._sessions):
+            try:
+                await self.close(sid)
+            except ServodeskError:
+                log.exception("closing %s", sid)
+
+    def publish_sessions(self) -> None:
+        self.hub.publish({"type": "sessions", "sessions": [s.info() for s in self.all()]})
+
+    async def scan(
+        self, interface: str, channel: str, bitrate: int | None, timeout: float
+    ) -> list[dict[str, Any]]:
+        """Nodes on a CAN bus with their identity and the profile that matches them."""
+        from servodesk.links import canopen_link
+
+        base = LinkParams(
+            interface=interface, channel=channel, bitrate=bitrate, timeout=self.sdo_timeout
+        )
+        ids = await asyncio.to_thread(canopen_link.scan, base, timeout)
+        open_nodes = {
+            s.link.params.node_id: s
+            for s in self.all()
+            if s.link.params.bus_key() == base.bus_key()
+        }
+        out: list[dict[str, Any]] = []
+        for node_id in ids:
+            if node_id in open_nodes:
+                ident = open_nodes[node_id].identity
+            else:
+                link = canopen_link.CanopenLink(
+                    LinkParams(
+                        interface=interface,
+                        channel=channel,
+                        bitrate=bitrate,
+                        node_id=node_id,
+                        timeout=self.sdo_timeout,
+                    )
+                )
+                try:
+                    await link.open()
+                    ident = await link.identity()
+                except ServodeskError:
+                    ident = Identity()
+                finally:
+                    await link.close()
+            prof = self._detect(ident)
+            out.append(
+                {
+                    "node_id": node_id,
+                    **asdict(ident),
+                    "profile_id": prof.id if prof else None,
+                    "session_id": open_nodes[node_id].id if node_id in open_nodes else None,
+                }
+            )
+        return out
+
+
+def _bus_name(p: DeviceProfile) -> str:
+    return {
+        "ethercat": "EtherCAT",
+        "profinet": "PROFINET",
+        "cclink-ie-tsn": "CC-Link IE TSN",
+        "canopen": "CANopen",
+    }.get(p.fieldbus, p.fieldbus)

@@ -1,0 +1,392 @@
+"""A drive session: one connected drive (or axis), its link, profile, state and events.
+
+The API sees sessions only. A session validates every access against its profile before it
+reaches the link, polls the drive's CiA 402 state for live updates, and turns link events
+(EMCY, NMT, link loss) into messages for the WebSocket hub.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+from dataclasses import asdict, dataclass
+from typing import Any
+
+from servodesk.domain import cia402
+from servodesk.domain.address import ObjectAddress
+from servodesk.domain.datatypes import DataType, Value, codec
+from servodesk.domain.profile import DeviceProfile, ErrorEntry
+from servodesk.domain.values import ObjectValue, describe, encode_write
+from servodesk.errors import DriveStateError, LinkError, ServodeskError, ValidationError
+from servodesk.links.base import DriveLink, Identity, LinkEvent
+from servodesk.services.events import EventHub
+
+log = logging.getLogger(__name__)
+
+STATUSWORD = ObjectAddress(0x6041)
+CONTROLWORD = ObjectAddress(0x6040)
+MODE_DISPLAY = ObjectAddress(0x6061)
+POSITION = ObjectAddress(0x6064)
+VELOCITY = ObjectAddress(0x606C)
+ERROR_CODE = ObjectAddress(0x603F)
+
+#: State commands of the API: single controlword commands, and goals walked step by step.
+COMMANDS: dict[str, cia402.Command] = {c.value: c for c in cia402.Command}
+GOALS: dict[str, cia402.State] = {
+    "enable": cia402.State.OPERATION_ENABLED,
+    "disable": cia402.State.SWITCH_ON_DISABLED,
+}
+
+
+def error_info(e: ErrorEntry) -> dict[str, Any]:
+    return {
+        "table": e.table,
+        "code": e.code,
+        "code_hex": f"0x{e.code:04X}" if e.code <= 0xFFFF else f"0x{e.code:08X}",
+        "display": e.display,
+        "name": e.name,
+        "kind": e.kind,
+        "cause": e.cause,
+        "remedy": e.remedy,
+        "section": e.section,
+    }
+
+
+@dataclass(frozen=True, slots=True)
+class DriveState:
+    state: str
+    statusword: int
+    statusword_hex: str
+    bits: list[dict[str, object]]
+    mode: int | None
+    mode_name: str | None
+    position: int | None
+    velocity: int | None
+    position_unit: str | None
+    velocity_unit: str | None
+    position_eng: float | None
+    velocity_eng: float | None
+    position_raw_unit: str | None
+    velocity_raw_unit: str | None
+    error_code: int | None
+    error: dict[str, Any] | None
+    nmt_state: str
+    time: float
+
+    def key(self) -> tuple[Any, ...]:
+        return (
+            self.statusword,
+            self.mode,
+            self.position,
+            self.velocity,
+            self.error_code,
+            self.nmt_state,
+        )
+
+
+class Session:
+    def __init__(
+        self,
+        sid: str,
+        link: DriveLink,
+        profile: DeviceProfile,
+        hub: EventHub,
+        *,
+        identity: Identity,
+        simulated: bool = False,
+        note: str | None = None,
+        poll_hz: float = 20.0,
+    ) -> None:
+        self.id = sid
+        self.link = link
+        self.profile = profile
+        self.hub = hub
+        self.identity = identity
+        self.simulated = simulated
+        self.note = note
+        self.poll_hz = poll_hz
+        self.connected = True
+        self.last_state: DriveState | None = None
+        self._last_controlword_at = 0.0
+        self._poll_task: asyncio.Task[None] | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._failures = 0
+
+    # Lifecycle ----------------------------------------------------------------------------
+
+    async def start(self) -> None:
+        self._loop = asyncio.get_running_loop()
+        self.link.add_event_callback(self._on_link_event)
+        with contextlib.suppress(ServodeskError):
+            self.last_state = await self.drive_state()
+        self._poll_task = asyncio.create_task(self._poll(), name=f"poll {self.id}")
+
+    async def close(self) -> None:
+        if self._poll_task is not None:
+            self._poll_task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._poll_task
+            self._poll_task = None
+        self.link.remove_event_callback(self._on_link_event)
+        await self.link.close()
+        self.connected = False
+        self.hub.publish(
+            {"type": "link", "session": self.id, "event": "closed", "message": "session closed"},
+            session=self.id,
+        )
+
+    def info(self) -> dict[str, Any]:
+        p = self.link.params
+        return {
+            "id": self.id,
+            "node_id": p.node_id,
+            "interface": p.interface,
+            "channel": p.channel,
+            "bitrate": p.bitrate,
+            "profile_id": self.profile.id,
+            "profile_name": self.profile.name,
+            "fieldbus": self.profile.fieldbus,
+            "link": self.link.fieldbus,
+            "simulated": self.simulated,
+            "note": self.note,
+            "identity": asdict(self.identity),
+            "connected": self.connected,
+            "state": self.last_state.state if self.last_state else cia402.State.UNKNOWN.value,
+            "nmt_state": self.last_state.nmt_state if self.last_state else "unknown",
+        }
+
+    # Objects -----------------------------------------------------------------------------
+
+    async def read_object(self, address: ObjectAddress) -> ObjectValue:
+        raw = await self.link.read(address)
+        return describe(address, self.profile.spec(address), raw)
+
+    async def write_object(
+        self, address: ObjectAddress, value: Value | None = None, raw_hex: str | None = None
+    ) -> ObjectValue:
+        spec = self.profile.spec(address)
+        data = encode_write(address, spec, value, raw_hex)
+        if address == CONTROLWORD:
+            await self._space_controlword()
+        await self.link.write(address, data)
+        if address == CONTROLWORD:
+            self._last_controlword_at = time.monotonic()
+        log.info("write %s %s = %s on %s", address, spec.name if spec else "?", data.hex(), self.id)
+        if spec is not None and not spec.access.readable:
+            return describe(address, spec, data)
+        return await self.read_object(address)
+
+    async def _read_int(self, address: ObjectAddress, default_type: DataType) -> int | None:
+        spec = self.profile.spec(address)
+        if spec is None and self.profile.variables:
+            return None
+        raw = await self.link.read(address)
+        v = codec(spec.data_type if spec else default_type).decode(raw)
+        return int(v) if isinstance(v, int | bool) else None
+
+    # CiA 402 state -------------------------------------------------------------------------
+
+    async def drive_state(self) -> DriveState:
+        sw = await self._read_int(STATUSWORD, DataType.UNSIGNED16)
+        if sw is None:
+            raise DriveStateError(
+                f"profile {self.profile.id} has no statusword (6041h)",
+                hint="this drive is not a CiA 402 axis",
+            )
+        mode = await self._opt(MODE_DISPLAY, DataType.INTEGER8)
+        pos = await self._opt(POSITION, DataType.INTEGER32)
+        vel = await self._opt(VELOCITY, DataType.INTEGER32)
+        err = await self._opt(ERROR_CODE, DataType.UNSIGNED16)
+        state = cia402.decode_state(sw)
+        error = None
+        if err:
+            entry = self.profile.error("error_code", err) or self.profile.error("emcy", err)
+            error = (
+                error_info(entry)
+                if entry
+                else {
+                    "table": "error_code",
+                    "code": err,
+                    "code_hex": f"0x{err:04X}",
+                    "display": None,
+                    "name": "Unknown error code",
+                    "kind": "fault",
+                    "cause": None,
+                    "remedy": None,
+                    "section": None,
+                }
+            )
+        pspec, vspec = self.profile.spec(POSITION), self.profile.spec(VELOCITY)
+        return DriveState(
+            state=state.value,
+            statusword=sw,
+            statusword_hex=f"0x{sw:04X}",
+            bits=cia402.decode_statusword(sw, mode),
+            mode=mode,
+            mode_name=cia402.mode_name(mode) if mode is not None else None,
+            position=pos,
+            velocity=vel,
+            position_unit=pspec.unit if pspec else None,
+            velocity_unit=vspec.unit if vspec else None,
+            position_eng=pos * pspec.scale if pspec and pos is not None and pspec.unit else None,
+            velocity_eng=vel * vspec.scale if vspec and vel is not None and vspec.unit else None,
+            position_raw_unit=pspec.raw_unit if pspec else None,
+            velocity_raw_unit=vspec.raw_unit if vspec else None,
+            error_code=err,
+            error=error,
+            nmt_state=await self.link.network_state(),
+            time=time.time(),
+        )
+
+    async def _opt(self, address: ObjectAddress, dt: DataType) -> int | None:
+        try:
+            return await self._read_int(address, dt)
+        except ServodeskError as exc:
+            if isinstance(exc, LinkError):
+                raise
+            return None
+
+    async def command(self, name: str) -> DriveState:
+        """Run a state command or walk to a goal state (``enable``/``disable``)."""
+        if name in GOALS:
+            await self._walk(GOALS[name])
+        elif name in COMMANDS:
+            await self._send(COMMANDS[name])
+            await asyncio.sleep(0.02)
+        else:
+            raise ValidationError(
+                f"unknown state command {name!r}",
+                field="command",
+                hint=f"use one of {', '.join([*COMMANDS, *GOALS])}",
+            )
+        st = await self.drive_state()
+        self._publish_state(st)
+        return st
+
+    async def _send(self, command: cia402.Command) -> None:
+        if command is cia402.Command.FAULT_RESET:
+            # CiA 402-2 §6.2.1: fault reset acts on the rising edge of bit 7.
+            await self._write_controlword(0x0000)
+        await self._write_controlword(cia402.command_word(command))
+
+    async def _write_controlword(self, word: int) -> None:
+        await self._space_controlword()
+        await self.link.write(CONTROLWORD, word.to_bytes(2, "little"))
+        self._last_controlword_at = time.monotonic()
+
+    async def _space_controlword(self) -> None:
+        # Some drives ignore controlword changes that come too fast (quirk from the profile).
+        gap_ms = self.profile.quirk("controlword_min_interval_ms", 0) or 0
+        wait = self._last_controlword_at + gap_ms / 1000.0 - time.monotonic()
+        if wait > 0:
+            await asyncio.sleep(wait)
+
+    async def _walk(self, target: cia402.State) -> None:
+        for _ in range(8):
+            sw = await self._read_int(STATUSWORD, DataType.UNSIGNED16)
+            state = cia402.decode_state(sw or 0)
+            if state == target:
+                return
+            try:
+                path = cia402.command_path(state, target)
+            except ValueError as exc:
+                raise DriveStateError(str(exc)) from exc
+            await self._send(path[0])
+            if not await self._wait_change(state, timeout=1.0):
+                raise DriveStateError(
+                    f"the drive stayed in {state.value} after {path[0].value}",
+                    hint="check the drive's enable inputs, safe torque off and error code",
+                )
+        raise DriveStateError(f"could not reach {target.value}")
+
+    async def _wait_change(self, old: cia402.State, timeout: float) -> bool:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            sw = await self._read_int(STATUSWORD, DataType.UNSIGNED16)
+            if cia402.decode_state(sw or 0) != old:
+                return True
+            await asyncio.sleep(0.005)
+        return False
+
+    # Live updates ---------------------------------------------------------------------------
+
+    def _publish_state(self, st: DriveState) -> None:
+        self.last_state = st
+        self.hub.publish({"type": "state", "session": self.id, **asdict(st)}, session=self.id)
+
+    async def _poll(self) -> None:
+        last_sent = 0.0
+        while True:
+            period = 1.0 / self.poll_hz if self.hub.watchers(self.id) else 1.0
+            await asyncio.sleep(period)
+            try:
+                st = await self.drive_state()
+            except LinkError as exc:
+                self._failures += 1
+                if self._failures == 3 and self.connected:
+                    self.connected = False
+                    self.hub.publish(
+                        {
+                            "type": "link",
+                            "session": self.id,
+                            "event": "lost",
+                            "message": exc.message,
+                        },
+                        session=self.id,
+                    )
+                    self.hub.publish({"type": "sessions_changed"})
+                continue
+            except ServodeskError:
+                continue
+            if not self.connected:
+                self.connected = True
+                self.hub.publish(
+                    {
+                        "type": "link",
+                        "session": self.id,
+                        "event": "restored",
+                        "message": "the drive answers again",
+                    },
+                    session=self.id,
+                )
+                self.hub.publish({"type": "sessions_changed"})
+            self._failures = 0
+            changed = self.last_state is None or st.key() != self.last_state.key()
+            if changed or time.monotonic() - last_sent > 1.0:
+                if self.last_state is None or st.state != self.last_state.state:
+                    self.hub.publish({"type": "sessions_changed"})
+                self._publish_state(st)
+                last_sent = time.monotonic()
+
+    def _on_link_event(self, ev: LinkEvent) -> None:
+        # Called on a bus thread: hand over to the event loop.
+        if self._loop is None:
+            return
+        self._loop.call_soon_threadsafe(self._handle_event, ev)
+
+    def _handle_event(self, ev: LinkEvent) -> None:
+        if ev.kind == "emcy":
+            code = int(ev.data.get("code", 0))
+            entry = self.profile.error("emcy", code) or self.profile.error("error_code", code)
+            msg: dict[str, Any] = {
+                "type": "emcy",
+                "session": self.id,
+                "code": code,
+                "code_hex": f"0x{code:04X}",
+                "register": ev.data.get("register", 0),
+                "data": ev.data.get("data", ""),
+                "time": ev.time,
+                "name": entry.name
+                if entry
+                else ("Error reset / no error" if code == 0 else "Unknown error code"),
+                "cause": entry.cause if entry else None,
+                "remedy": entry.remedy if entry else None,
+            }
+            self.hub.publish(msg, session=self.id)
+        elif ev.kind == "nmt":
+            self.hub.publish(
+                {"type": "nmt", "session": self.id, "state": ev.data.get("state"), "time": ev.time},
+                session=self.id,
+            )

@@ -1,0 +1,50 @@
+"""``serve --sim``: one simulated drive per family on a virtual bus, each opened as a session."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from typing import Any
+
+from servodesk.domain.profile_loader import ProfileCatalog
+from servodesk.links.base import LinkParams
+from servodesk.services.manager import SessionManager
+from servodesk.settings import Settings
+
+log = logging.getLogger(__name__)
+
+#: Node ids of the simulated drives, in this order of profiles (others follow).
+PREFERRED = ["cia402-generic", "hiwin-e", "smartris", "ctmm04x", "lecsn-t"]
+
+
+def simulated_drives(catalog: ProfileCatalog) -> list[tuple[str, int]]:
+    ids = catalog.ids()
+    ordered = [p for p in PREFERRED if p in ids] + [p for p in ids if p not in PREFERRED]
+    return [(pid, n + 1) for n, pid in enumerate(ordered)]
+
+
+async def start_simulation(
+    settings: Settings, catalog: ProfileCatalog, manager: SessionManager
+) -> Any:
+    from servodesk.sim.bus import SimulatedBus
+
+    drives = simulated_drives(catalog)
+    sim = await asyncio.to_thread(
+        SimulatedBus.start,
+        drives=drives,
+        interface=settings.sim_interface,
+        channel=settings.sim_channel,
+        catalog=catalog,
+    )
+    for pid, node in drives:
+        params = LinkParams(
+            interface=settings.sim_interface,
+            channel=settings.sim_channel,
+            node_id=node,
+            timeout=settings.sdo_timeout,
+        )
+        try:
+            await manager.open(params, pid, simulated=True)
+        except Exception:
+            log.exception("could not open the simulated %s drive (node %d)", pid, node)
+    return sim

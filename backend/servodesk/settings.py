@@ -1,0 +1,40 @@
+"""Settings from environment variables ``SERVODESK_*`` (one pydantic-settings object)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pydantic import Field
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+
+class Settings(BaseSettings):
+    model_config = SettingsConfigDict(env_prefix="SERVODESK_", extra="ignore")
+
+    host: str = "127.0.0.1"
+    port: int = Field(default=8000, ge=1, le=65535)
+    #: Required on every request when ``host`` is not a loopback address; generated and
+    #: printed at start-up when not set.
+    token: str | None = None
+    #: Start one simulated drive per family profile on a virtual bus.
+    sim: bool = False
+    sim_interface: str = "virtual"
+    sim_channel: str = "servodesk-sim"
+    #: Extra profile directories, searched before the shipped profiles (os.pathsep list).
+    profile_dirs: str = ""
+    #: Where backups, the audit log and the store live.
+    data_dir: Path = Path.home() / ".servodesk"
+    #: How often a session polls the drive's state for live updates (Hz).
+    poll_hz: float = Field(default=20.0, gt=0, le=200)
+    #: SDO response time-out in seconds.
+    sdo_timeout: float = Field(default=0.5, gt=0, le=30)
+    log_level: str = "info"
+
+    def profile_paths(self) -> list[Path]:
+        import os
+
+        return [Path(p) for p in self.profile_dirs.split(os.pathsep) if p]
+
+    @property
+    def is_loopback(self) -> bool:
+        return self.host in ("127.0.0.1", "localhost", "::1") or self.host.startswith("127.")
