@@ -391,7 +391,8 @@ class PdoRules(BaseModel):
     tpdo_count: int = 4
     max_entries: int = 8
     max_bits: int = 64
-    #: The NMT/ESM state in which mapping may be changed ("preop", "any").
+    #: When mapping may be changed: "preop" (NMT/ESM pre-operational), "safeop", "any", or
+    #: "fixed" (the mapping cannot be changed at all).
     mapping_state: str = "preop"
     section: str | None = None
 
