@@ -20,6 +20,8 @@ class Settings(BaseSettings):
     sim: bool = False
     sim_interface: str = "virtual"
     sim_channel: str = "servodesk-sim"
+    #: Comma-separated profile ids to simulate; empty: one drive per shipped profile.
+    sim_profiles: str = ""
     #: Extra profile directories, searched before the shipped profiles (os.pathsep list).
     profile_dirs: str = ""
     #: Where backups, the audit log and the store live.

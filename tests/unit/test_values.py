@@ -5,7 +5,7 @@ import pytest
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.profile_loader import ProfileCatalog
 from servodesk.domain.values import describe, encode_write
-from servodesk.errors import ValidationError
+from servodesk.errors import ObjectAccessError, ValidationError
 
 P = ProfileCatalog().get("cia402-generic")
 
@@ -14,9 +14,11 @@ def spec(index: int, sub: int = 0):  # type: ignore[no-untyped-def]
     return P.spec(ObjectAddress(index, sub))
 
 
-def test_read_only_objects_are_refused_before_the_bus() -> None:
-    with pytest.raises(ValidationError, match="cannot be written"):
+def test_read_only_objects_are_refused_before_the_bus_with_the_abort_code() -> None:
+    with pytest.raises(ObjectAccessError, match="nothing was sent") as info:
         encode_write(ObjectAddress(0x6041), spec(0x6041), 1)
+    assert info.value.code == 0x06010002
+    assert info.value.meaning == "Attempt to write a read only object"
 
 
 def test_range_from_the_profile_with_units() -> None:

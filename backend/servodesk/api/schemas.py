@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from servodesk.links.registry import can_interfaces
 
 Scalar = int | float | bool | str | None
 
@@ -19,6 +21,19 @@ class ErrorOut(BaseModel):
     meaning: str | None = None
     protocol: str | None = None
     address: str | None = None
+
+
+#: Error answers every route may give (documented so clients and schema checks know them).
+ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
+    code: {"model": ErrorOut, "description": text}
+    for code, text in (
+        (400, "Bad value or refused by the drive (with the protocol code)"),
+        (404, "No such session, profile, object or node"),
+        (409, "Not possible in the present state, or control held by another client"),
+        (502, "Bus failure"),
+        (504, "The drive did not answer in time"),
+    )
+}
 
 
 class HealthOut(BaseModel):
@@ -99,21 +114,30 @@ class ProfileDetail(ProfileSummary):
     quirks: list[QuirkInfo]
 
 
+_CAN_INTERFACES = can_interfaces()
+
+
 class BusParams(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     interface: str = Field(
         default="virtual",
-        min_length=1,
-        max_length=64,
         description="python-can interface: virtual, udp_multicast, socketcan, pcan, kvaser, ...",
+        json_schema_extra={"enum": _CAN_INTERFACES},
     )
     channel: str = Field(default="servodesk-sim", min_length=1, max_length=128)
     bitrate: int | None = Field(default=None, ge=10_000, le=1_000_000)
 
+    @field_validator("interface")
+    @classmethod
+    def _known_interface(cls, v: str) -> str:
+        if v not in _CAN_INTERFACES:
+            raise ValueError(f"unknown CAN interface; python-can has {', '.join(_CAN_INTERFACES)}")
+        return v
+
 
 class ScanRequest(BusParams):
-    timeout: float = Field(default=0.5, ge=0.05, le=5.0, description="Seconds to wait for answers")
+    timeout: float = Field(default=0.5, ge=0.05, le=3.0, description="Seconds to wait for answers")
 
 
 class IdentityOut(BaseModel):

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import Value, codec, coerce_float, coerce_int
 from servodesk.domain.profile import ObjectSpec
-from servodesk.errors import ValidationError
+from servodesk.domain.sdo_abort import ABORT_CODES
+from servodesk.errors import ObjectAccessError, ValidationError
 
 
 @dataclass(frozen=True, slots=True)
@@ -76,9 +77,16 @@ def encode_write(
             hint='send {"value": 1000} or {"raw_hex": "e8030000"}',
         )
     if spec is not None and not spec.access.writable:
-        raise ValidationError(
-            f"{address} {spec.name} is {spec.access.value} and cannot be written",
-            field="value",
+        # Refused before the bus, but reported with the abort code the drive would send
+        # (CiA 301 0601 0002h) so the user sees the familiar code and text.
+        code = 0x06010002
+        raise ObjectAccessError(
+            f"write {address} {spec.name} refused: {ABORT_CODES[code]} "
+            f"(the profile marks it {spec.access.value}; nothing was sent)",
+            code=code,
+            meaning=ABORT_CODES[code],
+            protocol="profile",
+            address=str(address),
             hint="choose a writable object",
         )
     if raw_hex is not None:

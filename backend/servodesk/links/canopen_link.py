@@ -21,7 +21,13 @@ from canopen.sdo.exceptions import SdoAbortedError, SdoCommunicationError
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, codec
 from servodesk.domain.sdo_abort import ABORT_HINTS, abort_text
-from servodesk.errors import LinkError, LinkTimeoutError, ObjectAccessError, ValidationError
+from servodesk.errors import (
+    LinkError,
+    LinkTimeoutError,
+    NotFoundError,
+    ObjectAccessError,
+    ValidationError,
+)
 from servodesk.links.base import DriveLink, Identity, LinkParams
 
 log = logging.getLogger(__name__)
@@ -77,7 +83,7 @@ class NetworkPool:
                 try:
                     network.connect(**kwargs)
                 except Exception as exc:  # python-can raises many types per backend.
-                    raise LinkError(
+                    raise NotFoundError(
                         f"cannot open CAN interface {params.interface!r} channel "
                         f"{params.channel!r}: {exc}",
                         hint="check the interface name, channel and that the adapter is present",

@@ -59,6 +59,15 @@ class LinkRegistry:
         return out
 
 
+def can_interfaces() -> list[str]:
+    """The python-can interface names (empty when python-can is missing)."""
+    try:
+        import can
+    except ImportError:
+        return []
+    return sorted(can.interfaces.VALID_INTERFACES)
+
+
 registry = LinkRegistry()
 registry.register(
     "canopen",

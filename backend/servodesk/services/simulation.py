@@ -17,8 +17,13 @@ log = logging.getLogger(__name__)
 PREFERRED = ["cia402-generic", "hiwin-e", "smartris", "ctmm04x", "lecsn-t"]
 
 
-def simulated_drives(catalog: ProfileCatalog) -> list[tuple[str, int]]:
+def simulated_drives(catalog: ProfileCatalog, only: str = "") -> list[tuple[str, int]]:
     ids = catalog.ids()
+    wanted = [p.strip() for p in only.split(",") if p.strip()]
+    if wanted:
+        for pid in wanted:
+            catalog.get(pid)  # An unknown id fails here with the list of known ones.
+        ids = wanted
     ordered = [p for p in PREFERRED if p in ids] + [p for p in ids if p not in PREFERRED]
     return [(pid, n + 1) for n, pid in enumerate(ordered)]
 
@@ -28,7 +33,7 @@ async def start_simulation(
 ) -> Any:
     from servodesk.sim.bus import SimulatedBus
 
-    drives = simulated_drives(catalog)
+    drives = simulated_drives(catalog, settings.sim_profiles)
     sim = await asyncio.to_thread(
         SimulatedBus.start,
         drives=drives,

@@ -8,8 +8,8 @@ from fastapi import APIRouter, Response
 
 from servodesk.api.deps import StateDep
 from servodesk.api.schemas import (
+    ERROR_RESPONSES,
     DriveStateOut,
-    ErrorOut,
     ObjectValueOut,
     ScanOut,
     ScanRequest,
@@ -22,22 +22,19 @@ from servodesk.domain.address import ObjectAddress
 from servodesk.domain.values import ObjectValue
 from servodesk.links.base import LinkParams
 
-router = APIRouter(tags=["sessions"])
-
-_ERRORS: dict[int | str, dict[str, object]] = {
-    code: {"model": ErrorOut} for code in (400, 404, 409, 502, 504)
-}
+router = APIRouter(tags=["sessions"], responses=ERROR_RESPONSES)
 
 
 def _value_out(v: ObjectValue) -> ObjectValueOut:
     d = asdict(v)
-    addr: ObjectAddress = d.pop("address")
-    return ObjectValueOut(address=str(addr), index=addr.index, subindex=addr.subindex, **d)
+    del d["address"]  # asdict turned it into a mapping; use the object itself.
+    a = v.address
+    return ObjectValueOut(address=str(a), index=a.index, subindex=a.subindex, **d)
 
 
-@router.post("/bus/scan", operation_id="scan_bus", responses=_ERRORS)
+@router.post("/bus/scan", operation_id="scan_bus")
 async def scan_bus(body: ScanRequest, state: StateDep) -> ScanOut:
-    nodes = await state.manager.scan(body.interface, body.channel, body.bitrate, body.timeout)
+    nodes = await state.manager.scan(str(body.interface), body.channel, body.bitrate, body.timeout)
     return ScanOut.model_validate({"nodes": nodes})
 
 
@@ -46,10 +43,10 @@ async def list_sessions(state: StateDep) -> list[SessionInfo]:
     return [SessionInfo.model_validate(s.info()) for s in state.manager.all()]
 
 
-@router.post("/sessions", status_code=201, operation_id="open_session", responses=_ERRORS)
+@router.post("/sessions", status_code=201, operation_id="open_session")
 async def open_session(body: SessionCreate, state: StateDep) -> SessionInfo:
     params = LinkParams(
-        interface=body.interface,
+        interface=str(body.interface),
         channel=body.channel,
         bitrate=body.bitrate,
         node_id=body.node_id,
@@ -59,24 +56,24 @@ async def open_session(body: SessionCreate, state: StateDep) -> SessionInfo:
     return SessionInfo.model_validate(session.info())
 
 
-@router.get("/sessions/{sid}", operation_id="get_session", responses=_ERRORS)
+@router.get("/sessions/{sid}", operation_id="get_session")
 async def get_session(sid: str, state: StateDep) -> SessionInfo:
     return SessionInfo.model_validate(state.manager.get(sid).info())
 
 
-@router.delete("/sessions/{sid}", status_code=204, operation_id="close_session", responses=_ERRORS)
+@router.delete("/sessions/{sid}", status_code=204, operation_id="close_session")
 async def close_session(sid: str, state: StateDep) -> Response:
     await state.manager.close(sid)
     return Response(status_code=204)
 
 
-@router.get("/sessions/{sid}/objects/{address}", operation_id="read_object", responses=_ERRORS)
+@router.get("/sessions/{sid}/objects/{address}", operation_id="read_object")
 async def read_object(sid: str, address: str, state: StateDep) -> ObjectValueOut:
     session = state.manager.get(sid)
     return _value_out(await session.read_object(ObjectAddress.parse(address)))
 
 
-@router.put("/sessions/{sid}/objects/{address}", operation_id="write_object", responses=_ERRORS)
+@router.put("/sessions/{sid}/objects/{address}", operation_id="write_object")
 async def write_object(
     sid: str, address: str, body: WriteRequest, state: StateDep
 ) -> ObjectValueOut:
@@ -85,13 +82,13 @@ async def write_object(
     return _value_out(await session.write_object(addr, body.value, body.raw_hex))
 
 
-@router.get("/sessions/{sid}/state", operation_id="get_state", responses=_ERRORS)
+@router.get("/sessions/{sid}/state", operation_id="get_state")
 async def get_state(sid: str, state: StateDep) -> DriveStateOut:
     st = await state.manager.get(sid).drive_state()
     return DriveStateOut.model_validate(asdict(st))
 
 
-@router.post("/sessions/{sid}/state", operation_id="command_state", responses=_ERRORS)
+@router.post("/sessions/{sid}/state", operation_id="command_state")
 async def command_state(sid: str, body: StateCommand, state: StateDep) -> DriveStateOut:
     st = await state.manager.get(sid).command(body.command)
     return DriveStateOut.model_validate(asdict(st))

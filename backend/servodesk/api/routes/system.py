@@ -7,6 +7,7 @@ from fastapi import APIRouter
 from servodesk import __version__
 from servodesk.api.deps import StateDep
 from servodesk.api.schemas import (
+    ERROR_RESPONSES,
     ErrorInfo,
     GroupInfo,
     HealthOut,
@@ -18,7 +19,7 @@ from servodesk.api.schemas import (
 from servodesk.domain.profile import DeviceProfile, ObjectSpec
 from servodesk.services.session import error_info
 
-router = APIRouter(tags=["system"])
+router = APIRouter(tags=["system"], responses=ERROR_RESPONSES)
 
 
 @router.get("/health", operation_id="health")
