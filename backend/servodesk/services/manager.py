@@ -7,9 +7,9 @@ import logging
 from dataclasses import asdict
 from typing import Any
 
+from servodesk.domain.address import ObjectAddress
 from servodesk.domain.profile import DeviceProfile
 from servodesk.domain.profile_loader import ProfileCatalog
-from servodesk.domain.address import ObjectAddress
 from servodesk.errors import (
     ConflictError,
     LinkError,
