@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, JsonValue, field_validator
 
 from servodesk.links.registry import can_interfaces
 
@@ -115,6 +115,7 @@ class ProfileDetail(ProfileSummary):
 
 
 _CAN_INTERFACES = can_interfaces()
+_CAN_ENUM: list[JsonValue] = list(_CAN_INTERFACES)
 
 
 class BusParams(BaseModel):
@@ -123,7 +124,7 @@ class BusParams(BaseModel):
     interface: str = Field(
         default="virtual",
         description="python-can interface: virtual, udp_multicast, socketcan, pcan, kvaser, ...",
-        json_schema_extra={"enum": _CAN_INTERFACES},
+        json_schema_extra={"enum": _CAN_ENUM},
     )
     channel: str = Field(default="servodesk-sim", min_length=1, max_length=128)
     bitrate: int | None = Field(default=None, ge=10_000, le=1_000_000)

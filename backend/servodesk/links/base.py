@@ -12,7 +12,7 @@ import logging
 import threading
 import time
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Sequence
+from collections.abc import Awaitable, Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
@@ -103,10 +103,12 @@ class ObjectAccess(ABC):
 class DriveLink(ObjectAccess):
     """A connection to one drive (node / slave / axis) on a fieldbus.
 
-    Subclasses implement ``_open``, ``_close``, ``_read``, ``_write`` and, where the
-    fieldbus has them, ``_nmt`` and ``_scan``. Hooks are blocking and run in a worker
-    thread while holding this link's lock, so a hook never runs twice at once (the canopen
-    SDO client is not safe for concurrent use).
+    Subclasses implement ``_open``, ``_close`` and either the blocking ``_read``/``_write``
+    hooks (run in a worker thread) or the async ``_aread``/``_awrite`` hooks (run on the
+    event loop, for links whose library lets them await an answer without a thread). Where
+    the fieldbus has them, ``_nmt``, ``_identity`` and ``_network_state`` too. Public
+    methods hold this link's lock, so no two requests to one device overlap (the canopen
+    SDO client, for one, is not safe for concurrent use).
     """
 
     #: Registry name, e.g. "canopen".
@@ -120,10 +122,12 @@ class DriveLink(ObjectAccess):
         self._callbacks: list[EventCallback] = []
         self.requests = 0
         self.failures = 0
+        self._loop: asyncio.AbstractEventLoop | None = None
 
     # Lifecycle ---------------------------------------------------------------------
 
     async def open(self) -> None:
+        self._loop = asyncio.get_running_loop()
         await self._call(self._open, check_open=False)
         self._closed = False
 
@@ -151,12 +155,13 @@ class DriveLink(ObjectAccess):
     # Object access -------------------------------------------------------------------
 
     async def read(self, address: ObjectAddress) -> bytes:
-        return await self._call(self._read, address)
+        return await self._acall(self._aread, address)
 
     async def write(self, address: ObjectAddress, data: bytes) -> None:
-        await self._call(self._write, address, bytes(data))
+        await self._acall(self._awrite, address, bytes(data))
 
     async def identity(self) -> Identity:
+        """Identity of the device; a missing entry is None, not an error."""
         return await self._call(self._identity)
 
     async def nmt(self, command: str) -> None:
@@ -196,6 +201,26 @@ class DriveLink(ObjectAccess):
         async with self._alock:
             return await asyncio.to_thread(self._locked, fn, *args)
 
+    async def _acall(self, fn: Callable[..., Awaitable[T]], *args: Any) -> T:
+        """Run an async hook under the link's lock with the shared error mapping."""
+        if self._closed:
+            raise LinkClosedError("the link is closed", hint="open the session again")
+        if self._alock is None:
+            self._alock = asyncio.Lock()
+        async with self._alock:
+            self.requests += 1
+            try:
+                return await fn(*args)
+            except ServodeskError:
+                self.failures += 1
+                raise
+            except TimeoutError as exc:
+                self.failures += 1
+                raise LinkTimeoutError(f"no answer from the device: {exc}") from exc
+            except OSError as exc:
+                self.failures += 1
+                raise LinkError(f"bus error: {exc}") from exc
+
     def _locked(self, fn: Callable[..., T], *args: Any) -> T:
         with self._lock:
             self.requests += 1
@@ -219,11 +244,21 @@ class DriveLink(ObjectAccess):
     @abstractmethod
     def _close(self) -> None: ...
 
-    @abstractmethod
-    def _read(self, address: ObjectAddress) -> bytes: ...
+    async def _aread(self, address: ObjectAddress) -> bytes:
+        return await asyncio.to_thread(self._locked_hook, self._read, address)
 
-    @abstractmethod
-    def _write(self, address: ObjectAddress, data: bytes) -> None: ...
+    async def _awrite(self, address: ObjectAddress, data: bytes) -> None:
+        await asyncio.to_thread(self._locked_hook, self._write, address, data)
+
+    def _locked_hook(self, fn: Callable[..., T], *args: Any) -> T:
+        with self._lock:
+            return fn(*args)
+
+    def _read(self, address: ObjectAddress) -> bytes:
+        raise NotImplementedError(f"{type(self).__name__} implements neither _read nor _aread")
+
+    def _write(self, address: ObjectAddress, data: bytes) -> None:
+        raise NotImplementedError(f"{type(self).__name__} implements neither _write nor _awrite")
 
     def _identity(self) -> Identity:
         return Identity()
