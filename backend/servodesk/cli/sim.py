@@ -1,0 +1,77 @@
+"""``servodesk sim``: one simulated CiA 402 drive on a CAN bus, as a standalone process.
+
+Other programs (servodesk itself, a PLC, plain python-canopen code) talk to it over the bus:
+``servodesk sim --profile cia402-generic --node-id 5 --interface udp_multicast
+--channel 239.74.163.9``. Runs until SIGINT or SIGTERM.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+from types import FrameType
+
+from servodesk.errors import ServodeskError
+
+
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = subparsers.add_parser(
+        "sim",
+        help="run one simulated drive on a CAN bus",
+        description="Serve one simulated CiA 402 drive (CANopen device) on a python-can bus "
+        "until interrupted.",
+    )
+    p.add_argument("--profile", default="cia402-generic", help="device profile id")
+    p.add_argument("--node-id", type=int, default=1, help="CANopen node id (1..127)")
+    p.add_argument(
+        "--interface",
+        default="virtual",
+        help="python-can interface (virtual, udp_multicast, socketcan, ...)",
+    )
+    p.add_argument("--channel", default="servodesk-sim", help="python-can channel")
+    p.add_argument("--bitrate", type=int, default=None, help="bit rate for real interfaces")
+    p.add_argument(
+        "--serial", type=lambda s: int(s, 0), default=None, help="serial number (1018h:04)"
+    )
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    # Imported here so that `servodesk --help` does not load canopen.
+    from servodesk.sim.bus import SimulatedBus
+
+    stop = threading.Event()
+
+    def _on_signal(signum: int, frame: FrameType | None) -> None:
+        stop.set()
+
+    try:
+        bus = SimulatedBus.start(
+            drives=[(args.profile, args.node_id)],
+            interface=args.interface,
+            channel=args.channel,
+            bitrate=args.bitrate,
+            serials=[args.serial],
+        )
+    except ServodeskError as exc:
+        print(f"servodesk sim: error: {exc.message}", file=sys.stderr)
+        if exc.hint:
+            print(f"  hint: {exc.hint}", file=sys.stderr)
+        return 2
+    old = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        drive = bus.drives[0]
+        print(
+            f"servodesk sim: serving {drive.profile.id} ({drive.profile.name}) as node "
+            f"{drive.node_id} on {args.interface}:{args.channel}; Ctrl+C stops",
+            flush=True,
+        )
+        while not stop.wait(0.5):
+            pass
+    finally:
+        bus.stop()
+        for s, h in old.items():
+            signal.signal(s, h)
+    return 0

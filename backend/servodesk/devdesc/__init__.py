@@ -1,0 +1,93 @@
+"""Standard device descriptions to and from servodesk profiles.
+
+- EDS / DCF (CiA 306): :func:`export_eds`, :func:`export_dcf`, :func:`import_eds`,
+  :func:`import_dcf` (module :mod:`servodesk.devdesc.eds`)
+- ESI XML (ETG.2000, EtherCAT): :func:`export_esi`, :func:`import_esi` (module ``esi``)
+- XDD / XDC (CiA 311, CANopen XML): :func:`import_xdd` (module ``xdd``)
+
+:func:`import_file` picks the reader by the file's suffix. See docs/device-descriptions.md.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from servodesk.devdesc._common import slug
+from servodesk.devdesc.eds import (
+    DcfContents,
+    export_dcf,
+    export_eds,
+    import_dcf,
+    import_eds,
+    read_dcf,
+)
+from servodesk.devdesc.esi import export_esi, import_esi
+from servodesk.devdesc.xdd import import_xdd
+from servodesk.domain.profile import DeviceProfile
+from servodesk.errors import NotFoundError, ProfileError, ValidationError
+
+__all__ = [
+    "SUPPORTED_SUFFIXES",
+    "DcfContents",
+    "export_dcf",
+    "export_eds",
+    "export_esi",
+    "import_dcf",
+    "import_eds",
+    "import_esi",
+    "import_file",
+    "import_xdd",
+    "read_dcf",
+]
+
+#: File suffix -> format name, for messages and file pickers.
+SUPPORTED_SUFFIXES: dict[str, str] = {
+    ".eds": "EDS (CiA 306)",
+    ".dcf": "DCF (CiA 306)",
+    ".xml": "ESI (ETG.2000 EtherCAT Slave Information)",
+    ".xdd": "XDD (CiA 311)",
+    ".xdc": "XDC (CiA 311)",
+}
+
+
+def _read_text(path: Path) -> str:
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise NotFoundError(f"{path}: no such file", hint="check the path") from None
+    except OSError as exc:
+        raise ProfileError(f"cannot read: {exc.strerror}", path=str(path)) from None
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        # CiA 306 files are ASCII; older tools write Windows-1252 (a superset of Latin-1).
+        return data.decode("latin-1")
+
+
+def import_file(path: str | Path, profile_id: str | None = None) -> DeviceProfile:
+    """A profile from a device-description file, chosen by suffix.
+
+    ``profile_id`` defaults to the file name (lower case, dashes). A DCF's values are not
+    part of a profile: use :func:`read_dcf` to get them.
+    """
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix not in SUPPORTED_SUFFIXES:
+        formats = ", ".join(f"{s} {name}" for s, name in SUPPORTED_SUFFIXES.items())
+        raise ValidationError(
+            f"{p.name}: cannot import a {suffix or 'suffix-less'} file",
+            field="path",
+            hint=f"supported formats: {formats}",
+        )
+    pid = profile_id or slug(p.stem)
+    text = _read_text(p)
+    src = str(p)
+    if suffix == ".eds":
+        return import_eds(text, profile_id=pid, source=src)
+    if suffix == ".dcf":
+        return read_dcf(text, profile_id=pid, source=src).profile
+    if suffix == ".xml":
+        return import_esi(text, profile_id=pid, source=src)
+    return import_xdd(text, profile_id=pid, source=src)

@@ -1,0 +1,977 @@
+"""EDS and DCF (CiA 306 v1.3 electronic data sheets) to and from servodesk profiles.
+
+Export writes the INI layout CiA 306 §4 describes ([FileInfo], [DeviceInfo], [DummyUsage],
+[Comments], the three object lists and one section per index and sub-index); import parses
+with :mod:`configparser` the way the ``canopen`` package does (``;`` starts an inline comment,
+option names are matched without regard to case) and turns every problem in the user's file
+into a :class:`~servodesk.errors.ProfileError` that names the section and key.
+
+Profile fields that EDS has no key for (unit, scale, group, description, ...) are written as
+``servodesk_<field>=<JSON>`` keys in the object sections, and profile-level data as
+``servodesk_profile`` in [FileInfo]. A key is only written when the standard keys alone would
+not reproduce the field on import, so a round trip is lossless while third-party tools, which
+ignore unknown keys (CiA 306 §4.1), see an ordinary EDS.
+"""
+
+from __future__ import annotations
+
+import configparser
+import contextlib
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from servodesk.devdesc._common import (
+    ENTRY_FIELDS,
+    EXTRA_PREFIX,
+    SPEC_FIELDS,
+    ParsedObject,
+    area_group,
+    ascii_text,
+    build_entry,
+    diff,
+    dumps,
+    entry_default,
+    loads,
+    make_profile,
+    parse_int,
+    parse_number,
+    profile_meta,
+    same,
+    slug,
+    spec_default,
+)
+from servodesk.domain.address import ObjectAddress
+from servodesk.domain.datatypes import DataType, Value, codec
+from servodesk.domain.profile import (
+    Access,
+    DeviceProfile,
+    ObjectEntry,
+    ObjectSpec,
+    ObjectType,
+    PdoMapping,
+    resolve_value,
+)
+from servodesk.errors import ProfileError, ServodeskError, ValidationError
+
+__all__ = [
+    "DcfContents",
+    "export_dcf",
+    "export_eds",
+    "import_dcf",
+    "import_eds",
+    "read_dcf",
+]
+
+#: CiA 306 §4.6.3.2 object codes.
+_OBJECT_CODES = {ObjectType.VAR: 0x7, ObjectType.ARRAY: 0x8, ObjectType.RECORD: 0x9}
+_CODE_TYPES = {
+    0x7: ObjectType.VAR,
+    0x2: ObjectType.VAR,
+    0x8: ObjectType.ARRAY,
+    0x9: ObjectType.RECORD,
+}
+#: CiA 306 §4.5.3: the bit rates [DeviceInfo] declares with BaudRate_<kbit/s>.
+_BAUD_RATES = (10, 20, 50, 125, 250, 500, 800, 1000)
+#: CiA 306 §4.6.2: objects every CANopen device has.
+_MANDATORY = frozenset({0x1000, 0x1001, 0x1018})
+#: TIME_OF_DAY / TIME_DIFFERENCE (CiA 301 §7.1.6.5/6) have no servodesk codec: read as bytes.
+_BYTES_TYPES = {0x000C: "TIME_OF_DAY", 0x000D: "TIME_DIFFERENCE"}
+_PERSIST_STORAGE = re.compile(r"PERSIST|EEPROM|FLASH|NVM|ROM", re.I)
+_SUB_SECTION = re.compile(r"([0-9a-f]{4})sub([0-9a-f]{1,2})")
+
+
+# --------------------------------------------------------------------------------------------
+# Export
+
+
+def _fmt_number(v: int | float, dt: DataType, index: int) -> str:
+    if isinstance(v, float):
+        if dt.is_integer and v.is_integer():
+            return str(int(v))
+        return repr(v)
+    if dt.is_real or dt.is_signed or v < 0:
+        return str(v)
+    # COB-IDs and PDO mapping entries read best in hex (CiA 301 §7.5.2.35 ff. print them so).
+    if dt.bits >= 32 and 0x1000 <= index <= 0x1FFF:
+        return f"0x{v:0{dt.bits // 4}X}"
+    return str(v)
+
+
+def _fmt_value(v: Any, dt: DataType, index: int) -> str | None:
+    """The text of a DefaultValue / ParameterValue key, or None for no key."""
+    if v is None:
+        return None
+    if isinstance(v, bool):
+        return "1" if v else "0"
+    if isinstance(v, bytes):
+        return v.hex().upper()
+    if isinstance(v, int | float):
+        return _fmt_number(v, dt, index)
+    text = str(v)
+    if dt.is_integer and "$NODEID" in text.upper():
+        return text.replace(" ", "")
+    if dt.is_numeric:
+        try:
+            return _fmt_number(parse_number(text, dt), dt, index)
+        except ValueError:
+            return ascii_text(text)
+    if dt in (DataType.OCTET_STRING, DataType.DOMAIN):
+        return text.replace(" ", "").upper()
+    return ascii_text(text)
+
+
+def _var_keys(spec: ObjectSpec) -> dict[str, str]:
+    """The standard CiA 306 keys of one variable (object or sub-index section)."""
+    dt = spec.data_type
+    keys = {
+        "ParameterName": ascii_text(spec.name)[:241],  # CiA 306 §4.6.3.2: at most 241 chars.
+        "ObjectType": "0x7",
+        "DataType": f"0x{int(dt):04X}",
+        "AccessType": spec.access.value,
+    }
+    default = _fmt_value(spec.default, dt, spec.index)
+    if default is not None:
+        keys["DefaultValue"] = default
+    if dt.is_numeric:
+        if spec.min is not None:
+            keys["LowLimit"] = _fmt_number(spec.min, dt, spec.index)
+        if spec.max is not None:
+            keys["HighLimit"] = _fmt_number(spec.max, dt, spec.index)
+    keys["PDOMapping"] = "1" if spec.pdo_mapping is not PdoMapping.NONE else "0"
+    return keys
+
+
+def _extras(
+    actual: Mapping[str, Any], baseline: Mapping[str, Any], names: tuple[str, ...], model: Any
+) -> dict[str, str]:
+    differing = diff(actual, baseline, names)
+    if not differing:
+        return {}
+    as_json = model.model_dump(mode="json", include=set(differing))
+    return {f"{EXTRA_PREFIX}{n}": dumps(as_json[n]) for n in differing}
+
+
+def _spec_section(spec: ObjectSpec) -> dict[str, str]:
+    keys = _var_keys(spec)
+    try:
+        baseline = _var_fields({k.lower(): v for k, v in keys.items()}, spec.index, "<export>")
+    except ProfileError:
+        # A value the standard keys cannot express (e.g. a default that is not a number of
+        # the object's type): leave the standard key out, the servodesk_ key carries it.
+        for k in ("DefaultValue", "LowLimit", "HighLimit"):
+            keys.pop(k, None)
+        baseline = _var_fields({k.lower(): v for k, v in keys.items()}, spec.index, "<export>")
+    actual = spec.model_dump()
+    keys.update(_extras(actual, baseline, SPEC_FIELDS, spec))
+    return keys
+
+
+def _entry_section(entry: ObjectEntry) -> dict[str, str]:
+    specs = list(entry.specs())
+    keys = {
+        "ParameterName": ascii_text(entry.name)[:241],
+        "ObjectType": f"0x{_OBJECT_CODES[entry.object_type]:X}",
+        "SubNumber": f"0x{len(specs):X}",
+    }
+    baseline = _entry_fields({k.lower(): v for k, v in keys.items()})
+    keys.update(_extras(entry.model_dump(), baseline, ENTRY_FIELDS, entry))
+    return keys
+
+
+def _section_text(name: str, keys: Mapping[str, str]) -> str:
+    lines = [f"[{name}]"]
+    lines.extend(f"{k}={v}" for k, v in keys.items())
+    return "\n".join(lines) + "\n"
+
+
+def _identity_numbers(profile: DeviceProfile) -> tuple[int, int, int]:
+    """Vendor, product and revision number: profile identity, else the 1018h defaults."""
+    vars_ = profile.variables
+
+    def default_of(sub: int) -> int:
+        spec = vars_.get(ObjectAddress(0x1018, sub))
+        if spec is None:
+            return 0
+        try:
+            v = spec.default_value()
+        except (ValueError, ServodeskError):
+            return 0
+        return v if isinstance(v, int) and not isinstance(v, bool) else 0
+
+    ident = profile.identity
+    vendor = ident.vendor_id if ident.vendor_id is not None else default_of(1)
+    product = ident.product_codes[0] if ident.product_codes else default_of(2)
+    revision = default_of(3) or (ident.revision_min or 0)
+    return vendor, product, revision
+
+
+def export_eds(
+    profile: DeviceProfile,
+    *,
+    node_id: int | None = None,
+    values: Mapping[ObjectAddress, Value] | None = None,
+    bitrate: int | None = None,
+) -> str:
+    """The profile as an EDS; with ``node_id`` or ``values`` as a DCF (see :func:`export_dcf`).
+
+    ``bitrate`` (bit/s) goes to [DeviceComissioning] Baudrate of a DCF.
+    """
+    dcf = node_id is not None or values is not None
+    vals = dict(values or {})
+    if dcf:
+        _check_values(profile, vals)
+    vendor, product, revision = _identity_numbers(profile)
+    parts: list[str] = []
+    suffix = "dcf" if dcf else "eds"
+    file_info = {
+        "FileName": f"{profile.id}.{suffix}",
+        "FileVersion": "1",
+        "FileRevision": "0",
+        "EDSVersion": "4.0",
+        "Description": ascii_text(profile.name)[:243],
+        "CreatedBy": "servodesk",
+        f"{EXTRA_PREFIX}profile": profile_meta(profile),
+    }
+    parts.append(_section_text("FileInfo", file_info))
+    can = profile.fieldbus == "canopen"
+    device_info: dict[str, str] = {
+        "VendorName": ascii_text(profile.vendor)[:244],
+        "VendorNumber": f"0x{vendor:08X}",
+        "ProductName": ascii_text(profile.name)[:243],
+        "ProductNumber": f"0x{product:08X}",
+        "RevisionNumber": f"0x{revision:08X}",
+    }
+    # The profile model has no bit-rate list: a CANopen family declares the CiA 301 §7.3.2
+    # rates; other fieldbuses (an EDS of an EtherCAT CoE dictionary) declare none.
+    for rate in _BAUD_RATES:
+        device_info[f"BaudRate_{rate}"] = "1" if can else "0"
+    device_info.update(
+        {
+            "SimpleBootUpMaster": "0",
+            "SimpleBootUpSlave": "1",
+            "Granularity": "8",
+            "DynamicChannelsSupported": "0",
+            "GroupMessaging": "0",
+            "NrOfRXPDO": str(profile.pdo.rpdo_count),
+            "NrOfTXPDO": str(profile.pdo.tpdo_count),
+            "LSS_Supported": "0",
+        }
+    )
+    parts.append(_section_text("DeviceInfo", device_info))
+    parts.append(_section_text("DummyUsage", {f"Dummy{i:04d}": "0" for i in range(1, 8)}))
+    comment_lines = _wrap(ascii_text(profile.description or ""), 200) if profile.description else []
+    comments = {"Lines": str(len(comment_lines))}
+    comments.update({f"Line{i + 1}": line for i, line in enumerate(comment_lines)})
+    parts.append(_section_text("Comments", comments))
+    if dcf:
+        comm = {"NodeID": str(node_id if node_id is not None else 0)}
+        comm["NodeName"] = ascii_text(profile.name)[:246]
+        comm["Baudrate"] = str((bitrate or 500_000) // 1000)
+        comm["NetNumber"] = "1"
+        comm["NetworkName"] = "servodesk"
+        comm["CANopenManager"] = "0"
+        parts.append(_section_text("DeviceComissioning", comm))
+
+    entries = sorted(profile.objects, key=lambda e: e.index)
+    lists: dict[str, list[ObjectEntry]] = {
+        "MandatoryObjects": [e for e in entries if e.index in _MANDATORY],
+        "OptionalObjects": [
+            e for e in entries if e.index not in _MANDATORY and not 0x2000 <= e.index <= 0x5FFF
+        ],
+        "ManufacturerObjects": [e for e in entries if 0x2000 <= e.index <= 0x5FFF],
+    }
+    for list_name, members in lists.items():
+        keys = {"SupportedObjects": str(len(members))}
+        keys.update({str(i + 1): f"0x{e.index:04X}" for i, e in enumerate(members)})
+        parts.append(_section_text(list_name, keys))
+        for e in members:
+            parts.extend(_object_sections(e, vals if dcf else None))
+    return "\n".join(parts)
+
+
+def _wrap(text: str, width: int) -> list[str]:
+    words, lines, cur = text.split(), [], ""
+    for w in words:
+        if cur and len(cur) + 1 + len(w) > width:
+            lines.append(cur)
+            cur = w
+        else:
+            cur = f"{cur} {w}" if cur else w
+    if cur:
+        lines.append(cur)
+    return lines
+
+
+def _value_keys(spec: ObjectSpec, value: Value) -> dict[str, str]:
+    text = _fmt_value(value, spec.data_type, spec.index)
+    keys = {"ParameterValue": text if text is not None else ""}
+    try:
+        back = _parse_param(keys["ParameterValue"], spec, node_id=None, where="<export>")
+    except ProfileError:
+        back = None
+    if not same(back, value):
+        keys[f"{EXTRA_PREFIX}parameter_value"] = dumps(
+            {"hex": value.hex()} if isinstance(value, bytes) else value
+        )
+    return keys
+
+
+def _object_sections(entry: ObjectEntry, values: Mapping[ObjectAddress, Value] | None) -> list[str]:
+    specs = list(entry.specs())
+    name = f"{entry.index:04X}"
+    if entry.object_type is ObjectType.VAR:
+        keys = _spec_section(specs[0])
+        if values is not None and specs[0].address in values:
+            keys.update(_value_keys(specs[0], values[specs[0].address]))
+        return [_section_text(name, keys)]
+    out = [_section_text(name, _entry_section(entry))]
+    for spec in specs:
+        keys = _spec_section(spec)
+        if values is not None and spec.address in values:
+            keys.update(_value_keys(spec, values[spec.address]))
+        out.append(_section_text(f"{name}sub{spec.subindex:X}", keys))
+    return out
+
+
+def _check_values(profile: DeviceProfile, values: Mapping[ObjectAddress, Value]) -> None:
+    for addr, v in values.items():
+        spec = profile.spec(addr)
+        if spec is None:
+            raise ValidationError(
+                f"{addr} is not an object of profile {profile.id}",
+                field=str(addr),
+                hint="a DCF holds values of the profile's own objects only",
+            )
+        try:
+            codec(spec.data_type).encode(v)
+        except ValidationError as exc:
+            raise ValidationError(
+                f"{addr} {spec.name}: {exc.message}",
+                field=str(addr),
+                hint=exc.hint or f"give a {spec.data_type.name} value",
+            ) from None
+
+
+def export_dcf(
+    profile: DeviceProfile,
+    node_id: int,
+    values: Mapping[ObjectAddress, Value],
+    *,
+    bitrate: int | None = None,
+) -> str:
+    """A DCF (CiA 306 §5): the EDS plus ParameterValue per configured object and
+    [DeviceComissioning] NodeID / Baudrate (kbit/s)."""
+    if not 1 <= node_id <= 127:
+        raise ValidationError(
+            f"node id {node_id} is outside 1..127",
+            field="node_id",
+            hint="CANopen node ids are 1..127 (CiA 301 §7.2.1)",
+        )
+    return export_eds(profile, node_id=node_id, values=values, bitrate=bitrate)
+
+
+# --------------------------------------------------------------------------------------------
+# Import
+
+
+def _where(section: str, key: str | None = None) -> str:
+    return f"[{section}] {key}" if key else f"[{section}]"
+
+
+def _data_type(keys: Mapping[str, str], where: str) -> tuple[DataType, str | None]:
+    raw = keys.get("datatype")
+    if raw is None:
+        raise ProfileError(
+            f"{where}: the key DataType is missing",
+            hint="add DataType=0x0007 (the CiA 306 number of the object's type, e.g. "
+            "0x0006 UNSIGNED16, 0x0007 UNSIGNED32)",
+        )
+    try:
+        num = parse_int(raw)
+    except ValueError:
+        raise ProfileError(
+            f"{where} DataType={raw!r}: not a number",
+            hint="write the CiA 306 data type number in hex, e.g. DataType=0x0007",
+        ) from None
+    if num in _BYTES_TYPES:
+        return DataType.DOMAIN, f"(EDS data type {_BYTES_TYPES[num]}, read as bytes)"
+    try:
+        return DataType(num), None
+    except ValueError:
+        raise ProfileError(
+            f"{where} DataType={raw}: 0x{num:04X} is not a CiA 301 basic data type",
+            hint="servodesk reads the basic types 0x0001-0x001B (BOOLEAN .. UNSIGNED64); "
+            "complex or user-defined types (0x0020 and up) are not supported",
+        ) from None
+
+
+def _access(keys: Mapping[str, str], where: str) -> Access:
+    raw = keys.get("accesstype")
+    if raw is None:
+        raise ProfileError(
+            f"{where}: the key AccessType is missing",
+            hint="add AccessType=ro, wo, rw, rwr, rww or const (CiA 306 §4.6.3.2)",
+        )
+    try:
+        return Access(raw.strip().lower())
+    except ValueError:
+        raise ProfileError(
+            f"{where} AccessType={raw!r}: unknown access type",
+            hint="use ro, wo, rw, rwr, rww or const (CiA 306 §4.6.3.2)",
+        ) from None
+
+
+def _parse_default(text: str, dt: DataType, where: str) -> Any:
+    t = text.strip()
+    if dt.is_string:
+        return text
+    if t == "":
+        return None
+    if "$NODEID" in t.upper():
+        if dt.is_integer:
+            try:
+                resolve_value(t, dt, 1)
+            except (ValueError, ServodeskError):
+                raise ProfileError(
+                    f"{where}={t!r}: not a $NODEID expression servodesk can read",
+                    hint="write $NODEID+0x180 (CiA 306 §4.6.3.2)",
+                ) from None
+        return t
+    if dt.is_numeric:
+        try:
+            return parse_number(t, dt)
+        except ValueError:
+            raise ProfileError(
+                f"{where}={t!r}: not a {dt.name} number",
+                hint="write decimal (100), hex (0x64) or $NODEID+0x180 (CiA 306 §4.6.3.2)",
+            ) from None
+    if dt is DataType.OCTET_STRING:
+        try:
+            bytes.fromhex(t)
+        except ValueError:
+            raise ProfileError(
+                f"{where}={t!r}: not hex bytes",
+                hint="write an OCTET_STRING value as hex digits, e.g. 0A1B2C",
+            ) from None
+        return t
+    try:  # DOMAIN: only hex content is a value; anything else (a file name) is dropped.
+        bytes.fromhex(t)
+    except ValueError:
+        return None
+    return t
+
+
+def _parse_limit(text: str | None, dt: DataType, where: str) -> int | float | None:
+    if text is None or not dt.is_numeric:
+        return None
+    t = text.strip()
+    if t == "" or "$NODEID" in t.upper():
+        return None  # A node-relative limit cannot be a fixed min/max.
+    try:
+        return parse_number(t, dt)
+    except ValueError:
+        raise ProfileError(
+            f"{where}={t!r}: not a {dt.name} number",
+            hint="write decimal or 0x hex, or remove the key for no limit",
+        ) from None
+
+
+def _var_fields(
+    keys: Mapping[str, str], index: int, section: str, where: str | None = None
+) -> dict[str, Any]:
+    """ObjectSpec fields from the (lower-cased) keys of a variable's section.
+
+    ``where`` names the place in messages (default ``[section]``).
+    """
+    where = where or _where(section)
+    name = keys.get("parametername")
+    if name is None:
+        raise ProfileError(
+            f"{where}: the key ParameterName is missing",
+            hint="every object and sub-index section needs ParameterName= (CiA 306 §4.6.3.2)",
+        )
+    dt, note = _data_type(keys, where)
+    access = _access(keys, where)
+    mappable_raw = keys.get("pdomapping", "0").strip() or "0"
+    try:
+        mappable = bool(parse_int(mappable_raw))
+    except ValueError:
+        raise ProfileError(
+            f"{where} PDOMapping={mappable_raw!r}: not 0 or 1",
+            hint="write PDOMapping=1 for a mappable object, 0 otherwise",
+        ) from None
+    pdo = PdoMapping.NONE
+    if mappable:
+        # EDS says only "mappable"; the direction follows the access type (CiA 306 §4.6.3.2:
+        # rww = written by RPDO, rwr = read by TPDO); a plain rw can go either way.
+        if access in (Access.RO, Access.CONST, Access.RWR):
+            pdo = PdoMapping.TX
+        elif access in (Access.WO, Access.RWW):
+            pdo = PdoMapping.RX
+        else:
+            pdo = PdoMapping.BOTH
+    fields: dict[str, Any] = {n: spec_default(n) for n in SPEC_FIELDS}
+    fields.update(
+        name=name.strip(),
+        data_type=dt,
+        access=access,
+        pdo_mapping=pdo,
+        group=area_group(index),
+        # Mappable and read-only or PDO-only-writable (rww/rwr) is process data (setpoints,
+        # actual values): never part of a parameter backup.
+        process=mappable and access in (Access.RO, Access.RWR, Access.RWW),
+    )
+    if "defaultvalue" in keys:
+        fields["default"] = _parse_default(keys["defaultvalue"], dt, f"{where} DefaultValue")
+    fields["min"] = _parse_limit(keys.get("lowlimit"), dt, f"{where} LowLimit")
+    fields["max"] = _parse_limit(keys.get("highlimit"), dt, f"{where} HighLimit")
+    # Keys some tools add (canopen's Description/Unit/Factor, CANopenNode's StorageLocation).
+    if keys.get("description"):
+        fields["description"] = keys["description"].strip()
+    if note:
+        fields["description"] = f"{fields['description'] or ''} {note}".strip()
+    if keys.get("unit"):
+        fields["unit"] = keys["unit"].strip()
+    if keys.get("factor"):
+        with contextlib.suppress(ValueError):
+            fields["scale"] = float(keys["factor"])
+    if _PERSIST_STORAGE.search(keys.get("storagelocation", "")):
+        fields["persist"] = True
+    return fields
+
+
+def _entry_fields(keys: Mapping[str, str]) -> dict[str, Any]:
+    fields: dict[str, Any] = {n: entry_default(n) for n in ENTRY_FIELDS}
+    fields["name"] = keys.get("parametername", "").strip()
+    return fields
+
+
+def _apply_extras(
+    fields: dict[str, Any], keys: Mapping[str, str], names: tuple[str, ...], section: str
+) -> None:
+    for k, v in keys.items():
+        if not k.startswith(EXTRA_PREFIX):
+            continue
+        f = k[len(EXTRA_PREFIX) :]
+        if f in names:
+            fields[f] = loads(v, f"[{section}] {k}")
+
+
+class _Reader:
+    """One parsed EDS/DCF: sections by lower-cased name, keys lower-cased."""
+
+    def __init__(self, text: str, source: str) -> None:
+        self.source = source
+        cp = configparser.RawConfigParser(
+            inline_comment_prefixes=(";",), strict=False, interpolation=None
+        )
+        try:
+            cp.read_string(text, source=source)
+        except configparser.MissingSectionHeaderError as exc:
+            raise ProfileError(
+                f"line {exc.lineno}: {exc.line.strip()!r} comes before any [section]",
+                path=source,
+                hint="an EDS/DCF starts with a section such as [FileInfo]; is this an EDS?",
+            ) from None
+        except configparser.Error as exc:
+            msg = str(exc).splitlines()[0]
+            raise ProfileError(
+                f"not a readable EDS/DCF: {msg}",
+                path=source,
+                hint="check the line it names (CiA 306 §4: [Section] and Key=Value lines)",
+            ) from None
+        self.sections: dict[str, tuple[str, dict[str, str]]] = {}
+        #: index -> sub-index -> lower-cased section name of its [xxxxsubN] sections.
+        self.subs: dict[int, dict[int, str]] = {}
+        for name in cp.sections():
+            low = name.strip().lower()
+            self.sections[low] = (name, dict(cp.items(name)))
+            m = _SUB_SECTION.fullmatch(low)
+            if m:
+                self.subs.setdefault(int(m.group(1), 16), {})[int(m.group(2), 16)] = low
+
+    def get(self, name: str) -> dict[str, str] | None:
+        found = self.sections.get(name.lower())
+        return found[1] if found else None
+
+    def name(self, name: str) -> str:
+        found = self.sections.get(name.lower())
+        return found[0] if found else name
+
+    def error(self, message: str, hint: str) -> ProfileError:
+        return ProfileError(message, path=self.source, hint=hint)
+
+
+@dataclass(frozen=True)
+class DcfContents:
+    """What a DCF configures: the profile, the values, the node id and bit rate."""
+
+    profile: DeviceProfile
+    values: dict[ObjectAddress, Value]
+    node_id: int | None
+    bitrate: int | None
+
+
+def _parse_param(text: str, spec: ObjectSpec, node_id: int | None, where: str) -> Value:
+    dt = spec.data_type
+    t = text.strip()
+    if "$NODEID" in t.upper() and dt.is_integer:
+        if node_id is None:
+            raise ProfileError(
+                f"{where}={t!r} uses $NODEID but [DeviceComissioning] has no NodeID",
+                hint="add NodeID= to [DeviceComissioning] or write the value as a number",
+            )
+        try:
+            v = resolve_value(t, dt, node_id)
+        except (ValueError, ServodeskError):
+            raise ProfileError(
+                f"{where}={t!r}: not a $NODEID expression servodesk can read",
+                hint="write $NODEID+0x180 (CiA 306 §4.6.3.2)",
+            ) from None
+        return int(v) if isinstance(v, int | float) else 0
+    if dt.is_integer:
+        try:
+            iv = int(parse_number(t, dt))
+        except ValueError:
+            raise ProfileError(
+                f"{where}={t!r}: not a {dt.name} number",
+                hint="write decimal or 0x hex (CiA 306 §4.6.3.2)",
+            ) from None
+        return bool(iv) if dt is DataType.BOOLEAN else iv
+    if dt.is_real:
+        try:
+            return float(parse_number(t, dt))
+        except ValueError:
+            raise ProfileError(
+                f"{where}={t!r}: not a number", hint="write a decimal number such as 1.5"
+            ) from None
+    if dt.is_string:
+        return text
+    try:
+        return bytes.fromhex(t)
+    except ValueError:
+        raise ProfileError(
+            f"{where}={t!r}: not hex bytes", hint="write OCTET_STRING/DOMAIN values as hex"
+        ) from None
+
+
+def _read_objects(r: _Reader) -> list[ParsedObject]:
+    listed: list[tuple[str, int]] = []
+    have_list = False
+    for list_name in ("MandatoryObjects", "OptionalObjects", "ManufacturerObjects"):
+        keys = r.get(list_name)
+        if keys is None:
+            continue
+        have_list = True
+        sect = r.name(list_name)
+        raw_n = keys.get("supportedobjects")
+        if raw_n is None:
+            raise r.error(
+                f"[{sect}]: the key SupportedObjects is missing",
+                "add SupportedObjects=<count> and 1=0x1000, 2=0x1001, ... (CiA 306 §4.6.2)",
+            )
+        try:
+            n = parse_int(raw_n)
+        except ValueError:
+            raise r.error(
+                f"[{sect}] SupportedObjects={raw_n!r}: not a number",
+                "write the number of listed objects, e.g. SupportedObjects=3",
+            ) from None
+        for i in range(1, n + 1):
+            raw = keys.get(str(i))
+            if raw is None:
+                raise r.error(
+                    f"[{sect}]: SupportedObjects={n} but the key {i}= is missing (truncated file?)",
+                    f"list entries 1..{n}, or correct SupportedObjects",
+                )
+            try:
+                listed.append((f"[{sect}] {i}={raw}", parse_int(raw)))
+            except ValueError:
+                raise r.error(
+                    f"[{sect}] {i}={raw!r}: not an object index",
+                    "write the index in hex, e.g. 0x6040",
+                ) from None
+    index_sections = sorted(int(k, 16) for k in r.sections if re.fullmatch(r"[0-9a-f]{4}", k))
+    for where, idx in listed:
+        if r.get(f"{idx:04X}") is None:
+            raise r.error(
+                f"{where}: there is no section [{idx:04X}]",
+                f"add the section [{idx:04X}] describing the object, or remove it from the list",
+            )
+    if not have_list and not index_sections:
+        raise r.error(
+            "no object dictionary: neither [MandatoryObjects]/[OptionalObjects]/"
+            "[ManufacturerObjects] nor any [xxxx] object section",
+            "is the file complete? An EDS lists its objects in [MandatoryObjects] etc.",
+        )
+    objects = [_read_object(r, idx) for idx in index_sections]
+    return objects
+
+
+def _read_object(r: _Reader, index: int) -> ParsedObject:
+    sect = r.name(f"{index:04X}")
+    keys = r.get(sect) or {}
+    raw_type = keys.get("objecttype", "0x7")
+    try:
+        code = parse_int(raw_type)
+        otype = _CODE_TYPES[code]
+    except (ValueError, KeyError):
+        raise r.error(
+            f"[{sect}] ObjectType={raw_type!r}: not a supported object code",
+            "use 0x7 (VAR), 0x8 (ARRAY) or 0x9 (RECORD); DEFTYPE/DEFSTRUCT are not supported",
+        ) from None
+    obj = ParsedObject(index=index, object_type=otype, where=f"{r.source}: [{sect}]")
+    if otype is ObjectType.VAR:
+        fields = _var_fields(keys, index, sect)
+        _apply_extras(fields, keys, SPEC_FIELDS, sect)
+        obj.subs[0] = fields
+        return obj
+    obj.entry = _entry_fields(keys)
+    if not obj.entry["name"]:
+        raise r.error(
+            f"[{sect}]: the key ParameterName is missing",
+            "every object section needs ParameterName= (CiA 306 §4.6.3.2)",
+        )
+    _apply_extras(obj.entry, keys, ENTRY_FIELDS, sect)
+    compact = keys.get("compactsubobj", "").strip()
+    if compact and otype is ObjectType.ARRAY and parse_int_or(compact, r, sect) > 0:
+        _read_compact(r, obj, keys, sect, parse_int_or(compact, r, sect))
+        return obj
+    for sub, low in sorted(r.subs.get(index, {}).items()):
+        sname = r.name(low)
+        skeys = r.get(low) or {}
+        fields = _var_fields(skeys, index, sname)
+        _apply_extras(fields, skeys, SPEC_FIELDS, sname)
+        obj.subs[sub] = fields
+    raw_n = keys.get("subnumber")
+    if raw_n is not None:
+        n = parse_int_or(raw_n, r, sect, key="SubNumber")
+        if len(obj.subs) < n:
+            raise r.error(
+                f"[{sect}] SubNumber={n} but only {len(obj.subs)} sub-index sections "
+                f"[{index:04X}subN] exist (truncated file?)",
+                "add the missing sub-index sections or correct SubNumber",
+            )
+    if not obj.subs:
+        raise r.error(
+            f"[{sect}]: {otype.value.upper()} without sub-index sections",
+            f"add [{index:04X}sub0], [{index:04X}sub1], ... or use CompactSubObj=",
+        )
+    return obj
+
+
+def parse_int_or(raw: str, r: _Reader, sect: str, key: str = "CompactSubObj") -> int:
+    try:
+        return parse_int(raw)
+    except ValueError:
+        raise r.error(f"[{sect}] {key}={raw!r}: not a number", f"write {key} as a number") from None
+
+
+def _read_compact(
+    r: _Reader, obj: ParsedObject, keys: Mapping[str, str], sect: str, n: int
+) -> None:
+    """CiA 306 §4.6.3.3 compact storage: one section describes elements 1..n."""
+    base = _var_fields(keys, obj.index, sect)
+    _apply_extras(base, keys, SPEC_FIELDS, sect)
+    sub0 = {f: spec_default(f) for f in SPEC_FIELDS}
+    sub0.update(
+        name="Number of entries",
+        data_type=DataType.UNSIGNED8,
+        access=Access.RO,
+        default=n,
+        group=base["group"],
+    )
+    obj.subs[0] = sub0
+    names = r.get(f"{obj.index:04X}Name") or {}
+    for i in range(1, n + 1):
+        f = dict(base)
+        f["name"] = names.get(str(i), f"{base['name']} {i}").strip()
+        obj.subs[i] = f
+
+
+def _device_standard(r: _Reader) -> dict[str, Any]:
+    info = r.get("DeviceInfo")
+    if info is None:
+        raise r.error(
+            "the section [DeviceInfo] is missing",
+            "an EDS needs [DeviceInfo] with VendorName, ProductName, ... (CiA 306 §4.5)",
+        )
+    std: dict[str, Any] = {}
+    if info.get("productname"):
+        std["name"] = info["productname"].strip()
+    if info.get("vendorname"):
+        std["vendor"] = info["vendorname"].strip()
+    ident: dict[str, Any] = {}
+    for key, field_name in (("vendornumber", "vendor_id"), ("productnumber", "product_codes")):
+        raw = info.get(key)
+        if raw is None or not raw.strip():
+            continue
+        try:
+            v = parse_int(raw)
+        except ValueError:
+            raise r.error(
+                f"[{r.name('DeviceInfo')}] {key}={raw!r}: not a number",
+                "write the number in hex, e.g. 0x000001A5",
+            ) from None
+        ident[field_name] = [v] if field_name == "product_codes" else v
+    if ident:
+        std["identity"] = ident
+    pdo: dict[str, Any] = {}
+    for key, field_name in (("nrofrxpdo", "rpdo_count"), ("nroftxpdo", "tpdo_count")):
+        raw = info.get(key)
+        if raw is not None and raw.strip():
+            try:
+                pdo[field_name] = parse_int(raw)
+            except ValueError:
+                raise r.error(
+                    f"[{r.name('DeviceInfo')}] {key}={raw!r}: not a number",
+                    "write the number of PDOs, e.g. NrOfRXPDO=4",
+                ) from None
+    if pdo:
+        std["pdo"] = pdo
+    comments = r.get("Comments")
+    if comments:
+        lines = [comments.get(f"line{i}", "") for i in range(1, len(comments) + 1)]
+        text = " ".join(x.strip() for x in lines if x.strip())
+        if text:
+            std["description"] = text
+    return std
+
+
+def _meta(r: _Reader) -> dict[str, Any] | None:
+    fi = r.get("FileInfo") or {}
+    raw = fi.get(f"{EXTRA_PREFIX}profile")
+    if raw is None:
+        return None
+    meta = loads(raw, f"[{r.name('FileInfo')}] {EXTRA_PREFIX}profile")
+    if not isinstance(meta, dict):
+        raise r.error(
+            f"[{r.name('FileInfo')}] {EXTRA_PREFIX}profile: not a JSON object",
+            "remove the key to import the standard keys only",
+        )
+    return meta
+
+
+def _import(
+    text: str, profile_id: str | None, name: str | None, source: str
+) -> tuple[_Reader, DeviceProfile]:
+    r = _Reader(text, source)
+    std = _device_standard(r)
+    try:
+        objects = [build_entry(o) for o in _read_objects(r)]
+    except ProfileError as exc:
+        if exc.path is not None or exc.message.startswith(source):
+            raise
+        raise ProfileError(exc.message, path=source, hint=exc.hint) from None
+    meta = _meta(r)
+    pid = profile_id or slug(name or std.get("name") or "imported")
+    if meta is None:
+        std.setdefault("fieldbus", "canopen")
+        profile = make_profile(
+            profile_id=pid, meta=None, standard=std, objects=objects, where=source
+        )
+    else:
+        # The extras hold the exact profile; the standard identity and PDO counts win only
+        # where someone edited them after export (they differ from what export writes).
+        ident, pdo = std.pop("identity", None), std.pop("pdo", None)
+        profile = make_profile(
+            profile_id=pid, meta=meta, standard=std, objects=objects, where=source
+        )
+        vendor, product, _ = _identity_numbers(profile)
+        if ident and (
+            ident.get("vendor_id", vendor) != vendor
+            or ident.get("product_codes", [product])[0] != product
+        ):
+            profile = make_profile(
+                profile_id=pid,
+                meta=meta,
+                standard={**std, "identity": ident},
+                objects=objects,
+                where=source,
+            )
+        if pdo and any(getattr(profile.pdo, k) != v for k, v in pdo.items()):
+            profile = profile.model_copy(update={"pdo": profile.pdo.model_copy(update=pdo)})
+    if name:
+        profile = profile.model_copy(update={"name": name})
+    return r, profile
+
+
+def import_eds(
+    text: str, *, profile_id: str, name: str | None = None, source: str = "<eds>"
+) -> DeviceProfile:
+    """A profile from the text of an EDS (or DCF: its ParameterValues are ignored)."""
+    return _import(text, profile_id, name, source)[1]
+
+
+def read_dcf(
+    text: str, *, profile_id: str | None = None, name: str | None = None, source: str = "<dcf>"
+) -> DcfContents:
+    """The profile, ParameterValues, node id and bit rate (bit/s) of a DCF."""
+    r, profile = _import(text, profile_id, name, source)
+    comm = r.get("DeviceComissioning") or {}
+    node_id = bitrate = None
+    for key in ("nodeid", "baudrate"):
+        raw = comm.get(key)
+        if raw is None or not raw.strip():
+            continue
+        try:
+            v = parse_int(raw)
+        except ValueError:
+            raise r.error(
+                f"[{r.name('DeviceComissioning')}] {key}={raw!r}: not a number",
+                "write NodeID as 1..127 and Baudrate in kbit/s, e.g. Baudrate=500",
+            ) from None
+        if key == "nodeid":
+            node_id = v
+        else:
+            bitrate = v * 1000
+    values: dict[ObjectAddress, Value] = {}
+    for entry in profile.objects:
+        for spec in entry.specs():
+            sect = (
+                f"{spec.index:04X}"
+                if entry.object_type is ObjectType.VAR
+                else f"{spec.index:04X}sub{spec.subindex:X}"
+            )
+            keys = r.get(sect)
+            if keys is None:
+                continue
+            where = f"[{r.name(sect)}] ParameterValue"
+            extra = keys.get(f"{EXTRA_PREFIX}parameter_value")
+            if extra is not None:
+                pv: Any = loads(extra, f"[{r.name(sect)}] {EXTRA_PREFIX}parameter_value")
+                if isinstance(pv, dict) and "hex" in pv:
+                    try:
+                        pv = bytes.fromhex(str(pv["hex"]))
+                    except ValueError:
+                        raise r.error(
+                            f"[{r.name(sect)}] {EXTRA_PREFIX}parameter_value: not hex bytes",
+                            "remove the key and write ParameterValue as hex",
+                        ) from None
+                values[spec.address] = pv
+            elif "parametervalue" in keys:
+                raw = keys["parametervalue"]
+                if raw.strip() or spec.data_type.is_string:
+                    values[spec.address] = _parse_param(raw, spec, node_id, where)
+        if entry.object_type is ObjectType.ARRAY:
+            # Compact arrays carry their values in [xxxxValue] (CiA 306 §4.6.3.3).
+            compact_vals = r.get(f"{entry.index:04X}Value")
+            main = r.get(f"{entry.index:04X}") or {}
+            if compact_vals and main.get("compactsubobj"):
+                for spec in entry.specs():
+                    raw = compact_vals.get(str(spec.subindex))
+                    if spec.subindex and raw is not None and spec.address not in values:
+                        values[spec.address] = _parse_param(
+                            raw, spec, node_id, f"[{entry.index:04X}Value] {spec.subindex}"
+                        )
+    return DcfContents(profile=profile, values=values, node_id=node_id, bitrate=bitrate)
+
+
+def import_dcf(
+    text: str, *, profile_id: str | None = None, name: str | None = None, source: str = "<dcf>"
+) -> tuple[DeviceProfile, dict[ObjectAddress, Value]]:
+    """The profile and the configured values (ParameterValue) of a DCF."""
+    c = read_dcf(text, profile_id=profile_id, name=name, source=source)
+    return c.profile, c.values

@@ -1,0 +1,171 @@
+"""The CANopen device side of a simulated drive: a python-canopen ``LocalNode``.
+
+:class:`SimCanopenDevice` serves one :class:`~servodesk.sim.engine.SimulatedDrive` on a
+``canopen.Network``: its SDO server answers from the drive's object store with the CiA 301
+abort codes the drive raises, its NMT slave follows NMT commands and produces boot-up and
+heartbeat messages, and the drive's faults go out as EMCY frames.
+
+CiA 301 behaviour implemented here (beyond python-canopen's ``LocalNode``):
+
+- A segmented download is refused at its initiation when the object does not exist or is not
+  writable (python-canopen would only check after the last segment).
+- In NMT STOPPED the node answers no SDO and sends no EMCY (CiA 301 §7.3.2.2.1 table 35);
+  heartbeat and NMT keep working.
+- Reset node reloads the stored parameters and restarts the drive; reset communication
+  reloads the 1000h-1FFFh parameters; both send a boot-up message and enter PRE-OPERATIONAL.
+- The heartbeat starts at boot when 1017h is non-zero, restarts on every write of 1017h, and
+  carries the NMT state byte (0x7F pre-operational, 0x05 operational, 0x04 stopped).
+"""
+
+from __future__ import annotations
+
+import logging
+import struct
+from typing import Any
+
+from canopen import LocalNode
+from canopen.nmt import COMMAND_TO_STATE, NmtSlave
+from canopen.sdo.constants import EXPEDITED, REQUEST_DOWNLOAD, SDO_STRUCT
+from canopen.sdo.exceptions import SdoAbortedError
+from canopen.sdo.server import SdoServer
+
+from servodesk.domain.datatypes import Value
+from servodesk.sim.engine import K_HEARTBEAT, SimAbort, SimulatedDrive
+from servodesk.sim.od_build import build_object_dictionary
+
+log = logging.getLogger(__name__)
+
+NMT_BOOTUP = 0x00
+NMT_STOPPED = 0x04
+NMT_OPERATIONAL = 0x05
+NMT_PRE_OPERATIONAL = 0x7F
+_NMT_NAMES = {NMT_BOOTUP: "init", NMT_STOPPED: "stopped", NMT_OPERATIONAL: "op"}
+
+
+class _SdoServer(SdoServer):
+    def on_request(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        if self._node.nmt_state_byte == NMT_STOPPED:
+            return
+        super().on_request(can_id, data, timestamp)
+
+    def init_download(self, request: bytearray) -> None:
+        command, index, subindex = SDO_STRUCT.unpack_from(request)
+        if command & 0xE0 == REQUEST_DOWNLOAD and not command & EXPEDITED:
+            self._index = index
+            self._subindex = subindex
+            self._node.check_download(index, subindex)
+        super().init_download(request)
+
+
+class _NmtSlave(NmtSlave):
+    def on_command(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        if len(data) < 2:
+            return
+        cmd, node_id = struct.unpack_from("BB", data)
+        if node_id not in (0, self.id):
+            return
+        device: SimCanopenDevice = self._local_node
+        if cmd == 0x81:
+            device.reset_node()
+        elif cmd == 0x82:
+            device.reset_communication()
+        elif cmd in (0x01, 0x02, 0x80):
+            device.set_nmt_state(COMMAND_TO_STATE[cmd])
+
+    def on_write(self, index: int, data: bytes, **kwargs: Any) -> None:
+        """Unused: the device restarts the heartbeat itself after a write of 1017h."""
+
+
+class SimCanopenDevice(LocalNode):
+    """A simulated drive as a CANopen node (attach with ``network.add_node(device)``)."""
+
+    def __init__(self, drive: SimulatedDrive) -> None:
+        super().__init__(drive.node_id, build_object_dictionary(drive.profile, drive.node_id))
+        self.drive = drive
+        self.node_id = node_id = drive.node_id
+        self.sdo = _SdoServer(0x600 + node_id, 0x580 + node_id, self)
+        self.nmt = _NmtSlave(node_id, self)
+        self._write_callbacks = []  # LocalNode's NmtSlave hook is replaced by _on_drive_write.
+        drive.on_emcy(self._on_emcy)
+        drive.on_write(self._on_drive_write)
+
+    # SDO access goes to the drive's object store --------------------------------------
+
+    def get_data(self, index: int, subindex: int, check_readable: bool = False) -> bytes:
+        try:
+            return self.drive.read_bytes(index, subindex)
+        except SimAbort as exc:
+            raise SdoAbortedError(exc.code) from None
+
+    def set_data(
+        self, index: int, subindex: int, data: bytes, check_writable: bool = False
+    ) -> None:
+        try:
+            self.drive.write_bytes(index, subindex, bytes(data))
+        except SimAbort as exc:
+            raise SdoAbortedError(exc.code) from None
+
+    def check_download(self, index: int, subindex: int) -> None:
+        try:
+            self.drive.check_download(index, subindex)
+        except SimAbort as exc:
+            raise SdoAbortedError(exc.code) from None
+
+    # NMT --------------------------------------------------------------------------------
+
+    @property
+    def nmt_state_byte(self) -> int:
+        state: int = self.nmt._state
+        return state
+
+    def boot(self) -> None:
+        """Initialisation finished: boot-up message, PRE-OPERATIONAL, heartbeat per 1017h."""
+        self.nmt._state = NMT_BOOTUP
+        self.drive.nmt_state = "init"
+        self.network.send_message(0x700 + self.node_id, bytes([NMT_BOOTUP]))
+        self.set_nmt_state(NMT_PRE_OPERATIONAL)
+        self._restart_heartbeat()
+
+    def set_nmt_state(self, state: int) -> None:
+        self.nmt._state = state
+        self.drive.nmt_state = _NMT_NAMES.get(state, "preop")
+        self.nmt.update_heartbeat()
+
+    def reset_node(self) -> None:
+        self.nmt.stop_heartbeat()
+        self.drive.reset_node()
+        self.boot()
+
+    def reset_communication(self) -> None:
+        self.nmt.stop_heartbeat()
+        self.drive.reset_communication()
+        self.boot()
+
+    def shutdown(self) -> None:
+        """Stop the heartbeat and leave the network."""
+        self.nmt.stop_heartbeat()
+        self.remove_network()
+
+    def _restart_heartbeat(self) -> None:
+        period = 0
+        if self.drive.has_object(0x1017):
+            value = self.drive.read(0x1017)
+            period = value if isinstance(value, int) else 0
+        if period > 0:
+            self.nmt.start_heartbeat(period)
+        else:
+            self.nmt.stop_heartbeat()
+
+    def _on_drive_write(self, index: int, subindex: int, value: Value) -> None:
+        if index << 8 | subindex == K_HEARTBEAT:
+            self._restart_heartbeat()
+
+    # EMCY -------------------------------------------------------------------------------
+
+    def _on_emcy(self, code: int, register: int, data: bytes) -> None:
+        if not self.has_network() or self.nmt_state_byte == NMT_STOPPED:
+            return
+        try:
+            self.emcy.send(code, register, data)
+        except Exception:  # The bus may be gone while shutting down.
+            log.debug("EMCY 0x%04X not sent", code, exc_info=True)

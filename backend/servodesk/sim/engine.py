@@ -1,0 +1,1214 @@
+"""The simulated CiA 402 drive: object store, state machine, modes, controllers, faults.
+
+:class:`SimulatedDrive` is the device behaviour without any bus code: a fieldbus front-end
+(``canopen_device``) turns SDO requests into :meth:`SimulatedDrive.read_bytes` /
+:meth:`SimulatedDrive.write_bytes` and forwards the EMCY events the drive emits. Everything
+family-specific comes from the :class:`~servodesk.domain.profile.DeviceProfile`: objects,
+limits, defaults, supported modes and homing methods, error texts and quirks.
+
+Time is simulated: :meth:`SimulatedDrive.step` advances it; the control cycle runs at 1 kHz
+with several plant sub-steps per cycle. The drive is thread-safe: requests may arrive on a
+bus thread while a runner thread steps it. Events (EMCY, written objects) are delivered to
+listeners after the internal lock is released, so a listener may call back into the drive.
+
+Choices where the standard leaves room (documented here once):
+
+- Statusword bit 4 (voltage enabled) is set in Ready to switch on, Switched on, Operation
+  enabled, Quick stop active and Fault reaction active: the simulated DC link is always
+  charged, and the bit tells that the master has asked for the power stage (CiA 402-2 §6.2.1).
+- Disable operation (605Ch = 1), shutdown (605Bh = 1), quick stop and fault reaction ramps:
+  the drive reports the source state until the axis has stopped, then changes state.
+- Quick stop options 3/7 (current limit) and 4/8 (voltage limit) both stop at the torque
+  limit 6072h: the simulation has no DC-link model that would make them differ.
+- Quirk ``controlword_min_interval_ms``: a controlword written sooner than the interval after
+  the previously accepted one is confirmed on the bus but not acted upon, and 6040h keeps the
+  accepted value (smartris 001 §5 caution: "send the next controlword command at least 40 ms
+  later"; the manual does not say what happens otherwise, and a dropped command is the
+  failure a master that ignores the rule must be able to see).
+- Faults are reset by the rising edge of controlword bit 7 unless the profile says otherwise
+  (quirk ``no_fault_reset_bit7`` or a ``fault_reset`` other than ``bit7_edge``); then only a
+  node reset (:meth:`reset_node`, NMT reset node) clears them.
+- PDO mapping objects (1600h-17FFh, 1A00h-1BFFh) without their own ``writable_in`` accept
+  writes in the NMT state named by ``pdo.mapping_state`` ("preop" by default, "any" for no
+  restriction) or whenever the PDO is invalid (bit 31 of its COB-ID set): CiA 301 §7.5.2.36
+  re-mapping procedure, which disables the PDO first and so may run in OPERATIONAL too.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from servodesk.domain.cia402 import STATE_BITS, State, device_transition
+from servodesk.domain.datatypes import Value, codec, coerce_int
+from servodesk.domain.profile import DeviceProfile, ObjectSpec
+from servodesk.domain.sdo_abort import ABORT_CODES
+from servodesk.sim.plant import Plant, PlantParams
+
+# Object keys: index << 8 | subindex (ints are the fastest dict keys in the control cycle).
+K_ERROR_REGISTER = 0x100100
+K_ERROR_HISTORY = 0x1003
+K_HEARTBEAT = 0x101700
+K_IDENTITY_SERIAL = 0x101804
+K_ERROR_CODE = 0x603F00
+K_CONTROLWORD = 0x604000
+K_STATUSWORD = 0x604100
+K_QS_OPTION = 0x605A00
+K_SHUTDOWN_OPTION = 0x605B00
+K_DISABLE_OP_OPTION = 0x605C00
+K_HALT_OPTION = 0x605D00
+K_FAULT_OPTION = 0x605E00
+K_MODE = 0x606000
+K_MODE_DISPLAY = 0x606100
+K_POSITION = 0x606400
+K_FE_WINDOW = 0x606500
+K_FE_TIMEOUT = 0x606600
+K_POS_WINDOW = 0x606700
+K_POS_WINDOW_TIME = 0x606800
+K_VELOCITY = 0x606C00
+K_VEL_WINDOW = 0x606D00
+K_VEL_WINDOW_TIME = 0x606E00
+K_VEL_THRESHOLD = 0x606F00
+K_TARGET_TORQUE = 0x607100
+K_MAX_TORQUE = 0x607200
+K_TORQUE = 0x607700
+K_TARGET_POSITION = 0x607A00
+K_HOME_OFFSET = 0x607C00
+K_SW_LIMIT_MIN = 0x607D01
+K_SW_LIMIT_MAX = 0x607D02
+K_MAX_PROFILE_VEL = 0x607F00
+K_PROFILE_VEL = 0x608100
+K_PROFILE_ACC = 0x608300
+K_PROFILE_DEC = 0x608400
+K_QS_DEC = 0x608500
+K_TORQUE_SLOPE = 0x608700
+K_HOMING_METHOD = 0x609800
+K_FE_ACTUAL = 0x60F400
+K_INPUTS = 0x60FD00
+K_TARGET_VELOCITY = 0x60FF00
+
+SIGNATURE_SAVE = 0x65766173  # "save" (CiA 301 §7.5.2.13)
+SIGNATURE_LOAD = 0x64616F6C  # "load" (CiA 301 §7.5.2.14)
+
+# Values used when a profile does not have the object (raw units of the generic profile).
+_FALLBACK: dict[int, int] = {
+    K_QS_OPTION: 2,
+    K_SHUTDOWN_OPTION: 0,
+    K_DISABLE_OP_OPTION: 1,
+    K_HALT_OPTION: 1,
+    K_FAULT_OPTION: 2,
+    K_FE_WINDOW: 0xFFFFFFFF,
+    K_FE_TIMEOUT: 0,
+    K_POS_WINDOW: 100,
+    K_POS_WINDOW_TIME: 0,
+    K_VEL_WINDOW: 1000,
+    K_VEL_WINDOW_TIME: 0,
+    K_VEL_THRESHOLD: 1000,
+    K_MAX_TORQUE: 3000,
+    K_MAX_PROFILE_VEL: 0,  # 0: no extra limit beyond the simulation's max_velocity.
+    K_PROFILE_VEL: 200_000,
+    K_PROFILE_ACC: 1_000_000,
+    K_PROFILE_DEC: 1_000_000,
+    K_QS_DEC: 5_000_000,
+    K_TORQUE_SLOPE: 0,  # 0: torque set-point applies at once.
+    K_HOME_OFFSET: 0,
+    K_HOMING_METHOD: 0,
+    K_SW_LIMIT_MIN: 0,
+    K_SW_LIMIT_MAX: 0,
+    K_TARGET_POSITION: 0,
+    K_TARGET_VELOCITY: 0,
+    K_TARGET_TORQUE: 0,
+}
+
+#: Acceleration standing in for "no ramp" (counts/s²): reaches any speed within a cycle.
+_NO_RAMP = 10**12
+
+_ENABLED_STATES = (State.OPERATION_ENABLED, State.QUICK_STOP_ACTIVE, State.FAULT_REACTION_ACTIVE)
+_VOLTAGE_STATES = frozenset(
+    (
+        State.READY_TO_SWITCH_ON,
+        State.SWITCHED_ON,
+        State.OPERATION_ENABLED,
+        State.QUICK_STOP_ACTIVE,
+        State.FAULT_REACTION_ACTIVE,
+    )
+)
+_POSITION_MODES = frozenset((1, 6, 7, 8))
+_NMT_ALIASES = {
+    "preop": "preop",
+    "pre_operational": "preop",
+    "preoperational": "preop",
+    "op": "op",
+    "operational": "op",
+    "stopped": "stopped",
+    "init": "init",
+    "initialising": "init",
+    "safeop": "safeop",
+}
+
+EmcyListener = Callable[[int, int, bytes], None]
+WriteListener = Callable[[int, int, Value], None]
+
+# Control kinds.
+_OFF, _POSITION, _VELOCITY, _TORQUE = 0, 1, 2, 3
+
+
+class SimAbort(Exception):
+    """The simulated device refuses an access; ``code`` is the CiA 301 SDO abort code."""
+
+    def __init__(self, code: int, detail: str = "") -> None:
+        text = ABORT_CODES.get(code, "Unknown abort code")
+        super().__init__(f"0x{code:08X} {text}" + (f": {detail}" if detail else ""))
+        self.code = code
+
+
+@dataclass(slots=True)
+class ControllerGains:
+    """Cascade gains, in drive units (counts, counts/s, N m).
+
+    ``kp_pos`` [1/s]: velocity command per position error; ``kp_vel`` [N m per count/s];
+    ``ki_vel`` [1/s]: integral rate of the velocity PI (integral gain = kp_vel * ki_vel);
+    ``acc_ff`` [N m per count/s²]: acceleration (inertia) feed-forward.
+    """
+
+    kp_pos: float
+    kp_vel: float
+    ki_vel: float
+    acc_ff: float
+
+    @classmethod
+    def from_plant(cls, p: PlantParams, bandwidth_hz: float = 60.0) -> ControllerGains:
+        """Gains placing the velocity loop at ``bandwidth_hz`` for the rigid inertia.
+
+        The usual cascade rule of thumb: integral corner at a quarter of the velocity
+        bandwidth, position bandwidth a fifth of it; leaves some 45° of phase margin with
+        the 1 ms cycle and the current-loop lag.
+        """
+        w = 2.0 * math.pi * bandwidth_hz
+        rad_per_count = 2.0 * math.pi / p.counts_per_rev
+        return cls(
+            kp_pos=w / 5.0,
+            kp_vel=p.inertia * w * rad_per_count,
+            ki_vel=w / 4.0,
+            acc_ff=p.inertia * rad_per_count,
+        )
+
+
+@dataclass(slots=True)
+class _Stop:
+    """A deceleration in progress and what happens when the axis has stopped."""
+
+    decel: float
+    then: Callable[[], None]
+    settle: float = 0.0
+
+
+def _key(index: int, subindex: int) -> int:
+    return index << 8 | subindex
+
+
+def _norm(name: str) -> str:
+    return "".join(c if c.isalnum() else "_" for c in name.strip().lower()).strip("_")
+
+
+class SimulatedDrive:
+    """One simulated CiA 402 axis, built from a device profile."""
+
+    CONTROL_PERIOD = 1e-3
+
+    def __init__(
+        self,
+        profile: DeviceProfile,
+        node_id: int,
+        serial: int | None = None,
+        *,
+        plant_params: PlantParams | None = None,
+        plant_substeps: int = 4,
+        gains: ControllerGains | None = None,
+    ) -> None:
+        self.profile = profile
+        self.node_id = node_id
+        self._lock = threading.RLock()
+        self._emcy_listeners: list[EmcyListener] = []
+        self._write_listeners: list[WriteListener] = []
+        self._events: list[tuple[int, int, bytes]] = []
+
+        # Object store.
+        self._specs: dict[int, ObjectSpec] = {}
+        self._subs: dict[int, set[int]] = {}
+        self._defaults: dict[int, Value | None] = {}
+        for spec in profile.variables.values():
+            k = _key(spec.index, spec.subindex)
+            self._specs[k] = spec
+            self._subs.setdefault(spec.index, set()).add(spec.subindex)
+            d = spec.default_value(node_id)
+            if isinstance(d, bool):
+                d = int(d)
+            self._defaults[k] = d
+        if K_IDENTITY_SERIAL in self._specs:
+            if serial is not None:
+                self._defaults[K_IDENTITY_SERIAL] = serial
+            elif self._defaults[K_IDENTITY_SERIAL] is None:
+                self._defaults[K_IDENTITY_SERIAL] = profile.simulation.serial_number
+        self._values: dict[int, Value | None] = dict(self._defaults)
+        #: The non-volatile copy: persist objects saved by "store parameters".
+        self._nv: dict[int, Value | None] = {}
+        self._history_len = len(self._subs.get(K_ERROR_HISTORY, {0})) - 1
+
+        # Profile data read once.
+        self._modes = frozenset(profile.modes)
+        self._homing_methods = frozenset(profile.homing_methods)
+        self._store_cmd = self._command_quirk("store_parameters", 0x1010, SIGNATURE_SAVE)
+        self._restore_cmd = self._command_quirk("restore_defaults", 0x1011, SIGNATURE_LOAD)
+        q = profile.quirk("controlword_min_interval_ms")
+        self._cw_min_interval = float(q) / 1000.0 if q else 0.0
+        q = profile.quirk("quick_stop_statusword")
+        self._qs_statusword: int | None = coerce_int(q) if q is not None else None
+        reset_id = profile.quirk("fault_reset", "bit7_edge")
+        self._bit7_resets = not profile.quirk("no_fault_reset_bit7", False) and reset_id in (
+            None,
+            "bit7_edge",
+        )
+        self._pdo_mapping_state = _NMT_ALIASES.get(_norm(profile.pdo.mapping_state), "any")
+
+        # Physics and control.
+        sim = profile.simulation
+        self.plant_params = plant_params or PlantParams.from_settings(sim)
+        self.plant = Plant(self.plant_params)
+        self.gains = gains or ControllerGains.from_plant(self.plant_params)
+        self._substeps = max(1, plant_substeps)
+        self._T = self.CONTROL_PERIOD
+        self._sub_dt = self._T / self._substeps
+        self._rated = self.plant_params.rated_torque
+        self._counts_per_rad = self.plant.counts_per_rad
+        self._vmax_sim = float(sim.max_velocity)
+
+        #: NMT (or ESM) state, set by the front-end: "init", "preop", "op", "stopped".
+        self.nmt_state = "preop"
+        self._cycles = 0
+        self._acc_time = 0.0
+        self._inputs = 0
+        self._reset_runtime()
+
+    # ------------------------------------------------------------------ public surface
+
+    @property
+    def time(self) -> float:
+        """Simulated time in seconds (whole control cycles)."""
+        return self._cycles * self._T
+
+    @property
+    def state(self) -> State:
+        return self._state
+
+    @property
+    def statusword(self) -> int:
+        with self._lock:
+            return self._statusword()
+
+    @property
+    def mode(self) -> int:
+        return self._mode
+
+    @property
+    def position(self) -> int:
+        """Position actual value (6064h), counts."""
+        with self._lock:
+            return self.plant.encoder_counts + self._pos_offset
+
+    @property
+    def velocity(self) -> float:
+        return self.plant.velocity_counts
+
+    @property
+    def error_code(self) -> int:
+        return int(self._values.get(K_ERROR_CODE) or 0)
+
+    def error_text(self, code: int | None = None) -> str:
+        """The profile's name for an error code (603Fh table), e.g. "Following error"."""
+        c = self.error_code if code is None else code
+        e = self.profile.error("error_code", c)
+        return e.name if e is not None else f"Error 0x{c:04X}"
+
+    def on_emcy(self, listener: EmcyListener) -> None:
+        """Call ``listener(code, error_register, manufacturer_data)`` for every EMCY."""
+        self._emcy_listeners.append(listener)
+
+    def on_write(self, listener: WriteListener) -> None:
+        """Call ``listener(index, subindex, value)`` after every accepted write."""
+        self._write_listeners.append(listener)
+
+    def has_object(self, index: int, subindex: int = 0) -> bool:
+        return _key(index, subindex) in self._specs
+
+    def spec(self, index: int, subindex: int = 0) -> ObjectSpec:
+        """The specification of an object, or :class:`SimAbort` as the bus would answer."""
+        return self._lookup(index, subindex)
+
+    def set_inputs(self, bits: int) -> None:
+        """Set the digital inputs (60FDh) the drive reports."""
+        with self._lock:
+            self._inputs = bits & 0xFFFFFFFF
+
+    def step(self, dt: float) -> None:
+        """Advance the simulation by ``dt`` seconds (whole control cycles; remainder kept)."""
+        with self._lock:
+            self._acc_time += dt
+            n = int(self._acc_time / self._T + 1e-9)
+            if n > 0:
+                self._acc_time -= n * self._T
+                cycle = self._cycle
+                for _ in range(n):
+                    cycle()
+        self._flush()
+
+    def read(self, index: int, subindex: int = 0) -> Value:
+        """The typed value of an object, as an SDO upload would return it."""
+        with self._lock:
+            spec = self._lookup(index, subindex)
+            return self._read(spec)
+
+    def read_bytes(self, index: int, subindex: int = 0) -> bytes:
+        with self._lock:
+            spec = self._lookup(index, subindex)
+            return codec(spec.data_type).encode(self._read(spec))
+
+    def check_download(self, index: int, subindex: int) -> None:
+        """Refuse a download early (before a segmented transfer) when it cannot succeed."""
+        with self._lock:
+            spec = self._lookup(index, subindex)
+            if not spec.access.writable:
+                raise SimAbort(0x06010002)
+
+    def write_bytes(self, index: int, subindex: int, data: bytes) -> None:
+        """An SDO download: checks, in order, existence, access, length, state, value."""
+        with self._lock:
+            spec = self._lookup(index, subindex)
+            if not spec.access.writable:
+                raise SimAbort(0x06010002)
+            n = spec.data_type.bits // 8
+            if n:
+                if len(data) > n:
+                    raise SimAbort(0x06070012)
+                if len(data) < n:
+                    raise SimAbort(0x06070013)
+            value = codec(spec.data_type).decode(bytes(data))
+            if isinstance(value, bool):
+                value = int(value)
+            self._write(spec, value)
+            self._refresh()
+        self._after_write(index, subindex, value)
+
+    def write(self, index: int, subindex: int, value: Value) -> None:
+        """A typed write with the same checks as :meth:`write_bytes`."""
+        with self._lock:
+            spec = self._lookup(index, subindex)
+            if not spec.access.writable:
+                raise SimAbort(0x06010002)
+            dt = spec.data_type
+            if dt.is_integer:
+                value = coerce_int(value, dt)
+            elif dt.is_real:
+                value = float(value)
+            self._write(spec, value)
+            self._refresh()
+        self._after_write(index, subindex, value)
+
+    def raise_fault(self, code: int) -> None:
+        """Raise a fault as the drive's monitoring would (603Fh, 1001h, 1003h, EMCY)."""
+        with self._lock:
+            self._fault(code)
+        self._flush()
+
+    def reset_node(self) -> None:
+        """Application reset (power cycle): stored values, Switch on disabled, faults gone."""
+        with self._lock:
+            self._values = dict(self._defaults)
+            self._values.update(self._nv)
+            self._reset_runtime()
+            # Position restarts from the encoder (homing offset is lost).
+
+    def reset_communication(self) -> None:
+        """Communication reset: the 1000h-1FFFh parameters get their stored values."""
+        with self._lock:
+            for k, spec in self._specs.items():
+                if 0x1000 <= spec.index <= 0x1FFF and not spec.process:
+                    self._values[k] = self._nv.get(k, self._defaults[k])
+            self._refresh()
+
+    # ------------------------------------------------------------------ object access
+
+    def _lookup(self, index: int, subindex: int) -> ObjectSpec:
+        spec = self._specs.get(_key(index, subindex))
+        if spec is None:
+            if index in self._subs:
+                raise SimAbort(0x06090011)
+            raise SimAbort(0x06020000)
+        return spec
+
+    def _read(self, spec: ObjectSpec) -> Value:
+        if not spec.access.readable:
+            raise SimAbort(0x06010001)
+        k = _key(spec.index, spec.subindex)
+        live = self._live.get(k)
+        v = live() if live is not None else self._values.get(k)
+        if v is None:
+            raise SimAbort(0x08000024)
+        return v
+
+    def _write(self, spec: ObjectSpec, value: Value) -> None:
+        k = _key(spec.index, spec.subindex)
+        self._check_state(spec)
+        if spec.index == K_ERROR_HISTORY and spec.subindex == 0:
+            # CiA 301 §7.5.2.3: only 0 may be written (clears the history).
+            if value != 0:
+                raise SimAbort(0x06090030, "write 0 to clear the error history")
+            for s in self._subs[K_ERROR_HISTORY]:
+                self._values[_key(K_ERROR_HISTORY, s)] = self._defaults[_key(K_ERROR_HISTORY, s)]
+            self._values[k] = 0
+            return
+        cmd = self._store_restore(spec, value)
+        if cmd:
+            return
+        if isinstance(value, int) and spec.data_type.is_integer:
+            lo, hi = spec.limits()
+            if lo is not None and value < lo:
+                raise SimAbort(0x06090032, f"minimum is {lo}")
+            if hi is not None and value > hi:
+                raise SimAbort(0x06090031, f"maximum is {hi}")
+        elif isinstance(value, float) and spec.data_type.is_real:
+            if spec.min is not None and value < spec.min:
+                raise SimAbort(0x06090032, f"minimum is {spec.min}")
+            if spec.max is not None and value > spec.max:
+                raise SimAbort(0x06090031, f"maximum is {spec.max}")
+        if k == K_CONTROLWORD:
+            assert isinstance(value, int)
+            self._controlword(value)
+            return
+        if k == K_MODE:
+            if value not in self._modes:
+                raise SimAbort(0x06090030, f"supported modes: {sorted(self._modes)}")
+            self._values[k] = value
+            if self._mode != value:
+                self._enter_mode(int(value))
+            return
+        if k == K_HOMING_METHOD and value not in self._homing_methods:
+            raise SimAbort(0x06090030, f"supported methods: {sorted(self._homing_methods)}")
+        if _is_mapping(spec.index):
+            self._check_mapping(spec, value)
+        self._values[k] = value
+
+    def _after_write(self, index: int, subindex: int, value: Value) -> None:
+        for cb in self._write_listeners:
+            cb(index, subindex, value)
+        self._flush()
+
+    def _check_state(self, spec: ObjectSpec) -> None:
+        allowed = spec.writable_in
+        if not allowed and _is_mapping(spec.index):
+            if self._pdo_mapping_state == "any" or self.nmt_state == self._pdo_mapping_state:
+                return
+            comm = self._values.get(_key(spec.index - 0x200, 1))
+            if isinstance(comm, int) and comm & 0x80000000:
+                return
+            raise SimAbort(
+                0x08000022, "PDO mapping changes need PRE-OPERATIONAL or the PDO disabled"
+            )
+        if not allowed:
+            return
+        here = {self.nmt_state, self._state.name.lower()}
+        if self._state not in _ENABLED_STATES:
+            here.update(("disabled", "servo_off"))
+        for name in allowed:
+            n = _norm(name)
+            if _NMT_ALIASES.get(n, n) in here:
+                return
+        raise SimAbort(0x08000022, f"writable only in {', '.join(allowed)}")
+
+    def _check_mapping(self, spec: ObjectSpec, value: Value) -> None:
+        """CiA 301 §7.5.2.36: mapped objects must exist, be mappable and fit the PDO."""
+        assert isinstance(value, int)
+        rx = spec.index < 0x1A00
+        if spec.subindex == 0:
+            bits = 0
+            for i in range(1, value + 1):
+                entry = self._values.get(_key(spec.index, i))
+                if not isinstance(entry, int):
+                    raise SimAbort(0x06040041)
+                self._check_mapped_object(entry, rx)
+                bits += entry & 0xFF
+            if bits > self.profile.pdo.max_bits:
+                raise SimAbort(0x06040042)
+        elif value:
+            self._check_mapped_object(value, rx)
+
+    def _check_mapped_object(self, entry: int, rx: bool) -> None:
+        target = self._specs.get(entry >> 8 & 0xFFFFFF)
+        if target is None:
+            raise SimAbort(0x06040041, f"0x{entry:08X} names no object")
+        ok = target.pdo_mapping.rx if rx else target.pdo_mapping.tx
+        if not ok or target.bits != entry & 0xFF:
+            raise SimAbort(0x06040041, f"0x{entry:08X} cannot be mapped")
+
+    def _command_quirk(
+        self, quirk_id: str, index: int, signature: int
+    ) -> tuple[int, int | None, int]:
+        q = self.profile.quirk(quirk_id)
+        if isinstance(q, dict):
+            return (
+                coerce_int(q["index"]),
+                coerce_int(q.get("subindex", 1)),
+                coerce_int(q.get("value", signature)),
+            )
+        return (index, None, signature)
+
+    def _store_restore(self, spec: ObjectSpec, value: Value) -> bool:
+        """Store (1010h) / restore (1011h) commands; True when the write was one."""
+        for cmd, store in ((self._store_cmd, True), (self._restore_cmd, False)):
+            index, sub, signature = cmd
+            if spec.index != index:
+                continue
+            if (sub is None and spec.subindex == 0) or (sub is not None and spec.subindex != sub):
+                continue
+            if value != signature:
+                raise SimAbort(0x08000020, f"write the signature 0x{signature:08X}")
+            lo, hi = _scope(spec.subindex if sub is None else 1)
+            for k, s in self._specs.items():
+                if s.persist and lo <= s.index <= hi:
+                    if store:
+                        self._nv[k] = self._values.get(k)
+                    else:
+                        self._nv.pop(k, None)  # Defaults apply at the next reset.
+            return True
+        return False
+
+    # ------------------------------------------------------------------ state machine
+
+    def _reset_runtime(self) -> None:
+        self._c: dict[int, int] = {}
+        self._refresh()
+        self._state = State.NOT_READY_TO_SWITCH_ON
+        self._enabled = False
+        self._kind = _OFF
+        self._cw = int(self._values.get(K_CONTROLWORD) or 0)
+        self._cw_time = -1e9
+        self._pos_offset = 0
+        mode = self._values.get(K_MODE)
+        self._mode = int(mode) if isinstance(mode, int) and mode in self._modes else 0
+        self._stop: _Stop | None = None
+        self._halted = False
+        self._hold = False
+        self._dp = float(self.plant.encoder_counts)
+        self._dv = 0.0
+        self._da = 0.0
+        self._integ = 0.0
+        self._tq_demand = 0.0
+        self._sat = False
+        self._clipped = False
+        self._fe = 0.0
+        self._fe_time = 0.0
+        self._fe_flag = False
+        self._reached = False
+        self._win_time = 0.0
+        self._pp_target = self._dp
+        self._pp_done = True
+        self._pp_buffer: float | None = None
+        self._sp_ack = False
+        self._homing_started = False
+        self._homed = False
+        self._values[K_ERROR_CODE] = 0
+        if K_ERROR_REGISTER in self._specs:
+            self._values[K_ERROR_REGISTER] = 0
+        self._live: dict[int, Callable[[], Value]] = {
+            K_STATUSWORD: self._statusword,
+            K_MODE_DISPLAY: lambda: self._mode,
+            K_POSITION: lambda: self.plant.encoder_counts + self._pos_offset,
+            K_VELOCITY: lambda: round(self.plant.velocity_counts),
+            K_TORQUE: self._torque_actual,
+            K_FE_ACTUAL: lambda: round(self._fe),
+            K_INPUTS: lambda: self._inputs,
+        }
+
+    def _refresh(self) -> None:
+        """Copy the parameters the control cycle reads into ``_c`` (after every write)."""
+        values = self._values
+        c = self._c
+        for k, fallback in _FALLBACK.items():
+            v = values.get(k)
+            c[k] = v if isinstance(v, int) else fallback
+        for k in (K_PROFILE_ACC, K_PROFILE_DEC, K_QS_DEC):
+            if c[k] <= 0:
+                c[k] = _NO_RAMP  # 0 (not valid in CiA 402; "no ramp" in some families).
+
+    def _statusword(self) -> int:
+        st = self._state
+        if st is State.QUICK_STOP_ACTIVE and self._qs_statusword is not None:
+            return self._qs_statusword
+        sw = STATE_BITS.get(st, 0) | 0x0200  # Bit 9 remote: the bus controls the drive.
+        if st in _VOLTAGE_STATES:
+            sw |= 0x0010
+        if self._reached:
+            sw |= 0x0400
+        if self._sat or self._clipped:
+            sw |= 0x0800  # Internal limit active: torque limit or a clipped set-point.
+        m = self._mode
+        if m == 1:
+            if self._sp_ack:
+                sw |= 0x1000
+            if self._fe_flag:
+                sw |= 0x2000
+        elif m == 3:
+            if abs(self.plant.velocity_counts) <= self._c[K_VEL_THRESHOLD]:
+                sw |= 0x1000
+        elif m == 6 and self._homed:
+            sw |= 0x1000
+        return sw
+
+    def _torque_actual(self) -> int:
+        return round(self.plant.torque / self._rated * 1000.0)
+
+    def _controlword(self, cw: int) -> None:
+        if self._cw_min_interval and self.time - self._cw_time < self._cw_min_interval - 1e-9:
+            return  # Too soon after the last one: the drive drops it (see module docstring).
+        prev = self._cw
+        self._cw = cw
+        self._cw_time = self.time
+        self._values[K_CONTROLWORD] = cw
+        st = self._state
+        if st is State.FAULT:
+            if self._bit7_resets and cw & 0x80 and not prev & 0x80:
+                self._fault_reset()
+            return
+        t = device_transition(st, cw, prev, self._c[K_QS_OPTION])
+        if t is not None:
+            self._take(t.number)
+        if self._state is State.OPERATION_ENABLED:
+            self._mode_bits(cw, prev)
+
+    def _take(self, number: int) -> None:
+        S = State
+        if number == 2:
+            self._state = S.READY_TO_SWITCH_ON
+        elif number == 3:
+            self._state = S.SWITCHED_ON
+        elif number in (4, 34):
+            self._state = S.OPERATION_ENABLED
+            self._enable()
+        elif number == 5:
+            self._disable_with(K_DISABLE_OP_OPTION, S.SWITCHED_ON)
+        elif number == 6:
+            self._state = S.READY_TO_SWITCH_ON
+        elif number in (7, 10):
+            self._state = S.SWITCH_ON_DISABLED
+        elif number == 8:
+            self._disable_with(K_SHUTDOWN_OPTION, S.READY_TO_SWITCH_ON)
+        elif number in (9, 12):
+            self._disable()
+            self._state = S.SWITCH_ON_DISABLED
+        elif number == 11:
+            self._quick_stop()
+        elif number == 16:
+            # Back from Quick stop active (605Ah 5..8): the interrupted move is dropped.
+            self._state = S.OPERATION_ENABLED
+            self._stop = None
+            self._hold = False
+            self._pp_done = True
+            self._pp_buffer = None
+            self._begin_motion()
+
+    def _disable_with(self, option_key: int, target: State) -> None:
+        """Transitions 5 and 8: free wheel (option 0) or slow-down ramp, then disable."""
+        if self._c[option_key] == 1 and self._enabled:
+
+            def done() -> None:
+                self._disable()
+                self._state = target
+
+            self._start_stop(float(self._c[K_PROFILE_DEC]), done)
+        else:
+            self._disable()
+            self._state = target
+
+    def _quick_stop(self) -> None:
+        """Transition 11 and the quick stop function (605Ah, CiA 402-2 §6.3.4)."""
+        opt = self._c[K_QS_OPTION]
+        self._state = State.QUICK_STOP_ACTIVE
+        if opt <= 0 or not self._enabled:
+            self._disable()
+            self._state = State.SWITCH_ON_DISABLED
+            return
+        decel = self._decel_for(opt if opt <= 4 else opt - 4)
+
+        def done() -> None:
+            if opt <= 4:
+                self._disable()
+                self._state = State.SWITCH_ON_DISABLED  # Transition 12, automatic.
+            else:
+                self._hold = True
+                self._reached = True
+
+        self._start_stop(decel, done)
+
+    def _decel_for(self, ramp: int) -> float:
+        """1: slow-down ramp (6084h), 2: quick-stop ramp (6085h), 3/4: torque limit."""
+        if ramp == 1:
+            return float(self._c[K_PROFILE_DEC])
+        if ramp == 2:
+            return float(self._c[K_QS_DEC])
+        limit = self._c[K_MAX_TORQUE] / 1000.0 * self._rated
+        return limit / self.plant_params.inertia * self._counts_per_rad
+
+    def _fault(self, code: int) -> None:
+        if self._state in (State.FAULT, State.FAULT_REACTION_ACTIVE):
+            return
+        entry = self.profile.error("error_code", code)
+        reg = 0x01
+        extra = entry.extra.get("error_register") if entry is not None else None
+        if isinstance(extra, int | str):
+            reg = coerce_int(extra) | 0x01
+        else:
+            reg |= _register_bits(code)
+        self._values[K_ERROR_CODE] = code
+        if K_ERROR_REGISTER in self._specs:
+            self._values[K_ERROR_REGISTER] = reg
+        self._push_history(code)
+        self._events.append((code, reg, bytes(5)))
+        self._state = State.FAULT_REACTION_ACTIVE
+        opt = self._c[K_FAULT_OPTION]
+
+        def done() -> None:
+            self._disable()
+            self._state = State.FAULT
+
+        if self._enabled and opt in (1, 2):
+            self._start_stop(self._decel_for(opt), done)
+        else:
+            done()
+
+    def _push_history(self, code: int) -> None:
+        n = self._history_len
+        if n <= 0:
+            return
+        base = K_ERROR_HISTORY << 8
+        for s in range(n, 1, -1):
+            self._values[base | s] = self._values.get(base | (s - 1))
+        self._values[base | 1] = code
+        count = self._values.get(base)
+        self._values[base] = min(n, (count if isinstance(count, int) else 0) + 1)
+
+    def _fault_reset(self) -> None:
+        self._state = State.SWITCH_ON_DISABLED
+        self._values[K_ERROR_CODE] = 0
+        reg = 0
+        if K_ERROR_REGISTER in self._specs:
+            self._values[K_ERROR_REGISTER] = reg
+        self._fe_flag = False
+        self._fe_time = 0.0
+        self._events.append((0, reg, bytes(5)))
+
+    def _flush(self) -> None:
+        if not self._events:
+            return
+        with self._lock:
+            events, self._events = self._events, []
+        for code, reg, data in events:
+            for cb in self._emcy_listeners:
+                cb(code, reg, data)
+
+    # ------------------------------------------------------------------ modes and motion
+
+    def _enable(self) -> None:
+        p = float(self.plant.encoder_counts + self._pos_offset)
+        self._enabled = True
+        self._dp = p
+        self._dv = 0.0
+        self._da = 0.0
+        self._integ = 0.0
+        self._stop = None
+        self._hold = False
+        self._fe_time = 0.0
+        self._fe_flag = False
+        self._pp_target = p
+        self._pp_done = True
+        self._pp_buffer = None
+        self._win_time = 0.0
+        self._tq_demand = 0.0
+        self._begin_motion()
+
+    def _disable(self) -> None:
+        self._enabled = False
+        self._kind = _OFF
+        self._stop = None
+        self._hold = False
+        self._integ = 0.0
+        self._reached = False
+        self._sp_ack = False
+        self._pp_buffer = None
+        self._sat = False
+        self._clipped = False
+        self._fe_flag = False
+
+    def _begin_motion(self) -> None:
+        """Set the control kind for the active mode (after enable, mode change, resume)."""
+        m = self._mode
+        if m == 3:
+            self._kind = _VELOCITY
+        elif m == 4:
+            self._kind = _TORQUE
+            self._tq_demand = self.plant.torque
+        else:
+            if self._kind != _POSITION:
+                self._dp = float(self.plant.encoder_counts + self._pos_offset)
+            self._kind = _POSITION
+            if m == 1 and not self._pp_done:
+                return
+            self._pp_target = self._dp
+            self._pp_done = True
+
+    def _enter_mode(self, mode: int) -> None:
+        self._mode = mode
+        self._reached = False
+        self._win_time = 0.0
+        self._sp_ack = False
+        self._pp_buffer = None
+        self._homing_started = False
+        self._pp_done = True
+        if self._enabled and self._stop is None and not self._hold:
+            if self._kind == _TORQUE:
+                self._dv = self.plant.velocity_counts
+            self._begin_motion()
+
+    def _mode_bits(self, cw: int, prev: int) -> None:
+        """Controlword bits 4-6 and 8 in Operation enabled (CiA 402-2 §6.2.1)."""
+        m = self._mode
+        rising4 = cw & 0x10 and not prev & 0x10
+        if prev & 0x100 and not cw & 0x100:
+            self._reached = False  # Halt released: motion resumes (recomputed next cycle).
+        if m == 1:
+            if rising4 and self._pp_buffer is None:
+                value = self._c[K_TARGET_POSITION]
+                base = self._pp_target if cw & 0x40 else 0.0
+                target = self._clip(base + value)
+                if cw & 0x20 or self._pp_done:
+                    self._pp_target = target
+                    self._pp_done = False
+                    self._reached = False
+                    self._win_time = 0.0
+                else:
+                    self._pp_buffer = target
+                self._sp_ack = True
+            elif not cw & 0x10 and self._pp_buffer is None:
+                self._sp_ack = False
+        elif m == 6:
+            if rising4:
+                self._home()
+            elif not cw & 0x10 and self._homing_started and not self._homed:
+                self._homing_started = False  # Homing interrupted.
+
+    def _clip(self, target: float) -> float:
+        lo, hi = self._c[K_SW_LIMIT_MIN], self._c[K_SW_LIMIT_MAX]
+        self._clipped = False
+        if lo == 0 and hi == 0:
+            return target  # CiA 402-2 §6.5.4: both 0 switches the limits off.
+        if target < lo:
+            self._clipped = True
+            return float(lo)
+        if target > hi:
+            self._clipped = True
+            return float(hi)
+        return target
+
+    def _home(self) -> None:
+        """Homing methods 35 and 37: the current position becomes the home offset 607Ch."""
+        method = self._c[K_HOMING_METHOD]
+        self._homing_started = True
+        self._homed = False
+        self._reached = False
+        if method in (35, 37) and method in self._homing_methods:
+            home = self._c[K_HOME_OFFSET]
+            raw = self.plant.encoder_counts
+            self._pos_offset = home - raw
+            self._dp = float(home)
+            self._dv = 0.0
+            self._pp_target = self._dp
+            self._homed = True
+            self._reached = True
+
+    def _start_stop(self, decel: float, then: Callable[[], None]) -> None:
+        if self._kind == _TORQUE:
+            self._dv = self.plant.velocity_counts
+            self._dp = float(self.plant.encoder_counts + self._pos_offset)
+        self._kind = _POSITION if self._mode in _POSITION_MODES or self._mode == 0 else _VELOCITY
+        self._stop = _Stop(max(decel, 1.0), then)
+        self._reached = False
+
+    def _ramp_down(self, decel: float) -> bool:
+        """Bring the velocity demand to 0 at ``decel``; True once it is 0."""
+        v = self._dv
+        step = decel * self._T
+        if -step <= v <= step:
+            self._da = -v / self._T
+            self._dv = 0.0
+            self._dp += 0.5 * v * self._T
+            return True
+        nv = v - step if v > 0.0 else v + step
+        self._da = (nv - v) / self._T
+        self._dv = nv
+        self._dp += nv * self._T
+        return False
+
+    def _pp_generate(self) -> None:
+        """Trapezoidal profile toward ``_pp_target`` (6081h, 6083h, 6084h, limited by 607Fh)."""
+        T = self._T
+        e = self._pp_target - self._dp
+        v = self._dv
+        dec = float(self._c[K_PROFILE_DEC])
+        if -0.5 <= e <= 0.5 and -dec * T <= v <= dec * T:
+            self._dp = self._pp_target
+            self._dv = 0.0
+            self._da = 0.0
+            self._pp_done = True
+            if self._pp_buffer is not None:
+                self._pp_target = self._pp_buffer
+                self._pp_buffer = None
+                self._pp_done = False
+                self._reached = False
+                self._win_time = 0.0
+            return
+        vmax = float(self._c[K_PROFILE_VEL])
+        lim = self._c[K_MAX_PROFILE_VEL]
+        if lim:
+            vmax = min(vmax, float(lim))
+        vmax = min(vmax, self._vmax_sim)
+        acc = float(self._c[K_PROFILE_ACC])
+        # Discrete braking curve: the speed from which stepping down by dec*T per cycle stops
+        # exactly at the target (v²/2a + vT/2 = distance).
+        h = 0.5 * dec * T
+        vb = -h + math.sqrt(h * h + 2.0 * dec * abs(e))
+        vdes = min(vmax, vb)
+        if e < 0:
+            vdes = -vdes
+        rate = acc if abs(vdes) > abs(v) and v * vdes >= 0.0 else dec
+        dv = vdes - v
+        lim_dv = rate * T
+        if dv > lim_dv:
+            dv = lim_dv
+        elif dv < -lim_dv:
+            dv = -lim_dv
+        v += dv
+        step = v * T
+        if (step >= e > 0) or (step <= e < 0):
+            # Arrives within this cycle.
+            self._da = -self._dv / T
+            self._dp = self._pp_target
+            self._dv = 0.0
+            return
+        self._da = dv / T
+        self._dv = v
+        self._dp += step
+
+    def _pv_generate(self) -> None:
+        tgt = float(self._c[K_TARGET_VELOCITY])
+        vmax = float(self._c[K_MAX_PROFILE_VEL]) or self._vmax_sim
+        vmax = min(vmax, self._vmax_sim)
+        self._clipped = abs(tgt) > vmax
+        tgt = max(-vmax, min(vmax, tgt))
+        v = self._dv
+        rate = (
+            self._c[K_PROFILE_ACC]
+            if abs(tgt) > abs(v) and v * tgt >= 0.0
+            else self._c[K_PROFILE_DEC]
+        )
+        d = tgt - v
+        lim = rate * self._T
+        if d > lim:
+            d = lim
+        elif d < -lim:
+            d = -lim
+        self._da = d / self._T
+        self._dv = v + d
+
+    # ------------------------------------------------------------------ the control cycle
+
+    def _cycle(self) -> None:
+        self._cycles += 1
+        plant = self.plant
+        if self._state is State.NOT_READY_TO_SWITCH_ON:
+            self._state = State.SWITCH_ON_DISABLED  # Transition 1: initialisation done.
+        p_act = plant.encoder_counts + self._pos_offset
+        v_act = plant.velocity_counts
+        torque = 0.0
+        if self._enabled:
+            # 1. Demand (set-point generators, stop ramps, halt).
+            stop = self._stop
+            halt_now = self._cw & 0x100 and self._state is State.OPERATION_ENABLED and stop is None
+            if stop is not None:
+                # Done when the demand is 0 and the axis has come to rest (or 0.5 s later).
+                if self._ramp_down(stop.decel):
+                    stop.settle += self._T
+                    if abs(v_act) <= self._c[K_VEL_THRESHOLD] or stop.settle > 0.5:
+                        self._stop = None
+                        stop.then()
+            elif halt_now:
+                if not self._halted:
+                    self._halted = True
+                    if self._kind == _TORQUE:
+                        self._dv = v_act
+                        self._dp = float(p_act)
+                    self._kind = _POSITION if self._mode in _POSITION_MODES else _VELOCITY
+                if self._ramp_down(self._decel_for(self._c[K_HALT_OPTION])):
+                    self._reached = abs(v_act) <= self._c[K_VEL_THRESHOLD]
+            elif self._hold:
+                self._dv = 0.0
+                self._da = 0.0
+            else:
+                if self._halted:
+                    self._halted = False
+                    self._begin_motion()
+                m = self._mode
+                if m == 1:
+                    if not self._pp_done:
+                        self._pp_generate()
+                    else:
+                        self._dv = 0.0
+                        self._da = 0.0
+                    if self._sp_ack and not self._cw & 0x10 and self._pp_buffer is None:
+                        self._sp_ack = False
+                elif m == 3:
+                    self._pv_generate()
+                elif m != 4:
+                    self._dv = 0.0
+                    self._da = 0.0
+            if not self._enabled:
+                # A stop just finished by disabling the drive.
+                self._dp = float(p_act)
+            else:
+                torque = self._control(p_act, v_act)
+        else:
+            self._dp = float(p_act)
+            self._dv = 0.0
+            self._fe = 0.0
+        plant.step_n(torque, self._sub_dt, self._substeps)
+        if self._enabled:
+            self._monitor(p_act, v_act)
+
+    def _control(self, p_act: int, v_act: float) -> float:
+        g = self.gains
+        kind = self._kind
+        limit = self._c[K_MAX_TORQUE] * 0.001 * self._rated
+        if kind == _TORQUE:
+            self._fe = 0.0
+            tgt = self._c[K_TARGET_TORQUE] * 0.001 * self._rated
+            slope = self._c[K_TORQUE_SLOPE]
+            if slope:
+                step = slope * 0.001 * self._rated * self._T
+                d = tgt - self._tq_demand
+                self._tq_demand += max(-step, min(step, d))
+            else:
+                self._tq_demand = tgt
+            t = self._tq_demand
+            # Speed limit (607Fh or the simulation's maximum) so a free motor cannot run away.
+            vmax = float(self._c[K_MAX_PROFILE_VEL]) or self._vmax_sim
+            if v_act > vmax:
+                t = min(t, g.kp_vel * (vmax - v_act))
+            elif v_act < -vmax:
+                t = max(t, g.kp_vel * (-vmax - v_act))
+            self._dp = float(p_act)
+            self._dv = v_act
+        else:
+            if kind == _POSITION:
+                err = self._dp - p_act
+                self._fe = err
+                v_cmd = g.kp_pos * err + self._dv
+            else:
+                self._fe = 0.0
+                self._dp = float(p_act)
+                v_cmd = self._dv
+            ev = v_cmd - v_act
+            t = g.kp_vel * ev + self._integ + g.acc_ff * self._da
+            # Conditional integration (anti-windup): hold the integral while saturated.
+            if -limit < t < limit or (t > 0.0) != (ev > 0.0):
+                self._integ += g.kp_vel * g.ki_vel * ev * self._T
+        if t > limit:
+            self._sat = True
+            return limit
+        if t < -limit:
+            self._sat = True
+            return -limit
+        self._sat = False
+        return t
+
+    def _monitor(self, p_act: int, v_act: float) -> None:
+        T = self._T
+        # Following error (CiA 402-2 §6.5.7/§6.5.8), position control only.
+        if self._kind == _POSITION:
+            window = self._c[K_FE_WINDOW]
+            if window != 0xFFFFFFFF and abs(self._fe) > window:
+                self._fe_flag = True
+                self._fe_time += T
+                if self._fe_time > self._c[K_FE_TIMEOUT] * 0.001 + 1e-9:
+                    self._fault(0x8611)
+                    return
+            else:
+                self._fe_flag = False
+                self._fe_time = 0.0
+        if self._state is not State.OPERATION_ENABLED or self._stop is not None:
+            return
+        if self._halted:
+            return
+        m = self._mode
+        if m == 1:
+            if self._pp_done and abs(p_act - self._pp_target) <= self._c[K_POS_WINDOW]:
+                self._win_time += T
+                self._reached = self._win_time >= self._c[K_POS_WINDOW_TIME] * 0.001 - 1e-9
+            else:
+                self._win_time = 0.0
+                self._reached = False
+        elif m == 3:
+            tgt = self._c[K_TARGET_VELOCITY]
+            if abs(v_act - tgt) <= self._c[K_VEL_WINDOW]:
+                self._win_time += T
+                self._reached = self._win_time >= self._c[K_VEL_WINDOW_TIME] * 0.001 - 1e-9
+            else:
+                self._win_time = 0.0
+                self._reached = False
+        elif m == 4:
+            self._reached = abs(self._torque_actual() - self._c[K_TARGET_TORQUE]) <= 10
+        elif m == 6:
+            # CiA 402-2 table (homing): bit 10 set when attained, or not started.
+            self._reached = self._homed or not self._homing_started
+
+
+def _is_mapping(index: int) -> bool:
+    return 0x1600 <= index <= 0x17FF or 0x1A00 <= index <= 0x1BFF
+
+
+def _scope(sub: int) -> tuple[int, int]:
+    """Index range a 1010h/1011h sub-index covers (CiA 301 §7.5.2.13)."""
+    if sub == 2:
+        return (0x1000, 0x1FFF)  # Communication parameters.
+    if sub == 3:
+        return (0x6000, 0x9FFF)  # Application (device profile) parameters.
+    if sub >= 4:
+        return (0x2000, 0x5FFF)  # Manufacturer-specific parameters.
+    return (0x0000, 0xFFFF)  # All parameters.
+
+
+def _register_bits(code: int) -> int:
+    """Error register (1001h) bits for an error code class (CiA 301 §7.5.2.2, table 21)."""
+    hi = code >> 12
+    if hi == 0x2:
+        return 0x02  # Current.
+    if hi == 0x3:
+        return 0x04  # Voltage.
+    if hi == 0x4:
+        return 0x08  # Temperature.
+    if code >> 8 in (0x81, 0x82):
+        return 0x10  # Communication.
+    if hi == 0x8 or hi == 0x7:
+        return 0x20  # Device profile specific (CiA 402 monitoring, sensors).
+    if code >> 8 == 0xFF:
+        return 0x80  # Manufacturer specific.
+    return 0x00

@@ -1,0 +1,97 @@
+/**
+ * The header: product name, the drive in view (name, node, profile, state, simulated badge),
+ * a drive switcher, and the WebSocket connection indicator.
+ */
+import type { SessionInfo } from '../api';
+import { useObservable } from '../state/observable';
+import { navigate, useRoute } from '../state/router';
+import { liveSession, sessions, socketStatus } from '../state/store';
+import { findPage } from '../pages/registry';
+import { StatePill } from './StatePill';
+
+function ConnectionIndicator() {
+  const s = useObservable(socketStatus);
+  const label =
+    s.status === 'open'
+      ? 'Live'
+      : s.status === 'connecting'
+        ? 'Connecting…'
+        : s.status === 'incompatible'
+          ? 'Incompatible server'
+          : s.retryIn !== null
+            ? `Offline · retry in ${s.retryIn}s`
+            : 'Offline';
+  const title =
+    s.status === 'open'
+      ? 'WebSocket connected: live values are streaming'
+      : `WebSocket ${s.status}${s.detail ? `: ${s.detail}` : ''}`;
+  return (
+    <span className={`conn conn-${s.status}`} data-testid="ws-status" data-status={s.status} title={title}>
+      <span className="conn-dot" aria-hidden="true" />
+      {label}
+    </span>
+  );
+}
+
+function DriveTitle({ session }: { session: SessionInfo }) {
+  const liveState = useObservable(liveSession(session.id)).state;
+  const state = liveState?.state ?? session.state;
+  const name = session.identity.device_name || session.profile_name;
+  return (
+    <div className="drive-title">
+      <span className="drive-name" data-testid="header-drive-name" title={session.profile_name}>
+        {name}
+      </span>
+      <span className="drive-meta mono">
+        node {session.node_id} · {session.fieldbus} · {session.interface}:{session.channel}
+      </span>
+      {session.simulated && (
+        <span className="badge badge-sim" title={session.note ?? 'simulated twin'}>
+          SIM
+        </span>
+      )}
+      <StatePill state={state} testid="header-state" />
+    </div>
+  );
+}
+
+export function Header({ sid }: { sid: string | null }) {
+  const list = useObservable(sessions) ?? [];
+  const route = useRoute();
+  const session = list.find((s) => s.id === sid) ?? null;
+  const page = findPage(route.page);
+  return (
+    <header className="header">
+      <div className="brand">
+        <span className="brand-mark" aria-hidden="true">
+          ▮
+        </span>
+        servodesk
+        <span className="brand-sub">drive commissioning</span>
+      </div>
+      <div className="header-drive">
+        {session ? <DriveTitle session={session} /> : <span className="muted">no drive selected</span>}
+      </div>
+      <div className="header-right">
+        {list.length > 0 && (
+          <label className="session-switch">
+            <span className="muted">Drive</span>
+            <select
+              data-testid="session-select"
+              value={session?.id ?? ''}
+              onChange={(e) => navigate(page?.scope === 'session' ? page.id : 'overview', e.target.value)}
+            >
+              {!session && <option value="">—</option>}
+              {list.map((s) => (
+                <option key={s.id} value={s.id}>
+                  {s.id}
+                </option>
+              ))}
+            </select>
+          </label>
+        )}
+        <ConnectionIndicator />
+      </div>
+    </header>
+  );
+}

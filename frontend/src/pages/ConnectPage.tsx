@@ -1,0 +1,373 @@
+/**
+ * Connect: choose the bus (python-can interface, channel, bitrate), scan it for nodes
+ * (identity from 1018h and the matching profile), and open or close drive sessions.
+ */
+import { type FormEvent, useEffect, useState } from 'react';
+import type { BusInterface, ProfileSummary, ScanNode, SessionInfo, SessionRequest } from '../api';
+import { api } from '../api/client';
+import { StatePill } from '../components/StatePill';
+import { toHex } from '../lib/format';
+import { notify, notifyError } from '../state/notify';
+import { useObservable } from '../state/observable';
+import { navigate } from '../state/router';
+import { refreshSessions, sessions } from '../state/store';
+
+/** python-can interface names (python-can "Hardware interfaces"); virtual is the simulator's. */
+const INTERFACES: ReadonlyArray<{ id: BusInterface; label: string }> = [
+  { id: 'virtual', label: 'virtual (in-process simulator)' },
+  { id: 'udp_multicast', label: 'udp_multicast (simulator in another process)' },
+  { id: 'socketcan', label: 'socketcan (Linux CAN)' },
+  { id: 'pcan', label: 'pcan (PEAK-System)' },
+  { id: 'kvaser', label: 'kvaser' },
+  { id: 'ixxat', label: 'ixxat (HMS)' },
+  { id: 'vector', label: 'vector' },
+  { id: 'slcan', label: 'slcan (serial-line CAN)' },
+  { id: 'gs_usb', label: 'gs_usb (candleLight)' },
+];
+
+const DEFAULT_CHANNEL: Readonly<Record<string, string>> = {
+  virtual: 'servodesk-sim',
+  udp_multicast: '239.74.163.2',
+  socketcan: 'can0',
+  pcan: 'PCAN_USBBUS1',
+  kvaser: '0',
+  ixxat: '0',
+  vector: '0',
+  slcan: '/dev/ttyACM0',
+  gs_usb: '0',
+};
+
+// CiA 301 §7.2 / CiA 102 bit timing table: the standard CANopen bitrates.
+const BITRATES: readonly number[] = [1_000_000, 800_000, 500_000, 250_000, 125_000, 50_000, 20_000, 10_000];
+
+function formatBitrate(b: number | null): string {
+  if (b === null) return '—';
+  return b >= 1_000_000 ? `${b / 1_000_000} Mbit/s` : `${b / 1000} kbit/s`;
+}
+
+function hexOrDash(v: number | null | undefined): string {
+  return v === null || v === undefined ? '—' : toHex(v, 'UNSIGNED32');
+}
+
+interface BusForm {
+  interface: BusInterface;
+  channel: string;
+  bitrate: string;
+  nodeId: string;
+  profile: string;
+}
+
+export function ConnectPage() {
+  const [form, setForm] = useState<BusForm>({
+    interface: 'virtual',
+    channel: DEFAULT_CHANNEL.virtual ?? '',
+    bitrate: '',
+    nodeId: '5',
+    profile: '',
+  });
+  const [profiles, setProfiles] = useState<ProfileSummary[] | null>(null);
+  const [scan, setScan] = useState<ScanNode[] | null>(null);
+  const [busy, setBusy] = useState<'scan' | 'open' | null>(null);
+  const [formError, setFormError] = useState<string | null>(null);
+  const list = useObservable(sessions);
+
+  useEffect(() => {
+    let live = true;
+    api.profiles().then(
+      (p) => live && setProfiles(p),
+      (e: unknown) => live && notifyError(e),
+    );
+    return () => {
+      live = false;
+    };
+  }, []);
+
+  const needsBitrate = form.interface !== 'virtual' && form.interface !== 'udp_multicast';
+  const bitrate = form.bitrate === '' ? null : Number(form.bitrate);
+
+  function set<K extends keyof BusForm>(key: K, value: BusForm[K]) {
+    setForm((f) => {
+      const next = { ...f, [key]: value };
+      if (key === 'interface') next.channel = DEFAULT_CHANNEL[next.interface] ?? '';
+      return next;
+    });
+  }
+
+  async function doScan() {
+    setBusy('scan');
+    setScan(null);
+    try {
+      const res = await api.scan({ interface: form.interface, channel: form.channel.trim(), bitrate, timeout: 0.5 });
+      setScan(res.nodes);
+      if (res.nodes.length === 0) {
+        notify({
+          kind: 'warning',
+          title: 'Scan found no node',
+          message: `no node answered on ${form.interface}:${form.channel}`,
+          detail: null,
+          hint: 'check the channel, the bitrate, the termination and that the drive is powered',
+        });
+      }
+    } catch (e) {
+      notifyError(e);
+    } finally {
+      setBusy(null);
+    }
+  }
+
+  async function open(req: SessionRequest) {
+    setBusy('open');
+    try {
+      const s = await api.openSession(req);
+      await refreshSessions();
+      navigate('overview', s.id);
+    } catch (e) {
+      notifyError(e);
+    } finally {
+      setBusy(null);
+    }
+  }
+
+  function onSubmit(e: FormEvent) {
+    e.preventDefault();
+    const node = Number(form.nodeId);
+    if (!Number.isInteger(node) || node < 1 || node > 127) {
+      setFormError('node id must be a whole number from 1 to 127 (CiA 301 §7.3.3)');
+      return;
+    }
+    if (!form.channel.trim()) {
+      setFormError('enter a channel (e.g. servodesk-sim for the simulator, can0 for socketcan)');
+      return;
+    }
+    setFormError(null);
+    void open({
+      interface: form.interface,
+      channel: form.channel.trim(),
+      bitrate,
+      node_id: node,
+      profile: form.profile || null,
+    });
+  }
+
+  async function close(s: SessionInfo) {
+    try {
+      await api.closeSession(s.id);
+      await refreshSessions();
+      notify({ kind: 'info', title: `Closed ${s.id}`, message: '', detail: null, hint: null });
+    } catch (e) {
+      notifyError(e);
+    }
+  }
+
+  return (
+    <div className="stack">
+      <section className="card">
+        <h2>Bus</h2>
+        <form className="form-grid" onSubmit={onSubmit} data-testid="connect-form">
+          <label>
+            Interface
+            <select
+              data-testid="bus-interface"
+              value={form.interface}
+              onChange={(e) => set('interface', e.target.value as BusInterface)}
+            >
+              {INTERFACES.map((i) => (
+                <option key={i.id} value={i.id}>
+                  {i.label}
+                </option>
+              ))}
+            </select>
+          </label>
+          <label>
+            Channel
+            <input
+              data-testid="bus-channel"
+              className="mono"
+              value={form.channel}
+              onChange={(e) => set('channel', e.target.value)}
+              spellCheck={false}
+            />
+          </label>
+          <label>
+            Bitrate
+            <select data-testid="bus-bitrate" value={form.bitrate} onChange={(e) => set('bitrate', e.target.value)}>
+              <option value="">{needsBitrate ? 'interface default' : 'not used (virtual bus)'}</option>
+              {BITRATES.map((b) => (
+                <option key={b} value={b}>
+                  {formatBitrate(b)}
+                </option>
+              ))}
+            </select>
+          </label>
+          <label>
+            Node id
+            <input
+              data-testid="bus-node-id"
+              className="mono narrow"
+              type="number"
+              min={1}
+              max={127}
+              value={form.nodeId}
+              onChange={(e) => set('nodeId', e.target.value)}
+            />
+          </label>
+          <label className="wide">
+            Profile
+            <select data-testid="bus-profile" value={form.profile} onChange={(e) => set('profile', e.target.value)}>
+              <option value="">auto-detect from 1018h (identity)</option>
+              {(profiles ?? []).map((p) => (
+                <option key={p.id} value={p.id}>
+                  {p.name} — {p.fieldbus} ({p.id})
+                </option>
+              ))}
+            </select>
+          </label>
+          <div className="form-actions">
+            <button type="button" data-testid="scan-bus" onClick={() => void doScan()} disabled={busy !== null}>
+              {busy === 'scan' ? 'Scanning…' : 'Scan bus'}
+            </button>
+            <button type="submit" className="primary" data-testid="open-session" disabled={busy !== null}>
+              {busy === 'open' ? 'Opening…' : 'Open session'}
+            </button>
+          </div>
+          {formError && (
+            <div className="inline-error wide" data-testid="connect-form-error">
+              {formError}
+            </div>
+          )}
+        </form>
+      </section>
+
+      {scan !== null && (
+        <section className="card">
+          <h2>
+            Nodes on {form.interface}:{form.channel} <span className="muted">({scan.length})</span>
+          </h2>
+          <table className="grid" data-testid="scan-results">
+            <thead>
+              <tr>
+                <th>Node</th>
+                <th>Vendor id</th>
+                <th>Product code</th>
+                <th>Revision</th>
+                <th>Serial</th>
+                <th>Device name</th>
+                <th>Detected profile</th>
+                <th />
+              </tr>
+            </thead>
+            <tbody>
+              {scan.map((n) => (
+                <tr key={n.node_id} data-testid={`scan-node-${n.node_id}`}>
+                  <td className="mono num">{n.node_id}</td>
+                  <td className="mono">{hexOrDash(n.vendor_id)}</td>
+                  <td className="mono">{hexOrDash(n.product_code)}</td>
+                  <td className="mono">{hexOrDash(n.revision)}</td>
+                  <td className="mono">{hexOrDash(n.serial)}</td>
+                  <td>{n.device_name ?? <span className="muted">identity not readable</span>}</td>
+                  <td>{n.profile_id ?? <span className="muted">no profile matches; pick one above</span>}</td>
+                  <td className="actions">
+                    {n.session_id ? (
+                      <button
+                        type="button"
+                        data-testid={`scan-open-${n.node_id}`}
+                        title={`already open as ${n.session_id}`}
+                        onClick={() => navigate('overview', n.session_id)}
+                      >
+                        Go to session
+                      </button>
+                    ) : (
+                      <button
+                        type="button"
+                        className="primary"
+                        data-testid={`scan-open-${n.node_id}`}
+                        disabled={busy !== null}
+                        onClick={() =>
+                          void open({
+                            interface: form.interface,
+                            channel: form.channel.trim(),
+                            bitrate,
+                            node_id: n.node_id,
+                            profile: n.profile_id ?? (form.profile || null),
+                          })
+                        }
+                      >
+                        Open
+                      </button>
+                    )}
+                  </td>
+                </tr>
+              ))}
+            </tbody>
+          </table>
+        </section>
+      )}
+
+      <section className="card">
+        <h2>
+          Open sessions <span className="muted">({list?.length ?? '…'})</span>
+        </h2>
+        {list === null ? (
+          <div className="muted">loading…</div>
+        ) : list.length === 0 ? (
+          <div className="empty">No session is open. Scan the bus or open a node above.</div>
+        ) : (
+          <table className="grid" data-testid="sessions">
+            <thead>
+              <tr>
+                <th>Session</th>
+                <th>Profile</th>
+                <th>Fieldbus</th>
+                <th>Node</th>
+                <th>Bus</th>
+                <th>State</th>
+                <th>NMT</th>
+                <th>Note</th>
+                <th />
+              </tr>
+            </thead>
+            <tbody>
+              {list.map((s) => (
+                <tr key={s.id} data-testid={`session-row-${s.id}`} data-profile={s.profile_id}>
+                  <td className="mono nowrap">
+                    {s.id}
+                    {s.simulated && (
+                      <span className="badge badge-sim" title="a simulated twin, not a real drive">
+                        SIM
+                      </span>
+                    )}
+                    {!s.connected && <span className="badge badge-bad">disconnected</span>}
+                  </td>
+                  <td title={s.profile_id}>{s.profile_name}</td>
+                  <td>{s.fieldbus}</td>
+                  <td className="mono num">{s.node_id}</td>
+                  <td className="mono nowrap">
+                    {s.interface}:{s.channel}
+                    {s.bitrate ? ` @ ${formatBitrate(s.bitrate)}` : ''}
+                  </td>
+                  <td>
+                    <StatePill state={s.state} testid={`session-state-${s.id}`} />
+                  </td>
+                  <td className="mono">{s.nmt_state}</td>
+                  <td className="note">
+                    <span className="clamp" title={s.note ?? ''}>
+                      {s.note ?? ''}
+                    </span>
+                  </td>
+                  <td className="actions">
+                    <button type="button" className="primary" data-testid={`session-open-${s.id}`} onClick={() => navigate('overview', s.id)}>
+                      Open
+                    </button>
+                    <button type="button" data-testid={`session-close-${s.id}`} onClick={() => void close(s)}>
+                      Close
+                    </button>
+                  </td>
+                </tr>
+              ))}
+            </tbody>
+          </table>
+        )}
+      </section>
+    </div>
+  );
+}

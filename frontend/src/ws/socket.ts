@@ -1,0 +1,180 @@
+/**
+ * One typed WebSocket to /api/v1/ws for the whole UI.
+ *
+ * It speaks subprotocol "servodesk.v1", reconnects with exponential backoff (0.5 s doubling
+ * to 10 s, with jitter so many tabs do not reconnect in step), and re-sends the
+ * subscriptions after every reconnect so pages do not have to. A close with code 4000 means
+ * the server speaks another protocol version: reconnecting would not help, so it stops and
+ * reports why.
+ */
+import { getToken } from '../api/auth';
+import {
+  type ClientMessage,
+  type MessageOf,
+  type ServerMessageType,
+  WS_CLOSE_TOKEN,
+  WS_CLOSE_VERSION,
+  WS_SUBPROTOCOL,
+  parseServerMessage,
+} from './messages';
+
+export type SocketStatus = 'connecting' | 'open' | 'closed' | 'incompatible';
+
+export interface SocketStatusInfo {
+  status: SocketStatus;
+  /** Why the socket is not open (close reason or code), for the header tooltip. */
+  detail: string | null;
+  /** Seconds until the next reconnect attempt, when closed. */
+  retryIn: number | null;
+}
+
+type Handler<T extends ServerMessageType> = (msg: MessageOf<T>) => void;
+
+export function backoffDelay(attempt: number, random: () => number = Math.random): number {
+  const base = Math.min(10_000, 500 * 2 ** Math.max(0, attempt));
+  return Math.round(base * (0.8 + 0.4 * random()));
+}
+
+export function defaultSocketUrl(): string {
+  const proto = window.location.protocol === 'https:' ? 'wss:' : 'ws:';
+  const url = new URL(`${proto}//${window.location.host}/api/v1/ws`);
+  const token = getToken();
+  if (token) url.searchParams.set('token', token);
+  return url.toString();
+}
+
+export class ServodeskSocket {
+  private ws: WebSocket | null = null;
+  private attempt = 0;
+  private timer: ReturnType<typeof setTimeout> | null = null;
+  private stopped = false;
+  private readonly subscriptions = new Map<string, number>();
+  private readonly handlers = new Map<ServerMessageType, Set<(msg: never) => void>>();
+  private readonly statusListeners = new Set<(s: SocketStatusInfo) => void>();
+  private statusInfo: SocketStatusInfo = { status: 'closed', detail: null, retryIn: null };
+
+  constructor(private readonly url: () => string = defaultSocketUrl) {}
+
+  get status(): SocketStatusInfo {
+    return this.statusInfo;
+  }
+
+  start(): void {
+    this.stopped = false;
+    if (!this.ws) this.connect();
+  }
+
+  stop(): void {
+    this.stopped = true;
+    if (this.timer) clearTimeout(this.timer);
+    this.timer = null;
+    this.ws?.close(1000, 'page closed');
+    this.ws = null;
+    this.setStatus({ status: 'closed', detail: 'stopped', retryIn: null });
+  }
+
+  on<T extends ServerMessageType>(type: T, handler: Handler<T>): () => void {
+    let set = this.handlers.get(type);
+    if (!set) {
+      set = new Set();
+      this.handlers.set(type, set);
+    }
+    const h = handler as (msg: never) => void;
+    set.add(h);
+    return () => set?.delete(h);
+  }
+
+  onStatus(listener: (s: SocketStatusInfo) => void): () => void {
+    this.statusListeners.add(listener);
+    listener(this.statusInfo);
+    return () => this.statusListeners.delete(listener);
+  }
+
+  /** Subscribe to a session's live state; returns the matching unsubscribe. Reference-counted. */
+  subscribe(session: string): () => void {
+    const n = this.subscriptions.get(session) ?? 0;
+    this.subscriptions.set(session, n + 1);
+    if (n === 0) this.send({ type: 'subscribe', session });
+    let done = false;
+    return () => {
+      if (done) return;
+      done = true;
+      const left = (this.subscriptions.get(session) ?? 1) - 1;
+      if (left <= 0) {
+        this.subscriptions.delete(session);
+        this.send({ type: 'unsubscribe', session });
+      } else {
+        this.subscriptions.set(session, left);
+      }
+    };
+  }
+
+  private send(msg: ClientMessage): void {
+    if (this.ws && this.ws.readyState === WebSocket.OPEN) this.ws.send(JSON.stringify(msg));
+  }
+
+  private setStatus(s: SocketStatusInfo): void {
+    this.statusInfo = s;
+    for (const l of this.statusListeners) l(s);
+  }
+
+  private connect(): void {
+    this.setStatus({ status: 'connecting', detail: null, retryIn: null });
+    let ws: WebSocket;
+    try {
+      ws = new WebSocket(this.url(), WS_SUBPROTOCOL);
+    } catch (e) {
+      this.scheduleReconnect(e instanceof Error ? e.message : 'cannot open the WebSocket');
+      return;
+    }
+    this.ws = ws;
+    ws.onopen = () => {
+      this.attempt = 0;
+      this.setStatus({ status: 'open', detail: null, retryIn: null });
+      for (const session of this.subscriptions.keys()) this.send({ type: 'subscribe', session });
+    };
+    ws.onmessage = (ev: MessageEvent) => {
+      if (typeof ev.data !== 'string') return;
+      const msg = parseServerMessage(ev.data);
+      if (!msg) return;
+      const set = this.handlers.get(msg.type);
+      if (!set) return;
+      for (const h of set) {
+        try {
+          (h as (m: typeof msg) => void)(msg);
+        } catch (err) {
+          // One broken page must not stop the others from getting updates.
+          console.error('servodesk: WebSocket handler failed', err);
+        }
+      }
+    };
+    ws.onclose = (ev: CloseEvent) => {
+      if (this.ws !== ws) return;
+      this.ws = null;
+      if (this.stopped) return;
+      if (ev.code === WS_CLOSE_VERSION) {
+        this.setStatus({
+          status: 'incompatible',
+          detail: ev.reason || 'the server speaks another protocol version; reload the page',
+          retryIn: null,
+        });
+        return;
+      }
+      if (ev.code === WS_CLOSE_TOKEN) {
+        this.scheduleReconnect('token required: open the URL servodesk serve printed (it ends in ?token=…)');
+        return;
+      }
+      this.scheduleReconnect(ev.reason || (ev.code === 1006 ? 'connection lost' : `closed (${ev.code})`));
+    };
+  }
+
+  private scheduleReconnect(detail: string): void {
+    const delay = backoffDelay(this.attempt);
+    this.attempt += 1;
+    this.setStatus({ status: 'closed', detail, retryIn: Math.ceil(delay / 1000) });
+    this.timer = setTimeout(() => {
+      this.timer = null;
+      if (!this.stopped) this.connect();
+    }, delay);
+  }
+}

@@ -1,0 +1,56 @@
+"""Fixtures for the browser tests: the real backend with simulated drives, and Chromium.
+
+The backend runs as a subprocess (``servodesk serve --sim``) exactly as a user starts it, and
+the UI is the built one it serves. Nothing is skipped: a missing Chromium or an unbuilt UI
+fails with a message that says how to fix it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+from playwright.sync_api import Browser, Page, Playwright, sync_playwright
+
+from tests.browser.harness import CHROMIUM_ARGS, HarnessError, chromium_executable, running_server
+
+
+@pytest.fixture(scope="package")
+def server_url() -> Iterator[str]:
+    try:
+        with running_server() as base:
+            yield base
+    except HarnessError as e:
+        pytest.fail(str(e), pytrace=False)
+
+
+@pytest.fixture(scope="package")
+def playwright_instance() -> Iterator[Playwright]:
+    with sync_playwright() as p:
+        yield p
+
+
+@pytest.fixture(scope="package")
+def browser(playwright_instance: Playwright) -> Iterator[Browser]:
+    try:
+        exe = chromium_executable()
+    except HarnessError as e:
+        pytest.fail(str(e), pytrace=False)
+    # headless=False: the headless mode is chosen by --headless=new in the args, so Playwright
+    # does not add its own (older) headless switch.
+    b = playwright_instance.chromium.launch(executable_path=exe, headless=False, args=CHROMIUM_ARGS)
+    yield b
+    b.close()
+
+
+@pytest.fixture
+def page(browser: Browser, server_url: str) -> Iterator[Page]:
+    """A fresh page on the UI; fails the test if the page throws an uncaught error."""
+    context = browser.new_context(base_url=server_url, viewport={"width": 1440, "height": 960})
+    context.set_default_timeout(10_000)
+    pg = context.new_page()
+    errors: list[str] = []
+    pg.on("pageerror", lambda exc: errors.append(str(exc)))
+    yield pg
+    context.close()
+    assert not errors, f"uncaught errors in the page: {errors}"

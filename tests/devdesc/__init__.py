@@ -1,0 +1,1 @@
+"""Tests of device-description import and export (EDS/DCF, ESI, XDD)."""

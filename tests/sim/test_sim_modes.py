@@ -1,0 +1,220 @@
+"""Operation modes of the simulated drive: pp, pv, tq, homing, halt; following error."""
+
+from __future__ import annotations
+
+import pytest
+
+from servodesk.domain.cia402 import State
+from servodesk.sim.engine import SimAbort
+
+from .support import cw, enable, new_drive, run_until
+
+REV = 131072
+
+
+def new_setpoint(d, word: int = 0x1F) -> None:  # type: ignore[no-untyped-def]
+    cw(d, word)
+    assert d.statusword & 0x1000, "set-point acknowledge (bit 12) after bit 4"
+    cw(d, word & ~0x10)
+    d.step(0.001)
+    assert not d.statusword & 0x1000, "bit 12 clears after bit 4 is cleared"
+
+
+def test_profile_position_move_reaches_target_with_bit_10_and_handshake() -> None:
+    d = new_drive()
+    d.write(0x6060, 0, 1)
+    enable(d)
+    target = 3 * REV
+    d.write(0x607A, 0, target)
+    new_setpoint(d)
+    assert not d.statusword & 0x400  # Moving: target not reached.
+    t = run_until(d, lambda: d.statusword & 0x400, 5.0)
+    # Trapezoid: 200 000 counts/s, 1e6 counts/s² -> 0.2 s ramps; 393 216 counts.
+    assert t == pytest.approx(target / 200_000 + 0.2, abs=0.05)
+    assert abs(d.read(0x6064, 0) - target) <= d.read(0x6067, 0)
+    assert abs(d.read(0x60F4, 0)) <= 100
+
+
+def test_relative_move_and_change_immediately() -> None:
+    d = new_drive()
+    enable(d)
+    d.write(0x607A, 0, REV)
+    new_setpoint(d)
+    d.step(0.2)
+    d.write(0x607A, 0, -REV // 2)
+    new_setpoint(d, 0x7F)  # Relative (bit 6) to the current target, change immediately.
+    run_until(d, lambda: d.statusword & 0x400, 5.0)
+    assert abs(d.position - REV // 2) <= 100
+
+
+def test_buffered_set_point_runs_after_the_current_move() -> None:
+    d = new_drive()
+    enable(d)
+    d.write(0x607A, 0, REV)
+    new_setpoint(d)
+    d.write(0x607A, 0, 0)
+    cw(d, 0x1F)  # Single set-point (bit 5 = 0): buffered while moving.
+    assert d.statusword & 0x1000
+    cw(d, 0x0F)
+    d.step(0.005)
+    assert d.statusword & 0x1000, "buffer full: acknowledge stays until the buffer frees"
+    seen_first = False
+    for _ in range(4000):
+        d.step(0.001)
+        seen_first = seen_first or d.position > REV - 200
+        if seen_first and d.statusword & 0x400:
+            break
+    assert seen_first
+    assert abs(d.position) <= 100
+
+
+def test_software_limits_clip_the_target_and_set_bit_11() -> None:
+    d = new_drive()
+    d.write(0x607D, 1, -REV)
+    d.write(0x607D, 2, REV)
+    enable(d)
+    d.write(0x607A, 0, 5 * REV)
+    cw(d, 0x1F)
+    assert d.statusword & 0x800
+    cw(d, 0x0F)
+    run_until(d, lambda: d.statusword & 0x400, 5.0)
+    assert abs(d.position - REV) <= 100
+
+
+def test_profile_velocity_reaches_target_with_bit_10() -> None:
+    d = new_drive()
+    d.write(0x6060, 0, 3)
+    enable(d)
+    d.write(0x60FF, 0, -250_000)
+    assert d.statusword & 0x1000  # Speed = 0 (bit 12 in pv).
+    t = run_until(d, lambda: d.statusword & 0x400, 2.0)
+    assert t == pytest.approx(0.25, abs=0.03)  # 6083h = 1e6 counts/s².
+    assert d.read(0x606C, 0) == pytest.approx(-250_000, abs=1000)
+    assert not d.statusword & 0x1000
+
+
+def test_profile_torque_follows_the_target_torque() -> None:
+    d = new_drive()
+    d.write(0x6060, 0, 4)
+    enable(d)
+    d.write(0x6071, 0, 100)  # 10 % of rated torque.
+    run_until(d, lambda: d.statusword & 0x400, 0.1)
+    assert d.read(0x6077, 0) == pytest.approx(100, abs=2)
+    d.step(0.05)
+    assert d.velocity > 1000  # The free motor accelerates.
+    d.write(0x6072, 0, 50)  # Max torque 5 %: the torque is limited (bit 11).
+    d.step(0.01)
+    assert d.read(0x6077, 0) <= 51
+    assert d.statusword & 0x800
+
+
+@pytest.mark.parametrize("method", [35, 37])
+def test_homing_sets_position_to_home_offset(method: int) -> None:
+    d = new_drive()
+    d.plant.set_position_counts(12345.0)
+    d.write(0x6098, 0, method)
+    d.write(0x607C, 0, 1000)
+    d.write(0x6060, 0, 6)
+    enable(d)
+    d.step(0.002)
+    assert d.statusword & 0x1400 == 0x0400  # Not started: bit 10 only.
+    cw(d, 0x1F)
+    d.step(0.002)
+    assert d.statusword & 0x1400 == 0x1400  # Homing attained + target reached.
+    assert d.read(0x6064, 0) == pytest.approx(1000, abs=2)
+
+
+def test_unsupported_mode_and_homing_method_are_refused() -> None:
+    d = new_drive()
+    for index, value in ((0x6060, 8), (0x6060, 2), (0x6098, 1)):
+        with pytest.raises(SimAbort) as exc:
+            d.write(index, 0, value)
+        assert exc.value.code == 0x06090030
+    assert d.read(0x6060, 0) == 1
+
+
+def test_mode_display_follows_mode() -> None:
+    d = new_drive()
+    d.write(0x6060, 0, 3)
+    assert d.read(0x6061, 0) == 3
+
+
+def test_halt_stops_the_axis_and_resumes() -> None:
+    d = new_drive()
+    d.write(0x6060, 0, 3)
+    enable(d)
+    d.write(0x60FF, 0, 200_000)
+    run_until(d, lambda: d.statusword & 0x400, 1.0)
+    cw(d, 0x10F)  # Halt (bit 8): slow-down ramp 6084h.
+    t = run_until(d, lambda: d.statusword & 0x400 and abs(d.velocity) < 1000, 1.0)
+    assert t == pytest.approx(0.2, abs=0.03)
+    assert d.state is State.OPERATION_ENABLED
+    cw(d, 0x0F)
+    run_until(d, lambda: abs(d.velocity - 200_000) < 1000, 1.0)
+
+
+def test_halt_in_profile_position_pauses_the_move() -> None:
+    d = new_drive()
+    enable(d)
+    d.write(0x607A, 0, 2 * REV)
+    new_setpoint(d)
+    d.step(0.3)
+    cw(d, 0x10F)
+    d.step(0.4)
+    paused = d.position
+    d.step(0.1)
+    assert abs(d.position - paused) < 50
+    cw(d, 0x0F)
+    run_until(d, lambda: d.statusword & 0x400, 3.0)
+    assert abs(d.position - 2 * REV) <= 100
+
+
+def test_following_error_raises_8611_with_bits_history_and_emcy() -> None:
+    d = new_drive()
+    emcy: list[tuple[int, int, bytes]] = []
+    d.on_emcy(lambda c, r, data: emcy.append((c, r, data)))
+    enable(d)
+    d.write(0x6072, 0, 5)  # 0.5 % torque cannot beat the Coulomb friction.
+    d.write(0x607A, 0, REV)
+    new_setpoint(d)
+    run_until(d, lambda: d.state is State.FAULT, 1.0)
+    assert d.read(0x603F, 0) == 0x8611
+    assert d.error_text() == "Following error"
+    assert d.read(0x1001, 0) == 0x21  # Generic + device profile specific.
+    assert d.read(0x1003, 0) == 1
+    assert d.read(0x1003, 1) == 0x8611
+    assert d.statusword & 0x08
+    assert emcy == [(0x8611, 0x21, bytes(5))]
+    # Fault reset: Switch on disabled, error cleared, EMCY "error reset".
+    cw(d, 0x00)
+    cw(d, 0x80)
+    assert d.state is State.SWITCH_ON_DISABLED
+    assert d.read(0x603F, 0) == 0 and d.read(0x1001, 0) == 0
+    assert emcy[-1] == (0, 0, bytes(5))
+    assert d.read(0x1003, 1) == 0x8611  # The history stays.
+
+
+def test_error_history_newest_first_and_clearing() -> None:
+    d = new_drive()
+    for code in (0x2310, 0x3210):
+        d.raise_fault(code)
+        cw(d, 0x00)
+        cw(d, 0x80)
+    assert d.read(0x1003, 0) == 2
+    assert [d.read(0x1003, 1), d.read(0x1003, 2)] == [0x3210, 0x2310]
+    with pytest.raises(SimAbort) as exc:
+        d.write(0x1003, 0, 1)
+    assert exc.value.code == 0x06090030
+    d.write(0x1003, 0, 0)
+    assert d.read(0x1003, 0) == 0 and d.read(0x1003, 1) == 0
+
+
+def test_following_error_window_off_with_ffffffff() -> None:
+    d = new_drive()
+    enable(d)
+    d.write(0x6065, 0, 0xFFFFFFFF)
+    d.write(0x6072, 0, 5)
+    d.write(0x607A, 0, REV)
+    new_setpoint(d)
+    d.step(0.5)
+    assert d.state is State.OPERATION_ENABLED
