@@ -32,8 +32,12 @@ $(VENV)/.synced: $(UV) pyproject.toml uv.lock
 	@touch $@
 
 # The browser UI, exactly as pinned in frontend/package-lock.json, built into the package.
+# `npm install --no-save` rather than `npm ci`: npm 11 writes lock files without other
+# platforms' optional packages (rollup's native builds) and its `npm ci` then refuses them
+# (npm/cli#8320). With a lock file present, install takes exactly the locked versions and
+# integrity hashes, and --no-save leaves the lock file untouched.
 $(FRONTEND)/node_modules/.package-lock.json: $(FRONTEND)/package.json $(FRONTEND)/package-lock.json
-	cd $(FRONTEND) && npm ci --no-audit --no-fund --loglevel=error
+	cd $(FRONTEND) && npm install --no-save --no-audit --no-fund --loglevel=error
 
 $(WEB_DIST)/index.html: $(FRONTEND)/node_modules/.package-lock.json $(shell find $(FRONTEND)/src $(FRONTEND)/index.html $(FRONTEND)/vite.config.ts -type f 2>/dev/null)
 	cd $(FRONTEND) && npm run build
