@@ -33,9 +33,15 @@ class Settings(BaseSettings):
     log_level: str = "info"
 
     def profile_paths(self) -> list[Path]:
+        """User profile directories: SERVODESK_PROFILE_DIRS, then imported ones in data_dir."""
         import os
 
-        return [Path(p) for p in self.profile_dirs.split(os.pathsep) if p]
+        return [Path(p) for p in self.profile_dirs.split(os.pathsep) if p] + [self.user_profile_dir]
+
+    @property
+    def user_profile_dir(self) -> Path:
+        """Where imported device descriptions are saved as profiles."""
+        return self.data_dir / "profiles"
 
     @property
     def is_loopback(self) -> bool:

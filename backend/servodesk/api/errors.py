@@ -25,6 +25,8 @@ log = logging.getLogger(__name__)
 
 # SDO abort codes that mean "not now" rather than "not this": 409.
 _STATE_ABORTS = {0x08000021, 0x08000022}
+# SDO abort codes that mean "no such object / subindex": 404.
+_MISSING_ABORTS = {0x06020000, 0x06090011}
 
 
 def status_for(exc: ServodeskError) -> int:
@@ -33,6 +35,8 @@ def status_for(exc: ServodeskError) -> int:
     if isinstance(exc, ConflictError | DriveStateError):
         return 409
     if isinstance(exc, ObjectAccessError):
+        if exc.code in _MISSING_ABORTS:
+            return 404
         return 409 if exc.code in _STATE_ABORTS else 400
     if isinstance(exc, ValidationError | ProfileError):
         return 400

@@ -182,6 +182,10 @@ class SessionInfo(BaseModel):
     connected: bool
     state: str
     nmt_state: str
+    dirty: list[str] = Field(
+        description="Objects written through servodesk since the last store (they differ from "
+        "the drive's non-volatile copy)"
+    )
 
 
 class ObjectValueOut(BaseModel):
@@ -208,6 +212,38 @@ class WriteRequest(BaseModel):
     raw_hex: str | None = Field(
         default=None, max_length=2048, description="Raw bytes, little-endian, as hex"
     )
+
+
+class ReadRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    addresses: list[str] = Field(min_length=1, max_length=512)
+
+
+class ReadFailure(BaseModel):
+    address: str
+    error: ErrorOut
+
+
+class ReadResults(BaseModel):
+    results: list[ObjectValueOut | ReadFailure]
+
+
+class StoreResult(BaseModel):
+    stored: int = Field(description="Dirty entries now saved")
+    duration_s: float
+    procedure: str
+
+
+class RestoreDefaultsRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    confirm: bool = Field(description="Must be true: restoring defaults overwrites every setting")
+    reset: bool = Field(default=False, description="Reset the node afterwards so they apply")
+
+
+class MessageOut(BaseModel):
+    message: str
 
 
 class StatusBit(BaseModel):

@@ -5,22 +5,33 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 from typing import Any
 
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.profile import DeviceProfile, ObjectSpec
-from servodesk.domain.profile_loader import ProfileCatalog, check_profile
+from servodesk.domain.profile_loader import ProfileCatalog, check_profile, save_profile
 from servodesk.settings import Settings
 
 
 def register(sub: Any) -> None:
-    p = sub.add_parser("profiles", help="list the drive profiles")
+    p = sub.add_parser("profiles", help="list the drive profiles, or import one")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.add_argument(
+        "--import",
+        dest="import_file",
+        metavar="FILE",
+        help="import an EDS, DCF, ESI (.xml) or XDD file as a new profile",
+    )
+    p.add_argument("--id", dest="new_id", help="id of the imported profile (default: file name)")
     p.set_defaults(func=run_list)
 
-    p = sub.add_parser("profile", help="show one profile")
+    p = sub.add_parser("profile", help="show one profile, or export it")
     p.add_argument("id", help="profile id, e.g. hiwin-e")
     p.add_argument("--json", action="store_true", help="the whole profile as JSON")
+    p.add_argument("--export", choices=["eds", "dcf", "esi"], help="write a device description")
+    p.add_argument("-o", "--output", help="file to write (default: standard output)")
+    p.add_argument("--force", action="store_true", help="replace an existing output file")
     p.set_defaults(func=run_profile)
 
     p = sub.add_parser("od", help="object dictionary entries of a profile")
@@ -90,6 +101,8 @@ def od_entry(s: ObjectSpec) -> dict[str, Any]:
 
 
 def run_list(args: argparse.Namespace) -> int:
+    if args.import_file:
+        return _import(args)
     rows = [summary(p) for p in _catalog().all()]
     if args.json:
         _dump(rows)
@@ -103,8 +116,63 @@ def run_list(args: argparse.Namespace) -> int:
     return 0
 
 
+def _import(args: argparse.Namespace) -> int:
+    from servodesk import devdesc
+
+    settings = Settings()
+    catalog = _catalog()
+    p = devdesc.import_file(args.import_file, args.new_id)
+    if p.id in catalog.ids():
+        print(f"servodesk: error: a profile {p.id!r} exists already", file=sys.stderr)
+        print("  hint: choose another id with --id", file=sys.stderr)
+        return 2
+    problems = check_profile(p)
+    if problems:
+        print(
+            f"servodesk: error: the imported profile is inconsistent: {problems[0]}",
+            file=sys.stderr,
+        )
+        return 2
+    path = save_profile(p, settings.user_profile_dir)
+    if args.json:
+        _dump({**summary(p), "path": str(path)})
+    else:
+        print(f"imported {p.id}: {len(p.variables)} objects -> {path}")
+    return 0
+
+
+def _export(p: DeviceProfile, args: argparse.Namespace) -> int:
+    from servodesk import devdesc
+
+    if args.export == "eds":
+        text = devdesc.export_eds(p)
+    elif args.export == "dcf":
+        text = devdesc.export_dcf(p, 1, {})
+    else:
+        text = devdesc.export_esi(p)
+    if not args.output:
+        sys.stdout.write(text)
+        return 0
+    out = Path(args.output)
+    if out.exists() and not args.force:
+        print(f"servodesk: error: {out} exists; nothing was written", file=sys.stderr)
+        print("  hint: choose another file or add --force", file=sys.stderr)
+        return 2
+    tmp = out.with_name(out.name + ".tmp")
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        tmp.replace(out)  # Atomic: never a half-written file.
+    except OSError as exc:
+        print(f"servodesk: error: cannot write {out}: {exc.strerror}", file=sys.stderr)
+        return 2
+    print(f"wrote {out} ({args.export.upper()}, {len(p.variables)} objects)", file=sys.stderr)
+    return 0
+
+
 def run_profile(args: argparse.Namespace) -> int:
     p = _catalog().get(args.id)
+    if args.export:
+        return _export(p, args)
     if args.json:
         data = summary(p)
         data.update(

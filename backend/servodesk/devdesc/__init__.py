@@ -36,6 +36,7 @@ __all__ = [
     "import_eds",
     "import_esi",
     "import_file",
+    "import_text",
     "import_xdd",
     "read_dcf",
 ]
@@ -81,9 +82,24 @@ def import_file(path: str | Path, profile_id: str | None = None) -> DeviceProfil
             field="path",
             hint=f"supported formats: {formats}",
         )
+    return import_text(_read_text(p), p.name, profile_id, source=str(p))
+
+
+def import_text(
+    text: str, filename: str, profile_id: str | None = None, *, source: str | None = None
+) -> DeviceProfile:
+    """A profile from a device description's text; ``filename``'s suffix names the format."""
+    p = Path(filename)
+    suffix = p.suffix.lower()
+    if suffix not in SUPPORTED_SUFFIXES:
+        formats = ", ".join(f"{s} {name}" for s, name in SUPPORTED_SUFFIXES.items())
+        raise ValidationError(
+            f"{p.name}: cannot import a {suffix or 'suffix-less'} file",
+            field="filename",
+            hint=f"supported formats: {formats}",
+        )
     pid = profile_id or slug(p.stem)
-    text = _read_text(p)
-    src = str(p)
+    src = source or p.name
     if suffix == ".eds":
         return import_eds(text, profile_id=pid, source=src)
     if suffix == ".dcf":

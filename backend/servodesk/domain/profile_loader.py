@@ -29,10 +29,12 @@ PROFILE_FILE = "profile.yaml"
 
 def default_profile_dirs(extra: Iterable[Path] = ()) -> list[Path]:
     here = Path(__file__).resolve()
-    dirs = [Path(p) for p in extra]
-    dirs.append(here.parent.parent / "_profiles")  # In the wheel.
-    dirs.append(here.parents[3] / "profiles")  # In a checkout: backend/servodesk/domain.
-    return [d for d in dirs if d.is_dir()]
+    shipped = [
+        here.parent.parent / "_profiles",  # In the wheel.
+        here.parents[3] / "profiles",  # In a checkout: backend/servodesk/domain.
+    ]
+    # User directories are kept even before they exist: an import may create them.
+    return [Path(p) for p in extra] + [d for d in shipped if d.is_dir()]
 
 
 def read_profile_file(path: Path) -> DeviceProfile:
@@ -150,6 +152,30 @@ def _check_value_fields(spec: Any, where: str) -> list[str]:
     return out
 
 
+def profile_to_yaml(p: DeviceProfile) -> str:
+    """The profile in its authoring format (used to save imported profiles)."""
+    data = p.model_dump(mode="json", exclude_defaults=True)
+    data = {"schema_version": 1, **data}
+    return str(yaml.safe_dump(data, sort_keys=False, allow_unicode=True, width=100))
+
+
+def save_profile(p: DeviceProfile, directory: Path, *, overwrite: bool = False) -> Path:
+    """Write ``directory/<id>/profile.yaml`` atomically; an existing one is kept unless asked."""
+    folder = directory / p.id
+    target = folder / PROFILE_FILE
+    if target.exists() and not overwrite:
+        raise ProfileError(
+            f"a profile {p.id!r} already exists",
+            path=str(target),
+            hint="choose another profile id",
+        )
+    folder.mkdir(parents=True, exist_ok=True)
+    tmp = target.with_suffix(".yaml.tmp")
+    tmp.write_text(profile_to_yaml(p), encoding="utf-8")
+    tmp.replace(target)  # Atomic on POSIX: never a half-written profile.
+    return target
+
+
 class ProfileCatalog:
     """All profiles found on the search path, loaded lazily and cached by id."""
 
@@ -163,6 +189,8 @@ class ProfileCatalog:
         if self._paths is None:
             paths: dict[str, Path] = {}
             for d in self.dirs:
+                if not d.is_dir():
+                    continue
                 for f in sorted(d.glob(f"*/{PROFILE_FILE}")):
                     paths.setdefault(f.parent.name, f)
             self._paths = paths
@@ -175,6 +203,10 @@ class ProfileCatalog:
         """Register a profile made at run time (e.g. imported from an EDS)."""
         self._extra[profile.id] = profile
         self._cache.pop(profile.id, None)
+
+    def refresh(self) -> None:
+        """Look at the directories again (after a profile was saved into one)."""
+        self._paths = None
 
     def get(self, profile_id: str) -> DeviceProfile:
         if profile_id in self._cache:

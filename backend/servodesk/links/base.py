@@ -72,10 +72,12 @@ class ObjectAccess(ABC):
     """Read and write object dictionary entries as raw bytes."""
 
     @abstractmethod
-    async def read(self, address: ObjectAddress) -> bytes: ...
+    async def read(self, address: ObjectAddress, *, timeout: float | None = None) -> bytes: ...
 
     @abstractmethod
-    async def write(self, address: ObjectAddress, data: bytes) -> None: ...
+    async def write(
+        self, address: ObjectAddress, data: bytes, *, timeout: float | None = None
+    ) -> None: ...
 
     async def read_many(self, addresses: Sequence[ObjectAddress]) -> list[bytes | ServodeskError]:
         """Read several objects; a failed one yields its error instead of stopping the rest."""
@@ -123,6 +125,7 @@ class DriveLink(ObjectAccess):
         self.requests = 0
         self.failures = 0
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._timeout: float | None = None
 
     # Lifecycle ---------------------------------------------------------------------
 
@@ -154,11 +157,20 @@ class DriveLink(ObjectAccess):
 
     # Object access -------------------------------------------------------------------
 
-    async def read(self, address: ObjectAddress) -> bytes:
-        return await self._acall(self._aread, address)
+    async def read(self, address: ObjectAddress, *, timeout: float | None = None) -> bytes:
+        """Read one object; ``timeout`` overrides the link's response time-out for this call."""
+        return await self._acall(self._aread, address, timeout=timeout)
 
-    async def write(self, address: ObjectAddress, data: bytes) -> None:
-        await self._acall(self._awrite, address, bytes(data))
+    async def write(
+        self, address: ObjectAddress, data: bytes, *, timeout: float | None = None
+    ) -> None:
+        """Write one object; ``timeout`` is for slow ones (a parameter save can take seconds)."""
+        await self._acall(self._awrite, address, bytes(data), timeout=timeout)
+
+    @property
+    def request_timeout(self) -> float:
+        """The response time-out of the request in progress."""
+        return self._timeout if self._timeout is not None else self.params.timeout
 
     async def identity(self) -> Identity:
         """Identity of the device; a missing entry is None, not an error."""
@@ -201,7 +213,9 @@ class DriveLink(ObjectAccess):
         async with self._alock:
             return await asyncio.to_thread(self._locked, fn, *args)
 
-    async def _acall(self, fn: Callable[..., Awaitable[T]], *args: Any) -> T:
+    async def _acall(
+        self, fn: Callable[..., Awaitable[T]], *args: Any, timeout: float | None = None
+    ) -> T:
         """Run an async hook under the link's lock with the shared error mapping."""
         if self._closed:
             raise LinkClosedError("the link is closed", hint="open the session again")
@@ -209,6 +223,7 @@ class DriveLink(ObjectAccess):
             self._alock = asyncio.Lock()
         async with self._alock:
             self.requests += 1
+            self._timeout = timeout  # Safe: requests to one link never overlap (the lock).
             try:
                 return await fn(*args)
             except ServodeskError:
@@ -220,6 +235,8 @@ class DriveLink(ObjectAccess):
             except OSError as exc:
                 self.failures += 1
                 raise LinkError(f"bus error: {exc}") from exc
+            finally:
+                self._timeout = None
 
     def _locked(self, fn: Callable[..., T], *args: Any) -> T:
         with self._lock:

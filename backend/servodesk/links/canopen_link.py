@@ -215,7 +215,7 @@ class CanopenLink(DriveLink):
             self._waiter = self._loop.create_future()
             try:
                 network.send_message(0x600 + node_id, request)
-                async with asyncio.timeout(self.params.timeout):
+                async with asyncio.timeout(self.request_timeout):
                     return await self._waiter
             except TimeoutError:
                 if attempt == 0:
@@ -227,7 +227,7 @@ class CanopenLink(DriveLink):
                     )
                 raise LinkTimeoutError(
                     f"{address}: no SDO response from node {node_id} within "
-                    f"{self.params.timeout:g} s",
+                    f"{self.request_timeout:g} s",
                     hint="check the node id, bitrate, cabling and that the drive is powered",
                 ) from None
             finally:

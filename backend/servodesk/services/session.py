@@ -34,6 +34,16 @@ ERROR_CODE = ObjectAddress(0x603F)
 
 #: State commands of the API: single controlword commands, and goals walked step by step.
 COMMANDS: dict[str, cia402.Command] = {c.value: c for c in cia402.Command}
+#: Commands that are always sent: stopping must never be refused.
+_ALWAYS = {cia402.Command.QUICK_STOP, cia402.Command.DISABLE_VOLTAGE}
+#: Where a single command leads, to suggest the step that is missing.
+_COMMAND_TARGET = {
+    cia402.Command.SHUTDOWN: cia402.State.READY_TO_SWITCH_ON,
+    cia402.Command.SWITCH_ON: cia402.State.SWITCHED_ON,
+    cia402.Command.SWITCH_ON_ENABLE: cia402.State.OPERATION_ENABLED,
+    cia402.Command.ENABLE_OPERATION: cia402.State.OPERATION_ENABLED,
+    cia402.Command.DISABLE_OPERATION: cia402.State.SWITCHED_ON,
+}
 GOALS: dict[str, cia402.State] = {
     "enable": cia402.State.OPERATION_ENABLED,
     "disable": cia402.State.SWITCH_ON_DISABLED,
@@ -113,6 +123,9 @@ class Session:
         self._poll_task: asyncio.Task[None] | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._failures = 0
+        #: Objects written through servodesk since the last store: they differ from the
+        #: drive's non-volatile copy (changes made by other tools are not seen).
+        self.dirty: set[ObjectAddress] = set()
 
     # Lifecycle ----------------------------------------------------------------------------
 
@@ -155,6 +168,7 @@ class Session:
             "connected": self.connected,
             "state": self.last_state.state if self.last_state else cia402.State.UNKNOWN.value,
             "nmt_state": self.last_state.nmt_state if self.last_state else "unknown",
+            "dirty": [str(a) for a in sorted(self.dirty)],
         }
 
     # Objects -----------------------------------------------------------------------------
@@ -174,9 +188,101 @@ class Session:
         if address == CONTROLWORD:
             self._last_controlword_at = time.monotonic()
         log.info("write %s %s = %s on %s", address, spec.name if spec else "?", data.hex(), self.id)
+        if spec is None or (spec.persist and not spec.process):
+            self.dirty.add(address)
         if spec is not None and not spec.access.readable:
             return describe(address, spec, data)
         return await self.read_object(address)
+
+    async def read_many(self, addresses: list[ObjectAddress]) -> list[ObjectValue | ServodeskError]:
+        """Read several objects; a failure is returned in its place, the rest go on."""
+        out: list[ObjectValue | ServodeskError] = []
+        for a in addresses:
+            try:
+                out.append(await self.read_object(a))
+            except LinkError:
+                raise  # The bus is gone: the remaining reads would only time out too.
+            except ServodeskError as exc:
+                out.append(exc)
+        return out
+
+    # Non-volatile memory ---------------------------------------------------------------------
+
+    def _procedure(self, quirk: str, index: int, signature: int) -> tuple[ObjectAddress, int]:
+        """The object and value of a store/restore: the profile's quirk, else CiA 301."""
+        q = self.profile.quirk(quirk)
+        if isinstance(q, dict) and "index" in q:
+            return ObjectAddress(int(q["index"]), int(q.get("subindex", 1))), int(q["value"])
+        address = ObjectAddress(index, 1)
+        if self.profile.spec(address) is None:
+            raise DriveStateError(
+                f"profile {self.profile.id} has no {index:04X}h:01 and no {quirk} procedure",
+                hint="see the family's manual for how it saves or resets parameters",
+            )
+        return address, signature
+
+    async def store(self) -> dict[str, Any]:
+        """Store the parameters in non-volatile memory (CiA 301 §7.5.2.13: 1010h <- "save")."""
+        address, value = self._procedure("store_parameters", 0x1010, 0x65766173)
+        expected = float(self.profile.quirk("store_parameters_duration_s", 0) or 0)
+        q = self.profile.quirk("store_parameters")
+        if isinstance(q, dict) and q.get("duration_s"):
+            expected = float(q["duration_s"])
+        dirty = len(self.dirty)
+        t0 = time.monotonic()
+        self._progress("store", 0.0, f"saving parameters ({address} <- 0x{value:08X})")
+        # Some drives answer the SDO only when the save is done: allow the whole duration.
+        await self.link.write(address, value.to_bytes(4, "little"), timeout=max(2.0, expected * 2))
+        # CiA 301: reading the store object gives 0 while it saves (HIWIN 000 §3.1 too).
+        while True:
+            try:
+                busy = (await self.link.read(address, timeout=1.0))[:1] == b"\x00"
+            except ServodeskError:
+                busy = False
+            elapsed = time.monotonic() - t0
+            if not busy or elapsed > max(30.0, expected * 3):
+                break
+            self._progress(
+                "store",
+                min(0.95, elapsed / expected) if expected else 0.5,
+                f"saving... {elapsed:.0f} s",
+            )
+            await asyncio.sleep(0.2)
+        self.dirty.clear()
+        duration = time.monotonic() - t0
+        self._progress("store", 1.0, f"saved in {duration:.1f} s")
+        self.hub.publish({"type": "sessions_changed"})
+        return {
+            "stored": dirty,
+            "duration_s": round(duration, 3),
+            "procedure": f"{address} <- 0x{value:08X}",
+        }
+
+    async def restore_defaults(self, reset: bool) -> dict[str, Any]:
+        """Restore the default parameters (CiA 301 §7.5.2.14: 1011h <- "load")."""
+        address, value = self._procedure("restore_defaults", 0x1011, 0x64616F6C)
+        await self.link.write(address, value.to_bytes(4, "little"), timeout=10.0)
+        self.dirty.clear()
+        if reset:
+            # CiA 301: restored defaults apply after the next reset of the node.
+            await self.link.nmt("reset")
+            message = "defaults restored; the drive was reset and now uses them"
+        else:
+            message = "defaults restored; they apply after the next reset of the drive"
+        self.hub.publish({"type": "sessions_changed"})
+        return {"message": message}
+
+    def _progress(self, operation: str, fraction: float, message: str) -> None:
+        self.hub.publish(
+            {
+                "type": "progress",
+                "session": self.id,
+                "operation": operation,
+                "fraction": round(fraction, 3),
+                "message": message,
+            },
+            session=self.id,
+        )
 
     async def _read_int(self, address: ObjectAddress, default_type: DataType) -> int | None:
         spec = self.profile.spec(address)
@@ -253,7 +359,10 @@ class Session:
         if name in GOALS:
             await self._walk(GOALS[name])
         elif name in COMMANDS:
-            await self._send(COMMANDS[name])
+            command = COMMANDS[name]
+            if command not in _ALWAYS:
+                await self._check_applies(command)
+            await self._send(command)
             await asyncio.sleep(0.02)
         else:
             raise ValidationError(
@@ -264,6 +373,27 @@ class Session:
         st = await self.drive_state()
         self._publish_state(st)
         return st
+
+    async def _check_applies(self, command: cia402.Command) -> None:
+        """Refuse a command that has no transition from the present state (CiA 402-2 §6.2)."""
+        sw = await self._read_int(STATUSWORD, DataType.UNSIGNED16)
+        state = cia402.decode_state(sw or 0)
+        # Would the drive react to these controlword bits? (The device's own table.)
+        if cia402.device_transition(state, cia402.command_word(command), previous=0) is not None:
+            return
+        target = _COMMAND_TARGET.get(command)
+        hint = None
+        if target is not None:
+            try:
+                path = cia402.command_path(state, target)
+                hint = f"send {path[0].value} first" if path else None
+            except ValueError:
+                hint = None
+        if command is cia402.Command.FAULT_RESET:
+            hint = "there is no fault to reset"
+        raise DriveStateError(
+            f"{command.value} does nothing in {state.value}", hint=hint or "see the state diagram"
+        )
 
     async def _send(self, command: cia402.Command) -> None:
         if command is cia402.Command.FAULT_RESET:

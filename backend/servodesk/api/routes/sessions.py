@@ -10,16 +10,24 @@ from servodesk.api.deps import StateDep
 from servodesk.api.schemas import (
     ERROR_RESPONSES,
     DriveStateOut,
+    ErrorOut,
+    MessageOut,
     ObjectValueOut,
+    ReadFailure,
+    ReadRequest,
+    ReadResults,
+    RestoreDefaultsRequest,
     ScanOut,
     ScanRequest,
     SessionCreate,
     SessionInfo,
     StateCommand,
+    StoreResult,
     WriteRequest,
 )
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.values import ObjectValue
+from servodesk.errors import ServodeskError, ValidationError
 from servodesk.links.base import LinkParams
 
 router = APIRouter(tags=["sessions"], responses=ERROR_RESPONSES)
@@ -80,6 +88,37 @@ async def write_object(
     session = state.manager.get(sid)
     addr = ObjectAddress.parse(address)
     return _value_out(await session.write_object(addr, body.value, body.raw_hex))
+
+
+@router.post("/sessions/{sid}/read", operation_id="read_objects")
+async def read_objects(sid: str, body: ReadRequest, state: StateDep) -> ReadResults:
+    session = state.manager.get(sid)
+    addresses = [ObjectAddress.parse(a) for a in body.addresses]
+    results: list[ObjectValueOut | ReadFailure] = []
+    for addr, r in zip(addresses, await session.read_many(addresses), strict=True):
+        if isinstance(r, ServodeskError):
+            results.append(
+                ReadFailure(address=str(addr), error=ErrorOut.model_validate(r.to_dict()))
+            )
+        else:
+            results.append(_value_out(r))
+    return ReadResults(results=results)
+
+
+@router.post("/sessions/{sid}/store", operation_id="store_parameters")
+async def store_parameters(sid: str, state: StateDep) -> StoreResult:
+    return StoreResult(**await state.manager.get(sid).store())
+
+
+@router.post("/sessions/{sid}/restore-defaults", operation_id="restore_defaults")
+async def restore_defaults(sid: str, body: RestoreDefaultsRequest, state: StateDep) -> MessageOut:
+    if not body.confirm:
+        raise ValidationError(
+            "restoring defaults overwrites every setting of the drive",
+            field="confirm",
+            hint='send {"confirm": true} to go ahead (take a backup first)',
+        )
+    return MessageOut(**await state.manager.get(sid).restore_defaults(body.reset))
 
 
 @router.get("/sessions/{sid}/state", operation_id="get_state")

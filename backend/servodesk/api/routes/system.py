@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from typing import Literal
+
+from fastapi import APIRouter, Query, Request, Response
 
 from servodesk import __version__
 from servodesk.api.deps import StateDep
@@ -17,6 +19,8 @@ from servodesk.api.schemas import (
     QuirkInfo,
 )
 from servodesk.domain.profile import DeviceProfile, ObjectSpec
+from servodesk.domain.profile_loader import check_profile, save_profile
+from servodesk.errors import ConflictError, ValidationError
 from servodesk.services.session import error_info
 
 router = APIRouter(tags=["system"], responses=ERROR_RESPONSES)
@@ -78,6 +82,73 @@ def object_info(s: ObjectSpec) -> ObjectInfo:
 @router.get("/profiles", operation_id="list_profiles")
 async def list_profiles(state: StateDep) -> list[ProfileSummary]:
     return [summary(p) for p in state.catalog.all()]
+
+
+_EXPORTS = {
+    "eds": ("text/plain; charset=utf-8", "eds"),
+    "dcf": ("text/plain; charset=utf-8", "dcf"),
+    "esi": ("application/xml", "xml"),
+}
+
+
+@router.get(
+    "/profiles/{profile_id}/export",
+    operation_id="export_profile",
+    response_class=Response,
+    responses={200: {"content": {"text/plain": {}, "application/xml": {}}}},
+)
+async def export_profile(
+    profile_id: str,
+    state: StateDep,
+    format: Literal["eds", "dcf", "esi"] = Query("eds", description="eds, dcf or esi"),
+    node_id: int = Query(1, ge=1, le=127, description="node id written into a DCF"),
+) -> Response:
+    from servodesk import devdesc
+
+    p = state.catalog.get(profile_id)
+    if format == "eds":
+        text = devdesc.export_eds(p)
+    elif format == "dcf":
+        text = devdesc.export_dcf(p, node_id, {})
+    else:
+        text = devdesc.export_esi(p)
+    media, suffix = _EXPORTS[format]
+    return Response(
+        text,
+        media_type=media,
+        headers={"content-disposition": f'attachment; filename="{p.id}.{suffix}"'},
+    )
+
+
+@router.post("/profiles/import", status_code=201, operation_id="import_profile")
+async def import_profile(
+    request: Request,
+    state: StateDep,
+    filename: str = Query(min_length=5, max_length=255, description="e.g. drive.eds"),
+    profile_id: str | None = Query(
+        None, pattern=r"^[a-z0-9][a-z0-9-]*$", max_length=64, description="default: from the name"
+    ),
+) -> ProfileSummary:
+    """Import an EDS, DCF, ESI or XDD file (its text is the request body) as a new profile."""
+    from servodesk import devdesc
+
+    body = await request.body()
+    if len(body) > 16 * 1024 * 1024:
+        raise ValidationError("the file is larger than 16 MiB", field="body")
+    text = body.decode("utf-8", errors="replace").lstrip("\ufeff")
+    p = devdesc.import_text(text, filename, profile_id)
+    if p.id in state.catalog.ids():
+        raise ConflictError(f"a profile {p.id!r} exists already", hint="choose another profile_id")
+    problems = check_profile(p)
+    if problems:
+        raise ValidationError(
+            f"the imported profile is inconsistent: {problems[0]}"
+            + (f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""),
+            hint="fix the file and import it again",
+        )
+    save_profile(p, state.settings.user_profile_dir)
+    state.catalog.refresh()
+    return summary(state.catalog.get(p.id))
 
 
 @router.get("/profiles/{profile_id}", operation_id="get_profile")

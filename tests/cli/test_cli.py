@@ -1,0 +1,89 @@
+"""The command line for people and scripts: JSON shapes and exit codes."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from servodesk.cli import main
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_profiles_json_lists_every_family_with_counts(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "profiles", "--json")
+    rows = {r["id"]: r for r in json.loads(out)}
+    assert code == 0
+    assert {"cia402-generic", "hiwin-e", "smartris", "ctmm04x", "lecsn-t"} <= set(rows)
+    assert rows["lecsn-t"]["variables"] > 1000 and rows["smartris"]["modes"] == [3, 4]
+
+
+def test_profile_json_has_the_documented_keys(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "profile", "smartris", "--json")
+    p = json.loads(out)
+    assert code == 0
+    assert {"objects", "errors", "modes", "homing_methods", "quirks"} <= set(p)
+    assert p["homing_methods"] == [] and p["problems"] == []
+    e = p["errors"][0]
+    assert {"code", "table", "name", "cause", "remedy"} <= set(e)
+
+
+def test_od_by_address_and_pnu(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "od", "cia402-generic", "0x6040", "--json")
+    (entry,) = json.loads(out)
+    assert code == 0
+    fields = {
+        "index",
+        "subindex",
+        "name",
+        "data_type",
+        "access",
+        "pdo_mapping",
+        "default",
+        "min",
+        "max",
+        "unit",
+        "section",
+    }
+    assert fields <= set(entry) and entry["index"] == 0x6040 and entry["access"] == "rw"
+    code, out, _ = run(capsys, "od", "lecsn-t", "P24640", "--json")
+    assert code == 0 and json.loads(out)[0]["index"] == 24640
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["od", "nope"], "no profile 'nope'"),
+        (["od", "cia402-generic", "0x9999"], "not in profile"),
+        (["od", "cia402-generic", "zz"], "not an object address"),
+        (["profiles", "--import", "missing.eds"], "no such file"),
+        (["profile", "hiwin-e", "--export", "pdf"], "invalid choice"),
+        (["nosuchcommand"], "invalid choice"),
+    ],
+)
+def test_bad_input_exits_2_with_a_message_not_a_traceback(argv: list[str], message: str) -> None:
+    r = subprocess.run(
+        [sys.executable, "-m", "servodesk", *argv], capture_output=True, text=True, timeout=60
+    )
+    assert r.returncode == 2
+    assert message in r.stderr and "Traceback" not in r.stderr
+
+
+def test_export_refuses_to_overwrite_and_writes_atomically(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "generic.eds"
+    assert run(capsys, "profile", "cia402-generic", "--export", "eds", "-o", str(out))[0] == 0
+    first = out.read_text()
+    assert "[1018sub1]" in first
+    code, _, err = run(capsys, "profile", "cia402-generic", "--export", "eds", "-o", str(out))
+    assert code == 2 and "exists" in err and out.read_text() == first
+    assert list(tmp_path.iterdir()) == [out]  # No temporary file left behind.
