@@ -2,108 +2,30 @@
 
 The drive runs as ``python -m servodesk sim --profile cia402-generic --node-id 5 --interface
 udp_multicast --channel 239.74.163.x`` (a group per test run); this file imports nothing from
-servodesk: what a third-party master sees is what is tested. python-can's udp_multicast
-interface needs the ``msgpack`` package; without it the module is skipped.
+servodesk: what a third-party master sees is what is tested.
 """
 
 from __future__ import annotations
 
 import os
-import selectors
-import signal
 import subprocess
-import sys
-import tempfile
 import time
 from collections.abc import Iterator
-from typing import IO, Any
+from typing import Any
 
 import canopen
 import pytest
-
-pytest.importorskip("msgpack", reason="python-can's udp_multicast interface needs msgpack")
+from tests.simproc import sim_subprocess
 
 NODE = 5
 REV = 131072
 GROUP = f"239.74.163.{10 + os.getpid() % 240}"
 
-# Fallback when the `servodesk` command line cannot be imported as a whole (e.g. while
-# another command module is missing): run the sim command module by itself.
-_RUNNER = (
-    "import argparse, sys\n"
-    "from servodesk.cli import sim\n"
-    "p = argparse.ArgumentParser()\n"
-    "s = p.add_subparsers()\n"
-    "sim.register(s)\n"
-    "a = p.parse_args(sys.argv[1:])\n"
-    "sys.exit(a.func(a))\n"
-)
-
-
-def _start(command: list[str], err: IO[str]) -> tuple[subprocess.Popen[str], str]:
-    """Start the sim; return the process and its first line ("" if it exited first).
-
-    stderr goes to a file: a pipe nobody drains could block the sim if it logged a lot.
-    """
-    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=err, text=True)
-    assert proc.stdout is not None
-    sel = selectors.DefaultSelector()
-    sel.register(proc.stdout, selectors.EVENT_READ)
-    deadline = time.monotonic() + 30
-    while time.monotonic() < deadline:
-        if sel.select(timeout=0.2):
-            line = proc.stdout.readline()
-            if line:
-                return proc, line
-        if proc.poll() is not None:
-            return proc, ""
-    return proc, ""
-
-
-def _stop(proc: subprocess.Popen[str]) -> None:
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGTERM)
-        try:
-            proc.wait(10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(5)
-    if proc.stdout is not None:
-        proc.stdout.close()
-
-
-def _read(f: IO[str]) -> str:
-    f.seek(0)
-    return f.read()
-
 
 @pytest.fixture(scope="module")
 def sim_process() -> Iterator[subprocess.Popen[str]]:
-    args = [
-        "sim",
-        "--profile",
-        "cia402-generic",
-        "--node-id",
-        str(NODE),
-        "--interface",
-        "udp_multicast",
-        "--channel",
-        GROUP,
-    ]
-    with tempfile.TemporaryFile("w+") as err:
-        proc, line = _start([sys.executable, "-m", "servodesk", *args], err)
-        try:
-            if not line and proc.returncode not in (None, 0):
-                text = _read(err)
-                if "servodesk sim: error" in text or "Error" not in text:
-                    pytest.fail(f"sim exited with {proc.returncode}: {text}")
-                # The command line as a whole does not import yet: run the sim module alone.
-                proc, line = _start([sys.executable, "-c", _RUNNER, *args], err)
-            assert "serving" in line, f"the sim did not say what it serves: {_read(err)}"
-            assert f"node {NODE}" in line and GROUP in line
-            yield proc
-        finally:
-            _stop(proc)
+    with sim_subprocess("cia402-generic", NODE, "udp_multicast", GROUP) as proc:
+        yield proc
 
 
 @pytest.fixture(scope="module")

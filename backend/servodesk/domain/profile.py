@@ -338,8 +338,11 @@ class Identity(BaseModel):
     product_codes: tuple[int, ...] = ()
     revision_min: int | None = None
     revision_max: int | None = None
-    #: Regular expression matched against the device name (1008h) when ids are absent.
+    #: Regular expression matched against the device name (1008h), when one is read.
     device_name: str | None = None
+    #: Where the vendor id is read when the device has no 1018h (e.g. PROFIdrive P964.0 as
+    #: "0x03C4:00"); read only when 1018h gave nothing.
+    vendor_id_object: str | None = None
 
     def matches(
         self,
@@ -352,6 +355,8 @@ class Identity(BaseModel):
             return False
         if self.vendor_id is not None and vendor_id != self.vendor_id:
             return False
+        if self.vendor_id is None and not device_name:
+            return False  # Only a name to go by, and the device gave none.
         if self.product_codes and product_code not in self.product_codes:
             return False
         if revision is not None:
@@ -359,7 +364,9 @@ class Identity(BaseModel):
                 return False
             if self.revision_max is not None and revision > self.revision_max:
                 return False
-        return not (self.device_name and not re.search(self.device_name, device_name or ""))
+        return not (
+            self.device_name and device_name and not re.search(self.device_name, device_name)
+        )
 
 
 class Manual(BaseModel):

@@ -95,7 +95,7 @@ class SessionManager:
                 await self._probe(link, params)
                 identity = await link.identity()
                 note = None
-                profile = chosen or self._detect(identity)
+                profile = chosen or self._detect(identity) or await self._detect_by_objects(link)
                 if profile is None:
                     profile = self.catalog.get(GENERIC)
                     note = (
@@ -144,6 +144,20 @@ class SessionManager:
         return self.catalog.match(
             ident.vendor_id, ident.product_code, ident.revision, ident.device_name
         )
+
+    async def _detect_by_objects(self, link: DriveLink) -> DeviceProfile | None:
+        """Profiles whose identity lives elsewhere than 1018h name the object to read."""
+        for p in self.catalog.all():
+            where = p.identity.vendor_id_object
+            if not where or p.identity.vendor_id is None:
+                continue
+            try:
+                raw = await link.read(ObjectAddress.parse(where))
+            except ServodeskError:
+                continue
+            if int.from_bytes(raw[:4], "little") == p.identity.vendor_id:
+                return p
+        return None
 
     def _new_id(self, profile: DeviceProfile, node_id: int) -> str:
         base = f"{profile.id}-{node_id}"
