@@ -17,7 +17,7 @@ PORT ?= 8000
 export UV_PYTHON_DOWNLOADS := never
 export UV_PROJECT_ENVIRONMENT := $(VENV)
 
-.PHONY: setup demo test lint typecheck unit browser build clean chromium bench openapi
+.PHONY: setup demo test lint typecheck unit wheel build clean chromium bench openapi
 
 setup: $(VENV)/.synced $(WEB_DIST)/index.html
 
@@ -53,8 +53,8 @@ demo: setup
 	$(VENV)/bin/servodesk serve --sim --host $(HOST) --port $(PORT)
 
 lint: $(VENV)/.synced
-	$(VENV)/bin/ruff check backend tests bench
-	$(VENV)/bin/ruff format --check backend tests bench
+	$(VENV)/bin/ruff check backend tests bench scripts
+	$(VENV)/bin/ruff format --check backend tests bench scripts
 
 typecheck: $(VENV)/.synced $(FRONTEND)/node_modules/.package-lock.json
 	$(VENV)/bin/mypy
@@ -63,7 +63,12 @@ typecheck: $(VENV)/.synced $(FRONTEND)/node_modules/.package-lock.json
 unit: setup
 	cd $(FRONTEND) && npm test --silent
 
-test: setup chromium lint typecheck unit
+# The wheel a user would pip install: it must carry the built UI and every profile.
+wheel: setup
+	rm -rf dist && $(UV) build --wheel -q -o dist
+	$(PY) scripts/check_wheel.py dist
+
+test: setup chromium lint typecheck unit wheel
 	$(VENV)/bin/pytest -q -p no:cacheprovider
 
 bench: setup
