@@ -30,6 +30,9 @@ class Settings(BaseSettings):
     poll_hz: float = Field(default=20.0, gt=0, le=200)
     #: SDO response time-out in seconds.
     sdo_timeout: float = Field(default=0.5, gt=0, le=30)
+    #: Dead-man: motion started by a client stops when its WebSocket heartbeat has been
+    #: missing this long (ms). Clients send one at least every 100 ms.
+    deadman_ms: int = Field(default=250, ge=50, le=5000)
     log_level: str = "info"
 
     def profile_paths(self) -> list[Path]:

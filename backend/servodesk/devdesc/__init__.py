@@ -67,6 +67,19 @@ def _read_text(path: Path) -> str:
         return data.decode("latin-1")
 
 
+def _format_of(filename: str) -> str:
+    """The file's suffix when servodesk reads that format, else a ValidationError."""
+    suffix = Path(filename).suffix.lower()
+    if suffix not in SUPPORTED_SUFFIXES:
+        formats = ", ".join(f"{s} {name}" for s, name in SUPPORTED_SUFFIXES.items())
+        raise ValidationError(
+            f"{Path(filename).name}: cannot import a {suffix or 'suffix-less'} file",
+            field="filename",
+            hint=f"supported formats: {formats}",
+        )
+    return suffix
+
+
 def import_file(path: str | Path, profile_id: str | None = None) -> DeviceProfile:
     """A profile from a device-description file, chosen by suffix.
 
@@ -74,14 +87,7 @@ def import_file(path: str | Path, profile_id: str | None = None) -> DeviceProfil
     part of a profile: use :func:`read_dcf` to get them.
     """
     p = Path(path)
-    suffix = p.suffix.lower()
-    if suffix not in SUPPORTED_SUFFIXES:
-        formats = ", ".join(f"{s} {name}" for s, name in SUPPORTED_SUFFIXES.items())
-        raise ValidationError(
-            f"{p.name}: cannot import a {suffix or 'suffix-less'} file",
-            field="path",
-            hint=f"supported formats: {formats}",
-        )
+    _format_of(p.name)  # A wrong suffix is refused before the file is read.
     return import_text(_read_text(p), p.name, profile_id, source=str(p))
 
 
@@ -90,14 +96,7 @@ def import_text(
 ) -> DeviceProfile:
     """A profile from a device description's text; ``filename``'s suffix names the format."""
     p = Path(filename)
-    suffix = p.suffix.lower()
-    if suffix not in SUPPORTED_SUFFIXES:
-        formats = ", ".join(f"{s} {name}" for s, name in SUPPORTED_SUFFIXES.items())
-        raise ValidationError(
-            f"{p.name}: cannot import a {suffix or 'suffix-less'} file",
-            field="filename",
-            hint=f"supported formats: {formats}",
-        )
+    suffix = _format_of(filename)
     pid = profile_id or slug(p.stem)
     src = source or p.name
     if suffix == ".eds":

@@ -8,11 +8,12 @@ implements the small ``_`` hooks, which are plain blocking functions run in a wo
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import threading
 import time
 from abc import ABC, abstractmethod
-from collections.abc import Awaitable, Callable, Sequence
+from collections.abc import Awaitable, Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
@@ -222,36 +223,32 @@ class DriveLink(ObjectAccess):
         if self._alock is None:
             self._alock = asyncio.Lock()
         async with self._alock:
-            self.requests += 1
             self._timeout = timeout  # Safe: requests to one link never overlap (the lock).
             try:
-                return await fn(*args)
-            except ServodeskError:
-                self.failures += 1
-                raise
-            except TimeoutError as exc:
-                self.failures += 1
-                raise LinkTimeoutError(f"no answer from the device: {exc}") from exc
-            except OSError as exc:
-                self.failures += 1
-                raise LinkError(f"bus error: {exc}") from exc
+                with self._counted():
+                    return await fn(*args)
             finally:
                 self._timeout = None
 
     def _locked(self, fn: Callable[..., T], *args: Any) -> T:
-        with self._lock:
-            self.requests += 1
-            try:
-                return fn(*args)
-            except ServodeskError:
-                self.failures += 1
-                raise
-            except TimeoutError as exc:
-                self.failures += 1
-                raise LinkTimeoutError(f"no answer from the device: {exc}") from exc
-            except OSError as exc:
-                self.failures += 1
-                raise LinkError(f"bus error: {exc}") from exc
+        with self._lock, self._counted():
+            return fn(*args)
+
+    @contextlib.contextmanager
+    def _counted(self) -> Iterator[None]:
+        """Count a request and map library failures into the servodesk error tree."""
+        self.requests += 1
+        try:
+            yield
+        except ServodeskError:
+            self.failures += 1
+            raise
+        except TimeoutError as exc:
+            self.failures += 1
+            raise LinkTimeoutError(f"no answer from the device: {exc}") from exc
+        except OSError as exc:
+            self.failures += 1
+            raise LinkError(f"bus error: {exc}") from exc
 
     # Hooks ---------------------------------------------------------------------------
 
