@@ -47,3 +47,24 @@ def test_other_protocol_versions_are_refused_with_a_reason(app_client: TestClien
         with pytest.raises(WebSocketDisconnect) as info:
             ws.receive_json()
         assert info.value.code == 4000
+
+
+def test_heartbeat_loss_is_reported(app_client: TestClient) -> None:
+    with app_client.websocket_connect("/api/v1/ws", subprotocols=["servodesk.v1"]) as ws:
+        ws.receive_json()
+        ws.receive_json()
+        ws.send_json({"type": "subscribe", "session": "cia402-generic-1"})
+        r = app_client.put("/api/v1/sessions/cia402-generic-1/objects/0x1017", json={"value": 20})
+        assert r.status_code == 200
+        # The drive's heartbeat falls silent behind the session's back (as a hung drive's would).
+        sim = app_client.app.state.servodesk.sim  # type: ignore[attr-defined]
+        sim.drives[0].write(0x1017, 0, 0)
+        sim.devices[0].nmt.stop_heartbeat()
+        events = []
+        for _ in range(100):
+            msg = ws.receive_json()
+            if msg["type"] == "link":
+                events.append(msg["event"])
+                if "heartbeat_lost" in events:
+                    break
+        assert "heartbeat_lost" in events

@@ -184,6 +184,10 @@ class DriveLink(ObjectAccess):
     async def network_state(self) -> str:
         return await self._call(self._network_state)
 
+    def heartbeat_age(self) -> float | None:
+        """Seconds since the device's last heartbeat, or None when none was seen."""
+        return None
+
     # Events -----------------------------------------------------------------------------
 
     def add_event_callback(self, cb: EventCallback) -> None:

@@ -329,6 +329,11 @@ class CanopenLink(DriveLink):
     def _network_state(self) -> str:
         return self.nmt_state
 
+    def heartbeat_age(self) -> float | None:
+        if self.last_heartbeat is None:
+            return None
+        return time.monotonic() - self.last_heartbeat
+
     # Bus-thread callbacks ------------------------------------------------------------------
 
     def _on_heartbeat(self, state: int) -> None:

@@ -11,6 +11,8 @@ import asyncio
 import contextlib
 import logging
 import time
+import weakref
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -19,7 +21,13 @@ from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, Value, codec
 from servodesk.domain.profile import DeviceProfile, ErrorEntry
 from servodesk.domain.values import ObjectValue, describe, encode_write
-from servodesk.errors import DriveStateError, LinkError, ServodeskError, ValidationError
+from servodesk.errors import (
+    DriveStateError,
+    LinkError,
+    ObjectAccessError,
+    ServodeskError,
+    ValidationError,
+)
 from servodesk.links.base import DriveLink, Identity, LinkEvent
 from servodesk.services.events import EventHub
 
@@ -31,6 +39,7 @@ MODE_DISPLAY = ObjectAddress(0x6061)
 POSITION = ObjectAddress(0x6064)
 VELOCITY = ObjectAddress(0x606C)
 ERROR_CODE = ObjectAddress(0x603F)
+HEARTBEAT_TIME = ObjectAddress(0x1017)
 
 #: State commands of the API: single controlword commands, and goals walked step by step.
 COMMANDS: dict[str, cia402.Command] = {c.value: c for c in cia402.Command}
@@ -48,6 +57,21 @@ GOALS: dict[str, cia402.State] = {
     "enable": cia402.State.OPERATION_ENABLED,
     "disable": cia402.State.SWITCH_ON_DISABLED,
 }
+
+
+#: The audit log: called after every successful :meth:`Session.write_object` with the
+#: session, the address, the bytes before (None when unreadable), the bytes written and
+#: the client id. Registered per event hub, that is per application (services.backup).
+AuditSink = Callable[["Session", ObjectAddress, bytes | None, bytes, str], None]
+_audit_sinks: weakref.WeakKeyDictionary[EventHub, AuditSink] = weakref.WeakKeyDictionary()
+
+
+def set_audit_sink(hub: EventHub, sink: AuditSink | None) -> None:
+    """Record the writes of every session on ``hub`` with ``sink`` (None: stop)."""
+    if sink is None:
+        _audit_sinks.pop(hub, None)
+    else:
+        _audit_sinks[hub] = sink
 
 
 def error_info(e: ErrorEntry) -> dict[str, Any]:
@@ -126,12 +150,15 @@ class Session:
         #: Objects written through servodesk since the last store: they differ from the
         #: drive's non-volatile copy (changes made by other tools are not seen).
         self.dirty: set[ObjectAddress] = set()
+        self._heartbeat_ms = 0
+        self._heartbeat_lost = False
 
     # Lifecycle ----------------------------------------------------------------------------
 
     async def start(self) -> None:
         self._loop = asyncio.get_running_loop()
         self.link.add_event_callback(self._on_link_event)
+        self._heartbeat_ms = await self._heartbeat_period()
         with contextlib.suppress(ServodeskError):
             self.last_state = await self.drive_state()
         self._poll_task = asyncio.create_task(self._poll(), name=f"poll {self.id}")
@@ -149,6 +176,46 @@ class Session:
             {"type": "link", "session": self.id, "event": "closed", "message": "session closed"},
             session=self.id,
         )
+
+    async def _heartbeat_period(self) -> int:
+        """The drive's producer heartbeat time (1017h), 0 when it has none or sends none."""
+        if self.profile.spec(HEARTBEAT_TIME) is None:
+            return 0
+        try:
+            return int.from_bytes((await self.link.read(HEARTBEAT_TIME))[:2], "little")
+        except ServodeskError:
+            return 0
+
+    def _check_heartbeat(self) -> None:
+        # CiA 301 §7.2.8.3.2.2: a consumer expects each heartbeat within its period; allow
+        # 2.5 periods before calling it lost (bus load and scheduling jitter).
+        age = self.link.heartbeat_age()
+        if not self._heartbeat_ms or age is None:
+            return
+        late = age > 2.5 * self._heartbeat_ms / 1000.0
+        if late and not self._heartbeat_lost:
+            self._heartbeat_lost = True
+            self.hub.publish(
+                {
+                    "type": "link",
+                    "session": self.id,
+                    "event": "heartbeat_lost",
+                    "message": f"no heartbeat for {age * 1000:.0f} ms "
+                    f"(1017h = {self._heartbeat_ms} ms)",
+                },
+                session=self.id,
+            )
+        elif not late and self._heartbeat_lost:
+            self._heartbeat_lost = False
+            self.hub.publish(
+                {
+                    "type": "link",
+                    "session": self.id,
+                    "event": "heartbeat_restored",
+                    "message": "heartbeats arrive again",
+                },
+                session=self.id,
+            )
 
     def info(self) -> dict[str, Any]:
         p = self.link.params
@@ -178,15 +245,29 @@ class Session:
         return describe(address, self.profile.spec(address), raw)
 
     async def write_object(
-        self, address: ObjectAddress, value: Value | None = None, raw_hex: str | None = None
+        self,
+        address: ObjectAddress,
+        value: Value | None = None,
+        raw_hex: str | None = None,
+        client: str | None = None,
     ) -> ObjectValue:
         spec = self.profile.spec(address)
         data = encode_write(address, spec, value, raw_hex)
+        audit = _audit_sinks.get(self.hub)
+        old: bytes | None = None
+        if audit is not None and (spec is None or spec.access.readable):
+            # The audit log records the value before the write (DESIGN: who, what, old, new).
+            with contextlib.suppress(ObjectAccessError):
+                old = await self.link.read(address)
         if address == CONTROLWORD:
             await self._space_controlword()
         await self.link.write(address, data)
+        if audit is not None:
+            audit(self, address, old, data, client or "unknown")
         if address == CONTROLWORD:
             self._last_controlword_at = time.monotonic()
+        if address == HEARTBEAT_TIME:
+            self._heartbeat_ms = int.from_bytes(data[:2], "little")
         log.info("write %s %s = %s on %s", address, spec.name if spec else "?", data.hex(), self.id)
         if spec is None or (spec.persist and not spec.process):
             self.dirty.add(address)
@@ -451,6 +532,7 @@ class Session:
         while True:
             period = 1.0 / self.poll_hz if self.hub.watchers(self.id) else 1.0
             await asyncio.sleep(period)
+            self._check_heartbeat()
             try:
                 st = await self.drive_state()
             except LinkError as exc:
