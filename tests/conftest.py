@@ -7,6 +7,10 @@ import os
 
 import pytest
 
+# The 3D viewer binds a TCP port per app; tests that want it (tests/viewer, the viewer page)
+# set their own free port, every other app in the suite runs without it.
+os.environ.setdefault("SERVODESK_VIEWER_PORT", "0")
+
 _counter = itertools.count()
 
 

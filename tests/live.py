@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Iterator
 
@@ -23,7 +25,13 @@ def free_port() -> int:
 def live_server(*extra: str, env: dict[str, str] | None = None) -> Iterator[str]:
     """Start ``servodesk serve --sim`` on a free port; yield its base URL; stop it."""
     port = free_port()
-    full_env = {**os.environ, "SERVODESK_SIM_CHANNEL": f"live-{os.getpid()}-{port}", **(env or {})}
+    data_dir = tempfile.mkdtemp(prefix="servodesk-live-")  # Never the user's ~/.servodesk.
+    full_env = {
+        **os.environ,
+        "SERVODESK_SIM_CHANNEL": f"live-{os.getpid()}-{port}",
+        "SERVODESK_DATA_DIR": data_dir,
+        **(env or {}),
+    }
     proc = subprocess.Popen(
         [sys.executable, "-m", "servodesk", "serve", "--sim", "--port", str(port), *extra],
         env=full_env,
@@ -55,3 +63,4 @@ def live_server(*extra: str, env: dict[str, str] | None = None) -> Iterator[str]
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+        shutil.rmtree(data_dir, ignore_errors=True)

@@ -33,6 +33,8 @@ class Settings(BaseSettings):
     #: Dead-man: motion started by a client stops when its WebSocket heartbeat has been
     #: missing this long (ms). Clients send one at least every 100 ms.
     deadman_ms: int = Field(default=250, ge=50, le=5000)
+    #: Port of the 3D viewer (viser), served on ``host``; 0 disables the viewer.
+    viewer_port: int = Field(default=8080, ge=0, le=65535)
     log_level: str = "info"
 
     def profile_paths(self) -> list[Path]:

@@ -42,7 +42,7 @@ async def test_restore_defaults_needs_confirmation_then_resets(client: httpx.Asy
     await client.put(f"/api/v1/sessions/{SID}/objects/0x6081", json={"value": 777})
     await client.post(f"/api/v1/sessions/{SID}/store")
     r = await client.post(f"/api/v1/sessions/{SID}/restore-defaults", json={"confirm": False})
-    assert r.status_code == 400 and "confirm" in r.json()["hint"]
+    assert r.status_code == 422 and r.json()["field"] == "confirm"
     r = await client.post(
         f"/api/v1/sessions/{SID}/restore-defaults", json={"confirm": True, "reset": True}
     )

@@ -60,7 +60,7 @@ async def test_write_to_read_only_is_4xx_with_abort_code_and_text(
     assert body["meaning"] == "Attempt to write a read only object"
     # An object unknown to the profile goes to the drive, which aborts with its own code.
     r = await client.put(f"/api/v1/sessions/{SID}/objects/0x2FFF", json={"raw_hex": "01"})
-    assert r.status_code == 400 and r.json()["code_hex"] == "0x06020000"
+    assert r.status_code == 404 and r.json()["code_hex"] == "0x06020000"
     assert r.json()["protocol"] == "sdo"
 
 

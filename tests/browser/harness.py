@@ -68,7 +68,11 @@ def running_server(timeout: float = 40.0) -> Iterator[str]:
         prefix="servodesk-serve-", suffix=".log", delete=False
     )
     cmd = [sys.executable, "-m", "servodesk", "serve", "--sim", "--port", str(port)]
-    proc = subprocess.Popen(cmd, cwd=REPO, stdout=log, stderr=subprocess.STDOUT)
+    # A data directory of its own: never the user's ~/.servodesk (backups, audit log).
+    data_dir = tempfile.mkdtemp(prefix="servodesk-browser-")
+    # The 3D view page needs the viewer: give it a free port of its own.
+    env = {**os.environ, "SERVODESK_DATA_DIR": data_dir, "SERVODESK_VIEWER_PORT": str(free_port())}
+    proc = subprocess.Popen(cmd, cwd=REPO, stdout=log, stderr=subprocess.STDOUT, env=env)
 
     def log_tail() -> str:
         log.flush()

@@ -16,11 +16,14 @@ from servodesk import __version__
 from servodesk.api import errors
 from servodesk.api.auth import TokenMiddleware
 from servodesk.api.deps import AppState
-from servodesk.api.routes import sessions, system
+from servodesk.api.routes import backups, motion, operation, sessions, system, viewer
 from servodesk.api.ws import router as ws_router
 from servodesk.domain.profile_loader import ProfileCatalog, default_profile_dirs
+from servodesk.services.backup import BackupService
 from servodesk.services.events import EventHub
 from servodesk.services.manager import SessionManager
+from servodesk.services.restore import RestoreService
+from servodesk.services.store import Store
 from servodesk.settings import Settings
 
 log = logging.getLogger(__name__)
@@ -41,7 +44,17 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     manager = SessionManager(
         catalog, hub, sdo_timeout=settings.sdo_timeout, poll_hz=settings.poll_hz
     )
-    state = AppState(settings=settings, catalog=catalog, hub=hub, manager=manager)
+    # Backups, restore reports and the audit log of every parameter write (docs/backup.md).
+    backup_service = BackupService(Store(settings.data_dir), catalog)
+    backup_service.attach(hub)
+    state = AppState(
+        settings=settings,
+        catalog=catalog,
+        hub=hub,
+        manager=manager,
+        backups=backup_service,
+        restores=RestoreService(backup_service),
+    )
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -53,6 +66,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             yield
         finally:
             await manager.close_all()
+            backup_service.store.close()
             if state.sim is not None:
                 state.sim.stop()
                 state.sim = None
@@ -69,7 +83,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     errors.install(app)
     app.include_router(system.router, prefix="/api/v1")
     app.include_router(sessions.router, prefix="/api/v1")
+    app.include_router(backups.router, prefix="/api/v1")
     app.include_router(ws_router, prefix="/api/v1")
+    app.include_router(motion.router, prefix="/api/v1")  # Also stops motion at shutdown.
+    app.include_router(operation.router, prefix="/api/v1")
+    app.include_router(viewer.router, prefix="/api/v1")  # Starts and stops the 3D viewer.
 
     swagger = WEB_DIST / "vendor" / "swagger-ui"
 

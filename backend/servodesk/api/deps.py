@@ -8,8 +8,10 @@ from typing import Annotated, Any
 from fastapi import Depends, Request
 
 from servodesk.domain.profile_loader import ProfileCatalog
+from servodesk.services.backup import BackupService
 from servodesk.services.events import EventHub
 from servodesk.services.manager import SessionManager
+from servodesk.services.restore import RestoreService
 from servodesk.settings import Settings
 
 
@@ -19,6 +21,8 @@ class AppState:
     catalog: ProfileCatalog
     hub: EventHub
     manager: SessionManager
+    backups: BackupService
+    restores: RestoreService
     sim: Any = None
 
 

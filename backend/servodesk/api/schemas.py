@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, JsonValue, field_validator
 
@@ -238,7 +238,9 @@ class StoreResult(BaseModel):
 class RestoreDefaultsRequest(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
-    confirm: bool = Field(description="Must be true: restoring defaults overwrites every setting")
+    confirm: Literal[True] = Field(
+        description="Must be true: restoring defaults overwrites every setting"
+    )
     reset: bool = Field(default=False, description="Reset the node afterwards so they apply")
 
 
@@ -291,3 +293,487 @@ class StateCommand(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     command: StateCommandName
+
+
+# Operation: control and motion (issue 4) -----------------------------------------------------
+
+_I32_MIN, _I32_MAX, _U32_MAX = -(2**31), 2**31 - 1, 2**32 - 1
+
+
+class ControlRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    action: Literal["take", "release", "force_take"]
+    confirm: bool = Field(
+        default=False, description="Must be true for force_take when another client holds it"
+    )
+
+
+class ControlOut(BaseModel):
+    session: str
+    owner: str | None = Field(description="Client id holding control, or null")
+    since: float | None = Field(description="When it was taken (Unix time)")
+    you: bool = Field(description="The requesting client (X-Servodesk-Client) holds it")
+
+
+class JogRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    velocity: int = Field(
+        description="Signed velocity, raw units (e.g. inc/s)", ge=_I32_MIN, le=_I32_MAX
+    )
+    acceleration: int = Field(
+        description="Acceleration and deceleration, raw units", gt=0, le=_U32_MAX
+    )
+
+
+class MoveRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    mode: Literal["absolute", "relative"] = "absolute"
+    target: int = Field(
+        description="Target position or distance, raw units", ge=_I32_MIN, le=_I32_MAX
+    )
+    velocity: int | None = Field(
+        default=None, description="Profile velocity 6081h", gt=0, le=_U32_MAX
+    )
+    acceleration: int | None = Field(default=None, description="6083h", gt=0, le=_U32_MAX)
+    deceleration: int | None = Field(default=None, description="6084h", gt=0, le=_U32_MAX)
+    immediate: bool = Field(
+        default=True,
+        description="Controlword bit 5: true replaces a running move (single set-point), "
+        "false queues it after the running one (set of set-points)",
+    )
+
+
+class VelocityRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    velocity: int = Field(description="Target velocity 60FFh, raw units", ge=_I32_MIN, le=_I32_MAX)
+    acceleration: int | None = Field(default=None, gt=0, le=_U32_MAX)
+    deceleration: int | None = Field(default=None, gt=0, le=_U32_MAX)
+
+
+class TorqueRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    torque: int = Field(
+        description="Target torque 6071h, raw units (0.1 % of rated)", ge=_I32_MIN, le=_I32_MAX
+    )
+    slope: int | None = Field(default=None, description="Torque slope 6087h", gt=0, le=_U32_MAX)
+
+
+class CyclicRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    mode: Literal["csp", "csv", "cst"]
+    waveform: Literal["sine", "ramp"] = "sine"
+    amplitude: float = Field(
+        ge=0, le=2**31 - 1, description="Around the start (csp) or 0 (csv, cst), raw units"
+    )
+    frequency: float = Field(gt=0, le=10, description="Hz")
+    duration: float = Field(gt=0, le=60, description="Seconds (rounded up to whole periods)")
+
+
+class StopRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class MotionStatusOut(BaseModel):
+    session: str
+    active: bool
+    kind: Literal["jog", "move", "velocity", "torque", "cyclic"] | None
+    owner: str | None
+    mode: int | None
+    target: float | None
+    state: str = Field(
+        description="idle, running, reached, done, halted, stopped, deadman or error"
+    )
+    message: str
+
+
+class UnitOut(BaseModel):
+    raw_unit: str | None
+    unit: str | None
+    scale: float
+
+
+class LimitsOut(BaseModel):
+    position_min: int | None = Field(description="607Dh:01 (null: no limit)")
+    position_max: int | None = Field(description="607Dh:02 (null: no limit)")
+    max_velocity: int | None = Field(description="607Fh")
+    max_torque: int | None = Field(description="6072h")
+    max_acceleration: int | None = Field(description="60C5h")
+    max_deceleration: int | None = Field(description="60C6h")
+    modes: list[int]
+    mode_names: dict[str, str]
+    units: dict[str, UnitOut]
+    sources: dict[str, str] = Field(description="Where each limit was read")
+
+
+# Backup, compare, restore (issue 5; docs/api.md, docs/backup.md) ---------------------------
+
+
+class BackupCreate(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    label: str = Field(default="", max_length=200)
+    note: str = Field(default="", max_length=4000)
+
+
+class BackupPatch(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    label: str | None = Field(default=None, max_length=200)
+    note: str | None = Field(default=None, max_length=4000)
+
+
+class BackupIdentity(BaseModel):
+    vendor_id: int | None = None
+    product_code: int | None = None
+    revision: int | None = None
+    serial: int | None = None
+    device_name: str | None = None
+    hardware_version: str | None = None
+    software_version: str | None = None
+
+
+class BackupBus(BaseModel):
+    interface: str | None = None
+    channel: str | None = None
+    bitrate: int | None = None
+    node_id: int | None = None
+
+
+class BackupInfo(BaseModel):
+    id: str
+    time: str
+    label: str
+    note: str
+    profile_id: str
+    profile_version: str
+    drive_key: str = Field(description="vendor-product-serial from 1018h, else profile@bus:node")
+    identity: BackupIdentity
+    firmware: str | None
+    bus: BackupBus
+    entries: int
+    file: str = Field(description="File name in the data directory's backups/ folder")
+    sha256: str
+    source: str = Field(description="drive, upload or pre-restore (taken before a restore)")
+
+
+class BackupEntryOut(BaseModel):
+    address: str
+    name: str
+    data_type: str
+    raw_hex: str
+    value: int | float | bool | str | None
+    unit: str | None
+
+
+class UnreadableOut(BaseModel):
+    address: str
+    name: str
+    code: int | None
+    code_hex: str | None
+    message: str
+
+
+class BackupProfileRef(BaseModel):
+    id: str
+    version: str
+
+
+class BackupFile(BaseModel):
+    format: Literal["servodesk-backup"]
+    schema_version: Literal[1]
+    tool: str
+    time: str
+    label: str
+    note: str
+    profile: BackupProfileRef
+    drive_key: str
+    identity: BackupIdentity
+    firmware: str | None
+    bus: BackupBus
+    entries: list[BackupEntryOut]
+    unreadable: list[UnreadableOut]
+    checksum: str
+
+
+class SourceDrive(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    kind: Literal["drive"]
+    session: str = Field(min_length=1, max_length=200)
+
+
+class SourceBackup(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    kind: Literal["backup"]
+    id: str = Field(min_length=1, max_length=200)
+
+
+class SourceDefaults(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    kind: Literal["defaults"]
+    profile: str = Field(min_length=1, max_length=200)
+    node_id: int = Field(default=1, ge=1, le=127, description="resolves $NODEID defaults")
+
+
+Source = Annotated[SourceDrive | SourceBackup | SourceDefaults, Field(discriminator="kind")]
+
+
+class CompareRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    a: Source
+    b: Source
+    all: bool = Field(default=False, description="also list equal entries (kind 'same')")
+
+
+class DifferenceOut(BaseModel):
+    address: str
+    name: str
+    group: str | None
+    unit: str | None
+    raw_unit: str | None
+    a_value: int | float | bool | str | None
+    b_value: int | float | bool | str | None
+    a_raw_hex: str | None
+    b_raw_hex: str | None
+    a_engineering: float | None
+    b_engineering: float | None
+    kind: Literal["changed", "only_a", "only_b", "same"]
+
+
+class Comparison(BaseModel):
+    a: str
+    b: str
+    equal: bool
+    differences: list[DifferenceOut]
+    same: int
+
+
+class PreflightRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    backup: str = Field(min_length=1, max_length=200)
+    map_by_name: bool = False
+
+
+class ProblemOut(BaseModel):
+    address: str | None
+    name: str | None
+    message: str
+    hint: str | None
+
+
+class MappingOut(BaseModel):
+    address: str
+    name: str
+    target: str | None
+    reason: str | None
+
+
+class PreflightOut(BaseModel):
+    ok: bool
+    problems: list[ProblemOut]
+    warnings: list[str]
+    to_write: int
+    unchanged: int
+    read_only_skipped: int
+    mapping: list[MappingOut] | None
+
+
+class RestoreRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    backup: str = Field(min_length=1, max_length=200)
+    dry_run: bool = False
+    store: bool = Field(default=True, description="store to non-volatile memory when verified")
+    force: bool = Field(default=False, description="store even when items failed")
+    map_by_name: bool = False
+
+
+class RestoreCounts(BaseModel):
+    written: int
+    unchanged: int
+    skipped: int
+    failed: int
+    pending: int
+    would_write: int
+
+
+class RestoreItemOut(BaseModel):
+    address: str
+    name: str
+    status: Literal["written", "unchanged", "skipped_read_only", "failed", "pending", "would_write"]
+    old_raw_hex: str | None
+    new_raw_hex: str | None
+    code: int | None
+    code_hex: str | None
+    meaning: str | None
+    message: str | None
+
+
+class RestoreStepOut(BaseModel):
+    address: str
+    raw_hex: str
+    entry: str | None = Field(description="the item this write sets; null for procedure steps")
+    why: str
+
+
+class RestoreReport(BaseModel):
+    id: str
+    backup: str
+    session: str
+    time: str
+    dry_run: bool
+    finished: bool
+    stored: bool
+    interrupted: bool
+    pre_backup: str | None
+    message: str | None
+    warnings: list[str]
+    counts: RestoreCounts
+    items: list[RestoreItemOut]
+    steps: list[RestoreStepOut] = Field(description="the writes in order (a dry run: planned)")
+
+
+class AuditEntry(BaseModel):
+    time: float
+    client: str
+    session: str
+    drive_key: str
+    address: str
+    name: str | None
+    old_raw_hex: str | None
+    new_raw_hex: str
+    old_value: int | float | bool | str | None
+    new_value: int | float | bool | str | None
+
+
+# --- Homing and alarms (issue 4) ------------------------------------------------------------
+
+HomingSignal = Literal["home_switch", "limit_negative", "limit_positive", "index"]
+
+
+class HomingMethodOut(BaseModel):
+    method: int
+    name: str
+    description: str
+    uses: list[HomingSignal]
+    direction: Literal["negative", "positive"] | None
+    section: str | None
+    equivalent: int | None = Field(
+        default=None, description="vendor method: the CiA 402 method it is simulated as"
+    )
+    needs_enable: bool = Field(default=True, description="needs Operation enabled to start")
+
+
+class HomingRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    method: int = Field(ge=-128, le=127)
+    speed_switch: int | None = Field(default=None, ge=0, le=0xFFFFFFFF, description="6099h:01")
+    speed_zero: int | None = Field(default=None, ge=0, le=0xFFFFFFFF, description="6099h:02")
+    acceleration: int | None = Field(default=None, ge=0, le=0xFFFFFFFF, description="609Ah")
+    offset: int | None = Field(default=None, ge=-(2**31), le=2**31 - 1, description="607Ch")
+
+
+class HomingBits(BaseModel):
+    target_reached: bool
+    homing_attained: bool
+    homing_error: bool
+
+
+class HomingStatus(BaseModel):
+    session: str
+    method: int | None
+    state: Literal["idle", "running", "attained", "error"]
+    position: int | None
+    statusword_bits: HomingBits
+    message: str
+
+
+class EmcyLogEntry(BaseModel):
+    model_config = ConfigDict(populate_by_name=True)
+
+    time: float | None
+    code: int
+    code_hex: str
+    name: str | None
+    cause: str | None
+    remedy: str | None
+    # "register" would shadow a BaseModel attribute; the JSON key stays "register".
+    error_register: int = Field(alias="register", description="error register (1001h)")
+
+
+class AlarmHistoryEntry(BaseModel):
+    source: str = Field(description='"1003h" or the family object, e.g. "0x2A00:01"')
+    index: int
+    code: int
+    code_hex: str
+    name: str
+    cause: str | None
+    remedy: str | None
+    time_h: int | None = None
+
+
+class AlarmsOut(BaseModel):
+    session: str
+    current: ErrorInfo | None
+    state: str
+    emcy_log: list[EmcyLogEntry]
+    history: list[AlarmHistoryEntry]
+    reset_procedure: str
+    can_clear_history: bool
+
+
+class ClearHistoryRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    confirm: Literal[True] = Field(description="Must be true: the history is gone afterwards")
+
+
+# 3D viewer (issue 4 item 6) -------------------------------------------------------------------
+
+
+class ViewerAxisOut(BaseModel):
+    session: str
+    kind: Literal["rotary", "linear"]
+    scale: float = Field(description="Counts per revolution (rotary) or per mm (linear)")
+    scale_unit: Literal["counts/rev", "counts/mm"]
+    source: Literal["user", "profile", "default"] = Field(
+        description="Who chose the stage: PUT /viewer/axes, the profile (6064h in mm), or the "
+        "default (a rotary motor with the profile's counts per revolution)"
+    )
+    limits: list[int] | None = Field(
+        default=None, description="Software position limits 607Dh [min, max] in counts, if on"
+    )
+
+
+class ViewerOut(BaseModel):
+    enabled: bool = Field(description="False when SERVODESK_VIEWER_PORT is 0")
+    running: bool
+    url: str | None = Field(description="Address of the viser client page (embed it in an iframe)")
+    port: int | None = Field(description="Port the viewer is bound to (on the backend's host)")
+    clients: int = Field(description="Browsers connected to the viewer now")
+    rate_hz: float = Field(description="Scene update rate")
+    error: str | None = Field(default=None, description="Why an enabled viewer is not running")
+    axes: list[ViewerAxisOut]
+
+
+class ViewerAxisRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    kind: Literal["rotary", "linear"]
+    scale: float | None = Field(
+        default=None,
+        gt=0,
+        description="Counts per revolution (rotary) or per mm (linear); omitted: keep the "
+        "present scale (rotary: the profile's counts per revolution)",
+    )

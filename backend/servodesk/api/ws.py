@@ -6,11 +6,14 @@ import asyncio
 import contextlib
 import json
 import logging
+import re
+import secrets
 from typing import Any
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
 from servodesk import __version__
+from servodesk.api.control_deps import operation
 from servodesk.api.deps import AppState
 
 log = logging.getLogger(__name__)
@@ -19,6 +22,8 @@ router = APIRouter()
 
 SUBPROTOCOL = "servodesk.v1"
 PROTOCOL = 1
+#: Client ids as the X-Servodesk-Client header takes them.
+_CLIENT_ID = re.compile(r"^[A-Za-z0-9._:@-]{1,64}$")
 
 
 @router.websocket("/ws")
@@ -32,13 +37,27 @@ async def websocket(ws: WebSocket) -> None:
     await ws.accept(subprotocol=SUBPROTOCOL if offered else None)
     sub = state.hub.subscribe()
     sessions = state.manager
+    # Which client this socket belongs to (?client=<id>), for control and the dead-man
+    # heartbeat; a socket without one gets an id, told in the hello message.
+    client = ws.query_params.get("client") or ""
+    if not _CLIENT_ID.match(client):
+        client = f"tab-{secrets.token_hex(4)}"
+    control = operation(ws.app).control
+    control.socket_opened(client)
 
     def sessions_msg() -> dict[str, Any]:
         return {"type": "sessions", "sessions": [s.info() for s in sessions.all()]}
 
     async def sender() -> None:
         await ws.send_text(
-            json.dumps({"type": "hello", "version": __version__, "protocol": PROTOCOL})
+            json.dumps(
+                {
+                    "type": "hello",
+                    "version": __version__,
+                    "protocol": PROTOCOL,
+                    "client": client,
+                }
+            )
         )
         await ws.send_text(json.dumps(sessions_msg()))
         while True:
@@ -69,6 +88,9 @@ async def websocket(ws: WebSocket) -> None:
                         sub.offer({"type": "state", "session": sid, **asdict(s.last_state)})
             elif kind == "unsubscribe" and isinstance(sid, str):
                 sub.sessions.discard(sid)
+            elif kind == "heartbeat" and isinstance(sid, str):
+                # Dead-man: motion this client started runs while these arrive.
+                control.heartbeat(client, sid)
             elif kind == "ping":
                 sub.offer({"type": "pong", "time": msg.get("time")})
             else:
@@ -82,3 +104,4 @@ async def websocket(ws: WebSocket) -> None:
         with contextlib.suppress(asyncio.CancelledError, Exception):
             await send_task
         state.hub.unsubscribe(sub)
+        control.socket_closed(client)  # Stops the motion this client started.

@@ -421,6 +421,25 @@ class SimSettings(BaseModel):
     viscous: float = 1.0e-4
     #: Values the simulated device reports (1018h etc.) when the profile has no default.
     serial_number: int = 1
+    #: Homing switches in encoder counts from the power-on position (sim/homing.py); None:
+    #: the default layout in revolutions (limits -1.7 / 3.7, home switch 1.3 to 1.7).
+    limit_negative: int | None = None
+    limit_positive: int | None = None
+    home_switch_low: int | None = None
+    home_switch_high: int | None = None
+    #: Position of one index pulse; the others follow every counts_per_rev.
+    index_offset: int = 0
+    #: False: no switches are fitted (homing on a switch fails, 60FDh bits 0-2 stay 0).
+    homing_switches: bool = True
+    #: A switch search that travels this many revolutions without finding it fails.
+    homing_max_travel_revs: float = 20.0
+    #: I²t overload: thermal time constant [s] and the continuous current (torque) ratio to
+    #: the rated value above which the overload fault trips.
+    i2t_time_constant: float = 10.0
+    i2t_limit_ratio: float = 1.15
+    #: Speed [counts/s] that acceleration time constants in ms refer to (e.g. 609Ah of a
+    #: drive whose ramps are "ms from 0 to the rated speed"); None: the maximum velocity.
+    rated_speed: float | None = None
 
 
 class DeviceProfile(BaseModel):

@@ -18,7 +18,13 @@ from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
 from servodesk.domain.address import ObjectAddress
-from servodesk.errors import LinkClosedError, LinkError, LinkTimeoutError, ServodeskError
+from servodesk.errors import (
+    LinkClosedError,
+    LinkError,
+    LinkTimeoutError,
+    NotFoundError,
+    ServodeskError,
+)
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -130,9 +136,20 @@ class DriveLink(ObjectAccess):
 
     # Lifecycle ---------------------------------------------------------------------
 
+    #: Longest time opening a bus may take: some drivers reach out (a socketcand host name,
+    #: a USB scan) and would otherwise wait for their own, much longer time-outs.
+    OPEN_TIMEOUT = 5.0
+
     async def open(self) -> None:
         self._loop = asyncio.get_running_loop()
-        await self._call(self._open, check_open=False)
+        try:
+            await asyncio.wait_for(self._call(self._open, check_open=False), self.OPEN_TIMEOUT)
+        except TimeoutError:
+            raise NotFoundError(
+                f"{self.fieldbus} interface {self.params.interface!r} channel "
+                f"{self.params.channel!r} did not open within {self.OPEN_TIMEOUT:g} s",
+                hint="check that the adapter or host exists and is reachable",
+            ) from None
         self._closed = False
 
     async def close(self) -> None:

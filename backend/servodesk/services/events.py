@@ -8,8 +8,11 @@ slows the drive, the backend or the other clients.
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
+
+from servodesk.domain.address import ObjectAddress
 
 Message = dict[str, Any]
 
@@ -33,9 +36,17 @@ class Subscriber:
                     pass
 
 
+#: The audit log: called after every successful ``Session.write_object`` with the session,
+#: the address, the bytes before (None when unreadable), the bytes written and the client id.
+AuditSink = Callable[[Any, ObjectAddress, bytes | None, bytes, str], None]
+
+
 class EventHub:
+    """The application's fan-out: WebSocket subscribers, and the audit sink for writes."""
+
     def __init__(self) -> None:
         self._subs: set[Subscriber] = set()
+        self.audit: AuditSink | None = None
 
     def subscribe(self) -> Subscriber:
         sub = Subscriber()

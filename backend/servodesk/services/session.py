@@ -8,10 +8,10 @@ reaches the link, polls the drive's CiA 402 state for live updates, and turns li
 from __future__ import annotations
 
 import asyncio
+import collections
 import contextlib
 import logging
 import time
-import weakref
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
@@ -29,9 +29,12 @@ from servodesk.errors import (
     ValidationError,
 )
 from servodesk.links.base import DriveLink, Identity, LinkEvent
-from servodesk.services.events import EventHub
+from servodesk.services.events import AuditSink, EventHub
 
 log = logging.getLogger(__name__)
+
+#: EMCY messages kept per session for the Alarms page (a bounded log).
+EMCY_LOG_SIZE = 200
 
 STATUSWORD = ObjectAddress(0x6041)
 CONTROLWORD = ObjectAddress(0x6040)
@@ -59,19 +62,9 @@ GOALS: dict[str, cia402.State] = {
 }
 
 
-#: The audit log: called after every successful :meth:`Session.write_object` with the
-#: session, the address, the bytes before (None when unreadable), the bytes written and
-#: the client id. Registered per event hub, that is per application (services.backup).
-AuditSink = Callable[["Session", ObjectAddress, bytes | None, bytes, str], None]
-_audit_sinks: weakref.WeakKeyDictionary[EventHub, AuditSink] = weakref.WeakKeyDictionary()
-
-
 def set_audit_sink(hub: EventHub, sink: AuditSink | None) -> None:
     """Record the writes of every session on ``hub`` with ``sink`` (None: stop)."""
-    if sink is None:
-        _audit_sinks.pop(hub, None)
-    else:
-        _audit_sinks[hub] = sink
+    hub.audit = sink
 
 
 def error_info(e: ErrorEntry) -> dict[str, Any]:
@@ -152,6 +145,13 @@ class Session:
         self.dirty: set[ObjectAddress] = set()
         self._heartbeat_ms = 0
         self._heartbeat_lost = False
+        #: The last EMCY messages received in this session (services/alarms.py), oldest first.
+        self.emcy_log: collections.deque[dict[str, Any]] = collections.deque(maxlen=EMCY_LOG_SIZE)
+        #: Called with every polled DriveState (services/homing.py reports progress from it).
+        self.state_listeners: list[Callable[[DriveState], None]] = []
+        #: Poll at least this often (Hz) whatever the watchers: the 3D viewer raises it while
+        #: it has clients (services/viewer.py); 0: no floor.
+        self.min_poll_hz = 0.0
 
     # Lifecycle ----------------------------------------------------------------------------
 
@@ -253,7 +253,7 @@ class Session:
     ) -> ObjectValue:
         spec = self.profile.spec(address)
         data = encode_write(address, spec, value, raw_hex)
-        audit = _audit_sinks.get(self.hub)
+        audit = self.hub.audit
         old: bytes | None = None
         if audit is not None and (spec is None or spec.access.readable):
             # The audit log records the value before the write (DESIGN: who, what, old, new).
@@ -530,8 +530,8 @@ class Session:
     async def _poll(self) -> None:
         last_sent = 0.0
         while True:
-            period = 1.0 / self.poll_hz if self.hub.watchers(self.id) else 1.0
-            await asyncio.sleep(period)
+            hz = self.poll_hz if self.hub.watchers(self.id) else 1.0
+            await asyncio.sleep(1.0 / max(hz, self.min_poll_hz))
             self._check_heartbeat()
             try:
                 st = await self.drive_state()
@@ -565,6 +565,8 @@ class Session:
                 )
                 self.hub.publish({"type": "sessions_changed"})
             self._failures = 0
+            for listener in list(self.state_listeners):
+                listener(st)
             changed = self.last_state is None or st.key() != self.last_state.key()
             if changed or time.monotonic() - last_sent > 1.0:
                 if self.last_state is None or st.state != self.last_state.state:
@@ -596,6 +598,7 @@ class Session:
                 "cause": entry.cause if entry else None,
                 "remedy": entry.remedy if entry else None,
             }
+            self.emcy_log.append(msg)
             self.hub.publish(msg, session=self.id)
         elif ev.kind == "nmt":
             self.hub.publish(

@@ -28,6 +28,11 @@ Choices where the standard leaves room (documented here once):
 - Faults are reset by the rising edge of controlword bit 7 unless the profile says otherwise
   (quirk ``no_fault_reset_bit7`` or a ``fault_reset`` other than ``bit7_edge``); then only a
   node reset (:meth:`reset_node`, NMT reset node) clears them.
+- Homing (mode 6) runs every method the profile lists and can describe (sim/homing.py,
+  domain/homing.py; vendor methods through the quirk ``homing_method_equivalent``); 6098h
+  refuses the others with 0609 0030h. Faults use the family's codes from the quirk
+  ``sim_fault_codes`` (following error, limit switch outside homing, I²t overload) and its
+  alarm objects (sim/faults.py); a condition the family has no code for raises no fault.
 - PDO mapping objects (1600h-17FFh, 1A00h-1BFFh) without their own ``writable_in`` accept
   writes in the NMT state named by ``pdo.mapping_state`` ("preop" by default, "any" for no
   restriction) or whenever the PDO is invalid (bit 31 of its COB-ID set): CiA 301 §7.5.2.36
@@ -43,8 +48,11 @@ from dataclasses import dataclass
 
 from servodesk.domain.cia402 import STATE_BITS, State, device_transition
 from servodesk.domain.datatypes import Value, codec, coerce_int
-from servodesk.domain.profile import DeviceProfile, ObjectSpec
+from servodesk.domain.homing import resolve_method
+from servodesk.domain.profile import DeviceProfile, ErrorEntry, ObjectSpec
 from servodesk.domain.sdo_abort import ABORT_CODES
+from servodesk.sim.faults import FaultModel
+from servodesk.sim.homing import HomingProcedure, SwitchLayout
 from servodesk.sim.plant import Plant, PlantParams
 
 # Object keys: index << 8 | subindex (ints are the fastest dict keys in the control cycle).
@@ -85,6 +93,9 @@ K_PROFILE_DEC = 0x608400
 K_QS_DEC = 0x608500
 K_TORQUE_SLOPE = 0x608700
 K_HOMING_METHOD = 0x609800
+K_HOMING_SPEED_SWITCH = 0x609901
+K_HOMING_SPEED_ZERO = 0x609902
+K_HOMING_ACC = 0x609A00
 K_FE_ACTUAL = 0x60F400
 K_INPUTS = 0x60FD00
 K_TARGET_VELOCITY = 0x60FF00
@@ -115,6 +126,9 @@ _FALLBACK: dict[int, int] = {
     K_TORQUE_SLOPE: 0,  # 0: torque set-point applies at once.
     K_HOME_OFFSET: 0,
     K_HOMING_METHOD: 0,
+    K_HOMING_SPEED_SWITCH: 100_000,
+    K_HOMING_SPEED_ZERO: 20_000,
+    K_HOMING_ACC: 1_000_000,
     K_SW_LIMIT_MIN: 0,
     K_SW_LIMIT_MAX: 0,
     K_TARGET_POSITION: 0,
@@ -272,6 +286,18 @@ class SimulatedDrive:
             "bit7_edge",
         )
         self._pdo_mapping_state = _NMT_ALIASES.get(_norm(profile.pdo.mapping_state), "any")
+        self._homing_equiv = profile.quirk("homing_method_equivalent")
+        # Quirk ramp_rate_registers (003 §5-3-1): 609Ah is a PMC842SR rate register, not
+        # counts/s²; with multiplier 1 the ramp is Fclk/8 / register [pulses/s²].
+        rr = profile.quirk("ramp_rate_registers")
+        self._rate_fclk = (
+            float(rr["fclk_hz"]) if isinstance(rr, dict) and rr.get("homing") is not None else 0.0
+        )
+        self._homing_no_enable = frozenset(
+            coerce_int(m) for m in profile.quirk("homing_without_enable", None) or ()
+        )
+        #: Family fault codes and alarm objects (quirks sim_fault_codes, alarm_history).
+        self.faults = FaultModel(profile)
 
         # Physics and control.
         sim = profile.simulation
@@ -284,6 +310,11 @@ class SimulatedDrive:
         self._rated = self.plant_params.rated_torque
         self._counts_per_rad = self.plant.counts_per_rad
         self._vmax_sim = float(sim.max_velocity)
+        self.switches = SwitchLayout.from_settings(sim)
+        self._homing_max_travel = sim.homing_max_travel_revs * sim.counts_per_rev
+        self._i2t_tau = max(sim.i2t_time_constant, 1e-3)
+        self._i2t_limit = sim.i2t_limit_ratio**2
+        self._i2t = 0.0
 
         #: NMT (or ESM) state, set by the front-end: "init", "preop", "op", "stopped".
         self.nmt_state = "preop"
@@ -329,8 +360,12 @@ class SimulatedDrive:
     def error_text(self, code: int | None = None) -> str:
         """The profile's name for an error code (603Fh table), e.g. "Following error"."""
         c = self.error_code if code is None else code
-        e = self.profile.error("error_code", c)
+        e = self._error_entry(c)
         return e.name if e is not None else f"Error 0x{c:04X}"
+
+    def _error_entry(self, code: int) -> ErrorEntry | None:
+        p = self.profile
+        return p.error("error_code", code) or p.error("emcy", code) or p.error("alarm", code)
 
     def on_emcy(self, listener: EmcyListener) -> None:
         """Call ``listener(code, error_register, manufacturer_data)`` for every EMCY."""
@@ -494,8 +529,16 @@ class SimulatedDrive:
             if self._mode != value:
                 self._enter_mode(int(value))
             return
-        if k == K_HOMING_METHOD and value not in self._homing_methods:
-            raise SimAbort(0x06090030, f"supported methods: {sorted(self._homing_methods)}")
+        if k == K_HOMING_METHOD:
+            if value not in self._homing_methods:
+                raise SimAbort(0x06090030, f"supported methods: {sorted(self._homing_methods)}")
+            if resolve_method(int(value), self._homing_equiv) is None:
+                # A vendor method the profile does not map to a documented behaviour.
+                raise SimAbort(0x06090030, f"homing method {value} is not simulated")
+        if self.faults.is_clear_command(spec.index, spec.subindex):
+            if not self.faults.clear(self._values, self._defaults, value):
+                raise SimAbort(0x06090030, "not the documented clear value")
+            return
         if _is_mapping(spec.index):
             self._check_mapping(spec, value)
         self._values[k] = value
@@ -615,9 +658,15 @@ class SimulatedDrive:
         self._pp_target = self._dp
         self._pp_done = True
         self._pp_buffer: float | None = None
+        self._csp_target = self._dp
+        self._csp_cycle = 0
         self._sp_ack = False
         self._homing_started = False
         self._homed = False
+        self._homing: HomingProcedure | None = None
+        self._homing_error = False
+        self._limit_prev = 0
+        self._i2t = 0.0
         self._values[K_ERROR_CODE] = 0
         if K_ERROR_REGISTER in self._specs:
             self._values[K_ERROR_REGISTER] = 0
@@ -628,7 +677,7 @@ class SimulatedDrive:
             K_VELOCITY: lambda: round(self.plant.velocity_counts),
             K_TORQUE: self._torque_actual,
             K_FE_ACTUAL: lambda: round(self._fe),
-            K_INPUTS: lambda: self._inputs,
+            K_INPUTS: lambda: self._inputs | self.switches.inputs(self.plant.encoder_counts),
         }
 
     def _refresh(self) -> None:
@@ -662,8 +711,13 @@ class SimulatedDrive:
         elif m == 3:
             if abs(self.plant.velocity_counts) <= self._c[K_VEL_THRESHOLD]:
                 sw |= 0x1000
-        elif m == 6 and self._homed:
-            sw |= 0x1000
+        elif m in (8, 9, 10) and st is State.OPERATION_ENABLED and not self._halted:
+            sw |= 0x1000  # csp/csv/cst bit 12: the drive follows the command value.
+        elif m == 6:
+            if self._homed:
+                sw |= 0x1000
+            if self._homing_error:
+                sw |= 0x2000
         return sw
 
     def _torque_actual(self) -> int:
@@ -686,6 +740,15 @@ class SimulatedDrive:
             self._take(t.number)
         if self._state is State.OPERATION_ENABLED:
             self._mode_bits(cw, prev)
+        elif (
+            self._mode == 6
+            and cw & 0x10
+            and not prev & 0x10
+            and self._c[K_HOMING_METHOD] in self._homing_no_enable
+        ):
+            # Quirk homing_without_enable (000 §3.2.4 table 3.2.4.4: methods 37 and -3 do
+            # not need Operation enabled): the current position becomes home at once.
+            self._home()
 
     def _take(self, number: int) -> None:
         S = State
@@ -763,18 +826,24 @@ class SimulatedDrive:
     def _fault(self, code: int) -> None:
         if self._state in (State.FAULT, State.FAULT_REACTION_ACTIVE):
             return
-        entry = self.profile.error("error_code", code)
+        entry = self._error_entry(code)
         reg = 0x01
         extra = entry.extra.get("error_register") if entry is not None else None
         if isinstance(extra, int | str):
             reg = coerce_int(extra) | 0x01
         else:
             reg |= _register_bits(code)
-        self._values[K_ERROR_CODE] = code
+        # Alarm numbers wider than 603Fh (LECSN-T XXXXVVVVh, 004 §20.9.3.3) are reported in
+        # the family's current-alarm object; 603Fh and the EMCY then carry FF00h
+        # (manufacturer specific) and the EMCY data the alarm number.
+        wide = code > 0xFFFF
+        self._values[K_ERROR_CODE] = 0xFF00 if wide else code
         if K_ERROR_REGISTER in self._specs:
             self._values[K_ERROR_REGISTER] = reg
-        self._push_history(code)
-        self._events.append((code, reg, bytes(5)))
+        self._push_history(0xFF00 if wide else code)
+        self.faults.on_fault(self._values, code, int(self.time // 3600))
+        data = code.to_bytes(4, "little") + b"\x00" if wide else bytes(5)
+        self._events.append((0xFF00 if wide else code, reg, data))
         self._state = State.FAULT_REACTION_ACTIVE
         opt = self._c[K_FAULT_OPTION]
 
@@ -806,6 +875,7 @@ class SimulatedDrive:
             self._values[K_ERROR_REGISTER] = reg
         self._fe_flag = False
         self._fe_time = 0.0
+        self.faults.on_reset(self._values)
         self._events.append((0, reg, bytes(5)))
 
     def _flush(self) -> None:
@@ -835,6 +905,8 @@ class SimulatedDrive:
         self._pp_buffer = None
         self._win_time = 0.0
         self._tq_demand = 0.0
+        # A limit switch already active at enable is not a new limit event.
+        self._limit_prev = self.switches.inputs(self.plant.encoder_counts) & 0x03
         self._begin_motion()
 
     def _disable(self) -> None:
@@ -853,15 +925,17 @@ class SimulatedDrive:
     def _begin_motion(self) -> None:
         """Set the control kind for the active mode (after enable, mode change, resume)."""
         m = self._mode
-        if m == 3:
+        if m in (3, 9):
             self._kind = _VELOCITY
-        elif m == 4:
+        elif m in (4, 10):
             self._kind = _TORQUE
             self._tq_demand = self.plant.torque
         else:
             if self._kind != _POSITION:
                 self._dp = float(self.plant.encoder_counts + self._pos_offset)
             self._kind = _POSITION
+            self._csp_target = self._dp
+            self._csp_cycle = self._cycles
             if m == 1 and not self._pp_done:
                 return
             self._pp_target = self._dp
@@ -874,6 +948,8 @@ class SimulatedDrive:
         self._sp_ack = False
         self._pp_buffer = None
         self._homing_started = False
+        self._homing = None
+        self._homing_error = False
         self._pp_done = True
         if self._enabled and self._stop is None and not self._hold:
             if self._kind == _TORQUE:
@@ -921,12 +997,18 @@ class SimulatedDrive:
         return target
 
     def _home(self) -> None:
-        """Homing methods 35 and 37: the current position becomes the home offset 607Ch."""
+        """Start the homing method in 6098h (CiA 402-2 §6.8; sim/homing.py does the search)."""
         method = self._c[K_HOMING_METHOD]
         self._homing_started = True
         self._homed = False
+        self._homing_error = False
         self._reached = False
-        if method in (35, 37) and method in self._homing_methods:
+        self._homing = None
+        info = resolve_method(method, self._homing_equiv)
+        if info is None or method not in self._homing_methods:
+            self._homing_error = True  # 000 §3.2.4: an unsupported method sets bit 13.
+            return
+        if info.current_position:
             home = self._c[K_HOME_OFFSET]
             raw = self.plant.encoder_counts
             self._pos_offset = home - raw
@@ -935,6 +1017,74 @@ class SimulatedDrive:
             self._pp_target = self._dp
             self._homed = True
             self._reached = True
+            return
+        if not self._enabled:
+            self._homing_error = True
+            return
+        if self._kind != _POSITION:
+            self._dp = float(self.plant.encoder_counts + self._pos_offset)
+            self._dv = 0.0
+            self._kind = _POSITION
+        self._homing = HomingProcedure(
+            info,
+            self.switches,
+            switch_speed=min(self._homing_speed(K_HOMING_SPEED_SWITCH), self._vmax_sim),
+            zero_speed=min(self._homing_speed(K_HOMING_SPEED_ZERO), self._vmax_sim),
+            acceleration=self._homing_acceleration(),
+            period=self._T,
+            max_travel=self._homing_max_travel,
+        )
+
+    def _homing_speed(self, k: int) -> float:
+        """A homing speed in counts/s; 6099h in r/min (004 §20.9.3.11(3)) is converted."""
+        raw = float(self._c[k])
+        spec = self._specs.get(k)
+        if spec is not None and spec.unit in ("r/min", "rpm") and spec.raw_unit != "inc/s":
+            return raw * spec.scale / 60.0 * self.plant_params.counts_per_rev
+        return raw
+
+    def _homing_acceleration(self) -> float:
+        """609Ah in counts/s², from a rate register or an acceleration time constant."""
+        acc = float(self._c[K_HOMING_ACC])
+        if self._rate_fclk and acc > 0:
+            return self._rate_fclk / 8.0 / acc
+        spec = self._specs.get(K_HOMING_ACC)
+        if spec is not None and spec.unit == "ms":
+            # 004 §20.9.3.10(7): time constant from 0 to the rated speed; 0: no ramp.
+            if acc <= 0:
+                return 0.0
+            sim = self.profile.simulation
+            rated = sim.rated_speed or sim.max_velocity
+            return rated / (acc * 0.001)
+        return acc
+
+    def _homing_step(self) -> None:
+        """One control cycle of a running homing procedure (or its interruption)."""
+        proc = self._homing
+        assert proc is not None
+        T = self._T
+        if not self._homing_started:
+            # Controlword bit 4 cleared: interrupted; stop at the homing acceleration.
+            if self._ramp_down(self._homing_acceleration() or _NO_RAMP):
+                self._homing = None
+            return
+        off = self._pos_offset
+        v, snap = proc.step(float(self.plant.encoder_counts), self._dp - off, self._dv)
+        self._da = (v - self._dv) / T
+        self._dv = v
+        self._dp = snap + off if snap is not None else self._dp + v * T
+        if not proc.done:
+            return
+        self._homing = None
+        if proc.error or proc.home_raw is None:
+            self._homing_error = True
+            return
+        # 000 §3.2.4, 003 §4-4-7: at the home point 6062h = 6064h = 607Ch.
+        new_off = self._c[K_HOME_OFFSET] - proc.home_raw
+        self._dp += new_off - off
+        self._pos_offset = new_off
+        self._pp_target = self._dp
+        self._homed = True
 
     def _start_stop(self, decel: float, then: Callable[[], None]) -> None:
         if self._kind == _TORQUE:
@@ -1030,6 +1180,33 @@ class SimulatedDrive:
         self._da = d / self._T
         self._dv = v + d
 
+    def _csp_generate(self) -> None:
+        """Cyclic sync position (CiA 402-2 §6.10): follow 607Ah, moving linearly to each new
+        set-point over the time since the previous one (the master's cycle: there is no SYNC)."""
+        tgt = self._clip(float(self._c[K_TARGET_POSITION]))
+        if tgt != self._csp_target:
+            n = self._cycles - self._csp_cycle
+            self._csp_cycle = self._cycles
+            self._csp_target = tgt
+            # A set-point after a long pause (or the first) is a step, as on a real drive.
+            self._dv = (tgt - self._dp) / ((n if 0 < n <= 100 else 1) * self._T)
+        rest = self._csp_target - self._dp
+        step = self._dv * self._T
+        if step == 0.0 or abs(step) >= abs(rest) or (step > 0.0) != (rest > 0.0):
+            self._dp = self._csp_target
+            self._dv = 0.0
+        else:
+            self._dp += step
+        self._da = 0.0
+
+    def _csv_generate(self) -> None:
+        """Cyclic sync velocity (CiA 402-2 §6.11): 60FFh is the velocity demand, no ramp."""
+        vmax = min(float(self._c[K_MAX_PROFILE_VEL]) or self._vmax_sim, self._vmax_sim)
+        tgt = float(self._c[K_TARGET_VELOCITY])
+        self._clipped = abs(tgt) > vmax
+        self._dv = max(-vmax, min(vmax, tgt))
+        self._da = 0.0
+
     # ------------------------------------------------------------------ the control cycle
 
     def _cycle(self) -> None:
@@ -1078,7 +1255,13 @@ class SimulatedDrive:
                         self._sp_ack = False
                 elif m == 3:
                     self._pv_generate()
-                elif m != 4:
+                elif m == 6 and self._homing is not None:
+                    self._homing_step()
+                elif m == 8:
+                    self._csp_generate()
+                elif m == 9:
+                    self._csv_generate()
+                elif m not in (4, 10):
                     self._dv = 0.0
                     self._da = 0.0
             if not self._enabled:
@@ -1091,6 +1274,9 @@ class SimulatedDrive:
             self._dv = 0.0
             self._fe = 0.0
         plant.step_n(torque, self._sub_dt, self._substeps)
+        # I²t of the motor current (torque ratio to rated), a first-order thermal model.
+        r = plant.torque / self._rated
+        self._i2t += (r * r - self._i2t) * (self._T / self._i2t_tau)
         if self._enabled:
             self._monitor(p_act, v_act)
 
@@ -1101,7 +1287,8 @@ class SimulatedDrive:
         if kind == _TORQUE:
             self._fe = 0.0
             tgt = self._c[K_TARGET_TORQUE] * 0.001 * self._rated
-            slope = self._c[K_TORQUE_SLOPE]
+            # cst applies the set-point at once; 6087h shapes profile torque only.
+            slope = self._c[K_TORQUE_SLOPE] if self._mode == 4 else 0
             if slope:
                 step = slope * 0.001 * self._rated * self._T
                 d = tgt - self._tq_demand
@@ -1148,12 +1335,26 @@ class SimulatedDrive:
             if window != 0xFFFFFFFF and abs(self._fe) > window:
                 self._fe_flag = True
                 self._fe_time += T
-                if self._fe_time > self._c[K_FE_TIMEOUT] * 0.001 + 1e-9:
-                    self._fault(0x8611)
+                code = self.faults.code("following_error")
+                if code is not None and self._fe_time > self._c[K_FE_TIMEOUT] * 0.001 + 1e-9:
+                    self._fault(code)
                     return
             else:
                 self._fe_flag = False
                 self._fe_time = 0.0
+        if self._i2t > self._i2t_limit:
+            code = self.faults.code("overload")
+            if code is not None:
+                self._fault(code)
+                return
+        # Hardware limit switches outside homing (where they are part of the search).
+        lim = self.switches.inputs(self.plant.encoder_counts) & 0x03
+        rising, self._limit_prev = lim & ~self._limit_prev, lim
+        if rising and self._mode != 6:
+            code = self.faults.code("limit_switch")
+            if code is not None:
+                self._fault(code)
+                return
         if self._state is not State.OPERATION_ENABLED or self._stop is not None:
             return
         if self._halted:
@@ -1177,8 +1378,15 @@ class SimulatedDrive:
         elif m == 4:
             self._reached = abs(self._torque_actual() - self._c[K_TARGET_TORQUE]) <= 10
         elif m == 6:
-            # CiA 402-2 table (homing): bit 10 set when attained, or not started.
-            self._reached = self._homed or not self._homing_started
+            # CiA 402-2 §6.8.1 bits 13/12/10: bit 10 when attained, not started, interrupted
+            # (once stopped), or after a homing error once the axis has stopped.
+            stopped = self._homing is None and abs(v_act) <= self._c[K_VEL_THRESHOLD]
+            at_home = abs(p_act - self._dp) <= self._c[K_POS_WINDOW]
+            self._reached = (
+                (self._homed and at_home)
+                or (not self._homing_started and stopped)
+                or (self._homing_error and stopped)
+            )
 
 
 def _is_mapping(index: int) -> bool:

@@ -19,6 +19,14 @@ import type {
   SessionRequest,
   StateCommand,
 } from './index';
+import type {
+  DeviceDescriptionFormat,
+  ProfileDetail,
+  ReadResponse,
+  RestoreDefaultsRequest,
+  RestoreDefaultsResult,
+  StoreResult,
+} from './types';
 
 export const API_BASE = '/api/v1';
 
@@ -79,17 +87,24 @@ export function normaliseErrorBody(status: number, statusText: string, payload: 
   };
 }
 
-async function request<T>(action: string, method: string, path: string, body?: unknown): Promise<T> {
+async function request<T>(
+  action: string,
+  method: string,
+  path: string,
+  body?: unknown,
+  contentType = 'application/json',
+): Promise<T> {
   const headers: Record<string, string> = { Accept: 'application/json' };
   const token = getToken();
   if (token) headers.Authorization = `Bearer ${token}`;
-  if (body !== undefined) headers['Content-Type'] = 'application/json';
+  headers[CLIENT_HEADER] = tabClientId();
+  if (body !== undefined) headers['Content-Type'] = contentType;
   let res: Response;
   try {
     res = await fetch(API_BASE + path, {
       method,
       headers,
-      body: body === undefined ? null : JSON.stringify(body),
+      body: body === undefined ? null : typeof body === 'string' ? body : JSON.stringify(body),
     });
   } catch {
     throw new ApiError(action, 0, {
@@ -125,7 +140,189 @@ export const api = {
     request<ObjectValue>(`Read ${addr}`, 'GET', `/sessions/${seg(sid)}/objects/${seg(addr)}`),
   writeObject: (sid: string, addr: string, body: ObjectWrite) =>
     request<ObjectValue>(`Write ${addr}`, 'PUT', `/sessions/${seg(sid)}/objects/${seg(addr)}`, body),
+  profile: (id: string) => request<ProfileDetail>(`Load profile ${id}`, 'GET', `/profiles/${seg(id)}`),
+  /** The device description (EDS/DCF/ESI) as a download URL (GET, so a plain link works). */
+  profileExportUrl: (id: string, format: DeviceDescriptionFormat) =>
+    `${API_BASE}/profiles/${seg(id)}/export?format=${format}`,
+  importProfile: (filename: string, profileId: string, text: string) =>
+    request<ProfileSummary>(
+      `Import ${filename}`,
+      'POST',
+      `/profiles/import?filename=${seg(filename)}&profile_id=${seg(profileId)}`,
+      text,
+      'text/plain',
+    ),
+  /** Read up to 512 objects; one failure does not stop the rest (answers in request order). */
+  readMany: (sid: string, addresses: string[]) =>
+    request<ReadResponse>(`Read ${addresses.length} objects`, 'POST', `/sessions/${seg(sid)}/read`, { addresses }),
+  store: (sid: string) => request<StoreResult>('Save to EEPROM', 'POST', `/sessions/${seg(sid)}/store`, {}),
+  restoreDefaults: (sid: string, body: RestoreDefaultsRequest) =>
+    request<RestoreDefaultsResult>('Restore defaults', 'POST', `/sessions/${seg(sid)}/restore-defaults`, body),
   state: (sid: string) => request<DriveState>('Read the drive state', 'GET', `/sessions/${seg(sid)}/state`),
   command: (sid: string, command: StateCommand, label: string) =>
     request<DriveState>(label, 'POST', `/sessions/${seg(sid)}/state`, { command }),
+};
+
+// ---------------------------------------------------------------------------------------------
+// Backups (issue 5) — docs/api.md "Backup, compare, restore (issue 5)". Appended by the
+// Backup & restore page; everything above belongs to the shared client.
+// ---------------------------------------------------------------------------------------------
+// An import may stand anywhere at a module's top level (it is hoisted); it is kept here so
+// this section stays one appended block.
+import { CLIENT_HEADER, tabClientId } from '../lib/backupClientId';
+import type {
+  AuditEntry,
+  BackupFile,
+  BackupFormat,
+  BackupInfo,
+  BackupPatch,
+  BackupRequest,
+  CompareRequest,
+  Comparison,
+  Preflight,
+  PreflightRequest,
+  RestoreReport,
+  RestoreRequest,
+} from './types';
+
+/** Query text from the set parameters only (`undefined`/null/'' are left out). */
+function query(params: Record<string, string | number | null | undefined>): string {
+  const parts = Object.entries(params)
+    .filter(([, v]) => v !== undefined && v !== null && v !== '')
+    .map(([k, v]) => `${encodeURIComponent(k)}=${encodeURIComponent(String(v))}`);
+  return parts.length ? `?${parts.join('&')}` : '';
+}
+
+/** A downloaded file: its bytes and the name the server gave it. */
+export interface DownloadedFile {
+  blob: Blob;
+  filename: string | null;
+}
+
+/** The file name of a Content-Disposition header (RFC 6266; filename* wins), or null. */
+export function filenameFromDisposition(header: string | null): string | null {
+  if (!header) return null;
+  const star = /filename\*\s*=\s*(?:UTF-8|utf-8)?''([^;]+)/.exec(header);
+  if (star?.[1]) {
+    try {
+      return decodeURIComponent(star[1].trim().replace(/^"|"$/g, ''));
+    } catch {
+      // Fall through to the plain form.
+    }
+  }
+  const plain = /filename\s*=\s*("([^"]*)"|[^;]+)/.exec(header);
+  const name = plain?.[2] ?? plain?.[1];
+  return name ? name.trim() : null;
+}
+
+/**
+ * GET a file with the same headers as every other request (token, client id), so a download
+ * works on a server that requires a token, where a plain link would get 401.
+ */
+async function fetchFile(action: string, path: string): Promise<DownloadedFile> {
+  const headers: Record<string, string> = { [CLIENT_HEADER]: tabClientId() };
+  const token = getToken();
+  if (token) headers.Authorization = `Bearer ${token}`;
+  let res: Response;
+  try {
+    res = await fetch(API_BASE + path, { headers });
+  } catch {
+    throw new ApiError(action, 0, {
+      error: 'NetworkError',
+      message: 'the servodesk server did not answer',
+      hint: 'check that "servodesk serve" is still running and reachable from this browser',
+    });
+  }
+  if (!res.ok) {
+    const text = await res.text();
+    let payload: unknown = text;
+    try {
+      payload = text ? JSON.parse(text) : null;
+    } catch {
+      // Keep the text.
+    }
+    throw new ApiError(action, res.status, normaliseErrorBody(res.status, res.statusText, payload));
+  }
+  return { blob: await res.blob(), filename: filenameFromDisposition(res.headers.get('Content-Disposition')) };
+}
+
+export const backupApi = {
+  /** Take a backup of the drive now; progress comes over the WebSocket (operation "backup"). */
+  take: (sid: string, body: BackupRequest) =>
+    request<BackupInfo>('Take a backup', 'POST', `/sessions/${seg(sid)}/backups`, body),
+  /** Newest first; `drive` and `profile` filter (both optional). */
+  list: (filter: { drive?: string | null; profile?: string | null }) =>
+    request<BackupInfo[]>('List the backups', 'GET', `/backups${query({ drive: filter.drive, profile: filter.profile })}`),
+  get: (bid: string) => request<BackupFile>(`Load backup ${bid}`, 'GET', `/backups/${seg(bid)}`),
+  download: (bid: string, format: BackupFormat) =>
+    fetchFile(`Download backup as ${format.toUpperCase()}`, `/backups/${seg(bid)}/download?format=${format}`),
+  upload: (filename: string, text: string) =>
+    request<BackupInfo>(`Upload ${filename}`, 'POST', `/backups/upload${query({ filename })}`, text, 'text/plain'),
+  patch: (bid: string, body: BackupPatch) =>
+    request<BackupInfo>('Save the backup label and note', 'PATCH', `/backups/${seg(bid)}`, body),
+  compare: (body: CompareRequest) => request<Comparison>('Compare', 'POST', '/compare', body),
+  preflight: (sid: string, body: PreflightRequest) =>
+    request<Preflight>('Check the restore (preflight)', 'POST', `/sessions/${seg(sid)}/restore/preflight`, body),
+  restore: (sid: string, body: RestoreRequest) =>
+    request<RestoreReport>(body.dry_run ? 'Dry-run the restore' : 'Restore', 'POST', `/sessions/${seg(sid)}/restore`, body),
+  report: (rid: string) => request<RestoreReport>(`Load restore report ${rid}`, 'GET', `/restores/${seg(rid)}`),
+  resume: (rid: string) => request<RestoreReport>('Resume the restore', 'POST', `/restores/${seg(rid)}/resume`, {}),
+  audit: (sid: string, limit = 100) =>
+    request<AuditEntry[]>('Load the audit log', 'GET', `/audit${query({ session: sid, limit })}`),
+};
+
+// ---------------------------------------------------------------------------------------------
+// Operation and alarms (issue 4) — docs/api.md "Operation: control, motion, dead-man, homing,
+// alarms". Appended by the Operation / Alarms / 3D view pages.
+// ---------------------------------------------------------------------------------------------
+import type {
+  Alarms,
+  Control,
+  ControlAction,
+  CyclicRequest,
+  HomingMethod,
+  HomingRequest,
+  HomingStatus,
+  JogRequest,
+  Limits,
+  MotionStatus,
+  MoveRequest,
+  TorqueRequest,
+  VelocityRequest,
+  ViewerInfo,
+} from './types';
+
+const CONTROL_LABELS: Record<ControlAction, string> = {
+  take: 'Take control',
+  release: 'Release control',
+  force_take: 'Force-take control',
+};
+
+export const operationApi = {
+  control: (sid: string) => request<Control>('Read who holds control', 'GET', `/sessions/${seg(sid)}/control`),
+  setControl: (sid: string, action: ControlAction, confirm = false) =>
+    request<Control>(CONTROL_LABELS[action], 'POST', `/sessions/${seg(sid)}/control`, { action, confirm }),
+  jog: (sid: string, body: JogRequest) => request<MotionStatus>('Jog', 'POST', `/sessions/${seg(sid)}/motion/jog`, body),
+  move: (sid: string, body: MoveRequest) =>
+    request<MotionStatus>(`${body.mode === 'relative' ? 'Relative' : 'Absolute'} move`, 'POST', `/sessions/${seg(sid)}/motion/move`, body),
+  velocity: (sid: string, body: VelocityRequest) =>
+    request<MotionStatus>('Profile velocity', 'POST', `/sessions/${seg(sid)}/motion/velocity`, body),
+  torque: (sid: string, body: TorqueRequest) =>
+    request<MotionStatus>('Profile torque', 'POST', `/sessions/${seg(sid)}/motion/torque`, body),
+  cyclic: (sid: string, body: CyclicRequest) =>
+    request<MotionStatus>(`Cyclic ${body.mode}`, 'POST', `/sessions/${seg(sid)}/motion/cyclic`, body),
+  halt: (sid: string) => request<MotionStatus>('Halt', 'POST', `/sessions/${seg(sid)}/motion/halt`, {}),
+  quickStop: (sid: string) => request<MotionStatus>('Quick stop', 'POST', `/sessions/${seg(sid)}/motion/stop`, {}),
+  motion: (sid: string) => request<MotionStatus>('Read the motion', 'GET', `/sessions/${seg(sid)}/motion`),
+  limits: (sid: string) => request<Limits>('Read the limits', 'GET', `/sessions/${seg(sid)}/limits`),
+  homingMethods: (sid: string) =>
+    request<HomingMethod[]>('Load the homing methods', 'GET', `/sessions/${seg(sid)}/homing/methods`),
+  startHoming: (sid: string, body: HomingRequest) =>
+    request<HomingStatus>(`Start homing (method ${body.method})`, 'POST', `/sessions/${seg(sid)}/homing`, body),
+  homing: (sid: string) => request<HomingStatus>('Read the homing status', 'GET', `/sessions/${seg(sid)}/homing`),
+  alarms: (sid: string) => request<Alarms>('Read the alarms', 'GET', `/sessions/${seg(sid)}/alarms`),
+  resetAlarms: (sid: string) => request<Alarms>('Fault reset', 'POST', `/sessions/${seg(sid)}/alarms/reset`, {}),
+  clearAlarmHistory: (sid: string) =>
+    request<Alarms>('Clear the alarm history', 'POST', `/sessions/${seg(sid)}/alarms/clear-history`, { confirm: true }),
+  viewer: () => request<ViewerInfo>('Ask for the 3D viewer', 'GET', '/viewer'),
 };

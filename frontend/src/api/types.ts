@@ -125,6 +125,11 @@ export interface SessionInfo {
   connected: boolean;
   state: string;
   nmt_state: string;
+  /**
+   * Addresses written through servodesk since the last store ("0x6081:00"): they differ from
+   * the drive's non-volatile copy. Optional so an older server without it still type-checks.
+   */
+  dirty?: string[];
 }
 
 export type ObjectScalar = number | string | boolean;
@@ -200,4 +205,469 @@ export type StateCommand =
 
 export interface StateCommandRequest {
   command: StateCommand;
+}
+
+/** One object of a profile's dictionary (GET /profiles/{id} `object_list`). */
+export interface ObjectInfo {
+  index: number;
+  subindex: number;
+  address: string;
+  name: string;
+  name_local: string | null;
+  data_type: string;
+  /** "ro", "wo", "rw", "const" (CiA 301 access). */
+  access: string;
+  /** "none", "rx", "tx" (or "both"). */
+  pdo_mapping: string;
+  default: ObjectScalar | null;
+  min: number | null;
+  max: number | null;
+  unit: string | null;
+  scale: number;
+  raw_unit: string | null;
+  group: string | null;
+  persist: boolean;
+  process: boolean;
+  description: string | null;
+  section: string | null;
+  values: Record<string, string> | null;
+  pnu: number | null;
+  symbol: string | null;
+}
+
+export interface GroupInfo {
+  id: string;
+  name: string;
+  name_local: string | null;
+  description: string | null;
+}
+
+export interface QuirkInfo {
+  id: string;
+  value: unknown;
+  section: string | null;
+  note: string | null;
+}
+
+/** GET /profiles/{id}. */
+export interface ProfileDetail extends ProfileSummary {
+  groups: GroupInfo[];
+  object_list: ObjectInfo[];
+  error_list: ErrorInfo[];
+  quirks: QuirkInfo[];
+}
+
+/** One answer of POST /sessions/{sid}/read: the value, or why that one address failed. */
+export type ReadItem = ObjectValue | { address: string; error: ApiErrorBody };
+
+export interface ReadRequest {
+  addresses: string[];
+}
+
+export interface ReadResponse {
+  results: ReadItem[];
+}
+
+export interface StoreResult {
+  /** Dirty entries now saved. */
+  stored: number;
+  duration_s: number;
+  /** e.g. "0x1010:01 <- 0x65766173". */
+  procedure: string;
+}
+
+export interface RestoreDefaultsRequest {
+  confirm: boolean;
+  reset: boolean;
+}
+
+export interface RestoreDefaultsResult {
+  message: string;
+}
+
+export type DeviceDescriptionFormat = 'eds' | 'dcf' | 'esi';
+
+// ---------------------------------------------------------------------------------------------
+// Backups (issue 5) — docs/api.md "Backup, compare, restore (issue 5)". Appended by the
+// Backup & restore page; everything above belongs to the other pages.
+// ---------------------------------------------------------------------------------------------
+
+/** Where a drive is on the bus when its backup was taken. */
+export interface BackupBus {
+  interface: string;
+  channel: string;
+  node_id: number;
+}
+
+/** One stored backup (the file's metadata; the file itself never changes). */
+export interface BackupInfo {
+  id: string;
+  /** When it was taken: ISO 8601 text (or seconds since the epoch from an older server). */
+  time: string | number;
+  label: string;
+  note: string;
+  profile_id: string;
+  profile_version: string | number | null;
+  /** Which physical drive it is (from its identity); GET /backups?drive= filters by it. */
+  drive_key: string;
+  identity: Identity;
+  firmware: string | null;
+  bus: BackupBus | null;
+  entries: number;
+  file: string;
+  sha256: string;
+}
+
+export interface BackupRequest {
+  label: string;
+  note: string;
+}
+
+export interface BackupPatch {
+  label?: string;
+  note?: string;
+}
+
+export interface BackupFileEntry {
+  address: string;
+  name: string | null;
+  data_type: string | null;
+  raw_hex: string;
+  value: ObjectScalar | null;
+  unit: string | null;
+}
+
+/** GET /backups/{bid}: the JSON file's content. */
+export interface BackupFile {
+  schema_version: number;
+  tool: string;
+  time: string | number;
+  label: string;
+  note: string;
+  profile: { id: string; version: string | number | null };
+  identity: Identity;
+  firmware: string | null;
+  bus: BackupBus | null;
+  entries: BackupFileEntry[];
+}
+
+export type BackupFormat = 'json' | 'dcf' | 'csv';
+
+/** One side of a comparison. */
+export type CompareSource =
+  | { kind: 'drive'; session: string }
+  | { kind: 'backup'; id: string }
+  | { kind: 'defaults'; profile: string };
+
+export interface CompareRequest {
+  a: CompareSource;
+  b: CompareSource;
+  /** Also list the entries that are equal (the contract's "all"). */
+  all: boolean;
+}
+
+/**
+ * "changed" / "only_a" / "only_b" per the contract; with `all: true` the server may also list
+ * equal entries, under a kind the contract does not name yet ("equal" or "same").
+ */
+export type DifferenceKind = 'changed' | 'only_a' | 'only_b' | 'equal' | 'same';
+
+export interface Difference {
+  address: string;
+  name: string | null;
+  group: string | null;
+  unit: string | null;
+  raw_unit: string | null;
+  a_value: ObjectScalar | null;
+  b_value: ObjectScalar | null;
+  a_raw_hex: string | null;
+  b_raw_hex: string | null;
+  a_engineering: number | null;
+  b_engineering: number | null;
+  kind: DifferenceKind;
+}
+
+export interface Comparison {
+  /** What A and B are, in words. */
+  a: string;
+  b: string;
+  equal: boolean;
+  differences: Difference[];
+  /** Entries equal on both sides. */
+  same: number;
+}
+
+export interface PreflightRequest {
+  backup: string;
+  map_by_name: boolean;
+}
+
+export interface PreflightProblem {
+  address: string | null;
+  name: string | null;
+  message: string;
+  hint: string | null;
+}
+
+export interface NameMapping {
+  address: string;
+  name: string | null;
+  /** The address on this drive with the same name, or null when it has none. */
+  target: string | null;
+  /** Why an entry has no target (backend addition, not in docs/api.md). */
+  reason?: string | null;
+}
+
+export interface Preflight {
+  ok: boolean;
+  problems: PreflightProblem[];
+  to_write: number;
+  unchanged: number;
+  read_only_skipped: number;
+  /** For a backup of another family: how names map onto this drive's objects; else null. */
+  mapping: NameMapping[] | null;
+  /** Things to know that do not block the restore (backend addition, not in docs/api.md). */
+  warnings?: string[];
+}
+
+export interface RestoreRequest {
+  backup: string;
+  dry_run: boolean;
+  store: boolean;
+  force: boolean;
+  map_by_name: boolean;
+}
+
+export type RestoreItemStatus = 'written' | 'unchanged' | 'skipped_read_only' | 'failed' | 'pending' | 'would_write';
+
+export interface RestoreItem {
+  address: string;
+  name: string | null;
+  status: RestoreItemStatus;
+  old_raw_hex: string | null;
+  new_raw_hex: string | null;
+  code: number | null;
+  code_hex: string | null;
+  meaning: string | null;
+  message: string | null;
+}
+
+export interface RestoreCounts {
+  written: number;
+  unchanged: number;
+  skipped: number;
+  failed: number;
+  pending: number;
+}
+
+export interface RestoreReport {
+  id: string;
+  backup: string;
+  session: string;
+  time: string | number;
+  dry_run: boolean;
+  finished: boolean;
+  stored: boolean;
+  interrupted: boolean;
+  /** The backup servodesk took automatically just before writing. */
+  pre_backup: string | null;
+  counts: RestoreCounts;
+  items: RestoreItem[];
+  /** Why it stopped or was not stored (backend addition, not in docs/api.md). */
+  message?: string | null;
+  /** The preflight's warnings (backend addition, not in docs/api.md). */
+  warnings?: string[];
+}
+
+export interface AuditEntry {
+  time: string | number;
+  client: string;
+  session: string | null;
+  drive_key: string | null;
+  address: string;
+  name: string | null;
+  old_raw_hex: string | null;
+  new_raw_hex: string | null;
+  old_value: ObjectScalar | null;
+  new_value: ObjectScalar | null;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Operation and alarms (issue 4) — docs/api.md "Operation: control, motion, dead-man, homing,
+// alarms". Appended by the Operation / Alarms / 3D view pages; shapes follow the backend
+// (api/schemas.py), which adds a few fields to the contract (marked "backend addition").
+// ---------------------------------------------------------------------------------------------
+
+export type ControlAction = 'take' | 'release' | 'force_take';
+
+export interface Control {
+  session: string;
+  /** Client id holding control, or null. */
+  owner: string | null;
+  /** Unix time (s) when it was taken. */
+  since: number | null;
+  /** The requesting client (X-Servodesk-Client) holds it. */
+  you: boolean;
+}
+
+export interface JogRequest {
+  /** Signed velocity, raw units. */
+  velocity: number;
+  /** Acceleration and deceleration, raw units (> 0). */
+  acceleration: number;
+}
+
+export interface MoveRequest {
+  mode: 'absolute' | 'relative';
+  target: number;
+  velocity?: number | null;
+  acceleration?: number | null;
+  deceleration?: number | null;
+  immediate?: boolean;
+}
+
+export interface VelocityRequest {
+  velocity: number;
+  acceleration?: number | null;
+  deceleration?: number | null;
+}
+
+export interface TorqueRequest {
+  torque: number;
+  slope?: number | null;
+}
+
+export type CyclicMode = 'csp' | 'csv' | 'cst';
+
+export interface CyclicRequest {
+  mode: CyclicMode;
+  waveform: 'sine' | 'ramp';
+  amplitude: number;
+  frequency: number;
+  duration: number;
+}
+
+export type MotionKind = 'jog' | 'move' | 'velocity' | 'torque' | 'cyclic';
+
+export interface MotionStatus {
+  session: string;
+  active: boolean;
+  kind: MotionKind | null;
+  owner: string | null;
+  mode: number | null;
+  target: number | null;
+  /** idle, running, reached, done, halted, stopped, deadman or error. */
+  state: string;
+  message: string;
+}
+
+export interface UnitInfo {
+  raw_unit: string | null;
+  unit: string | null;
+  scale: number;
+}
+
+export interface Limits {
+  position_min: number | null;
+  position_max: number | null;
+  max_velocity: number | null;
+  max_torque: number | null;
+  max_acceleration: number | null;
+  /** Backend addition: 60C6h. */
+  max_deceleration: number | null;
+  modes: number[];
+  /** Backend addition: mode number -> name. */
+  mode_names: Record<string, string>;
+  /** position, velocity, torque, acceleration (each only when the profile has the object). */
+  units: Partial<Record<'position' | 'velocity' | 'torque' | 'acceleration', UnitInfo>>;
+  /** Backend addition: where each limit was read, e.g. "0x607F:00". */
+  sources: Record<string, string>;
+}
+
+export type HomingSignal = 'home_switch' | 'limit_negative' | 'limit_positive' | 'index';
+
+export interface HomingMethod {
+  method: number;
+  name: string;
+  description: string;
+  uses: HomingSignal[];
+  direction: 'negative' | 'positive' | null;
+  section: string | null;
+  /** Backend addition: for a vendor method, the CiA 402 method it is simulated as. */
+  equivalent?: number | null;
+  /** Backend addition: the method needs Operation enabled to start. */
+  needs_enable?: boolean;
+}
+
+export interface HomingRequest {
+  method: number;
+  speed_switch?: number | null;
+  speed_zero?: number | null;
+  acceleration?: number | null;
+  offset?: number | null;
+}
+
+export interface HomingBits {
+  target_reached: boolean;
+  homing_attained: boolean;
+  homing_error: boolean;
+}
+
+export type HomingState = 'idle' | 'running' | 'attained' | 'error';
+
+export interface HomingStatus {
+  session: string;
+  method: number | null;
+  state: HomingState;
+  position: number | null;
+  /** The backend sends the decoded bits (an object), not a list. */
+  statusword_bits: HomingBits;
+  message: string;
+}
+
+export interface EmcyLogEntry {
+  time: number | null;
+  code: number;
+  code_hex: string;
+  name: string | null;
+  cause: string | null;
+  remedy: string | null;
+  register: number;
+}
+
+export interface AlarmHistoryEntry {
+  /** "1003h" or the family's object, e.g. "0x2A00:01". */
+  source: string;
+  index: number;
+  code: number;
+  code_hex: string;
+  name: string;
+  cause: string | null;
+  remedy: string | null;
+  /** Backend addition: operating hours of the entry, where the family records them. */
+  time_h?: number | null;
+}
+
+export interface Alarms {
+  session: string;
+  current: ErrorInfo | null;
+  state: string;
+  emcy_log: EmcyLogEntry[];
+  history: AlarmHistoryEntry[];
+  reset_procedure: string;
+  can_clear_history: boolean;
+}
+
+/** GET /viewer: the viser 3D viewer. */
+export interface ViewerInfo {
+  enabled: boolean;
+  url: string | null;
+  port: number | null;
+  /** Backend addition: the viewer process is up. */
+  running?: boolean;
+  /** Backend addition: why it is not running, when it failed. */
+  error?: string | null;
+  /** Why it is disabled, when the backend says. */
+  message?: string | null;
+  reason?: string | null;
 }

@@ -8,6 +8,7 @@
 import type { DriveState, SessionInfo } from '../api';
 import { api } from '../api/client';
 import { ServodeskSocket, type SocketStatusInfo } from '../ws/socket';
+import type { LinkMessage } from '../ws/messages';
 import { notify, notifyError } from './notify';
 import { Observable } from './observable';
 
@@ -100,14 +101,25 @@ export function startStore(): void {
       hint: m.remedy,
     });
   });
+  const LINK_EVENTS: Record<LinkMessage['event'], string> = {
+    lost: 'lost the link',
+    restored: 'link restored',
+    closed: 'closed',
+    heartbeat_lost: 'heartbeat lost',
+    heartbeat_restored: 'heartbeat back',
+  };
   socket.on('link', (m) => {
-    const what = m.event === 'lost' ? 'lost the link' : m.event === 'restored' ? 'link restored' : 'closed';
+    const what = LINK_EVENTS[m.event];
+    const good = m.event === 'restored' || m.event === 'heartbeat_restored';
     notify({
-      kind: m.event === 'restored' ? 'info' : 'warning',
+      kind: good ? 'info' : 'warning',
       title: `${m.session}: ${what}`,
       message: m.message ?? '',
       detail: null,
-      hint: m.event === 'lost' ? 'check the cable, the interface and the drive power; servodesk reconnects on its own' : null,
+      hint:
+        m.event === 'lost' || m.event === 'heartbeat_lost'
+          ? 'check the cable, the interface and the drive power; servodesk reconnects on its own'
+          : null,
     });
     if (m.event === 'closed') void refreshSessions();
   });

@@ -2,6 +2,7 @@
  * WebSocket message shapes of /api/v1/ws (docs/api.md "WebSocket"), discriminated by `type`.
  */
 import type { DriveState, SessionInfo } from '../api';
+import type { HomingStatus, MotionStatus } from '../api/types';
 
 export const WS_SUBPROTOCOL = 'servodesk.v1';
 /** Close code a server of another protocol version uses (docs/api.md). */
@@ -13,6 +14,8 @@ export interface HelloMessage {
   type: 'hello';
   version: string;
   protocol: number;
+  /** The client id the server took for this socket (from ?client=). */
+  client?: string;
 }
 
 export interface SessionsMessage {
@@ -37,19 +40,74 @@ export interface EmcyMessage {
 export interface LinkMessage {
   type: 'link';
   session: string;
-  event: 'lost' | 'restored' | 'closed';
+  event: 'lost' | 'restored' | 'closed' | 'heartbeat_lost' | 'heartbeat_restored';
   message: string | null;
 }
 
-export type ServerMessage = HelloMessage | SessionsMessage | StateMessage | EmcyMessage | LinkMessage;
+export interface ProgressMessage {
+  type: 'progress';
+  session: string;
+  operation: string;
+  fraction: number;
+  message: string | null;
+}
+
+// Operation (issue 4): control ownership, motion, dead-man, homing (docs/api.md).
+export interface ControlMessage {
+  type: 'control';
+  session: string;
+  owner: string | null;
+  since: number | null;
+}
+
+export type MotionMessage = { type: 'motion' } & MotionStatus;
+
+export interface DeadmanMessage {
+  type: 'deadman';
+  session: string;
+  reason: string;
+  /** The client whose motion was stopped (backend addition). */
+  client?: string | null;
+  latency_ms: number | null;
+  detect_ms?: number | null;
+  quick_stop_ms?: number | null;
+  /** Set when the stop itself could not be sent. */
+  message?: string | null;
+}
+
+export type HomingMessage = { type: 'homing' } & HomingStatus;
+
+export type ServerMessage =
+  | HelloMessage
+  | SessionsMessage
+  | StateMessage
+  | EmcyMessage
+  | LinkMessage
+  | ProgressMessage
+  | ControlMessage
+  | MotionMessage
+  | DeadmanMessage
+  | HomingMessage;
 export type ServerMessageType = ServerMessage['type'];
 export type MessageOf<T extends ServerMessageType> = Extract<ServerMessage, { type: T }>;
 
 export type ClientMessage =
   | { type: 'subscribe'; session: string }
-  | { type: 'unsubscribe'; session: string };
+  | { type: 'unsubscribe'; session: string }
+  | { type: 'heartbeat'; session: string };
 
-const KNOWN: ReadonlySet<string> = new Set(['hello', 'sessions', 'state', 'emcy', 'link']);
+const KNOWN: ReadonlySet<string> = new Set([
+  'hello',
+  'sessions',
+  'state',
+  'emcy',
+  'link',
+  'progress',
+  'control',
+  'motion',
+  'deadman',
+  'homing',
+]);
 
 /** Parse one text frame; null for anything that is not a known message. */
 export function parseServerMessage(text: string): ServerMessage | null {

@@ -8,6 +8,7 @@
  * reports why.
  */
 import { getToken } from '../api/auth';
+import { tabClientId } from '../lib/backupClientId';
 import {
   type ClientMessage,
   type MessageOf,
@@ -40,6 +41,8 @@ export function defaultSocketUrl(): string {
   const url = new URL(`${proto}//${window.location.host}/api/v1/ws`);
   const token = getToken();
   if (token) url.searchParams.set('token', token);
+  // The server ties control and the dead-man heartbeat to this id (docs/api.md issue 4).
+  url.searchParams.set('client', tabClientId());
   return url.toString();
 }
 
@@ -109,8 +112,15 @@ export class ServodeskSocket {
     };
   }
 
-  private send(msg: ClientMessage): void {
-    if (this.ws && this.ws.readyState === WebSocket.OPEN) this.ws.send(JSON.stringify(msg));
+  /** Dead-man heartbeat for motion this tab started; false when the socket is not open. */
+  heartbeat(session: string): boolean {
+    return this.send({ type: 'heartbeat', session });
+  }
+
+  private send(msg: ClientMessage): boolean {
+    if (!this.ws || this.ws.readyState !== WebSocket.OPEN) return false;
+    this.ws.send(JSON.stringify(msg));
+    return true;
   }
 
   private setStatus(s: SocketStatusInfo): void {

@@ -6,6 +6,7 @@ from dataclasses import asdict
 
 from fastapi import APIRouter, Response
 
+from servodesk.api.control_deps import CloseControl, StateControl, WriteControl
 from servodesk.api.deps import StateDep
 from servodesk.api.schemas import (
     ERROR_RESPONSES,
@@ -27,7 +28,7 @@ from servodesk.api.schemas import (
 )
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.values import ObjectValue
-from servodesk.errors import ServodeskError, ValidationError
+from servodesk.errors import ServodeskError
 from servodesk.links.base import LinkParams
 
 router = APIRouter(tags=["sessions"], responses=ERROR_RESPONSES)
@@ -70,7 +71,7 @@ async def get_session(sid: str, state: StateDep) -> SessionInfo:
 
 
 @router.delete("/sessions/{sid}", status_code=204, operation_id="close_session")
-async def close_session(sid: str, state: StateDep) -> Response:
+async def close_session(sid: str, state: StateDep, _: CloseControl) -> Response:
     await state.manager.close(sid)
     return Response(status_code=204)
 
@@ -83,11 +84,14 @@ async def read_object(sid: str, address: str, state: StateDep) -> ObjectValueOut
 
 @router.put("/sessions/{sid}/objects/{address}", operation_id="write_object")
 async def write_object(
-    sid: str, address: str, body: WriteRequest, state: StateDep
+    sid: str, address: str, body: WriteRequest, state: StateDep, client: WriteControl
 ) -> ObjectValueOut:
     session = state.manager.get(sid)
     addr = ObjectAddress.parse(address)
-    return _value_out(await session.write_object(addr, body.value, body.raw_hex))
+    # The client id (X-Servodesk-Client) goes to the audit log.
+    return _value_out(
+        await session.write_object(addr, body.value, body.raw_hex, client=client or "unknown")
+    )
 
 
 @router.post("/sessions/{sid}/read", operation_id="read_objects")
@@ -106,18 +110,15 @@ async def read_objects(sid: str, body: ReadRequest, state: StateDep) -> ReadResu
 
 
 @router.post("/sessions/{sid}/store", operation_id="store_parameters")
-async def store_parameters(sid: str, state: StateDep) -> StoreResult:
+async def store_parameters(sid: str, state: StateDep, _: WriteControl) -> StoreResult:
     return StoreResult(**await state.manager.get(sid).store())
 
 
 @router.post("/sessions/{sid}/restore-defaults", operation_id="restore_defaults")
-async def restore_defaults(sid: str, body: RestoreDefaultsRequest, state: StateDep) -> MessageOut:
-    if not body.confirm:
-        raise ValidationError(
-            "restoring defaults overwrites every setting of the drive",
-            field="confirm",
-            hint='send {"confirm": true} to go ahead (take a backup first)',
-        )
+async def restore_defaults(
+    sid: str, body: RestoreDefaultsRequest, state: StateDep, _: WriteControl
+) -> MessageOut:
+    # The schema requires confirm: true (a request without it is a 422 naming the field).
     return MessageOut(**await state.manager.get(sid).restore_defaults(body.reset))
 
 
@@ -128,6 +129,8 @@ async def get_state(sid: str, state: StateDep) -> DriveStateOut:
 
 
 @router.post("/sessions/{sid}/state", operation_id="command_state")
-async def command_state(sid: str, body: StateCommand, state: StateDep) -> DriveStateOut:
+async def command_state(
+    sid: str, body: StateCommand, state: StateDep, _: StateControl
+) -> DriveStateOut:
     st = await state.manager.get(sid).command(body.command)
     return DriveStateOut.model_validate(asdict(st))

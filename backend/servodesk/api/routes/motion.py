@@ -1,0 +1,156 @@
+"""Operation routes: control ownership, motion (jog, move, velocity, torque, cyclic), limits.
+
+The router's lifespan stops every running motion when the backend shuts down (it is nested
+inside the application's lifespan, so it ends before the sessions close).
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import AsyncIterator
+from typing import Any
+
+from fastapi import APIRouter, FastAPI
+
+from servodesk.api.control_deps import (
+    ClientId,
+    MotionControl,
+    OperationDep,
+    RequiredClientId,
+    operation,
+)
+from servodesk.api.schemas import (
+    ERROR_RESPONSES,
+    ControlOut,
+    ControlRequest,
+    CyclicRequest,
+    JogRequest,
+    LimitsOut,
+    MotionStatusOut,
+    MoveRequest,
+    StopRequest,
+    TorqueRequest,
+    VelocityRequest,
+)
+
+
+@contextlib.asynccontextmanager
+async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
+    op = operation(app)
+    try:
+        yield
+    finally:
+        await op.motion.shutdown()
+        op.control.close()
+
+
+router = APIRouter(tags=["operation"], responses=ERROR_RESPONSES, lifespan=_lifespan)
+
+
+def _status(d: dict[str, Any]) -> MotionStatusOut:
+    return MotionStatusOut.model_validate(d)
+
+
+@router.get("/sessions/{sid}/control", operation_id="get_control")
+async def get_control(sid: str, op: OperationDep, client: ClientId) -> ControlOut:
+    op.motion.manager.get(sid)  # 404 for an unknown session.
+    return ControlOut.model_validate(op.control.info(sid, client))
+
+
+@router.post("/sessions/{sid}/control", operation_id="set_control")
+async def set_control(
+    sid: str, body: ControlRequest, op: OperationDep, client: RequiredClientId
+) -> ControlOut:
+    op.motion.manager.get(sid)
+    if body.action == "take":
+        op.control.take(sid, client)
+    elif body.action == "release":
+        op.control.release(sid, client)
+    else:
+        op.control.force_take(sid, client, body.confirm)
+    return ControlOut.model_validate(op.control.info(sid, client))
+
+
+@router.post("/sessions/{sid}/motion/jog", operation_id="jog")
+async def jog(
+    sid: str, body: JogRequest, op: OperationDep, client: MotionControl
+) -> MotionStatusOut:
+    return _status(await op.motion.jog(sid, client, body.velocity, body.acceleration))
+
+
+@router.post("/sessions/{sid}/motion/move", operation_id="move")
+async def move(
+    sid: str, body: MoveRequest, op: OperationDep, client: MotionControl
+) -> MotionStatusOut:
+    return _status(
+        await op.motion.move(
+            sid,
+            client,
+            relative=body.mode == "relative",
+            target=body.target,
+            velocity=body.velocity,
+            acceleration=body.acceleration,
+            deceleration=body.deceleration,
+            immediate=body.immediate,
+        )
+    )
+
+
+@router.post("/sessions/{sid}/motion/velocity", operation_id="run_velocity")
+async def run_velocity(
+    sid: str, body: VelocityRequest, op: OperationDep, client: MotionControl
+) -> MotionStatusOut:
+    return _status(
+        await op.motion.velocity(sid, client, body.velocity, body.acceleration, body.deceleration)
+    )
+
+
+@router.post("/sessions/{sid}/motion/torque", operation_id="run_torque")
+async def run_torque(
+    sid: str, body: TorqueRequest, op: OperationDep, client: MotionControl
+) -> MotionStatusOut:
+    return _status(await op.motion.torque(sid, client, body.torque, body.slope))
+
+
+@router.post("/sessions/{sid}/motion/cyclic", operation_id="run_cyclic")
+async def run_cyclic(
+    sid: str, body: CyclicRequest, op: OperationDep, client: MotionControl
+) -> MotionStatusOut:
+    return _status(
+        await op.motion.cyclic(
+            sid,
+            client,
+            mode_name=body.mode,
+            waveform=body.waveform,
+            amplitude=body.amplitude,
+            frequency=body.frequency,
+            duration=body.duration,
+        )
+    )
+
+
+@router.post("/sessions/{sid}/motion/halt", operation_id="halt")
+async def halt(
+    sid: str, op: OperationDep, client: ClientId, body: StopRequest | None = None
+) -> MotionStatusOut:
+    """Halt (controlword bit 8): never refused, from any client."""
+    return _status(await op.motion.halt(sid, client))
+
+
+@router.post("/sessions/{sid}/motion/stop", operation_id="quick_stop")
+async def quick_stop(
+    sid: str, op: OperationDep, client: ClientId, body: StopRequest | None = None
+) -> MotionStatusOut:
+    """Quick stop: never refused, from any client."""
+    return _status(await op.motion.stop(sid, client))
+
+
+@router.get("/sessions/{sid}/motion", operation_id="get_motion")
+async def get_motion(sid: str, op: OperationDep) -> MotionStatusOut:
+    return _status(op.motion.status(sid))
+
+
+@router.get("/sessions/{sid}/limits", operation_id="get_limits")
+async def get_limits(sid: str, op: OperationDep) -> LimitsOut:
+    lim = await op.motion.limits(sid)
+    return LimitsOut.model_validate(lim.as_dict())

@@ -1,0 +1,65 @@
+"""Homing and alarm routes (issue 4): thin wrappers over services/homing.py and alarms.py."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+
+from servodesk.api.control_deps import MotionControl, WriteControl
+from servodesk.api.deps import StateDep
+from servodesk.api.schemas import (
+    ERROR_RESPONSES,
+    AlarmsOut,
+    ClearHistoryRequest,
+    HomingMethodOut,
+    HomingRequest,
+    HomingStatus,
+)
+from servodesk.services import alarms, homing
+
+router = APIRouter(tags=["operation"], responses=ERROR_RESPONSES)
+
+
+@router.get("/sessions/{sid}/homing/methods", operation_id="homing_methods")
+async def homing_methods(sid: str, state: StateDep) -> list[HomingMethodOut]:
+    profile = state.manager.get(sid).profile
+    return [HomingMethodOut.model_validate(m) for m in homing.methods(profile)]
+
+
+@router.post("/sessions/{sid}/homing", operation_id="start_homing")
+async def start_homing(
+    sid: str, body: HomingRequest, state: StateDep, client: MotionControl
+) -> HomingStatus:
+    session = state.manager.get(sid)
+    out = await homing.start(
+        session,
+        body.method,
+        speed_switch=body.speed_switch,
+        speed_zero=body.speed_zero,
+        acceleration=body.acceleration,
+        offset=body.offset,
+        client=client,
+    )
+    return HomingStatus.model_validate(out)
+
+
+@router.get("/sessions/{sid}/homing", operation_id="homing_status")
+async def homing_status(sid: str, state: StateDep) -> HomingStatus:
+    return HomingStatus.model_validate(await homing.status(state.manager.get(sid)))
+
+
+@router.get("/sessions/{sid}/alarms", operation_id="get_alarms")
+async def get_alarms(sid: str, state: StateDep) -> AlarmsOut:
+    return AlarmsOut.model_validate(await alarms.alarms(state.manager.get(sid)))
+
+
+@router.post("/sessions/{sid}/alarms/reset", operation_id="reset_alarms")
+async def reset_alarms(sid: str, state: StateDep, client: WriteControl) -> AlarmsOut:
+    return AlarmsOut.model_validate(await alarms.reset(state.manager.get(sid), client=client))
+
+
+@router.post("/sessions/{sid}/alarms/clear-history", operation_id="clear_alarm_history")
+async def clear_alarm_history(
+    sid: str, body: ClearHistoryRequest, state: StateDep, client: WriteControl
+) -> AlarmsOut:
+    session = state.manager.get(sid)
+    return AlarmsOut.model_validate(await alarms.clear_history(session, body.confirm, client))

@@ -1,0 +1,354 @@
+"""``servodesk backup``, ``servodesk restore`` and ``servodesk diff`` (docs/backup.md).
+
+    servodesk backup -o drive.json --interface socketcan --channel can0 --node-id 3
+    servodesk restore drive.json [--dry-run] [--no-store] [--force] [--map-by-name]
+    servodesk restore --resume RESTORE_ID
+    servodesk diff drive.json drive        # exit 0 equal, 1 different (like diff)
+
+Every backup is also kept in the store under SERVODESK_DATA_DIR. Bad input exits with 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import functools
+import getpass
+import hashlib
+import json
+import re
+import socket
+import sys
+from collections.abc import Awaitable, Callable
+from pathlib import Path
+from typing import Any, TypeVar
+
+from servodesk.domain.paramset import ParameterSet
+from servodesk.errors import ConflictError, NotFoundError, ValidationError
+
+T = TypeVar("T")
+
+_EXPORTS = {".json": "json", ".dcf": "dcf", ".csv": "csv"}
+
+
+def _bus_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("bus options (python-can)")
+    g.add_argument("--interface", default="virtual", help="virtual, socketcan, pcan, ...")
+    g.add_argument("--channel", default="servodesk-sim", help="python-can channel")
+    g.add_argument("--bitrate", type=int, default=None, help="bit rate for real interfaces")
+    g.add_argument("--node-id", type=int, default=1, help="node id of the drive (1..127)")
+    g.add_argument("--profile", default=None, help="profile id (default: detect from 1018h)")
+    g.add_argument("--timeout", type=float, default=None, help="SDO time-out in seconds")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser("backup", help="back up a drive's parameters to a file")
+    p.add_argument(
+        "-o", "--output", required=True, help="file to write (.json, .dcf or .csv); never replaced"
+    )
+    p.add_argument("--label", default="", help="label of the backup in the store")
+    p.add_argument("--note", default="", help="note of the backup in the store")
+    _bus_options(p)
+    p.set_defaults(func=run_backup)
+
+    p = sub.add_parser("restore", help="restore a backup (.json or .dcf) into a drive")
+    p.add_argument("file", nargs="?", help="backup file (.json or .dcf)")
+    p.add_argument("--dry-run", action="store_true", help="show what would be written")
+    p.add_argument("--no-store", action="store_true", help="do not store to non-volatile memory")
+    p.add_argument("--force", action="store_true", help="store even when items failed")
+    p.add_argument("--map-by-name", action="store_true", help="restore another family by name")
+    p.add_argument("--resume", metavar="RESTORE_ID", help="resume an interrupted restore")
+    _bus_options(p)
+    p.set_defaults(func=run_restore)
+
+    p = sub.add_parser("diff", help="compare backups and drives (exit 1 when they differ)")
+    p.add_argument("a", help="backup file, or 'drive' for the drive on the bus")
+    p.add_argument("b", help="backup file, or 'drive' for the drive on the bus")
+    p.add_argument("--all", action="store_true", help="also list equal entries")
+    _bus_options(p)
+    p.set_defaults(func=run_diff)
+
+
+def client_id() -> str:
+    """``cli:<user>@<host>`` for the audit log (docs/api.md)."""
+    try:
+        user = getpass.getuser()
+    except (KeyError, OSError):
+        user = "user"
+    text = f"cli:{user}@{socket.gethostname()}"
+    return re.sub(r"[^A-Za-z0-9._:@-]", "_", text)[:64]
+
+
+@functools.lru_cache(maxsize=4)
+def _catalog(dirs: tuple[Path, ...]) -> Any:
+    """One catalog per set of profile directories and process: loading the profiles takes
+    seconds, and scripts (and tests) run several commands in one process."""
+    from servodesk.domain.profile_loader import ProfileCatalog
+
+    return ProfileCatalog(list(dirs))
+
+
+class _Context:
+    """A store, a session manager with the audit hook, and (when needed) one session."""
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        from servodesk.domain.profile_loader import default_profile_dirs
+        from servodesk.services.backup import BackupService
+        from servodesk.services.events import EventHub
+        from servodesk.services.manager import SessionManager
+        from servodesk.services.restore import RestoreService
+        from servodesk.services.store import Store
+        from servodesk.settings import Settings
+
+        settings = Settings()
+        self.args = args
+        self.catalog = _catalog(tuple(default_profile_dirs(settings.profile_paths())))
+        self.hub = EventHub()
+        timeout = args.timeout or settings.sdo_timeout
+        self.manager = SessionManager(self.catalog, self.hub, sdo_timeout=timeout, poll_hz=1.0)
+        self.backups = BackupService(Store(settings.data_dir), self.catalog)
+        self.backups.attach(self.hub)
+        self.restores = RestoreService(self.backups)
+        self.timeout = timeout
+
+    async def session(self) -> Any:
+        from servodesk.links.base import LinkParams
+
+        a = self.args
+        if not 1 <= a.node_id <= 127:
+            raise ValidationError(
+                f"node id {a.node_id} is outside 1..127", hint="CANopen node ids are 1..127"
+            )
+        params = LinkParams(
+            interface=a.interface,
+            channel=a.channel,
+            bitrate=a.bitrate,
+            node_id=a.node_id,
+            timeout=self.timeout,
+        )
+        return await self.manager.open(params, a.profile)
+
+    async def close(self) -> None:
+        await self.manager.close_all()
+        self.backups.store.close()
+
+
+def _run(args: argparse.Namespace, body: Callable[[_Context], Awaitable[T]]) -> T:
+    async def main() -> T:
+        ctx = _Context(args)
+        try:
+            return await body(ctx)
+        finally:
+            await ctx.close()
+
+    return asyncio.run(main())
+
+
+def _dump(data: object) -> None:
+    json.dump(data, sys.stdout, indent=2, ensure_ascii=False, default=str)
+    sys.stdout.write("\n")
+
+
+def _read_file(path: str) -> bytes:
+    p = Path(path)
+    try:
+        return p.read_bytes()
+    except FileNotFoundError:
+        raise NotFoundError(f"{path}: no such file", hint="check the path") from None
+    except OSError as exc:
+        raise ValidationError(f"{path}: cannot read: {exc.strerror}", field="file") from None
+
+
+# backup ------------------------------------------------------------------------------------
+
+
+def run_backup(args: argparse.Namespace) -> int:
+    from servodesk.services.store import write_new_file
+
+    out = Path(args.output)
+    fmt = _EXPORTS.get(out.suffix.lower())
+    if fmt is None:
+        raise ValidationError(
+            f"{out.name}: unknown format {out.suffix or '(no suffix)'}",
+            field="output",
+            hint="name the file .json, .dcf or .csv",
+        )
+    if out.exists():
+        raise ConflictError(
+            f"{out} exists; backups are never overwritten", hint="choose a new name"
+        )
+
+    async def body(ctx: _Context) -> dict[str, Any]:
+        session = await ctx.session()
+        info = await ctx.backups.backup(session, args.label, args.note)
+        ps = ctx.backups.load(info["id"])
+        data = (
+            ctx.backups.file_bytes(info["id"]) if fmt == "json" else ctx.backups.export(ps, fmt)[0]
+        )
+        write_new_file(out, data)
+        return {**info, "output": str(out), "unreadable": len(ps.unreadable)}
+
+    info = _run(args, body)
+    if args.json:
+        _dump(info)
+    else:
+        print(
+            f"backed up {info['entries']} parameters of {info['profile_id']} node "
+            f"{args.node_id} to {info['output']} (store id {info['id']}"
+            + (f"; {info['unreadable']} not readable" if info["unreadable"] else "")
+            + ")"
+        )
+    return 0
+
+
+# restore -----------------------------------------------------------------------------------
+
+
+def run_restore(args: argparse.Namespace) -> int:
+    from servodesk.services.restore import PreflightFailed, PreflightStateConflict
+
+    if not args.file and not args.resume:
+        raise ValidationError("give a backup FILE or --resume ID", hint="servodesk restore x.json")
+    data = _read_file(args.file) if args.file else b""
+
+    async def body(ctx: _Context) -> dict[str, Any]:
+        session = await ctx.session()
+        if args.resume:
+            return await ctx.restores.resume(args.resume, session, client=client_id())
+        bid = _import(ctx, data, args.file)
+        return await ctx.restores.restore(
+            session,
+            bid,
+            dry_run=args.dry_run,
+            store=not args.no_store,
+            force=args.force,
+            map_by_name=args.map_by_name,
+            client=client_id(),
+        )
+
+    try:
+        rep = _run(args, body)
+    except (PreflightFailed, PreflightStateConflict) as exc:
+        if args.json:
+            _dump(exc.to_dict())
+        print("servodesk: error: restore refused, nothing was written:", file=sys.stderr)
+        for p in exc.problems:
+            where = f"{p.address} " if p.address else ""
+            print(f"  - {where}{p.message}" + (f" ({p.hint})" if p.hint else ""), file=sys.stderr)
+        return 2
+    if args.json:
+        _dump(rep)
+    else:
+        _print_report(rep)
+    if rep["dry_run"]:
+        return 0
+    c = rep["counts"]
+    return 0 if rep["finished"] and not c["failed"] and not c["pending"] else 1
+
+
+def _import(ctx: _Context, data: bytes, filename: str) -> str:
+    """The store id of the file's backup (imported once; the same bytes reuse the record)."""
+    digest = hashlib.sha256(data).hexdigest()
+    for info in ctx.backups.store.list_backups(limit=100_000):
+        if info["sha256"] == digest:
+            return str(info["id"])
+    ps = ctx.backups.parse(data, filename, ctx.args.profile)
+    if Path(filename).suffix.lower() == ".json":
+        # Keep the file byte for byte: the store's copy is the user's file.
+        return str(_save_exact(ctx, ps, data))
+    return str(ctx.backups.save(ps, source="upload")["id"])
+
+
+def _save_exact(ctx: _Context, ps: ParameterSet, data: bytes) -> str:
+    from servodesk.services.backup import new_id
+    from servodesk.services.store import write_new_file
+
+    bid = new_id()
+    name = f"{bid}-{ps.profile_id}.json"
+    write_new_file(ctx.backups.store.backups_dir / name, data)
+    ctx.backups.store.add_backup(
+        {
+            "id": bid,
+            "time": ps.time,
+            "label": ps.label,
+            "note": ps.note,
+            "profile_id": ps.profile_id,
+            "profile_version": ps.profile_version,
+            "drive_key": ps.drive_key,
+            "identity": ps.identity,
+            "firmware": ps.firmware,
+            "bus": ps.bus,
+            "entries": len(ps.entries),
+            "file": name,
+            "sha256": hashlib.sha256(data).hexdigest(),
+        },
+        "upload",
+    )
+    return bid
+
+
+def _print_report(rep: dict[str, Any]) -> None:
+    c = rep["counts"]
+    if rep["dry_run"]:
+        print(
+            f"dry run of restore {rep['id']}: {c['would_write']} to write, {c['unchanged']} "
+            f"unchanged, {c['skipped']} read-only skipped; the writes in order:"
+        )
+        for s in rep["steps"]:
+            print(f"  {s['address']} <- {s['raw_hex']}  ({s['why']})")
+        return
+    for it in rep["items"]:
+        if it["status"] in ("written", "failed", "pending"):
+            extra = f"  {it['code_hex']} {it['meaning']}" if it["code_hex"] else ""
+            msg = f"  {it['message']}" if it["message"] and it["status"] != "written" else ""
+            print(f"  {it['status']:8} {it['address']} {it['name']}{extra}{msg}")
+    state = "interrupted" if rep["interrupted"] else ("finished" if rep["finished"] else "open")
+    print(
+        f"restore {rep['id']} {state}: {c['written']} written, {c['unchanged']} unchanged, "
+        f"{c['skipped']} skipped, {c['failed']} failed, {c['pending']} pending; "
+        f"{'stored' if rep['stored'] else 'not stored'}"
+        + (f"; backup before: {rep['pre_backup']}" if rep["pre_backup"] else "")
+    )
+    for w in rep["warnings"]:
+        print(f"  note: {w}")
+    if rep["message"]:
+        print(f"  {rep['message']}")
+    if rep["interrupted"]:
+        print(f"  resume with: servodesk restore --resume {rep['id']} (same bus options)")
+
+
+# diff --------------------------------------------------------------------------------------
+
+
+def run_diff(args: argparse.Namespace) -> int:
+    files = {x: _read_file(x) for x in (args.a, args.b) if x != "drive"}
+
+    async def body(ctx: _Context) -> dict[str, Any]:
+        sets: list[tuple[str, ParameterSet]] = []
+        session = None
+        for name in (args.a, args.b):
+            if name == "drive":
+                session = session or await ctx.session()
+                sets.append(("drive", await ctx.backups.read_set(session, operation=None)))
+            else:
+                sets.append((name, ctx.backups.parse(files[name], name, args.profile)))
+        return ctx.backups.compare(sets[0], sets[1], include_same=args.all)
+
+    cmp = _run(args, body)
+    if args.json:
+        _dump(cmp)
+    else:
+        for d in cmp["differences"]:
+            unit = f" {d['unit']}" if d["unit"] else ""
+            print(
+                f"{d['kind']:8} {d['address']} {d['name']}: {_fmt(d['a_value'])} -> "
+                f"{_fmt(d['b_value'])}{unit}  [{d['a_raw_hex'] or '-'} -> {d['b_raw_hex'] or '-'}]"
+            )
+        changed = sum(1 for d in cmp["differences"] if d["kind"] != "same")
+        print(f"{changed} differences, {cmp['same']} equal ({cmp['a']} vs {cmp['b']})")
+    return 0 if cmp["equal"] else 1
+
+
+def _fmt(v: Any) -> str:
+    return "-" if v is None else str(v)

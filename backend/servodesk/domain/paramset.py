@@ -1,0 +1,967 @@
+"""Parameter sets (backups), their file format, comparison, restore planning and preflight.
+
+Pure functions only: nothing here touches a bus, a file or a database. A
+:class:`ParameterSet` is what a backup holds (raw bytes per object, as the drive holds them,
+plus the typed view for people); :func:`dumps` / :func:`loads` are the versioned JSON file
+format (docs/backup.md); :func:`compare` finds what differs; :func:`preflight` checks a set
+against a drive before anything is written; :func:`plan_writes` orders the writes the way
+the profile and CiA 301 require.
+
+The raw bytes are authoritative: a typed value that disagrees with its bytes makes a file
+corrupt, never a silent choice between the two.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import re
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from servodesk.domain.address import ObjectAddress
+from servodesk.domain.datatypes import DataType, codec
+from servodesk.domain.profile import DeviceProfile, ObjectSpec
+from servodesk.domain.values import check_value
+from servodesk.errors import ServodeskError, ValidationError
+
+FORMAT = "servodesk-backup"
+SCHEMA_VERSION = 1
+
+#: CiA 301 §7.5.2.13/14: store (1010h) and restore-defaults (1011h) are commands, not
+#: parameters: writing them saves or wipes the drive's memory, so no backup holds them.
+_COMMAND_INDICES = frozenset({0x1010, 0x1011})
+#: Quirks whose value names a command object ({index, subindex, value}): store, restore,
+#: activation, history clear, reset (docs/profiles.md, quirk vocabulary).
+_COMMAND_QUIRKS = (
+    "store_parameters",
+    "restore_defaults",
+    "parameter_activation",
+    "clear_alarm_history",
+    "device_reset",
+)
+
+#: CiA 301 §7.5.2.35-38: PDO communication (RPDO 1400h-15FFh, TPDO 1800h-19FFh) and mapping
+#: (RPDO 1600h-17FFh, TPDO 1A00h-1BFFh) parameters; the mapping is at comm index + 200h.
+_COMM_RANGES = ((0x1400, 0x15FF), (0x1800, 0x19FF))
+_MAP_RANGES = ((0x1600, 0x17FF), (0x1A00, 0x1BFF))
+#: ETG.1000.6 (CoE): sync manager PDO assignment 1C10h-1C2Fh, a count-first array like a
+#: mapping (HIWIN 000 §3.1.2 re-mapping sequence: assignment off, mapping, assignment on).
+_ASSIGN_RANGE = (0x1C10, 0x1C2F)
+_COB_INVALID = 0x80000000
+
+#: CiA 402-2 objects that scale or bound other objects (factor group 6089h-6097h, limits):
+#: written before the objects that depend on them, so the drive checks new values against
+#: the new limits (smartris 001 §11-1 shows the failure otherwise: aborts 0609 0031h).
+_MASTERS = frozenset(
+    {
+        *range(0x6089, 0x6098),
+        0x607B,  # position range limit
+        0x607D,  # software position limit
+        0x607E,  # polarity
+        0x607F,  # max profile velocity
+        0x6080,  # max motor speed
+        0x6072,  # max torque
+        0x6073,  # max current
+        0x6075,  # motor rated current
+        0x6076,  # motor rated torque
+        0x60C5,  # max acceleration
+        0x60C6,  # max deceleration
+    }
+)
+
+#: CiA 402 states in which a restore is refused: the drive is enabled (power on the motor).
+_ENABLED_STATES = frozenset({"operation_enabled", "quick_stop_active", "fault_reaction_active"})
+_NMT_ALIASES = {
+    "preop": "preop",
+    "pre_operational": "preop",
+    "preoperational": "preop",
+    "op": "operational",
+    "operational": "operational",
+    "stopped": "stopped",
+    "safeop": "safeop",
+    "init": "initialising",
+    "initialising": "initialising",
+}
+
+
+# ------------------------------------------------------------------------------------ model
+
+
+@dataclass(frozen=True, slots=True)
+class Entry:
+    """One parameter of a set: the bytes as the drive holds them, with its description."""
+
+    address: ObjectAddress
+    name: str
+    data_type: DataType
+    raw: bytes
+    unit: str | None = None
+
+    @property
+    def value(self) -> int | float | bool | str | None:
+        return typed_value(self.data_type, self.raw)
+
+
+@dataclass(frozen=True, slots=True)
+class Unreadable:
+    """A configurable object the drive did not give when the set was read."""
+
+    address: ObjectAddress
+    name: str
+    code: int | None
+    message: str
+
+
+@dataclass(frozen=True)
+class ParameterSet:
+    """A backup: where it came from and one :class:`Entry` per configurable object."""
+
+    profile_id: str
+    profile_version: str
+    time: str
+    entries: tuple[Entry, ...]
+    label: str = ""
+    note: str = ""
+    identity: dict[str, Any] = field(default_factory=dict)
+    firmware: str | None = None
+    bus: dict[str, Any] = field(default_factory=dict)
+    drive_key: str = ""
+    unreadable: tuple[Unreadable, ...] = ()
+    tool: str = "servodesk"
+
+    def by_address(self) -> dict[ObjectAddress, Entry]:
+        return {e.address: e for e in self.entries}
+
+
+def typed_value(dt: DataType, raw: bytes) -> int | float | bool | str | None:
+    """The JSON view of raw bytes: numbers, text, hex text for OCTET_STRING/DOMAIN."""
+    try:
+        v = codec(dt).decode(raw)
+    except ServodeskError:
+        return None
+    if isinstance(v, bytes):
+        return v.hex()
+    if isinstance(v, float) and not math.isfinite(v):
+        return None  # JSON has no NaN/inf; the raw bytes keep the exact value.
+    return v
+
+
+# ----------------------------------------------------------------------------- selection
+
+
+def command_addresses(profile: DeviceProfile) -> set[ObjectAddress]:
+    """Objects that are commands (store, restore, activate, reset), never parameters."""
+    out = {a for a in profile.variables if a.index in _COMMAND_INDICES}
+    for qid in _COMMAND_QUIRKS:
+        q = profile.quirk(qid)
+        if isinstance(q, dict) and "index" in q:
+            out.add(ObjectAddress(int(q["index"]), int(q.get("subindex", 0))))
+    return out
+
+
+def _quirk_addresses(profile: DeviceProfile, quirk_id: str) -> list[ObjectAddress]:
+    q = profile.quirk(quirk_id)
+    out: list[ObjectAddress] = []
+    if isinstance(q, list):
+        for text in q:
+            try:
+                out.append(ObjectAddress.parse(str(text)))
+            except ValidationError:
+                continue
+    return out
+
+
+def configurable(profile: DeviceProfile) -> list[ObjectSpec]:
+    """What a backup reads: readable and writable objects that are not process values.
+
+    Left out: command objects (:func:`command_addresses`), objects the drive sets itself
+    (quirk ``auto_set_objects``: writing them is refused) and objects the manual marks as not
+    usable (quirk ``objects_not_usable``, by index).
+    """
+    commands = command_addresses(profile)
+    auto = set(_quirk_addresses(profile, "auto_set_objects"))
+    unusable = {a.index for a in _quirk_addresses(profile, "objects_not_usable")}
+    return [
+        s
+        for a, s in profile.variables.items()
+        if not s.process
+        and s.access.readable
+        and s.access.writable
+        and a not in commands
+        and a not in auto
+        and a.index not in unusable
+    ]
+
+
+def defaults_set(profile: DeviceProfile, node_id: int, time: str = "") -> ParameterSet:
+    """The profile's default values of its configurable objects (those that have one)."""
+    entries: list[Entry] = []
+    for s in configurable(profile):
+        try:
+            v = s.default_value(node_id)
+            if v is None:
+                continue
+            raw = codec(s.data_type).encode(v)
+        except (ServodeskError, ValueError):
+            continue
+        entries.append(Entry(s.address, s.name, s.data_type, raw, s.unit))
+    return ParameterSet(
+        profile_id=profile.id,
+        profile_version=profile.version,
+        time=time,
+        entries=tuple(entries),
+        label=f"defaults of {profile.id}",
+    )
+
+
+# -------------------------------------------------------------------------------- file
+
+
+def to_document(ps: ParameterSet, tool: str) -> dict[str, Any]:
+    """The JSON document of a set (without its checksum); see docs/backup.md."""
+    return {
+        "format": FORMAT,
+        "schema_version": SCHEMA_VERSION,
+        "tool": tool,
+        "time": ps.time,
+        "label": ps.label,
+        "note": ps.note,
+        "profile": {"id": ps.profile_id, "version": ps.profile_version},
+        "drive_key": ps.drive_key,
+        "identity": dict(ps.identity),
+        "firmware": ps.firmware,
+        "bus": dict(ps.bus),
+        "entries": [
+            {
+                "address": str(e.address),
+                "name": e.name,
+                "data_type": e.data_type.name,
+                "raw_hex": e.raw.hex(),
+                "value": e.value,
+                "unit": e.unit,
+            }
+            for e in ps.entries
+        ],
+        "unreadable": [
+            {
+                "address": str(u.address),
+                "name": u.name,
+                "code": u.code,
+                "code_hex": f"0x{u.code:08X}" if u.code is not None else None,
+                "message": u.message,
+            }
+            for u in ps.unreadable
+        ],
+    }
+
+
+def checksum(doc: Mapping[str, Any]) -> str:
+    """SHA-256 of the canonical JSON of everything but the checksum itself."""
+    body = {k: v for k, v in doc.items() if k != "checksum"}
+    text = json.dumps(body, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
+    return "sha256:" + hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def dumps(ps: ParameterSet, tool: str) -> bytes:
+    """The backup file's bytes: indented UTF-8 JSON ending in a newline, with its checksum."""
+    doc = to_document(ps, tool)
+    doc["checksum"] = checksum(doc)
+    return (json.dumps(doc, indent=2, ensure_ascii=False) + "\n").encode("utf-8")
+
+
+def _bad(source: str, message: str, hint: str, where: str | None = None) -> ValidationError:
+    return ValidationError(f"{source}: {message}", field=where or "file", hint=hint)
+
+
+def loads(data: bytes, source: str = "backup") -> ParameterSet:
+    """Read and check a backup file; every defect is a ValidationError naming the place."""
+    try:
+        doc = json.loads(data.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise _bad(source, "not UTF-8 text", "choose a servodesk backup (.json) file") from None
+    except json.JSONDecodeError as exc:
+        raise _bad(
+            source,
+            f"not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg}); "
+            "the file is truncated or corrupt",
+            "use an intact copy of the backup",
+        ) from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise _bad(
+            source,
+            'not a servodesk backup (no "format": "servodesk-backup")',
+            "choose a file written by servodesk backup, or import a DCF",
+        )
+    version = doc.get("schema_version")
+    if version != SCHEMA_VERSION:
+        raise _bad(
+            source,
+            f"backup schema version {version!r} is not supported (this servodesk reads "
+            f"version {SCHEMA_VERSION})",
+            "open the file with the servodesk version that wrote it",
+        )
+    stated = doc.get("checksum")
+    if not isinstance(stated, str):
+        raise _bad(source, "the checksum is missing", "use an intact copy of the backup")
+    if stated != checksum(doc):
+        raise _bad(
+            source,
+            "checksum mismatch: the file was changed or damaged after it was written",
+            "use an intact copy of the backup (files are never edited by servodesk)",
+        )
+    try:
+        return _from_document(doc)
+    except (KeyError, TypeError, ValueError, ServodeskError) as exc:
+        msg = exc.message if isinstance(exc, ServodeskError) else str(exc)
+        raise _bad(source, f"malformed backup: {msg}", "use an intact copy of the backup") from None
+
+
+def _str(v: Any, name: str, *, optional: bool = False) -> Any:
+    if v is None and optional:
+        return None
+    if not isinstance(v, str):
+        raise ValueError(f"{name} must be text")
+    return v
+
+
+def _from_document(doc: dict[str, Any]) -> ParameterSet:
+    profile = doc["profile"]
+    entries: list[Entry] = []
+    seen: set[ObjectAddress] = set()
+    for i, e in enumerate(doc["entries"]):
+        where = f"entries[{i}]"
+        address = ObjectAddress.parse(_str(e["address"], f"{where}.address"))
+        if address in seen:
+            raise ValueError(f"{where}: {address} appears twice")
+        seen.add(address)
+        dt = DataType.from_name(_str(e["data_type"], f"{where}.data_type"))
+        try:
+            raw = bytes.fromhex(_str(e["raw_hex"], f"{where}.raw_hex"))
+        except ValueError:
+            raise ValueError(f"{where} {address}: raw_hex is not hex bytes") from None
+        n = dt.bits // 8
+        if n and len(raw) != n:
+            raise ValueError(
+                f"{where} {address}: {dt.name} needs {n} bytes, raw_hex has {len(raw)}"
+            )
+        entry = Entry(address, _str(e["name"], f"{where}.name"), dt, raw, e.get("unit"))
+        if not _same_value(entry.value, e.get("value")):
+            raise ValueError(
+                f"{where} {address}: value {e.get('value')!r} disagrees with raw_hex "
+                f"{raw.hex()} ({entry.value!r})"
+            )
+        entries.append(entry)
+    unreadable = tuple(
+        Unreadable(
+            ObjectAddress.parse(u["address"]), str(u.get("name", "")), u.get("code"), u["message"]
+        )
+        for u in doc.get("unreadable", [])
+    )
+    return ParameterSet(
+        profile_id=_str(profile["id"], "profile.id"),
+        profile_version=str(profile.get("version", "")),
+        time=_str(doc["time"], "time"),
+        entries=tuple(entries),
+        label=str(doc.get("label") or ""),
+        note=str(doc.get("note") or ""),
+        identity=dict(doc.get("identity") or {}),
+        firmware=_str(doc.get("firmware"), "firmware", optional=True),
+        bus=dict(doc.get("bus") or {}),
+        drive_key=str(doc.get("drive_key") or ""),
+        unreadable=unreadable,
+        tool=str(doc.get("tool") or ""),
+    )
+
+
+def _same_value(a: Any, b: Any) -> bool:
+    if isinstance(a, float) or isinstance(b, float):
+        try:
+            return float(a) == float(b)
+        except (TypeError, ValueError):
+            return False
+    return bool(a == b and type(a) is type(b))
+
+
+# ------------------------------------------------------------------------------- compare
+
+
+@dataclass(frozen=True, slots=True)
+class Difference:
+    address: ObjectAddress
+    name: str
+    group: str | None
+    unit: str | None
+    raw_unit: str | None
+    a: Entry | None
+    b: Entry | None
+    kind: str  # "changed" | "only_a" | "only_b" | "same"
+
+    def to_dict(self, scale: float | None) -> dict[str, Any]:
+        def eng(e: Entry | None) -> float | None:
+            v = e.value if e is not None else None
+            if scale is None or self.unit is None or isinstance(v, bool):
+                return None
+            return float(v) * scale if isinstance(v, int | float) else None
+
+        return {
+            "address": str(self.address),
+            "name": self.name,
+            "group": self.group,
+            "unit": self.unit,
+            "raw_unit": self.raw_unit,
+            "a_value": self.a.value if self.a else None,
+            "b_value": self.b.value if self.b else None,
+            "a_raw_hex": self.a.raw.hex() if self.a else None,
+            "b_raw_hex": self.b.raw.hex() if self.b else None,
+            "a_engineering": eng(self.a),
+            "b_engineering": eng(self.b),
+            "kind": self.kind,
+        }
+
+
+def compare(
+    a: Sequence[Entry],
+    b: Sequence[Entry],
+    profile: DeviceProfile | None = None,
+    *,
+    include_same: bool = False,
+) -> tuple[list[dict[str, Any]], int]:
+    """What differs between two sets, by address and raw bytes; (differences, same count).
+
+    Differences come grouped: in the profile's group order, then by address.
+    """
+    da = {e.address: e for e in a}
+    db = {e.address: e for e in b}
+    group_rank = {g.id: i for i, g in enumerate(profile.groups)} if profile else {}
+    rows: list[tuple[tuple[int, ObjectAddress], dict[str, Any]]] = []
+    same = 0
+    for address in sorted(set(da) | set(db)):
+        ea, eb = da.get(address), db.get(address)
+        if ea is not None and eb is not None and ea.raw == eb.raw:
+            same += 1
+            if not include_same:
+                continue
+            kind = "same"
+        else:
+            kind = "changed" if ea and eb else ("only_a" if ea else "only_b")
+        spec = profile.spec(address) if profile else None
+        any_e = ea or eb
+        assert any_e is not None
+        group = spec.group if spec else None
+        d = Difference(
+            address=address,
+            name=spec.name if spec else any_e.name,
+            group=group,
+            unit=spec.unit if spec else any_e.unit,
+            raw_unit=spec.raw_unit if spec else None,
+            a=ea,
+            b=eb,
+            kind=kind,
+        )
+        rank = group_rank.get(group or "", len(group_rank))
+        rows.append(((rank, address), d.to_dict(spec.scale if spec else None)))
+    rows.sort(key=lambda r: r[0])
+    return [r[1] for r in rows], same
+
+
+# ------------------------------------------------------------------------- name mapping
+
+
+def _norm(name: str) -> str:
+    return re.sub(r"[^a-z0-9]+", " ", name.lower()).strip()
+
+
+@dataclass(frozen=True, slots=True)
+class MapRow:
+    address: ObjectAddress
+    name: str
+    target: ObjectAddress | None
+    reason: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "address": str(self.address),
+            "name": self.name,
+            "target": str(self.target) if self.target else None,
+            "reason": self.reason,
+        }
+
+
+def map_by_name(entries: Sequence[Entry], target: DeviceProfile) -> list[MapRow]:
+    """Where each entry of another family's set goes in ``target``, matched by name.
+
+    The same address with the same name wins; else the one object of that name; an
+    ambiguous name is resolved by equal subindex and data type, else left unmapped. The data
+    type must match (bytes of another size cannot be restored).
+    """
+    by_name: dict[str, list[ObjectSpec]] = {}
+    for s in target.variables.values():
+        by_name.setdefault(_norm(s.name), []).append(s)
+    rows: list[MapRow] = []
+    for e in entries:
+        key = _norm(e.name)
+        here = target.spec(e.address)
+        chosen: ObjectSpec | None = None
+        reason: str | None = None
+        if here is not None and _norm(here.name) == key:
+            chosen = here
+        else:
+            cands = by_name.get(key, [])
+            if len(cands) > 1:
+                cands = [
+                    c
+                    for c in cands
+                    if c.subindex == e.address.subindex and c.data_type == e.data_type
+                ]
+            if len(cands) == 1:
+                chosen = cands[0]
+            elif cands:
+                reason = f"{len(cands)} objects of {target.id} are named {e.name!r}"
+            else:
+                reason = f"{target.id} has no object named {e.name!r}"
+        if chosen is not None and chosen.data_type != e.data_type:
+            reason = (
+                f"{chosen.address} {chosen.name} is {chosen.data_type.name}, "
+                f"the backup holds {e.data_type.name}"
+            )
+            chosen = None
+        rows.append(MapRow(e.address, e.name, chosen.address if chosen else None, reason))
+    return rows
+
+
+# ------------------------------------------------------------------------------ preflight
+
+
+@dataclass(frozen=True, slots=True)
+class Problem:
+    address: ObjectAddress | None
+    name: str | None
+    message: str
+    hint: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "address": str(self.address) if self.address else None,
+            "name": self.name,
+            "message": self.message,
+            "hint": self.hint,
+        }
+
+
+@dataclass(frozen=True, slots=True)
+class PlanItem:
+    """One entry of a restore: where it goes, what it does and why."""
+
+    address: ObjectAddress  # in the drive's profile (after mapping)
+    source: ObjectAddress  # in the backup
+    name: str
+    #: would_write, unchanged, skipped_read_only, failed (unmapped)
+    status: str
+    new_raw: bytes | None
+    old_raw: bytes | None
+    message: str | None = None
+
+
+@dataclass(frozen=True)
+class Preflight:
+    ok: bool
+    problems: list[Problem]
+    warnings: list[str]
+    items: list[PlanItem]
+    mapping: list[MapRow] | None
+
+    def counts(self) -> dict[str, int]:
+        out = {"to_write": 0, "unchanged": 0, "read_only_skipped": 0, "unmapped": 0}
+        for it in self.items:
+            if it.status == "would_write":
+                out["to_write"] += 1
+            elif it.status == "unchanged":
+                out["unchanged"] += 1
+            elif it.status == "skipped_read_only":
+                out["read_only_skipped"] += 1
+            else:
+                out["unmapped"] += 1
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        c = self.counts()
+        return {
+            "ok": self.ok,
+            "problems": [p.to_dict() for p in self.problems],
+            "warnings": self.warnings,
+            "to_write": c["to_write"],
+            "unchanged": c["unchanged"],
+            "read_only_skipped": c["read_only_skipped"],
+            "mapping": [m.to_dict() for m in self.mapping] if self.mapping is not None else None,
+        }
+
+
+@dataclass(frozen=True, slots=True)
+class DriveFacts:
+    """What preflight needs to know about the drive, read just before."""
+
+    profile: DeviceProfile
+    identity: Mapping[str, Any]
+    firmware: str | None
+    #: CiA 402 state id (``operation_enabled``) or None when the drive has no statusword.
+    state: str | None
+    #: NMT / ESM state: preop, operational, stopped, unknown.
+    nmt: str
+    #: Current raw values of the objects the set touches (None: could not be read).
+    current: Mapping[ObjectAddress, bytes | None]
+
+
+def state_allows(allowed: Iterable[str], state: str | None, nmt: str) -> bool | None:
+    """Whether ``writable_in`` allows a write now; None when the state is not known."""
+    names = [_NMT_ALIASES.get(n.lower(), n.lower()) for n in allowed]
+    if not names:
+        return True
+    here: set[str] = {_NMT_ALIASES.get(nmt.lower(), nmt.lower())}
+    if state:
+        here.add(state)
+        if state not in _ENABLED_STATES:
+            here.update(("disabled", "servo_off"))
+    if any(n in here for n in names):
+        return True
+    nmt_names = set(_NMT_ALIASES.values())
+    if nmt.lower() in ("unknown", "") and any(n in nmt_names for n in names):
+        return None
+    if state is None and any(n not in nmt_names for n in names):
+        return None
+    return False
+
+
+def preflight(ps: ParameterSet, drive: DriveFacts, *, map_names: bool = False) -> Preflight:
+    """Check a set against a drive before any write; list every problem at once."""
+    profile = drive.profile
+    problems: list[Problem] = []
+    warnings: list[str] = []
+    mapping: list[MapRow] | None = None
+    entries: list[tuple[Entry, ObjectAddress | None, str | None]]
+    if ps.profile_id != profile.id:
+        if not map_names:
+            problems.append(
+                Problem(
+                    None,
+                    None,
+                    f"the backup is of profile {ps.profile_id!r}, the drive is {profile.id!r} "
+                    f"({profile.name}): another drive family",
+                    "restore it by object name (map_by_name / --map-by-name) after checking "
+                    "what maps in the preflight",
+                )
+            )
+            entries = [(e, e.address, None) for e in ps.entries]
+        else:
+            mapping = map_by_name(ps.entries, profile)
+            entries = [(e, m.target, m.reason) for e, m in zip(ps.entries, mapping, strict=True)]
+    else:
+        entries = [(e, e.address, None) for e in ps.entries]
+        _identity_checks(ps, drive, problems, warnings, map_names)
+    if ps.firmware and drive.firmware and ps.firmware != drive.firmware:
+        warnings.append(
+            f"firmware differs: backup {ps.firmware}, drive {drive.firmware}; "
+            "values are checked against the drive's profile"
+        )
+    if drive.state in _ENABLED_STATES:
+        problems.append(
+            Problem(
+                None,
+                None,
+                f"the drive is in {drive.state.replace('_', ' ')}; a restore needs the "
+                "drive not enabled",
+                "disable the drive (servo off) and run the restore again",
+            )
+        )
+    commands = command_addresses(profile)
+    items: list[PlanItem] = []
+    for e, target, reason in entries:
+        if target is None:
+            items.append(
+                PlanItem(
+                    e.address, e.address, e.name, "failed", e.raw, None, f"not mapped: {reason}"
+                )
+            )
+            continue
+        spec = profile.spec(target)
+        old = drive.current.get(target)
+        if spec is None:
+            problems.append(
+                Problem(
+                    target,
+                    e.name,
+                    f"{target} {e.name} is not an object of profile {profile.id}",
+                    "the backup does not fit this drive; choose a backup of this family",
+                )
+            )
+            continue
+        base = PlanItem(target, e.address, spec.name, "would_write", e.raw, old)
+        if target in commands:
+            items.append(
+                replace(
+                    base, status="skipped_read_only", message="a command object, not a parameter"
+                )
+            )
+            continue
+        if not spec.access.writable:
+            items.append(
+                replace(
+                    base, status="skipped_read_only", message=f"{spec.access.value} in the profile"
+                )
+            )
+            continue
+        problem = _value_problem(e, spec)
+        if problem is not None:
+            problems.append(problem)
+            continue
+        if old is not None and old == e.raw:
+            items.append(replace(base, status="unchanged"))
+            continue
+        allowed = state_allows(spec.writable_in, drive.state, drive.nmt)
+        if allowed is False:
+            where = ", ".join(x for x in (drive.state, drive.nmt) if x)
+            problems.append(
+                Problem(
+                    target,
+                    spec.name,
+                    f"{target} {spec.name} is writable only in {', '.join(spec.writable_in)}; "
+                    f"the drive is in {where}",
+                    "bring the drive into that state (NMT pre-operational / servo off) first",
+                )
+            )
+            continue
+        if allowed is None:
+            warnings.append(
+                f"{target} {spec.name}: writable only in {', '.join(spec.writable_in)}; the "
+                "drive's state is not known, the drive decides"
+            )
+        items.append(base)
+    return Preflight(not problems, problems, warnings, items, mapping)
+
+
+def _identity_checks(
+    ps: ParameterSet,
+    drive: DriveFacts,
+    problems: list[Problem],
+    warnings: list[str],
+    map_names: bool,
+) -> None:
+    bi, di = ps.identity, drive.identity
+    for key, label in (("vendor_id", "vendor id"), ("product_code", "product code")):
+        a, b = bi.get(key), di.get(key)
+        if a is not None and b is not None and a != b:
+            problems.append(
+                Problem(
+                    None,
+                    None,
+                    f"{label} differs: backup 0x{int(a):08X}, drive 0x{int(b):08X} "
+                    "(another product with the same profile)",
+                    "choose a backup of this product",
+                )
+            )
+    a, b = bi.get("serial"), di.get("serial")
+    if a is not None and b is not None and a != b:
+        warnings.append(
+            f"another drive of the same family: backup serial {a}, drive serial {b} "
+            "(a replacement drive)"
+        )
+    if ps.profile_version and ps.profile_version != drive.profile.version:
+        warnings.append(
+            f"profile version differs: backup {ps.profile_version}, now {drive.profile.version}"
+        )
+
+
+def _value_problem(e: Entry, spec: ObjectSpec) -> Problem | None:
+    if spec.data_type != e.data_type:
+        return Problem(
+            spec.address,
+            spec.name,
+            f"{spec.address} {spec.name} is {spec.data_type.name}, the backup holds "
+            f"{e.data_type.name}",
+            "the backup does not fit this drive's profile",
+        )
+    n = spec.bits // 8
+    if n and len(e.raw) != n:
+        return Problem(
+            spec.address,
+            spec.name,
+            f"{spec.address} {spec.name}: {len(e.raw)} bytes for a {n}-byte {spec.data_type.name}",
+        )
+    if not spec.data_type.is_numeric:
+        return None
+    try:
+        v = codec(spec.data_type).decode(e.raw)
+        check_value(spec, v)
+    except ValidationError as exc:
+        return Problem(spec.address, spec.name, exc.message, exc.hint)
+    return None
+
+
+# ------------------------------------------------------------------------------ planning
+
+
+@dataclass(frozen=True, slots=True)
+class Step:
+    """One write of a restore. ``entry`` is the item this write sets to its final value;
+    None for the intermediate writes of a procedure (PDO disable, mapping count 0)."""
+
+    address: ObjectAddress
+    raw: bytes
+    entry: ObjectAddress | None
+    why: str = ""
+    #: Steps of one procedure share a group: after a failure the rest of the group is
+    #: not attempted (a half-written PDO mapping must not be validated).
+    group: str = ""
+
+
+def _in(index: int, ranges: Iterable[tuple[int, int]]) -> bool:
+    return any(lo <= index <= hi for lo, hi in ranges)
+
+
+def is_pdo_object(index: int) -> bool:
+    """PDO communication, mapping (CiA 301) or assignment (CoE) object."""
+    return _in(index, (*_COMM_RANGES, *_MAP_RANGES, _ASSIGN_RANGE))
+
+
+def write_order(profile: DeviceProfile, addresses: Iterable[ObjectAddress]) -> list[ObjectAddress]:
+    """The order plain parameters are written in.
+
+    First the profile's ``unit_change_sequence`` (in its order), then the CiA 402 factor and
+    limit objects the others depend on, then everything else by address.
+    """
+    seq = _quirk_addresses(profile, "unit_change_sequence")
+    rank = {a: i for i, a in enumerate(seq)}
+
+    def key(a: ObjectAddress) -> tuple[int, int, ObjectAddress]:
+        if a in rank:
+            return (0, rank[a], a)
+        if a.index in _MASTERS:
+            return (1, 0, a)
+        return (2, 0, a)
+
+    return sorted(addresses, key=key)
+
+
+def _u32(raw: bytes | None) -> int | None:
+    return int.from_bytes(raw[:4], "little") if raw is not None and len(raw) >= 4 else None
+
+
+def plan_writes(
+    profile: DeviceProfile,
+    to_write: Mapping[ObjectAddress, bytes],
+    targets: Mapping[ObjectAddress, bytes],
+    current: Mapping[ObjectAddress, bytes | None],
+) -> list[Step]:
+    """The ordered writes that take the drive from ``current`` to ``targets``.
+
+    ``to_write``: the entries that differ (address -> bytes); ``targets``: every entry of
+    the set (also the unchanged ones, needed to put a PDO back as it was).
+
+    Plain parameters come first (:func:`write_order`). Then the PDOs by the CiA 301
+    §7.5.2.35-38 procedure, one group per PDO: COB-ID bit 31 set (PDO invalid), the other
+    communication parameters, mapping sub 0 = 0, the entries, sub 0 = n, and the COB-ID as
+    in the set. CoE sync-manager assignments (1C10h-1C2Fh) are switched off before the
+    mappings change and set after them (HIWIN 000 §3.1.2).
+    """
+    plain = [a for a in to_write if not is_pdo_object(a.index)]
+    steps = [Step(a, to_write[a], a, "parameter", str(a)) for a in write_order(profile, plain)]
+
+    pdo = [a for a in to_write if is_pdo_object(a.index)]
+    if not pdo:
+        return steps
+    groups: dict[int, list[ObjectAddress]] = {}
+    assigns: dict[int, list[ObjectAddress]] = {}
+    for a in pdo:
+        if _in(a.index, (_ASSIGN_RANGE,)):
+            assigns.setdefault(a.index, []).append(a)
+        else:
+            comm = a.index - 0x200 if _in(a.index, _MAP_RANGES) else a.index
+            groups.setdefault(comm, []).append(a)
+    mapping_changes = any(_in(a.index, _MAP_RANGES) for a in pdo)
+    assign_objs = sorted(
+        {a.index for a in targets if _in(a.index, (_ASSIGN_RANGE,))} if mapping_changes else set()
+    )
+    assign_objs = sorted(set(assign_objs) | set(assigns))
+    for idx in assign_objs:
+        count = ObjectAddress(idx, 0)
+        if _u32(_pad(current.get(count))) != 0 and count in targets:
+            steps.append(
+                Step(count, bytes(len(targets[count])), None, "assignment off", f"assign {idx:04X}")
+            )
+    for comm in sorted(groups):
+        steps.extend(_pdo_group(comm, groups[comm], to_write, targets, current))
+    for idx in assign_objs:
+        gname = f"assign {idx:04X}"
+        count = ObjectAddress(idx, 0)
+        for a in sorted(assigns.get(idx, [])):
+            if a.subindex:
+                steps.append(Step(a, to_write[a], a, "assignment entry", gname))
+        if count in targets:
+            steps.append(
+                Step(
+                    count,
+                    targets[count],
+                    count if count in to_write else None,
+                    "assignment on",
+                    gname,
+                )
+            )
+    return steps
+
+
+def _pad(raw: bytes | None) -> bytes | None:
+    return raw + bytes(4 - len(raw)) if raw is not None and len(raw) < 4 else raw
+
+
+def _pdo_group(
+    comm: int,
+    changed: list[ObjectAddress],
+    to_write: Mapping[ObjectAddress, bytes],
+    targets: Mapping[ObjectAddress, bytes],
+    current: Mapping[ObjectAddress, bytes | None],
+) -> list[Step]:
+    gname = f"PDO {comm:04X}"
+    mapping = comm + 0x200
+    cob = ObjectAddress(comm, 1)
+    steps: list[Step] = []
+    cur_cob = _u32(current.get(cob))
+    disabled = False
+    has_comm = _in(comm, _COMM_RANGES) and cob in targets
+    if has_comm and cur_cob is not None:
+        if not cur_cob & _COB_INVALID:
+            steps.append(
+                Step(
+                    cob,
+                    (cur_cob | _COB_INVALID).to_bytes(4, "little"),
+                    None,
+                    "PDO invalid (COB-ID bit 31) before changing it",
+                    gname,
+                )
+            )
+        disabled = True
+    for a in sorted(x for x in changed if x.index == comm and x.subindex != 1):
+        steps.append(Step(a, to_write[a], a, "PDO communication parameter", gname))
+    entries = sorted(x for x in changed if x.index == mapping and x.subindex != 0)
+    count = ObjectAddress(mapping, 0)
+    if entries or count in to_write:
+        cur_n = current.get(count)
+        if cur_n is None or any(cur_n):
+            size = len(targets[count]) if count in targets else 1
+            steps.append(Step(count, bytes(size), None, "mapping sub 0 = 0", gname))
+        for a in entries:
+            steps.append(Step(a, to_write[a], a, "mapping entry", gname))
+        final_n = targets.get(count, cur_n)
+        if final_n is not None:
+            steps.append(
+                Step(
+                    count, final_n, count if count in to_write else None, "mapping sub 0 = n", gname
+                )
+            )
+    if has_comm and (disabled or cob in to_write):
+        final = targets[cob]
+        steps.append(
+            Step(cob, final, cob if cob in to_write else None, "COB-ID as in the set", gname)
+        )
+    return steps

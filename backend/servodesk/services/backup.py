@@ -1,0 +1,410 @@
+"""Backups: reading a drive's configurable parameters, saving, importing, exporting, comparing,
+and the audit log of every parameter write.
+
+A backup is a :class:`~servodesk.domain.paramset.ParameterSet` written as a versioned JSON
+file under ``<data_dir>/backups`` (atomically, never overwritten) plus a record in the
+:class:`~servodesk.services.store.Store`. Files can be exported as DCF (CiA 306) and CSV, and
+DCF files imported. The restore lives in :mod:`servodesk.services.restore`.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import logging
+import re
+import secrets
+import time
+from dataclasses import asdict, replace
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from servodesk import __version__
+from servodesk.domain import paramset
+from servodesk.domain.address import ObjectAddress
+from servodesk.domain.datatypes import Value, codec
+from servodesk.domain.paramset import Entry, ParameterSet, Unreadable
+from servodesk.domain.profile import DeviceProfile
+from servodesk.domain.profile_loader import ProfileCatalog
+from servodesk.errors import NotFoundError, ServodeskError, ValidationError
+from servodesk.services.events import EventHub
+from servodesk.services.session import Session, set_audit_sink
+from servodesk.services.store import Store, write_new_file
+
+log = logging.getLogger(__name__)
+
+TOOL = f"servodesk {__version__}"
+#: Objects read per progress message.
+_CHUNK = 64
+
+
+def now_iso() -> str:
+    return datetime.now(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def new_id(prefix: str = "") -> str:
+    """Sortable, readable ids: ``20250101T120000Z-a1b2c3``."""
+    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
+    return f"{prefix}{stamp}-{secrets.token_hex(3)}"
+
+
+def drive_key(session: Session) -> str:
+    """Which physical drive: vendor, product and serial from 1018h, else where it sits."""
+    ident = session.identity
+    if ident.vendor_id is not None and ident.product_code is not None and ident.serial is not None:
+        return f"{ident.vendor_id:08X}-{ident.product_code:08X}-{ident.serial}"
+    p = session.link.params
+    return f"{session.profile.id}@{p.interface}:{p.channel}:{p.node_id}"
+
+
+def firmware(session: Session) -> str | None:
+    ident = session.identity
+    if ident.software_version:
+        return ident.software_version
+    return f"rev 0x{ident.revision:08X}" if ident.revision is not None else None
+
+
+def bus_of(session: Session) -> dict[str, Any]:
+    p = session.link.params
+    return {
+        "interface": p.interface,
+        "channel": p.channel,
+        "bitrate": p.bitrate,
+        "node_id": p.node_id,
+    }
+
+
+def progress(session: Session, operation: str, fraction: float, message: str, **extra: Any) -> None:
+    session.hub.publish(
+        {
+            "type": "progress",
+            "session": session.id,
+            "operation": operation,
+            "fraction": round(fraction, 3),
+            "message": message,
+            **extra,
+        },
+        session=session.id,
+    )
+
+
+class BackupService:
+    """Backups of drives in a :class:`Store`; one per application (or CLI run)."""
+
+    def __init__(self, store: Store, catalog: ProfileCatalog) -> None:
+        self.store = store
+        self.catalog = catalog
+
+    # Audit log ------------------------------------------------------------------------------
+
+    def attach(self, hub: EventHub) -> None:
+        """Record every parameter write of the sessions on ``hub`` in the audit log."""
+        set_audit_sink(hub, self._audit)
+
+    def _audit(
+        self, session: Session, address: ObjectAddress, old: bytes | None, new: bytes, client: str
+    ) -> None:
+        spec = session.profile.spec(address)
+        rec = {
+            "time": time.time(),
+            "client": client,
+            "session": session.id,
+            "drive_key": drive_key(session),
+            "address": str(address),
+            "name": spec.name if spec else None,
+            "old_raw_hex": old.hex() if old is not None else None,
+            "new_raw_hex": new.hex(),
+            "old_value": paramset.typed_value(spec.data_type, old) if spec and old else None,
+            "new_value": paramset.typed_value(spec.data_type, new) if spec else None,
+        }
+        try:
+            self.store.add_audit(rec)
+        except ServodeskError:
+            # The write already happened; losing its audit record must not fail it.
+            log.exception("audit record lost: %s", rec)
+
+    # Reading a drive -----------------------------------------------------------------------
+
+    async def read_set(
+        self,
+        session: Session,
+        *,
+        label: str = "",
+        note: str = "",
+        operation: str | None = "backup",
+    ) -> ParameterSet:
+        """Every configurable parameter of the drive, with progress over the WebSocket.
+
+        An object the drive refuses to give is listed as unreadable (with its abort code);
+        a lost bus raises (LinkError) and nothing is saved.
+        """
+        specs = paramset.configurable(session.profile)
+        entries: list[Entry] = []
+        unreadable: list[Unreadable] = []
+        total = len(specs) or 1
+        for start in range(0, len(specs), _CHUNK):
+            chunk = specs[start : start + _CHUNK]
+            if operation:
+                progress(
+                    session, operation, start / total, f"reading {start}/{len(specs)} parameters"
+                )
+            results = await session.read_many([s.address for s in chunk])
+            for spec, r in zip(chunk, results, strict=True):
+                if isinstance(r, ServodeskError):
+                    unreadable.append(
+                        Unreadable(spec.address, spec.name, getattr(r, "code", None), r.message)
+                    )
+                else:
+                    raw = bytes.fromhex(r.raw_hex)
+                    entries.append(Entry(spec.address, spec.name, spec.data_type, raw, spec.unit))
+        if operation:
+            progress(session, operation, 1.0, f"read {len(entries)} parameters")
+        return ParameterSet(
+            profile_id=session.profile.id,
+            profile_version=session.profile.version,
+            time=now_iso(),
+            entries=tuple(entries),
+            label=label,
+            note=note,
+            identity=asdict(session.identity),
+            firmware=firmware(session),
+            bus=bus_of(session),
+            drive_key=drive_key(session),
+            unreadable=tuple(unreadable),
+            tool=TOOL,
+        )
+
+    async def backup(
+        self, session: Session, label: str = "", note: str = "", source: str = "drive"
+    ) -> dict[str, Any]:
+        ps = await self.read_set(session, label=label, note=note)
+        return self.save(ps, source)
+
+    # Saving and loading ---------------------------------------------------------------------
+
+    def save(self, ps: ParameterSet, source: str = "drive") -> dict[str, Any]:
+        """Write the file (atomic, new name) then its record; returns the BackupInfo."""
+        bid = new_id()
+        data = paramset.dumps(ps, ps.tool or TOOL)
+        name = f"{bid}-{ps.profile_id}.json"
+        path = self.store.backups_dir / name
+        write_new_file(path, data)
+        info = {
+            "id": bid,
+            "time": ps.time,
+            "label": ps.label,
+            "note": ps.note,
+            "profile_id": ps.profile_id,
+            "profile_version": ps.profile_version,
+            "drive_key": ps.drive_key,
+            "identity": ps.identity,
+            "firmware": ps.firmware,
+            "bus": ps.bus,
+            "entries": len(ps.entries),
+            "file": name,
+            "sha256": hashlib.sha256(data).hexdigest(),
+        }
+        # The file is complete before the record exists: a crash in between leaves an
+        # unlisted but intact file, never a record without its file.
+        self.store.add_backup(info, source)
+        info["source"] = source
+        return info
+
+    def info(self, bid: str) -> dict[str, Any]:
+        return self.store.get_backup(bid)
+
+    def file_bytes(self, bid: str) -> bytes:
+        info = self.store.get_backup(bid)
+        path = self.store.backups_dir / str(info["file"])
+        try:
+            data: bytes = path.read_bytes()
+        except FileNotFoundError:
+            raise NotFoundError(
+                f"the file of backup {bid} ({info['file']}) is missing",
+                hint=f"it belongs in {self.store.backups_dir}",
+            ) from None
+        if hashlib.sha256(data).hexdigest() != info["sha256"]:
+            raise ValidationError(
+                f"the file of backup {bid} ({info['file']}) was changed after it was written "
+                "(SHA-256 differs from the store)",
+                field="backup",
+                hint="restore the file from a copy; servodesk never edits backup files",
+            )
+        return data
+
+    def load(self, bid: str) -> ParameterSet:
+        info = self.store.get_backup(bid)
+        ps = paramset.loads(self.file_bytes(bid), info["file"])
+        # The label and note live in the store (editable); the file keeps the original ones.
+        return replace(ps, label=info["label"], note=info["note"])
+
+    # Import ---------------------------------------------------------------------------------
+
+    def parse(self, data: bytes, filename: str, profile_id: str | None = None) -> ParameterSet:
+        """A set from a file's bytes: a servodesk JSON backup or a DCF (by suffix/content)."""
+        suffix = Path(filename).suffix.lower()
+        head = data.lstrip()[:1]
+        if suffix == ".dcf" or (suffix != ".json" and head == b"["):
+            return self._parse_dcf(data, filename, profile_id)
+        if suffix not in (".json", "") and head != b"{":
+            raise ValidationError(
+                f"{filename}: not a servodesk backup (.json) or DCF (.dcf)",
+                field="filename",
+                hint="choose a .json backup or a .dcf file",
+            )
+        return paramset.loads(data, filename)
+
+    def _parse_dcf(self, data: bytes, filename: str, profile_id: str | None) -> ParameterSet:
+        from servodesk import devdesc
+
+        text = data.decode("utf-8", errors="replace").lstrip("\ufeff")
+        contents = devdesc.read_dcf(text, source=filename)
+        dcf_profile = contents.profile
+        target = self._dcf_profile(text, dcf_profile, profile_id)
+        entries: list[Entry] = []
+        for address, value in sorted(contents.values.items()):
+            spec = target.spec(address) if target else None
+            if spec is None or spec.data_type != (dcf_profile.spec(address) or spec).data_type:
+                spec = dcf_profile.spec(address)
+            if spec is None:
+                continue
+            try:
+                raw = codec(spec.data_type).encode(value)
+            except ServodeskError as exc:
+                raise ValidationError(
+                    f"{filename}: {address} {spec.name}: {exc.message}",
+                    field="file",
+                    hint="correct the ParameterValue in the DCF",
+                ) from None
+            entries.append(Entry(address, spec.name, spec.data_type, raw, spec.unit))
+        if not entries:
+            raise ValidationError(
+                f"{filename}: the DCF holds no ParameterValue",
+                field="file",
+                hint="export a DCF with values (servodesk backup -o x.dcf)",
+            )
+        ident = dcf_profile.identity
+        profile = target or dcf_profile
+        return ParameterSet(
+            profile_id=profile.id,
+            profile_version=profile.version,
+            time=now_iso(),
+            entries=tuple(entries),
+            label=f"imported from {Path(filename).name}",
+            identity={
+                "vendor_id": ident.vendor_id,
+                "product_code": ident.product_codes[0] if ident.product_codes else None,
+                "revision": None,
+                "serial": None,
+            },
+            bus={"node_id": contents.node_id, "bitrate": contents.bitrate},
+            drive_key=f"dcf:{Path(filename).name}",
+            tool=TOOL,
+        )
+
+    def _dcf_profile(
+        self, text: str, dcf_profile: DeviceProfile, profile_id: str | None
+    ) -> DeviceProfile | None:
+        if profile_id:
+            return self.catalog.get(profile_id)
+        # servodesk's own DCF names the profile in [FileInfo] FileName (<profile id>.dcf).
+        m = re.search(r"^\s*FileName\s*=\s*([A-Za-z0-9-]+)\.dcf\s*$", text, re.M | re.I)
+        if m and m.group(1).lower() in self.catalog.ids():
+            return self.catalog.get(m.group(1).lower())
+        ident = dcf_profile.identity
+        return self.catalog.match(
+            ident.vendor_id, ident.product_codes[0] if ident.product_codes else None, None
+        )
+
+    def import_bytes(
+        self, data: bytes, filename: str, profile_id: str | None = None
+    ) -> dict[str, Any]:
+        ps = self.parse(data, filename, profile_id)
+        return self.save(ps, source="upload")
+
+    # Export ---------------------------------------------------------------------------------
+
+    def export(self, ps: ParameterSet, fmt: str) -> tuple[bytes, str, str]:
+        """(bytes, media type, suffix) of a set as json, dcf or csv."""
+        if fmt == "json":
+            return paramset.dumps(ps, ps.tool or TOOL), "application/json", "json"
+        if fmt == "csv":
+            return self._csv(ps), "text/csv", "csv"
+        if fmt == "dcf":
+            from servodesk import devdesc
+
+            profile = self.catalog.get(ps.profile_id)
+            values: dict[ObjectAddress, Value] = {}
+            for e in ps.entries:
+                if profile.spec(e.address) is None:
+                    continue
+                v = codec(e.data_type).decode(e.raw)
+                values[e.address] = v
+            node = ps.bus.get("node_id")
+            node_id = node if isinstance(node, int) and 1 <= node <= 127 else 1
+            text = devdesc.export_dcf(profile, node_id, values, bitrate=ps.bus.get("bitrate"))
+            return text.encode("utf-8"), "text/plain", "dcf"
+        raise ValidationError(
+            f"unknown export format {fmt!r}", field="format", hint="use json, dcf or csv"
+        )
+
+    def _csv(self, ps: ParameterSet) -> bytes:
+        profile = self.catalog.get(ps.profile_id) if ps.profile_id in self.catalog.ids() else None
+        out = io.StringIO()
+        w = csv.writer(out, lineterminator="\n")
+        w.writerow(
+            [
+                "address",
+                "name",
+                "group",
+                "data_type",
+                "value",
+                "raw_hex",
+                "unit",
+                "engineering",
+                "raw_unit",
+            ]
+        )
+        for e in ps.entries:
+            spec = profile.spec(e.address) if profile else None
+            v = e.value
+            eng = ""
+            if spec and spec.unit and isinstance(v, int | float) and not isinstance(v, bool):
+                eng = repr(float(v) * spec.scale)
+            w.writerow(
+                [
+                    str(e.address),
+                    e.name,
+                    spec.group if spec else "",
+                    e.data_type.name,
+                    "" if v is None else v,
+                    e.raw.hex(),
+                    e.unit or "",
+                    eng,
+                    spec.raw_unit if spec and spec.raw_unit else "",
+                ]
+            )
+        return out.getvalue().encode("utf-8")
+
+    # Compare --------------------------------------------------------------------------------
+
+    def compare(
+        self,
+        a: tuple[str, ParameterSet],
+        b: tuple[str, ParameterSet],
+        *,
+        include_same: bool = False,
+    ) -> dict[str, Any]:
+        """A Comparison (docs/api.md) of two labelled sets."""
+        pid = b[1].profile_id if b[1].profile_id in self.catalog.ids() else a[1].profile_id
+        profile = self.catalog.get(pid) if pid in self.catalog.ids() else None
+        diffs, same = paramset.compare(
+            a[1].entries, b[1].entries, profile, include_same=include_same
+        )
+        equal = all(d["kind"] == "same" for d in diffs)
+        return {"a": a[0], "b": b[0], "equal": equal, "differences": diffs, "same": same}
+
+    def defaults(self, profile_id: str, node_id: int = 1) -> ParameterSet:
+        return paramset.defaults_set(self.catalog.get(profile_id), node_id, now_iso())

@@ -1,0 +1,1012 @@
+"""Motion of a drive session: jog, profile moves, velocity, torque, cyclic set-points, dead-man.
+
+Every motion is started by the client that holds control (:mod:`servodesk.services.control`)
+and lives while that client's WebSocket heartbeats arrive: one watchdog task per active motion
+checks the last heartbeat every few ms and, once it is ``deadman_s`` old, halts (controlword
+bit 8) and then quick-stops the axis. Closing the socket and shutting the backend down stop it
+the same way.
+
+Before anything is sent, a request is checked against the family's modes (profile) and the
+drive's own limits, read from the drive and cached per session (refreshed after any write
+through the API): software position limits 607Dh, max profile velocity 607Fh, max torque 6072h,
+max acceleration / deceleration 60C5h / 60C6h. A refused request names the limit and its
+value and nothing reaches the bus.
+
+Choices where CiA 402 leaves room (documented once):
+
+- Motion needs Operation enabled: servo on is the user's explicit step (``POST /state`` with
+  ``enable``, which walks the state machine with the family's controlword spacing).
+- The mode (6060h) is set by the motion that needs it. Quirk ``mode_change_at_standstill``
+  refuses a change while the axis moves; quirk ``mode_change_refused`` (states where 6060h is
+  refused) is handled by disable operation -> 6060h -> enable operation at standstill.
+- Profile position: bit 5 (change set immediately) comes from ``immediate``; a set-point that
+  is not immediate joins the drive's set-point buffer (set of set-points) and is sent only when
+  set-point acknowledge (statusword bit 12) is 0, since drives discard it otherwise
+  (quirks ``pp_setpoint_buffer``, HIWIN 000 §3.2.2; ``pp_set_point_buffer``, CTMM 003 §4-4-5).
+- Cyclic modes (csp, csv, cst) need the family to list mode 8/9/10. Without PDOs the backend
+  writes the set-point by SDO every ``cyclic_period`` seconds; the drive interpolates between
+  them. Before csp starts, 607Ah is set to the actual position (HIWIN 000 quirk
+  ``csp_align_target_before_enable``: otherwise the axis jumps). ``duration`` is rounded up to
+  whole periods of the waveform so the set-point ends where it started.
+- Limits 607Dh min = max = 0 switch the position limits off (CiA 402-2 §6.5.4); 607Fh = 0 is
+  read as "no extra limit", as the simulated drive does. Objects a family lists in the quirk
+  ``objects_not_usable`` are not read.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+import time
+from collections.abc import AsyncIterator, Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from servodesk.domain import cia402
+from servodesk.domain.address import ObjectAddress
+from servodesk.domain.datatypes import DataType, Value, codec
+from servodesk.domain.values import encode_write
+from servodesk.errors import (
+    ConflictError,
+    DriveStateError,
+    LinkError,
+    ServodeskError,
+    ValidationError,
+)
+from servodesk.services.control import ControlService
+from servodesk.services.events import EventHub
+from servodesk.services.manager import SessionManager
+from servodesk.services.session import Session
+
+log = logging.getLogger(__name__)
+
+CONTROLWORD = ObjectAddress(0x6040)
+STATUSWORD = ObjectAddress(0x6041)
+MODE = ObjectAddress(0x6060)
+MODE_DISPLAY = ObjectAddress(0x6061)
+POSITION = ObjectAddress(0x6064)
+VELOCITY = ObjectAddress(0x606C)
+VELOCITY_THRESHOLD = ObjectAddress(0x606F)
+TARGET_TORQUE = ObjectAddress(0x6071)
+TORQUE_ACTUAL = ObjectAddress(0x6077)
+TARGET_POSITION = ObjectAddress(0x607A)
+PROFILE_VELOCITY = ObjectAddress(0x6081)
+PROFILE_ACC = ObjectAddress(0x6083)
+PROFILE_DEC = ObjectAddress(0x6084)
+TORQUE_SLOPE = ObjectAddress(0x6087)
+TARGET_VELOCITY = ObjectAddress(0x60FF)
+
+#: Where each limit comes from on the drive.
+LIMIT_OBJECTS: dict[str, ObjectAddress] = {
+    "position_min": ObjectAddress(0x607D, 1),
+    "position_max": ObjectAddress(0x607D, 2),
+    "max_velocity": ObjectAddress(0x607F),
+    "max_torque": ObjectAddress(0x6072),
+    "max_acceleration": ObjectAddress(0x60C5),
+    "max_deceleration": ObjectAddress(0x60C6),
+}
+
+# Controlword bits (CiA 402-2 §6.2.1): enable operation, and the mode-specific bits.
+CW_ENABLE = 0x000F
+CW_NEW_SETPOINT = 0x0010
+CW_IMMEDIATE = 0x0020
+CW_RELATIVE = 0x0040
+CW_HALT = 0x0100
+SW_TARGET_REACHED = 1 << 10
+SW_SETPOINT_ACK = 1 << 12
+
+PP, PV, TQ, CSP, CSV, CST = 1, 3, 4, 8, 9, 10
+CYCLIC_MODES = {"csp": CSP, "csv": CSV, "cst": CST}
+#: Standstill when |velocity| is within 606Fh; this when the drive has no 606Fh (inc/s).
+DEFAULT_STANDSTILL = 1000
+
+
+@dataclass(frozen=True, slots=True)
+class Limits:
+    position_min: int | None
+    position_max: int | None
+    max_velocity: int | None
+    max_torque: int | None
+    max_acceleration: int | None
+    max_deceleration: int | None
+    modes: list[int]
+    units: dict[str, dict[str, Any]]
+    sources: dict[str, str]
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "position_min": self.position_min,
+            "position_max": self.position_max,
+            "max_velocity": self.max_velocity,
+            "max_torque": self.max_torque,
+            "max_acceleration": self.max_acceleration,
+            "max_deceleration": self.max_deceleration,
+            "modes": self.modes,
+            "mode_names": {str(m): cia402.mode_name(m) for m in self.modes},
+            "units": self.units,
+            "sources": self.sources,
+        }
+
+
+@dataclass(eq=False)
+class Motion:
+    kind: str
+    owner: str
+    mode: int
+    target: float | None
+    #: time.monotonic() when the motion was asked for: the dead-man counts from here too.
+    started: float
+    active: bool = True
+    state: str = "running"
+    message: str = ""
+    tasks: list[asyncio.Task[None]] = field(default_factory=list)
+
+
+@dataclass(eq=False)
+class _Axis:
+    session: Session
+    limits: Limits | None = None
+    limits_gen: int = 0
+    motion: Motion | None = None
+    lock: asyncio.Lock = field(default_factory=asyncio.Lock)
+    #: Bumped by every stop: a start in progress sees it and does not send its "go".
+    epoch: int = 0
+    #: A start sent its "go" after a stop began: the stop sends its commands again.
+    rehalt: bool = False
+    last_target: float | None = None
+
+    @property
+    def sid(self) -> str:
+        return self.session.id
+
+
+class MotionService:
+    def __init__(
+        self,
+        manager: SessionManager,
+        control: ControlService,
+        hub: EventHub,
+        *,
+        deadman_s: float = 0.25,
+        watchdog_period: float = 0.01,
+        cyclic_period: float = 0.01,
+    ) -> None:
+        self.manager = manager
+        self.control = control
+        self.hub = hub
+        self.deadman_s = deadman_s
+        self.watchdog_period = watchdog_period
+        self.cyclic_period = cyclic_period
+        self._axes: dict[str, _Axis] = {}
+        self._background: set[asyncio.Task[None]] = set()
+        control.on_lost(self._control_lost)
+        control.on_gone(self._client_gone)
+
+    # Axes and limits ----------------------------------------------------------------------
+
+    def _axis(self, sid: str) -> _Axis:
+        session = self.manager.get(sid)
+        axis = self._axes.get(sid)
+        if axis is None or axis.session is not session:
+            axis = _Axis(session)
+            self._axes[sid] = axis
+        return axis
+
+    def invalidate_limits(self, sid: str) -> None:
+        """A write went (or goes) to the drive: read the limits again before the next use."""
+        axis = self._axes.get(sid)
+        if axis is not None:
+            axis.limits = None
+            axis.limits_gen += 1
+
+    async def limits(self, sid: str) -> Limits:
+        axis = self._axis(sid)
+        if axis.limits is not None:
+            return axis.limits
+        gen = axis.limits_gen
+        lim = await self._read_limits(axis.session)
+        if axis.limits_gen == gen:
+            axis.limits = lim
+        return lim
+
+    async def _read_limits(self, session: Session) -> Limits:
+        profile = session.profile
+        unusable = {str(a).upper() for a in profile.quirk("objects_not_usable", []) or []}
+        values: dict[str, int | None] = {}
+        sources: dict[str, str] = {}
+        for name, address in LIMIT_OBJECTS.items():
+            values[name] = None
+            spec = profile.spec(address)
+            if spec is None or not spec.access.readable:
+                continue
+            if f"0X{address.index:04X}" in unusable or str(address).upper() in unusable:
+                continue
+            v = await self._read_int(session, address)
+            values[name] = v
+            if v is not None:
+                sources[name] = str(address)
+        if values["position_min"] == 0 and values["position_max"] == 0:
+            # CiA 402-2 §6.5.4: min = max = 0 switches the software limits off.
+            values["position_min"] = values["position_max"] = None
+            sources["position_min"] = sources["position_max"] = "607Dh = 0/0: limits off"
+        if values["max_velocity"] == 0:
+            values["max_velocity"] = None
+            sources["max_velocity"] = "607Fh = 0: no extra limit"
+        # Without the drive objects, the profile's own range of the set-point objects.
+        for name, address in (
+            ("max_velocity", TARGET_VELOCITY),
+            ("max_torque", TARGET_TORQUE),
+            ("max_acceleration", PROFILE_ACC),
+            ("max_deceleration", PROFILE_DEC),
+        ):
+            spec = profile.spec(address)
+            if values[name] is None and spec is not None and isinstance(spec.max, int):
+                values[name] = spec.max
+                sources[name] = f"profile {address} max"
+        units: dict[str, dict[str, Any]] = {}
+        for kind, candidates in (
+            ("position", (POSITION, TARGET_POSITION)),
+            ("velocity", (VELOCITY, TARGET_VELOCITY)),
+            ("torque", (TARGET_TORQUE, TORQUE_ACTUAL)),
+            ("acceleration", (PROFILE_ACC,)),
+        ):
+            for address in candidates:
+                spec = profile.spec(address)
+                if spec is not None:
+                    units[kind] = {
+                        "raw_unit": spec.raw_unit,
+                        "unit": spec.unit,
+                        "scale": spec.scale,
+                    }
+                    break
+        return Limits(
+            position_min=values["position_min"],
+            position_max=values["position_max"],
+            max_velocity=values["max_velocity"],
+            max_torque=values["max_torque"],
+            max_acceleration=values["max_acceleration"],
+            max_deceleration=values["max_deceleration"],
+            modes=sorted(profile.modes),
+            units=units,
+            sources=sources,
+        )
+
+    @staticmethod
+    async def _read_int(session: Session, address: ObjectAddress) -> int | None:
+        spec = session.profile.spec(address)
+        raw = await session.link.read(address)
+        v = codec(spec.data_type if spec else DataType.INTEGER32).decode(raw)
+        return int(v) if isinstance(v, int | bool) else None
+
+    # Checks (nothing is sent) -------------------------------------------------------------
+
+    @staticmethod
+    def _need_mode(axis: _Axis, mode: int, what: str) -> None:
+        p = axis.session.profile
+        if mode not in p.modes:
+            have = ", ".join(cia402.mode_name(m) for m in sorted(p.modes)) or "none"
+            raise ValidationError(
+                f"{p.name} ({p.id}) has no {cia402.mode_name(mode)}, which {what} needs; "
+                f"its modes: {have}",
+                field="mode",
+                hint="use a motion this family supports (see GET /limits: modes)",
+            )
+
+    @staticmethod
+    def _check_abs(
+        value: float, limit: int | None, name: str, field_name: str, lim: Limits
+    ) -> None:
+        if limit is not None and abs(value) > limit:
+            src = lim.sources.get(name, name)
+            raise ValidationError(
+                f"{field_name} {value:g} exceeds the {name.replace('_', ' ')} {limit} ({src}); "
+                "nothing was sent",
+                field=field_name,
+                hint=f"stay within ±{limit}, or raise the limit on the drive",
+            )
+
+    @staticmethod
+    def _check_position(value: float, lim: Limits, field_name: str) -> None:
+        lo, hi = lim.position_min, lim.position_max
+        if lo is not None and value < lo:
+            raise ValidationError(
+                f"{field_name} {value:g} is below the software position limit min {lo} "
+                f"({lim.sources.get('position_min', '607Dh:01')}); nothing was sent",
+                field=field_name,
+                hint=f"stay within {lo} .. {hi}",
+            )
+        if hi is not None and value > hi:
+            raise ValidationError(
+                f"{field_name} {value:g} is above the software position limit max {hi} "
+                f"({lim.sources.get('position_max', '607Dh:02')}); nothing was sent",
+                field=field_name,
+                hint=f"stay within {lo} .. {hi}",
+            )
+
+    @staticmethod
+    def _encode(
+        axis: _Axis, writes: list[tuple[ObjectAddress, Value]]
+    ) -> list[tuple[ObjectAddress, Value]]:
+        """Validate every planned write against the profile before the first one is sent."""
+        p = axis.session.profile
+        for address, value in writes:
+            spec = p.spec(address)
+            if spec is None and p.variables:
+                raise ValidationError(
+                    f"{p.name} ({p.id}) has no object {address}, which this motion needs",
+                    field=str(address),
+                    hint="this family does not support that part of the motion",
+                )
+            encode_write(address, spec, value)
+        return writes
+
+    # Bus helpers --------------------------------------------------------------------------
+
+    async def _statusword(self, axis: _Axis) -> int:
+        return await self._read_int(axis.session, STATUSWORD) or 0
+
+    async def _require_enabled(self, axis: _Axis) -> int:
+        sw = await self._statusword(axis)
+        state = cia402.decode_state(sw)
+        if state is not cia402.State.OPERATION_ENABLED:
+            raise DriveStateError(
+                f"the servo is off ({state.value}); motion needs Operation enabled",
+                hint='servo on first: POST /state {"command": "enable"}',
+            )
+        return sw
+
+    async def _standstill(self, axis: _Axis) -> bool:
+        s = axis.session
+        threshold = DEFAULT_STANDSTILL
+        if s.profile.spec(VELOCITY_THRESHOLD) is not None:
+            with contextlib.suppress(ServodeskError):
+                threshold = await self._read_int(s, VELOCITY_THRESHOLD) or threshold
+        v = await self._read_int(s, VELOCITY) if s.profile.spec(VELOCITY) else 0
+        return abs(v or 0) <= threshold
+
+    async def _ensure_mode(self, axis: _Axis, mode: int, who: str) -> None:
+        s = axis.session
+        current = await self._read_int(s, MODE_DISPLAY)
+        if current == mode:
+            return
+        p = s.profile
+        moving = not await self._standstill(axis)
+        if moving and p.quirk("mode_change_at_standstill"):
+            raise DriveStateError(
+                f"{p.name} changes the mode of operation only at standstill "
+                "(quirk mode_change_at_standstill); the axis moves",
+                hint="halt first, then start the motion again",
+            )
+        refused = p.quirk("mode_change_refused")
+        states = refused.get("states", []) if isinstance(refused, dict) else []
+        if "operation_enabled" in [str(x).lower() for x in states]:
+            # The family refuses 6060h in Operation enabled: disable operation, set the mode,
+            # enable again (at standstill only: disabling drops the holding torque).
+            if moving:
+                raise DriveStateError(
+                    f"{p.name} refuses a mode change in Operation enabled and the axis moves",
+                    hint="halt first, then start the motion again",
+                )
+            await s.command("disable_operation")
+            await s.write_object(MODE, mode, client=who)
+            await s.command("enable_operation")
+        else:
+            await s.write_object(MODE, mode, client=who)
+        end = time.monotonic() + 0.5
+        while time.monotonic() < end:
+            if await self._read_int(s, MODE_DISPLAY) == mode:
+                return
+            await asyncio.sleep(0.005)
+        raise DriveStateError(
+            f"the drive did not switch to {cia402.mode_name(mode)} (6061h)",
+            hint="check the drive's error code and whether it allows this mode now",
+        )
+
+    async def _write_all(
+        self, axis: _Axis, writes: list[tuple[ObjectAddress, Value]], who: str
+    ) -> None:
+        for address, value in writes:
+            await axis.session.write_object(address, value, client=who)
+
+    async def _controlword(self, axis: _Axis, word: int, who: str) -> None:
+        await axis.session.write_object(CONTROLWORD, word, client=who)
+
+    @contextlib.asynccontextmanager
+    async def _starting(self, axis: _Axis) -> AsyncIterator[int]:
+        async with axis.lock:
+            yield axis.epoch
+
+    async def _go(self, axis: _Axis, epoch: int, word: int, who: str) -> None:
+        """Send a controlword that starts motion, unless a stop came meanwhile."""
+        if axis.epoch != epoch:
+            raise ConflictError(
+                "a halt or stop came while the motion was starting; it was not started",
+                hint="start it again",
+            )
+        await self._controlword(axis, word, who)
+        if axis.epoch != epoch:
+            axis.rehalt = True
+
+    def _begin(self, axis: _Axis, motion: Motion, *extra: Callable[[], Any]) -> None:
+        old = axis.motion
+        if old is not None and old.active:
+            self._cancel_tasks(old)
+            old.active = False
+        axis.motion = motion
+        loop = asyncio.get_running_loop()
+        motion.tasks.append(
+            loop.create_task(self._watchdog(axis, motion), name=f"deadman {axis.sid}")
+        )
+        motion.tasks.append(
+            loop.create_task(self._monitor(axis, motion), name=f"motion {axis.sid}")
+        )
+        for make in extra:
+            motion.tasks.append(loop.create_task(make(), name=f"setpoints {axis.sid}"))
+        log.info("%s on %s by %s: %s", motion.kind, axis.sid, motion.owner, motion.message)
+        self._publish(axis)
+
+    @staticmethod
+    def _cancel_tasks(motion: Motion) -> None:
+        me = asyncio.current_task()
+        for t in motion.tasks:
+            if t is not me:
+                t.cancel()
+
+    def _end(self, axis: _Axis, motion: Motion, state: str, message: str) -> None:
+        if not motion.active:
+            return
+        motion.active = False
+        motion.state = state
+        motion.message = message
+        self._cancel_tasks(motion)
+        log.info("motion on %s ended: %s (%s)", axis.sid, state, message)
+        self._publish(axis)
+
+    # Motion commands ----------------------------------------------------------------------
+
+    async def jog(self, sid: str, client: str, velocity: int, acceleration: int) -> dict[str, Any]:
+        """Profile velocity at ``velocity`` while the client's heartbeats arrive."""
+        started = time.monotonic()
+        axis = self._axis(sid)
+        self._need_mode(axis, PV, "jog")
+        lim = await self.limits(sid)
+        self._check_abs(velocity, lim.max_velocity, "max_velocity", "velocity", lim)
+        self._check_abs(acceleration, lim.max_acceleration, "max_acceleration", "acceleration", lim)
+        self._check_abs(acceleration, lim.max_deceleration, "max_deceleration", "acceleration", lim)
+        writes = self._encode(
+            axis,
+            [(PROFILE_ACC, acceleration), (PROFILE_DEC, acceleration), (TARGET_VELOCITY, velocity)],
+        )
+        async with self._starting(axis) as epoch:
+            await self._require_enabled(axis)
+            await self._ensure_mode(axis, PV, client)
+            await self._write_all(axis, writes, client)
+            await self._go(axis, epoch, CW_ENABLE, client)
+            self._begin(
+                axis,
+                Motion("jog", client, PV, velocity, started, message=f"jog at {velocity}"),
+            )
+        return self.status(sid)
+
+    async def velocity(
+        self,
+        sid: str,
+        client: str,
+        velocity: int,
+        acceleration: int | None,
+        deceleration: int | None,
+    ) -> dict[str, Any]:
+        started = time.monotonic()
+        axis = self._axis(sid)
+        self._need_mode(axis, PV, "profile velocity")
+        lim = await self.limits(sid)
+        self._check_abs(velocity, lim.max_velocity, "max_velocity", "velocity", lim)
+        plan: list[tuple[ObjectAddress, Value]] = []
+        if acceleration is not None:
+            self._check_abs(
+                acceleration, lim.max_acceleration, "max_acceleration", "acceleration", lim
+            )
+            plan.append((PROFILE_ACC, acceleration))
+        if deceleration is not None:
+            self._check_abs(
+                deceleration, lim.max_deceleration, "max_deceleration", "deceleration", lim
+            )
+            plan.append((PROFILE_DEC, deceleration))
+        plan.append((TARGET_VELOCITY, velocity))
+        writes = self._encode(axis, plan)
+        async with self._starting(axis) as epoch:
+            await self._require_enabled(axis)
+            await self._ensure_mode(axis, PV, client)
+            await self._write_all(axis, writes, client)
+            await self._go(axis, epoch, CW_ENABLE, client)
+            self._begin(
+                axis,
+                Motion("velocity", client, PV, velocity, started, message=f"velocity {velocity}"),
+            )
+        return self.status(sid)
+
+    async def torque(self, sid: str, client: str, torque: int, slope: int | None) -> dict[str, Any]:
+        started = time.monotonic()
+        axis = self._axis(sid)
+        self._need_mode(axis, TQ, "profile torque")
+        lim = await self.limits(sid)
+        self._check_abs(torque, lim.max_torque, "max_torque", "torque", lim)
+        plan: list[tuple[ObjectAddress, Value]] = []
+        if slope is not None:
+            plan.append((TORQUE_SLOPE, slope))
+        plan.append((TARGET_TORQUE, torque))
+        writes = self._encode(axis, plan)
+        async with self._starting(axis) as epoch:
+            await self._require_enabled(axis)
+            await self._ensure_mode(axis, TQ, client)
+            await self._write_all(axis, writes, client)
+            await self._go(axis, epoch, CW_ENABLE, client)
+            self._begin(
+                axis, Motion("torque", client, TQ, torque, started, message=f"torque {torque}")
+            )
+        return self.status(sid)
+
+    async def move(
+        self,
+        sid: str,
+        client: str,
+        *,
+        relative: bool,
+        target: int,
+        velocity: int | None,
+        acceleration: int | None,
+        deceleration: int | None,
+        immediate: bool,
+    ) -> dict[str, Any]:
+        """Profile position: one set-point, or one more of a set of set-points."""
+        started = time.monotonic()
+        axis = self._axis(sid)
+        s = axis.session
+        self._need_mode(axis, PP, "a move")
+        lim = await self.limits(sid)
+        plan: list[tuple[ObjectAddress, Value]] = []
+        if velocity is not None:
+            self._check_abs(velocity, lim.max_velocity, "max_velocity", "velocity", lim)
+            plan.append((PROFILE_VELOCITY, velocity))
+        if acceleration is not None:
+            self._check_abs(
+                acceleration, lim.max_acceleration, "max_acceleration", "acceleration", lim
+            )
+            plan.append((PROFILE_ACC, acceleration))
+        if deceleration is not None:
+            self._check_abs(
+                deceleration, lim.max_deceleration, "max_deceleration", "deceleration", lim
+            )
+            plan.append((PROFILE_DEC, deceleration))
+        moving_pp = (
+            axis.motion is not None
+            and axis.motion.active
+            and axis.motion.kind == "move"
+            and axis.last_target is not None
+        )
+        if relative:
+            # CiA 402-2 §6.5: relative to the present target while a move runs, else to the
+            # actual position (the drive's demand position at rest).
+            base = (
+                axis.last_target
+                if moving_pp and axis.last_target is not None
+                else float(await self._read_int(s, POSITION) or 0)
+            )
+            final = base + target
+        else:
+            final = float(target)
+        self._check_position(final, lim, "target")
+        plan.append((TARGET_POSITION, target))
+        writes = self._encode(axis, plan)
+        q = s.profile.quirk("pp_set_point_buffer")
+        reversal_rejected = (
+            isinstance(q, dict) and q.get("change_immediately_reversal") == "rejected"
+        )
+        bits = CW_ENABLE | (CW_RELATIVE if relative else 0) | (CW_IMMEDIATE if immediate else 0)
+        async with self._starting(axis) as epoch:
+            sw = await self._require_enabled(axis)
+            if not immediate and moving_pp and sw & SW_SETPOINT_ACK:
+                raise ConflictError(
+                    "the drive's set-point buffer is full (set-point acknowledge, statusword "
+                    "bit 12, is still 1); a new set-point now would be discarded",
+                    hint="wait until the running move is done, or send it with immediate: true",
+                )
+            if immediate and moving_pp and reversal_rejected:
+                v = await self._read_int(s, VELOCITY) or 0
+                pos = await self._read_int(s, POSITION) or 0
+                if v * (final - pos) < 0:
+                    raise ValidationError(
+                        f"{s.profile.name} rejects a new target in the opposite direction "
+                        "during a move (quirk pp_set_point_buffer)",
+                        field="target",
+                        hint="halt first, then move the other way",
+                    )
+            await self._ensure_mode(axis, PP, client)
+            await self._write_all(axis, writes, client)
+            # New set-point on the rising edge of bit 4 (CiA 402-2 §6.5.1); halt bit cleared.
+            if axis.epoch != epoch:
+                raise ConflictError("a halt or stop came while the move was starting")
+            await self._controlword(axis, bits, client)
+            await self._go(axis, epoch, bits | CW_NEW_SETPOINT, client)
+            acked = await self._wait_bits(axis, SW_SETPOINT_ACK, True, 0.3)
+            await self._controlword(axis, bits, client)  # Bit 4 back to 0 for the next set-point.
+            if not acked:
+                raise DriveStateError(
+                    "the drive did not acknowledge the set-point (statusword bit 12)",
+                    hint="check the drive's error code and the mode of operation",
+                )
+            kind = "relative" if relative else "absolute"
+            axis.last_target = final
+            if moving_pp and axis.motion is not None and not immediate:
+                # The buffered set-point belongs to the running move: keep its watchdog.
+                axis.motion.target = final
+                axis.motion.message = f"{kind} move, next target {final:g} buffered"
+                self._publish(axis)
+            else:
+                self._begin(
+                    axis,
+                    Motion("move", client, PP, final, started, message=f"{kind} move to {final:g}"),
+                )
+        return self.status(sid)
+
+    async def _wait_bits(self, axis: _Axis, mask: int, on: bool, timeout: float) -> bool:
+        end = time.monotonic() + timeout
+        while True:
+            sw = await self._statusword(axis)
+            if bool(sw & mask) == on:
+                return True
+            if time.monotonic() > end:
+                return False
+            await asyncio.sleep(0.002)
+
+    async def cyclic(
+        self,
+        sid: str,
+        client: str,
+        *,
+        mode_name: str,
+        waveform: str,
+        amplitude: float,
+        frequency: float,
+        duration: float,
+    ) -> dict[str, Any]:
+        """A backend set-point generator in csp, csv or cst (families that list the mode)."""
+        started = time.monotonic()
+        axis = self._axis(sid)
+        s = axis.session
+        mode = CYCLIC_MODES[mode_name]
+        self._need_mode(axis, mode, f"the cyclic {mode_name} generator")
+        lim = await self.limits(sid)
+        if frequency * self.cyclic_period > 0.1:
+            raise ValidationError(
+                f"frequency {frequency:g} Hz is too high for set-points every "
+                f"{self.cyclic_period * 1000:g} ms (at most {0.1 / self.cyclic_period:g} Hz)",
+                field="frequency",
+                hint="lower the frequency",
+            )
+        # Peak rate of change of the waveform per unit amplitude.
+        slope = 2 * math.pi * frequency if waveform == "sine" else 4 * frequency
+        periods = max(1, math.ceil(duration * frequency - 1e-9))
+        run_s = periods / frequency
+        if mode == CSP:
+            position = await self._read_int(s, POSITION) or 0
+            self._check_position(position + amplitude, lim, "amplitude")
+            self._check_position(position - amplitude, lim, "amplitude")
+            self._check_abs(
+                amplitude * slope, lim.max_velocity, "max_velocity", "peak velocity", lim
+            )
+            address = TARGET_POSITION
+        elif mode == CSV:
+            self._check_abs(amplitude, lim.max_velocity, "max_velocity", "amplitude", lim)
+            self._check_abs(
+                amplitude * slope,
+                lim.max_acceleration,
+                "max_acceleration",
+                "peak acceleration",
+                lim,
+            )
+            address, position = TARGET_VELOCITY, 0
+        else:
+            self._check_abs(amplitude, lim.max_torque, "max_torque", "amplitude", lim)
+            address, position = TARGET_TORQUE, 0
+        spec = s.profile.spec(address)
+        self._encode(
+            axis, [(address, round(position + amplitude)), (address, round(position - amplitude))]
+        )
+
+        def wave(t: float) -> float:
+            x = frequency * t
+            if waveform == "sine":
+                return math.sin(2 * math.pi * x)
+            return 2 / math.pi * math.asin(math.sin(2 * math.pi * x))  # Triangle, starts at 0.
+
+        async with self._starting(axis) as epoch:
+            await self._require_enabled(axis)
+            if mode == CSP:
+                # HIWIN 000 quirk csp_align_target_before_enable: 607Ah = 6064h before csp.
+                position = await self._read_int(s, POSITION) or 0
+            await s.write_object(address, position, client=client)
+            await self._ensure_mode(axis, mode, client)
+            await self._go(axis, epoch, CW_ENABLE, client)
+            motion = Motion(
+                "cyclic",
+                client,
+                mode,
+                amplitude,
+                started,
+                message=f"{mode_name} {waveform} ±{amplitude:g} at {frequency:g} Hz for "
+                f"{run_s:g} s",
+            )
+            base = position
+            data_codec = codec(spec.data_type if spec else DataType.INTEGER32)
+
+            async def generate() -> None:
+                link = s.link
+                t0 = time.monotonic()
+                k = 0
+                try:
+                    while motion.active:
+                        k += 1
+                        t_next = t0 + k * self.cyclic_period
+                        await asyncio.sleep(max(0.0, t_next - time.monotonic()))
+                        t = time.monotonic() - t0
+                        if t >= run_s:
+                            break
+                        value = round(base + amplitude * wave(t))
+                        await link.write(address, data_codec.encode(value))
+                    if motion.active:
+                        await link.write(address, data_codec.encode(base))
+                        self._end(axis, motion, "done", f"{mode_name} {waveform} done")
+                except ServodeskError as exc:
+                    self._end(axis, motion, "error", f"set-point stream failed: {exc.message}")
+
+            self._begin(axis, motion, generate)
+        return self.status(sid)
+
+    # Stopping -----------------------------------------------------------------------------
+
+    async def halt(self, sid: str, client: str | None) -> dict[str, Any]:
+        """Halt (controlword bit 8): any client, always; the axis stays enabled."""
+        axis = self._axis(sid)
+        sent = await self._stop_axis(
+            axis, quick=False, state="halted", message="halted", who=client or "unknown"
+        )
+        if not sent:
+            st = axis.motion
+            if st is None or not st.active:
+                axis.motion = Motion("halt", client or "", 0, None, time.monotonic(), False)
+                axis.motion.state = "idle"
+                axis.motion.message = (
+                    "not in Operation enabled: nothing to halt (the halt bit is only sent "
+                    "there, where it cannot enable the drive)"
+                )
+        return self.status(sid)
+
+    async def stop(self, sid: str, client: str | None) -> dict[str, Any]:
+        """Quick stop: any client, always."""
+        axis = self._axis(sid)
+        await self._stop_axis(
+            axis,
+            quick=True,
+            state="stopped",
+            message="quick stop",
+            halt=False,
+            who=client or "unknown",
+        )
+        return self.status(sid)
+
+    async def _send_halt(self, axis: _Axis, who: str) -> bool:
+        """Controlword bit 8, only in Operation enabled (elsewhere 0x010F could enable)."""
+        sw = await self._statusword(axis)
+        if cia402.decode_state(sw) is not cia402.State.OPERATION_ENABLED:
+            return False
+        await self._controlword(axis, CW_ENABLE | CW_HALT, who)
+        return True
+
+    async def _stop_axis(
+        self,
+        axis: _Axis,
+        *,
+        quick: bool,
+        state: str,
+        message: str,
+        halt: bool = True,
+        who: str = "servodesk",
+    ) -> bool:
+        """End the motion and stop the axis: halt, then quick stop when asked."""
+        axis.epoch += 1
+        motion = axis.motion
+        if motion is not None and motion.active:
+            self._end(axis, motion, state, message)
+        elif motion is not None:
+            motion.state, motion.message = state, message
+        sent = False
+        s = axis.session
+        try:
+            if halt:
+                sent = await self._send_halt(axis, who)
+            if quick:
+                await s.command("quick_stop")
+                sent = True
+        finally:
+            # A start that was already past its checks may have sent its "go" after us.
+            async with axis.lock:
+                if axis.rehalt:
+                    axis.rehalt = False
+                    if halt:
+                        await self._send_halt(axis, who)
+                    if quick:
+                        await s.command("quick_stop")
+        self._publish(axis)
+        return sent
+
+    async def _lost_operator(self, axis: _Axis, motion: Motion, reason: str, since: float) -> None:
+        """Dead-man: halt, then quick stop; report the latency from ``since``."""
+        try:
+            t0 = time.monotonic()
+            axis.epoch += 1
+            self._end(axis, motion, "deadman", reason)
+            halted = await self._send_halt(axis, f"dead-man of {motion.owner}")
+            t_halt = time.monotonic()
+            await axis.session.command("quick_stop")
+            t_stop = time.monotonic()
+            async with axis.lock:
+                if axis.rehalt:
+                    axis.rehalt = False
+                    await axis.session.command("quick_stop")
+        except ServodeskError as exc:
+            log.error("dead-man stop of %s failed: %s", axis.sid, exc.message)
+            self.hub.publish(
+                {
+                    "type": "deadman",
+                    "session": axis.sid,
+                    "reason": reason,
+                    "latency_ms": None,
+                    "message": f"the stop could not be sent: {exc.message}",
+                },
+                session=axis.sid,
+            )
+            return
+        first = t_halt if halted else t_stop
+        msg = {
+            "type": "deadman",
+            "session": axis.sid,
+            "reason": reason,
+            "client": motion.owner,
+            "latency_ms": round((first - since) * 1000.0, 1),
+            "detect_ms": round((t0 - since) * 1000.0, 1),
+            "quick_stop_ms": round((t_stop - since) * 1000.0, 1),
+        }
+        log.warning("dead-man on %s: %s (%s ms)", axis.sid, reason, msg["latency_ms"])
+        self.hub.publish(msg, session=axis.sid)
+
+    async def _watchdog(self, axis: _Axis, motion: Motion) -> None:
+        """Fires within a few ms of the dead-man deadline (no bus traffic until then)."""
+        limit = self.deadman_s
+        while motion.active:
+            hb = self.control.last_heartbeat(motion.owner, axis.sid)
+            last = max(hb or 0.0, motion.started)
+            now = time.monotonic()
+            due = last + limit
+            if now >= due:
+                ms = round((now - last) * 1000)
+                await self._lost_operator(
+                    axis, motion, f"no heartbeat from client {motion.owner!r} for {ms} ms", last
+                )
+                return
+            await asyncio.sleep(min(self.watchdog_period, due - now))
+
+    async def _monitor(self, axis: _Axis, motion: Motion) -> None:
+        """Ends a move at its target, and any motion when the drive leaves Operation enabled."""
+        period = 0.02 if motion.kind == "move" else 0.05
+        failures = 0
+        while motion.active:
+            await asyncio.sleep(period)
+            try:
+                sw = await self._statusword(axis)
+            except LinkError as exc:
+                failures += 1
+                if failures >= 3:
+                    self._end(axis, motion, "error", f"the drive does not answer: {exc.message}")
+                    return
+                continue
+            except ServodeskError:
+                continue
+            failures = 0
+            state = cia402.decode_state(sw)
+            if state is not cia402.State.OPERATION_ENABLED:
+                self._end(
+                    axis, motion, "error", f"the drive left Operation enabled ({state.value})"
+                )
+                return
+            if motion.kind == "move" and sw & SW_TARGET_REACHED and not sw & SW_SETPOINT_ACK:
+                pos = await self._read_int(axis.session, POSITION)
+                self._end(axis, motion, "reached", f"target reached at {pos}")
+                return
+
+    # Clients and lifecycle ----------------------------------------------------------------
+
+    def _spawn(self, coro: Any) -> None:
+        try:
+            loop = asyncio.get_running_loop()
+        except RuntimeError:
+            return
+        task: asyncio.Task[None] = loop.create_task(coro)
+        self._background.add(task)
+        task.add_done_callback(self._background.discard)
+
+    def _client_gone(self, client: str) -> None:
+        now = time.monotonic()
+        for axis in list(self._axes.values()):
+            m = axis.motion
+            if m is not None and m.active and m.owner == client:
+                self._spawn(
+                    self._lost_operator(axis, m, f"the WebSocket of client {client!r} closed", now)
+                )
+
+    def _control_lost(self, sid: str, client: str, reason: str) -> None:
+        axis = self._axes.get(sid)
+        m = axis.motion if axis is not None else None
+        if axis is not None and m is not None and m.active and m.owner == client:
+            self._spawn(self._stop_axis(axis, quick=False, state="halted", message=reason))
+
+    async def stop_session(self, sid: str, reason: str) -> None:
+        """The session is about to close: stop its motion first."""
+        axis = self._axes.get(sid)
+        if axis is None:
+            return
+        m = axis.motion
+        if m is not None and m.active:
+            with contextlib.suppress(ServodeskError):
+                await self._stop_axis(axis, quick=True, state="stopped", message=reason)
+        self._axes.pop(sid, None)
+
+    async def shutdown(self) -> None:
+        """Backend shutdown: every running motion is halted and quick-stopped."""
+        for axis in list(self._axes.values()):
+            m = axis.motion
+            if m is not None and m.active:
+                try:
+                    await self._lost_operator(axis, m, "the server shuts down", time.monotonic())
+                except ServodeskError:
+                    log.exception("stopping %s at shutdown", axis.sid)
+        # Stops already under way (a socket that just closed) finish; nothing else runs on.
+        if self._background:
+            await asyncio.wait(list(self._background), timeout=2.0)
+        for axis in self._axes.values():
+            if axis.motion is not None:
+                self._cancel_tasks(axis.motion)
+
+    # Status -------------------------------------------------------------------------------
+
+    def status(self, sid: str) -> dict[str, Any]:
+        axis = self._axes.get(sid)
+        if axis is None:
+            self.manager.get(sid)  # 404 for an unknown session.
+        m = axis.motion if axis is not None else None
+        if m is None:
+            return {
+                "session": sid,
+                "active": False,
+                "kind": None,
+                "owner": None,
+                "mode": None,
+                "target": None,
+                "state": "idle",
+                "message": "",
+            }
+        return {
+            "session": sid,
+            "active": m.active,
+            "kind": m.kind if m.kind != "halt" else None,
+            "owner": m.owner or None,
+            "mode": m.mode or None,
+            "target": m.target,
+            "state": m.state,
+            "message": m.message,
+        }
+
+    def _publish(self, axis: _Axis) -> None:
+        self.hub.publish({"type": "motion", **self.status(axis.sid)}, session=axis.sid)

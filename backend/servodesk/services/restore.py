@@ -1,0 +1,530 @@
+"""Restoring a backup into a drive: preflight, ordered and verified writes, resume.
+
+A restore never writes before its preflight passed (identity, profile, state, every value's
+type and range, writability now). It backs the drive up first, records the restore and all
+its items in the store, then writes in the order :func:`~servodesk.domain.paramset.plan_writes`
+gives, reads every value back, and commits each item's status before the next write goes
+out. A lost bus or a reset drive stops it with a report that names exactly which items were
+written and verified; :meth:`RestoreService.resume` re-checks every item against the drive
+and writes what is still missing. Parameters are stored to non-volatile memory only when
+every item verified (or when forced).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from dataclasses import replace
+from typing import Any
+
+from servodesk.domain import cia402, paramset
+from servodesk.domain.address import ObjectAddress
+from servodesk.domain.paramset import DriveFacts, ParameterSet, Preflight, Problem, Step
+from servodesk.errors import (
+    ConflictError,
+    DriveStateError,
+    LinkError,
+    ObjectAccessError,
+    ServodeskError,
+    ValidationError,
+)
+from servodesk.services.backup import BackupService, bus_of, drive_key, firmware, new_id, now_iso
+from servodesk.services.backup import progress as publish_progress
+from servodesk.services.session import Session
+
+log = logging.getLogger(__name__)
+
+
+def _problems_text(problems: list[Problem]) -> str:
+    lines = []
+    for p in problems:
+        lines.append(f"{p.message}" + (f" ({p.hint})" if p.hint else ""))
+    return "; ".join(lines)
+
+
+class PreflightFailed(ValidationError):
+    """The preflight found problems; nothing was written. ``problems`` lists every one."""
+
+    def __init__(self, problems: list[Problem]) -> None:
+        super().__init__(
+            f"restore refused, nothing was written: {len(problems)} problem(s): "
+            + _problems_text(problems),
+            field="backup",
+            hint="correct every listed problem, then run the restore again",
+        )
+        self.problems = problems
+
+    def to_dict(self) -> dict[str, object]:
+        out = super().to_dict()
+        out["problems"] = [p.to_dict() for p in self.problems]
+        return out
+
+
+class PreflightStateConflict(DriveStateError):
+    """Like :class:`PreflightFailed`, when the drive's state is among the problems (409)."""
+
+    def __init__(self, problems: list[Problem]) -> None:
+        super().__init__(
+            f"restore refused, nothing was written: {len(problems)} problem(s): "
+            + _problems_text(problems),
+            hint="correct every listed problem, then run the restore again",
+        )
+        self.problems = problems
+
+    def to_dict(self) -> dict[str, object]:
+        out = super().to_dict()
+        out["problems"] = [p.to_dict() for p in self.problems]
+        return out
+
+
+def _refuse(pf: Preflight) -> ServodeskError:
+    if any(p.address is None and "not enabled" in p.message for p in pf.problems):
+        return PreflightStateConflict(pf.problems)
+    return PreflightFailed(pf.problems)
+
+
+def _state_id(session_state: str) -> str:
+    return session_state.lower().replace(" ", "_")
+
+
+class RestoreService:
+    def __init__(self, backups: BackupService) -> None:
+        self.backups = backups
+        self.store = backups.store
+        self._locks: dict[str, asyncio.Lock] = {}
+
+    # Facts and preflight -------------------------------------------------------------------
+
+    async def facts(self, session: Session, addresses: list[ObjectAddress]) -> DriveFacts:
+        state: str | None
+        try:
+            st = await session.drive_state()
+            state = None if st.state == cia402.State.UNKNOWN.value else _state_id(st.state)
+            nmt = st.nmt_state
+        except LinkError:
+            raise
+        except ServodeskError:
+            state, nmt = None, await session.link.network_state()
+        current: dict[ObjectAddress, bytes | None] = {}
+        results = await session.read_many(addresses)
+        for a, r in zip(addresses, results, strict=True):
+            current[a] = None if isinstance(r, ServodeskError) else bytes.fromhex(r.raw_hex)
+        return DriveFacts(
+            profile=session.profile,
+            identity={
+                "vendor_id": session.identity.vendor_id,
+                "product_code": session.identity.product_code,
+                "revision": session.identity.revision,
+                "serial": session.identity.serial,
+            },
+            firmware=firmware(session),
+            state=state,
+            nmt=nmt,
+            current=current,
+        )
+
+    def _targets(self, session: Session, ps: ParameterSet, map_names: bool) -> list[ObjectAddress]:
+        if ps.profile_id != session.profile.id and map_names:
+            rows = paramset.map_by_name(ps.entries, session.profile)
+            return [r.target for r in rows if r.target is not None]
+        return [e.address for e in ps.entries]
+
+    async def preflight(
+        self, session: Session, ps: ParameterSet, *, map_names: bool = False
+    ) -> tuple[Preflight, DriveFacts]:
+        facts = await self.facts(session, self._targets(session, ps, map_names))
+        return paramset.preflight(ps, facts, map_names=map_names), facts
+
+    # Restore --------------------------------------------------------------------------------
+
+    def _lock(self, session: Session) -> asyncio.Lock:
+        lock = self._locks.get(session.id)
+        if lock is None:
+            lock = self._locks[session.id] = asyncio.Lock()
+        if lock.locked():
+            raise ConflictError(
+                f"a restore into {session.id} is already running",
+                hint="wait for it to finish (its progress is on the WebSocket)",
+            )
+        return lock
+
+    async def restore(
+        self,
+        session: Session,
+        backup_id: str,
+        *,
+        dry_run: bool = False,
+        store: bool = True,
+        force: bool = False,
+        map_by_name: bool = False,
+        client: str = "unknown",
+        rewrite_all: bool = False,
+    ) -> dict[str, Any]:
+        """Restore backup ``backup_id`` into ``session`` (see the module docstring).
+
+        ``rewrite_all`` writes (and verifies) unchanged entries too, e.g. to measure the
+        write path or to be sure every value went through the drive's own checks.
+        """
+        ps = self.backups.load(backup_id)
+        async with self._lock(session):
+            pf, facts = await self.preflight(session, ps, map_names=map_by_name)
+            if not pf.ok:
+                raise _refuse(pf)
+            if rewrite_all:
+                pf = replace(
+                    pf,
+                    items=[
+                        replace(it, status="would_write") if it.status == "unchanged" else it
+                        for it in pf.items
+                    ],
+                )
+            steps, items = self._plan(session, pf, facts)
+            rid = new_id("r")
+            options = {
+                "store": store,
+                "force": force,
+                "map_by_name": map_by_name,
+                "client": client,
+                "warnings": pf.warnings,
+                "steps": [_step_dict(s) for s in steps],
+            }
+            meta = {
+                "id": rid,
+                "backup": backup_id,
+                "session": session.id,
+                "drive_key": drive_key(session),
+                "bus": bus_of(session),
+                "time": now_iso(),
+                "dry_run": dry_run,
+                "finished": dry_run,
+                "options": options,
+            }
+            if dry_run:
+                self.store.add_restore(meta, [_item_dict(it) for it in items])
+                return self.report(rid)
+            # Before writing anything: the drive's present parameters, as a backup of its own.
+            pre = await self.backups.backup(
+                session,
+                label=f"before restore of {backup_id}",
+                note="taken automatically before a restore",
+                source="pre-restore",
+            )
+            meta["pre_backup"] = pre["id"]
+            rows = [_item_dict(it, pending=True) for it in items]
+            self.store.add_restore(meta, rows)
+            await self._run(rid, session, steps, rows, client)
+            return await self._finish(rid, session, options)
+
+    def _plan(
+        self, session: Session, pf: Preflight, facts: DriveFacts
+    ) -> tuple[list[Step], list[paramset.PlanItem]]:
+        to_write = {it.address: it.new_raw for it in pf.items if it.status == "would_write"}
+        targets = {
+            it.address: it.new_raw for it in pf.items if it.status in ("would_write", "unchanged")
+        }
+        steps = paramset.plan_writes(
+            session.profile,
+            {a: r for a, r in to_write.items() if r is not None},
+            {a: r for a, r in targets.items() if r is not None},
+            facts.current,
+        )
+        # Items in the order they are written; the others after them by address.
+        pos = {s.entry: i for i, s in enumerate(steps) if s.entry is not None}
+        items = sorted(pf.items, key=lambda it: (pos.get(it.address, len(steps)), it.address))
+        return steps, items
+
+    async def _run(
+        self,
+        rid: str,
+        session: Session,
+        steps: list[Step],
+        rows: list[dict[str, Any]],
+        client: str,
+    ) -> None:
+        seq = {ObjectAddress.parse(r["address"]): i for i, r in enumerate(rows)}
+        status = {i: r["status"] for i, r in enumerate(rows)}
+        failed_groups: dict[str, str] = {}
+        touched: dict[str, set[ObjectAddress]] = {}
+        total = len(steps) or 1
+
+        def set_item(a: ObjectAddress, **fields: Any) -> None:
+            i = seq.get(a)
+            if i is None:
+                return
+            if "status" in fields:
+                status[i] = fields["status"]
+            self.store.set_item(rid, i, **fields)
+
+        def fail_group(group: str, reason: str) -> None:
+            failed_groups[group] = reason
+            # Objects the procedure changed on the way (PDO invalid, count 0) are not as
+            # the report would otherwise claim: say so.
+            for a in touched.get(group, set()):
+                i = seq.get(a)
+                if i is not None and status[i] == "unchanged":
+                    set_item(a, status="failed", message=f"left changed: {reason}")
+
+        for n, step in enumerate(steps):
+            if step.group in failed_groups and step.group != str(step.address):
+                if step.entry is not None:
+                    set_item(
+                        step.entry,
+                        status="failed",
+                        message=f"not written: {failed_groups[step.group]}",
+                    )
+                continue
+            name = rows[seq[step.entry]]["name"] if step.entry in seq else step.why
+            publish_progress(
+                session,
+                "restore",
+                n / total,
+                f"writing {step.address} {name}",
+                item={"address": str(step.address), "name": name, "why": step.why},
+            )
+            touched.setdefault(step.group, set()).add(step.address)
+            try:
+                got = await session.write_object(
+                    step.address, raw_hex=step.raw.hex(), client=client
+                )
+            except LinkError as exc:
+                # The write may or may not have landed: pending, checked again on resume.
+                # So are the objects a PDO procedure had changed on the way.
+                why = f"interrupted at {step.address} ({step.why}): {exc.message}"
+                if step.entry is not None:
+                    set_item(step.entry, status="pending", message=why)
+                for a in touched.get(step.group, set()) - {step.entry}:
+                    i = seq.get(a)
+                    if i is not None and status[i] in ("unchanged", "written"):
+                        set_item(a, status="pending", message=why)
+                self.store.set_restore(
+                    rid,
+                    interrupted=True,
+                    message=f"interrupted at {step.address} {name}: {exc.message}; "
+                    "resume when the drive answers again",
+                )
+                publish_progress(session, "restore", n / total, f"interrupted: {exc.message}")
+                return
+            except ObjectAccessError as exc:
+                reason = f"{step.address} ({step.why}) refused: 0x{exc.code:08X} {exc.meaning}"
+                if step.entry is not None:
+                    set_item(
+                        step.entry,
+                        status="failed",
+                        code=exc.code,
+                        meaning=exc.meaning,
+                        message=exc.message,
+                    )
+                fail_group(step.group, reason)
+                continue
+            except ServodeskError as exc:
+                if step.entry is not None:
+                    set_item(step.entry, status="failed", message=exc.message)
+                fail_group(step.group, f"{step.address} ({step.why}): {exc.message}")
+                continue
+            back = bytes.fromhex(got.raw_hex)
+            if back != step.raw:
+                reason = f"{step.address} read back {back.hex()} after writing {step.raw.hex()}"
+                if step.entry is not None:
+                    set_item(step.entry, status="failed", message=reason)
+                fail_group(step.group, reason)
+                continue
+            if step.entry is not None:
+                set_item(step.entry, status="written", message=None)
+        # Final check: every written value is still there. A drive that reset (or was
+        # changed by someone else) meanwhile has lost them: pending again, resumable.
+        done = [i for i, st in status.items() if st == "written"]
+        addrs = [ObjectAddress.parse(rows[i]["address"]) for i in done]
+        try:
+            results = await session.read_many(addrs)
+        except LinkError as exc:
+            self.store.set_restore(
+                rid, interrupted=True, message=f"final check interrupted: {exc.message}"
+            )
+            return
+        lost = 0
+        for i, a, r in zip(done, addrs, results, strict=True):
+            target = rows[i]["new_raw_hex"]
+            if isinstance(r, ServodeskError) or r.raw_hex != target:
+                lost += 1
+                set_item(
+                    a,
+                    status="pending",
+                    message="changed after it was written and verified (drive reset?)",
+                )
+        if lost:
+            self.store.set_restore(
+                rid,
+                interrupted=True,
+                message=f"{lost} written value(s) changed before the end of the restore "
+                "(drive reset?); resume to write them again",
+            )
+            return
+        publish_progress(session, "restore", 1.0, "all writes done")
+
+    async def _finish(self, rid: str, session: Session, options: dict[str, Any]) -> dict[str, Any]:
+        rep = self.report(rid)
+        if rep["interrupted"] and rep["counts"]["pending"]:
+            return rep
+        c = rep["counts"]
+        verified = c["failed"] == 0 and c["pending"] == 0
+        stored = False
+        message = None
+        if options.get("store", True) and (verified or options.get("force")):
+            try:
+                await session.store()
+                stored = True
+            except LinkError as exc:
+                self.store.set_restore(
+                    rid, interrupted=True, message=f"storing failed: {exc.message}"
+                )
+                return self.report(rid)
+            except ServodeskError as exc:
+                message = f"not stored: {exc.message}"
+        elif options.get("store", True):
+            message = (
+                f"not stored to non-volatile memory: {c['failed']} item(s) failed; the drive "
+                "keeps the values until it is reset (force to store anyway)"
+            )
+        self.store.set_restore(
+            rid, finished=True, interrupted=False, stored=stored, message=message
+        )
+        return self.report(rid)
+
+    # Resume ---------------------------------------------------------------------------------
+
+    async def resume(self, rid: str, session: Session, client: str = "unknown") -> dict[str, Any]:
+        """Continue a restore: check every item against the drive, write what is missing."""
+        rec = self.store.get_restore(rid)
+        if rec["dry_run"]:
+            raise ValidationError(
+                f"restore {rid} was a dry run; nothing to resume",
+                field="restore",
+                hint="run the restore without dry_run",
+            )
+        if rec["finished"] and not any(
+            it["status"] in ("pending", "failed") for it in rec["items"]
+        ):
+            return self.report(rid)
+        options = rec["options"]
+        ps = self.backups.load(rec["backup"])
+        async with self._lock(session):
+            self.store.set_restore(rid, session=session.id)
+            rows = rec["items"]
+            live = [r for r in rows if r["status"] in ("written", "pending", "failed", "unchanged")]
+            live = [r for r in live if not (r["message"] or "").startswith("not mapped")]
+            addresses = [ObjectAddress.parse(r["address"]) for r in live]
+            facts = await self.facts(session, addresses)
+            # Still to do: every item whose value is not on the drive now (a reset drive
+            # lost the ones written before it), whatever its status was.
+            missing: set[ObjectAddress] = set()
+            for r, a in zip(live, addresses, strict=True):
+                target = bytes.fromhex(r["new_raw_hex"])
+                if facts.current.get(a) == target:
+                    if r["status"] in ("pending", "failed"):
+                        self.store.set_item(
+                            rid, r["seq"], status="written", message="verified on resume"
+                        )
+                else:
+                    missing.add(ObjectAddress.parse(r["source"]))
+            subset = replace(ps, entries=tuple(e for e in ps.entries if e.address in missing))
+            pf = paramset.preflight(subset, facts, map_names=bool(options.get("map_by_name")))
+            if not pf.ok:
+                raise _refuse(pf)
+            targets = {
+                a: bytes.fromhex(r["new_raw_hex"])
+                for r, a in zip(live, addresses, strict=True)
+                if r["status"] != "skipped_read_only"
+            }
+            to_write = {it.address: it.new_raw for it in pf.items if it.status == "would_write"}
+            steps = paramset.plan_writes(
+                session.profile,
+                {a: r for a, r in to_write.items() if r is not None},
+                targets,
+                facts.current,
+            )
+            for it in pf.items:
+                if it.status == "would_write":
+                    self.store.set_item(rid, self._seq(rows, it.address), status="pending")
+            self.store.set_restore(rid, interrupted=False, message=None)
+            fresh = self.store.get_restore(rid)["items"]
+            await self._run(rid, session, steps, fresh, client)
+            return await self._finish(rid, session, options)
+
+    @staticmethod
+    def _seq(rows: list[dict[str, Any]], address: ObjectAddress) -> int:
+        text = str(address)
+        for r in rows:
+            if r["address"] == text:
+                return int(r["seq"])
+        raise ValidationError(f"{address} is not an item of this restore")
+
+    # Reports --------------------------------------------------------------------------------
+
+    def report(self, rid: str) -> dict[str, Any]:
+        rec = self.store.get_restore(rid)
+        counts = {
+            "written": 0,
+            "unchanged": 0,
+            "skipped": 0,
+            "failed": 0,
+            "pending": 0,
+            "would_write": 0,
+        }
+        items = []
+        for it in rec["items"]:
+            st = it["status"]
+            key = "skipped" if st == "skipped_read_only" else st
+            counts[key] = counts.get(key, 0) + 1
+            code = it["code"]
+            items.append(
+                {
+                    "address": it["address"],
+                    "name": it["name"],
+                    "status": st,
+                    "old_raw_hex": it["old_raw_hex"],
+                    "new_raw_hex": it["new_raw_hex"],
+                    "code": code,
+                    "code_hex": f"0x{code:08X}" if code is not None else None,
+                    "meaning": it["meaning"],
+                    "message": it["message"],
+                }
+            )
+        options = rec["options"]
+        return {
+            "id": rec["id"],
+            "backup": rec["backup"],
+            "session": rec["session"],
+            "time": rec["time"],
+            "dry_run": rec["dry_run"],
+            "finished": rec["finished"],
+            "stored": rec["stored"],
+            "interrupted": rec["interrupted"],
+            "pre_backup": rec["pre_backup"],
+            "message": rec["message"],
+            "warnings": options.get("warnings", []),
+            "counts": counts,
+            "items": items,
+            "steps": options.get("steps", []),
+        }
+
+
+def _step_dict(s: Step) -> dict[str, Any]:
+    return {
+        "address": str(s.address),
+        "raw_hex": s.raw.hex(),
+        "entry": str(s.entry) if s.entry is not None else None,
+        "why": s.why,
+    }
+
+
+def _item_dict(it: paramset.PlanItem, pending: bool = False) -> dict[str, Any]:
+    status = "pending" if pending and it.status == "would_write" else it.status
+    return {
+        "address": str(it.address),
+        "source": str(it.source),
+        "name": it.name,
+        "status": status,
+        "old_raw_hex": it.old_raw.hex() if it.old_raw is not None else None,
+        "new_raw_hex": it.new_raw.hex() if it.new_raw is not None else None,
+        "message": it.message,
+    }

@@ -1,0 +1,166 @@
+"""Dead-man latency: from the last heartbeat to the stop command on the bus, and to standstill.
+
+A backend with a simulated drive on a python-can virtual bus; a client holds control, jogs
+with heartbeats over the WebSocket, then stops sending them. A plain python-can Bus on the
+same channel timestamps the first controlword download carrying halt (bit 8) or quick stop;
+the simulated drive tells when the axis stands (|velocity| within 606Fh, 1000 inc/s). The
+figures include the configured dead-man time (SERVODESK_DEADMAN_MS, 250 ms by default);
+``over_deadline`` is what the backend adds to it.
+
+    python bench/bench_deadman.py [--runs 20] [--deadman-ms 250] [--velocity 200000] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import tempfile
+import threading
+import time
+from typing import Any
+
+import can
+from fastapi.testclient import TestClient
+
+from servodesk.api.app import create_app
+from servodesk.settings import Settings
+
+SID = "cia402-generic-1"
+NODE = 1
+STANDSTILL = 1000
+
+
+class Spy:
+    """First halt / quick-stop controlword download to the node, with its bus timestamp."""
+
+    def __init__(self, channel: str) -> None:
+        self.bus = can.Bus(interface="virtual", channel=channel)
+        self.stops: list[float] = []
+        self._stop = threading.Event()
+        self._t = threading.Thread(target=self._run, daemon=True)
+        self._t.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            m = self.bus.recv(0.05)
+            if m is None or m.arbitration_id != 0x600 + NODE or len(m.data) < 6:
+                continue
+            if m.data[0] & 0xE0 != 0x20 or m.data[1:4] != b"\x40\x60\x00":
+                continue
+            word = int.from_bytes(m.data[4:6], "little")
+            if word & 0x0100 or word & 0x0086 == 0x0002:
+                self.stops.append(m.timestamp)
+
+    def close(self) -> None:
+        self._stop.set()
+        self._t.join(1.0)
+        self.bus.shutdown()
+
+
+def one_run(client: TestClient, ws: Any, drive: Any, spy: Spy, velocity: int) -> dict[str, float]:
+    h = {"X-Servodesk-Client": "bench"}
+    r = client.post(f"/api/v1/sessions/{SID}/state", json={"command": "enable"}, headers=h)
+    r.raise_for_status()
+    r = client.post(
+        f"/api/v1/sessions/{SID}/motion/jog",
+        json={"velocity": velocity, "acceleration": 10 * abs(velocity)},
+        headers=h,
+    )
+    r.raise_for_status()
+    last = 0.0
+    end = time.monotonic() + 0.3
+    while time.monotonic() < end:
+        last = time.time()
+        ws.send_json({"type": "heartbeat", "session": SID})
+        time.sleep(0.05)
+    n = len(spy.stops)
+    t_end = time.monotonic() + 3.0
+    standstill = None
+    while time.monotonic() < t_end:
+        if standstill is None and abs(drive.velocity) <= STANDSTILL and len(spy.stops) > n:
+            standstill = time.time()
+            break
+        time.sleep(0.0005)
+    if standstill is None or len(spy.stops) <= n:
+        status = client.get(f"/api/v1/sessions/{SID}/motion").json()
+        raise RuntimeError(
+            f"the dead-man did not stop the axis: v={drive.velocity:.0f}, "
+            f"stops {len(spy.stops)} (before {n}), motion {status}"
+        )
+    return {
+        "to_bus_ms": (spy.stops[n] - last) * 1000.0,
+        "to_standstill_ms": (standstill - last) * 1000.0,
+    }
+
+
+def summary(values: list[float]) -> dict[str, float]:
+    return {
+        "median": round(statistics.median(values), 2),
+        "worst": round(max(values), 2),
+        "best": round(min(values), 2),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", type=int, default=20)
+    ap.add_argument("--deadman-ms", type=int, default=250)
+    ap.add_argument("--velocity", type=int, default=200_000, help="jog velocity, inc/s")
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args(argv)
+    channel = f"bench-deadman-{os.getpid()}"
+    spy = Spy(channel)
+    runs: list[dict[str, float]] = []
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            settings = Settings(
+                sim=True,
+                sim_channel=channel,
+                sim_profiles="cia402-generic",
+                data_dir=tmp,
+                deadman_ms=args.deadman_ms,
+                viewer_port=0,  # No 3D viewer: it would only compete for the CPU.
+            )
+            app = create_app(settings)
+            with TestClient(app) as client:
+                drive = app.state.servodesk.sim.drives[0]
+                r = client.post(
+                    f"/api/v1/sessions/{SID}/control",
+                    json={"action": "take"},
+                    headers={"X-Servodesk-Client": "bench"},
+                )
+                r.raise_for_status()
+                with client.websocket_connect("/api/v1/ws?client=bench") as ws:
+                    for i in range(args.runs):
+                        # Alternate directions: the axis stays clear of the simulated
+                        # limit switches.
+                        v = args.velocity if i % 2 == 0 else -args.velocity
+                        runs.append(one_run(client, ws, drive, spy, v))
+                        time.sleep(0.05)
+    finally:
+        spy.close()
+    bus = [r["to_bus_ms"] for r in runs]
+    still = [r["to_standstill_ms"] for r in runs]
+    result = {
+        "runs": len(runs),
+        "deadman_ms": args.deadman_ms,
+        "velocity": args.velocity,
+        "heartbeat_to_stop_on_bus_ms": summary(bus),
+        "heartbeat_to_standstill_ms": summary(still),
+        "over_deadline_ms": summary([b - args.deadman_ms for b in bus]),
+    }
+    if args.json:
+        print(json.dumps(result, indent=2))
+    else:
+        b, s = result["heartbeat_to_stop_on_bus_ms"], result["heartbeat_to_standstill_ms"]
+        print(f"dead-man {args.deadman_ms} ms, {len(runs)} runs, jog {args.velocity} inc/s")
+        print(f"  last heartbeat -> stop on the bus: median {b['median']} ms, worst {b['worst']}")
+        print(f"  last heartbeat -> standstill:      median {s['median']} ms, worst {s['worst']}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,161 @@
+/**
+ * Live operation state per session, shared by the Operation page's panels: who holds
+ * control, the running motion, the last dead-man stop, the homing run, and the heartbeat
+ * loop of motion this tab started.
+ *
+ * Fed by the WebSocket messages `control`, `motion`, `deadman`, `homing` (docs/api.md
+ * issue 4) and by the REST answers. The heartbeat loop stops when the motion this tab
+ * started ended (a `motion` message that is no longer active, after one that was), when the
+ * dead-man fired, or when another client took control; a poll of GET /motion backs this up in
+ * case a message was missed.
+ */
+import type { Control, HomingStatus, MotionStatus } from '../../api/types';
+import { operationApi } from '../../api/client';
+import { tabClientId } from '../../lib/backupClientId';
+import { HeartbeatLoop, type HeartbeatInfo } from '../../lib/heartbeat';
+import { Observable } from '../../state/observable';
+import { socket } from '../../state/store';
+import type { DeadmanMessage } from '../../ws/messages';
+
+export interface OperationLive {
+  control: Control | null;
+  motion: MotionStatus | null;
+  deadman: DeadmanMessage | null;
+  homing: HomingStatus | null;
+  heartbeat: HeartbeatInfo;
+}
+
+interface Entry {
+  obs: Observable<OperationLive>;
+  loop: HeartbeatLoop;
+  /** The motion this tab started was seen running since the loop started. */
+  seenActive: boolean;
+  /** The start request answered: a poll now tells the truth about that motion. */
+  startAnswered: boolean;
+  poll: ReturnType<typeof setInterval> | null;
+}
+
+const entries = new Map<string, Entry>();
+
+export function me(): string {
+  return tabClientId();
+}
+
+function entry(sid: string): Entry {
+  let e = entries.get(sid);
+  if (!e) {
+    const loop = new HeartbeatLoop(() => socket.heartbeat(sid));
+    const obs = new Observable<OperationLive>({
+      control: null,
+      motion: null,
+      deadman: null,
+      homing: null,
+      heartbeat: loop.state,
+    });
+    const created: Entry = { obs, loop, seenActive: false, startAnswered: false, poll: null };
+    loop.onChange((heartbeat) => obs.update((v) => ({ ...v, heartbeat })));
+    entries.set(sid, created);
+    e = created;
+  }
+  return e;
+}
+
+export function operationLive(sid: string): Observable<OperationLive> {
+  return entry(sid).obs;
+}
+
+export function setControl(sid: string, control: Control): void {
+  const e = entry(sid);
+  e.obs.update((v) => ({ ...v, control }));
+  if (control.owner !== me()) stopHeartbeat(sid);
+}
+
+export function setMotion(sid: string, motion: MotionStatus): void {
+  const e = entry(sid);
+  e.obs.update((v) => ({ ...v, motion }));
+  if (!e.loop.running) return;
+  const mine = motion.owner === me();
+  if (motion.active && mine) e.seenActive = true;
+  // A stale "ended" of the previous motion may arrive after a new start: only an end that
+  // follows this motion's own "running" stops the heartbeat.
+  else if (e.seenActive || (motion.active && !mine)) stopHeartbeat(sid);
+}
+
+export function setHoming(sid: string, homing: HomingStatus): void {
+  entry(sid).obs.update((v) => ({ ...v, homing }));
+}
+
+export function clearDeadman(sid: string): void {
+  entry(sid).obs.update((v) => ({ ...v, deadman: null }));
+}
+
+/** Start heartbeats for a motion this tab is about to start (before the request: the
+ * server's dead-man counts from the request's arrival). */
+export function beginHeartbeat(sid: string): void {
+  const e = entry(sid);
+  e.seenActive = false;
+  e.startAnswered = false;
+  e.loop.start();
+  if (e.poll === null) {
+    e.poll = setInterval(() => {
+      if (!e.loop.running) return;
+      if (!e.startAnswered) return;
+      operationApi.motion(sid).then(
+        (m) => {
+          e.obs.update((v) => ({ ...v, motion: m }));
+          if (!m.active || m.owner !== me()) stopHeartbeat(sid);
+        },
+        () => undefined,
+      );
+    }, 500);
+  }
+}
+
+/** The start request answered: with its status, or failed (null) which ends the heartbeat. */
+export function startAnswered(sid: string, status: MotionStatus | null): void {
+  const e = entry(sid);
+  if (status === null) {
+    stopHeartbeat(sid);
+    return;
+  }
+  e.startAnswered = true;
+  if (status.active && status.owner === me()) e.seenActive = true;
+  setMotion(sid, status);
+}
+
+export function stopHeartbeat(sid: string): void {
+  const e = entries.get(sid);
+  if (!e) return;
+  e.loop.stop();
+  e.seenActive = false;
+  e.startAnswered = false;
+  if (e.poll !== null) clearInterval(e.poll);
+  e.poll = null;
+}
+
+export function heartbeatRunning(sid: string): boolean {
+  return entries.get(sid)?.loop.running ?? false;
+}
+
+let started = false;
+
+/** Register the socket handlers once (the socket itself is started by the shared store). */
+export function startOperationStore(): void {
+  if (started) return;
+  started = true;
+  socket.on('control', (m) => {
+    setControl(m.session, { session: m.session, owner: m.owner, since: m.since, you: m.owner === me() });
+  });
+  socket.on('motion', (m) => {
+    const { type: _type, ...status } = m;
+    setMotion(m.session, status);
+  });
+  socket.on('deadman', (m) => {
+    stopHeartbeat(m.session);
+    entry(m.session).obs.update((v) => ({ ...v, deadman: m }));
+  });
+  socket.on('homing', (m) => {
+    const { type: _type, ...status } = m;
+    setHoming(m.session, status);
+  });
+}

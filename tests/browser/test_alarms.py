@@ -1,0 +1,112 @@
+"""The Alarms page against the real backend and the simulated generic CiA 402 drive.
+
+What a maintenance technician relies on: a real fault (a following error, provoked by a tiny
+following error window 6065h and a fast move started from the Operation page) shows on the
+Alarms page with its code, name, cause and remedy from the manual, in the EMCY log with its
+time and in the error history (1003h); the Fault reset button clears it following the
+family's procedure (shown on the page); clearing the history asks first.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+
+import pytest
+from playwright.sync_api import Page, expect
+
+pytestmark = pytest.mark.browser
+
+SID = "cia402-generic-1"
+WINDOW = "0x6065:00"  # Following error window
+
+
+def client_id(page: Page) -> str:
+    cid = page.evaluate("() => sessionStorage.getItem('servodesk.client')")
+    assert isinstance(cid, str) and cid
+    return cid
+
+
+def put(page: Page, addr: str, value: int) -> None:
+    r = page.request.put(
+        f"/api/v1/sessions/{SID}/objects/{addr}",
+        data=json.dumps({"value": value}),
+        headers={"Content-Type": "application/json", "X-Servodesk-Client": client_id(page)},
+    )
+    assert r.ok, r.text()
+
+
+@pytest.fixture
+def operator(page: Page) -> Iterator[Page]:
+    page.goto(f"/#/operation/{SID}")
+    expect(page.get_by_test_id("operation-page")).to_be_visible()
+    expect(page.get_by_test_id("socket-banner")).to_have_count(0, timeout=10_000)
+    r = page.request.get(f"/api/v1/sessions/{SID}/objects/{WINDOW}")
+    assert r.ok, r.text()
+    original = int(r.json()["value"])
+    try:
+        yield page
+    finally:
+        headers = {"X-Servodesk-Client": client_id(page), "Content-Type": "application/json"}
+        put(page, WINDOW, original)
+        page.request.post(f"/api/v1/sessions/{SID}/alarms/reset", data="{}", headers=headers)
+        page.request.post(
+            f"/api/v1/sessions/{SID}/control", data='{"action":"release"}', headers=headers
+        )
+
+
+def test_following_error_shown_and_reset(operator: Page) -> None:
+    page = operator
+    page.get_by_test_id("control-take").click()
+    expect(page.get_by_test_id("control-owner")).to_have_attribute("data-you", "true")
+    state = page.get_by_test_id("op-state")
+    expect(state).not_to_have_text("—")
+    if state.inner_text().strip() != "Operation enabled":
+        page.get_by_test_id("servo-on").click()  # Waits until the button is enabled.
+    expect(page.get_by_test_id("op-state")).to_have_text("Operation enabled", timeout=10_000)
+
+    # A following error window of 10 increments: any fast move trips it.
+    put(page, WINDOW, 10)
+    page.get_by_test_id("tab-move").click()
+    page.get_by_test_id("move-mode-relative").click()
+    page.get_by_test_id("move-target").fill("500000")
+    page.get_by_test_id("move-velocity").fill("900000")
+    page.get_by_test_id("move-acceleration").fill("10000000")
+    page.get_by_test_id("move-deceleration").fill("10000000")
+    page.get_by_test_id("move-start").click()
+    expect(page.get_by_test_id("op-state")).to_have_text("Fault", timeout=5_000)
+    expect(page.get_by_test_id("op-fault-banner")).to_contain_text("Following error")
+
+    page.get_by_test_id("nav-alarms").click()
+    expect(page.get_by_test_id("alarms-page")).to_be_visible()
+    current = page.get_by_test_id("current-alarm")
+    expect(page.get_by_test_id("alarm-code")).to_have_text("0x8611")
+    expect(page.get_by_test_id("alarm-name")).to_contain_text("Following error")
+    expect(page.get_by_test_id("alarm-cause")).to_contain_text("following error window (6065h)")
+    expect(page.get_by_test_id("alarm-remedy")).to_contain_text("raise 6065h")
+    expect(current).to_have_class("card card-fault")
+    expect(page.get_by_test_id("alarms-state")).to_have_text("Fault")
+    # The EMCY log has the fault with a time; the error history (1003h) has it too.
+    emcy = page.get_by_test_id("emcy-row").filter(has_text="0x8611").first
+    expect(emcy).to_contain_text("Following error")
+    expect(emcy).to_contain_text(":")
+    expect(page.get_by_test_id("history-entry").filter(has_text="0x8611").first).to_contain_text(
+        "1003h"
+    )
+    expect(page.get_by_test_id("reset-procedure")).to_contain_text("controlword bit 7")
+
+    # Remove the cause, then reset with the button.
+    put(page, WINDOW, 20000)
+    page.get_by_test_id("fault-reset").click()
+    expect(page.get_by_test_id("no-alarm")).to_be_visible(timeout=5_000)
+    expect(page.get_by_test_id("alarms-state")).to_have_text("Switch on disabled")
+    expect(current).not_to_have_class("card card-fault")
+
+    # Clearing the history asks first; cancel keeps it, confirm empties it.
+    page.get_by_test_id("clear-history").click()
+    page.get_by_test_id("clear-dialog-cancel").click()
+    expect(page.get_by_test_id("history-entry").first).to_be_visible()
+    page.get_by_test_id("clear-history").click()
+    expect(page.get_by_test_id("clear-dialog")).to_contain_text("cannot be")
+    page.get_by_test_id("clear-dialog-confirm").click()
+    expect(page.get_by_test_id("history-empty")).to_be_visible()

@@ -1,0 +1,111 @@
+"""The Object dictionary page on the largest profile (SMC LECSN-T, 2912 objects).
+
+What a commissioning engineer does there: find an object the way the manual writes it
+(6083h, 0x6083, P24707) or by words of its name, narrow the list by group, access and PDO,
+read live values, and write one object from its detail panel. The object is 6083h Profile
+acceleration (PNU 24707): writable, limits 0..50000 ms in the lecsn-t profile (LECSN manual
+§20.9.3.10), so a value above the maximum is refused in the browser before anything is sent,
+and a good one is written and read back from the simulated drive.
+"""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+from playwright.sync_api import Page, expect
+
+pytestmark = pytest.mark.browser
+
+SID = "lecsn-t-5"
+ADDR = "0x6083:00"
+
+
+def open_dictionary(page: Page) -> None:
+    page.goto(f"/#/dictionary/{SID}")
+    expect(page.get_by_test_id("od-count")).to_contain_text("of 2912 objects", timeout=15_000)
+
+
+def test_search_accepts_every_address_spelling(page: Page) -> None:
+    open_dictionary(page)
+    search = page.get_by_test_id("od-search")
+    row = page.get_by_test_id(f"od-row-{ADDR}")
+    for text in ("6083h", "0x6083", "P24707", "6083"):
+        search.fill(text)
+        expect(row).to_be_visible()
+        expect(row).to_contain_text("P24707")
+    # The PNU form finds exactly that object, not every PNU that starts with its digits.
+    search.fill("P24707")
+    expect(page.get_by_test_id("od-count")).to_have_text("1 of 2912 objects")
+    # Words of the name; the drive's own symbol (PA01 = P8193 = 2001h, §20.1.5.1).
+    search.fill("PA01")
+    expect(page.get_by_test_id("od-row-0x2001:00")).to_be_visible()
+    search.fill("zzzz-no-such-object")
+    expect(page.get_by_test_id("od-count")).to_have_text("0 of 2912 objects")
+
+
+def test_filters_narrow_the_list(page: Page) -> None:
+    open_dictionary(page)
+    count = page.get_by_test_id("od-count")
+    page.get_by_test_id("od-search").fill("acceleration")
+    expect(count).not_to_have_text("0 of 2912 objects")
+    all_hits = int(count.inner_text().split()[0])
+
+    page.get_by_test_id("od-group").select_option("profile_position")
+    expect(page.get_by_test_id(f"od-row-{ADDR}")).to_be_visible()
+    in_group = int(count.inner_text().split()[0])
+    assert 0 < in_group < all_hits
+    # Every row shown belongs to the group's 6xxxh objects, none of the point tables (28xxh).
+    expect(page.locator('[data-testid^="od-row-0x28"]')).to_have_count(0)
+
+    page.get_by_test_id("od-pdo").check()
+    expect(page.get_by_test_id(f"od-row-{ADDR}")).to_contain_text("Rx")
+    page.get_by_test_id("od-access").select_option("writable")
+    expect(page.get_by_test_id(f"od-row-{ADDR}")).to_be_visible()
+
+
+def test_write_refused_in_place_then_written_and_read_back(page: Page) -> None:
+    open_dictionary(page)
+    page.get_by_test_id("od-search").fill("P24707")
+    page.get_by_test_id(f"od-row-{ADDR}").click()
+    detail = page.get_by_test_id("od-detail")
+    expect(detail.get_by_test_id("od-detail-name")).to_have_text("Profile acceleration")
+    expect(detail.get_by_test_id("od-detail-section")).to_contain_text("§")
+
+    value = detail.get_by_test_id("value-input")
+    value.fill("60000")
+    detail.get_by_test_id("value-write").click()
+    error = detail.get_by_test_id("value-error")
+    expect(error).to_contain_text("above the maximum 50000")
+    expect(detail.get_by_test_id("readback")).to_have_count(0)
+
+    # Hex entry: 5DC is 1500 ms.
+    detail.get_by_test_id("value-hex").click()
+    value.fill("5DC")
+    expect(error).to_have_count(0)
+    detail.get_by_test_id("value-write").click()
+    expect(detail.get_by_test_id("readback-value")).to_have_text("1500")
+    expect(detail.get_by_test_id("od-detail-value")).to_contain_text("1500")
+    expect(page.get_by_test_id(f"od-row-{ADDR}")).to_contain_text("1500")
+
+
+def test_read_values_and_differs_from_default(page: Page) -> None:
+    open_dictionary(page)
+    page.get_by_test_id("od-group").select_option("profile_position")
+    page.get_by_test_id("od-search").fill("P24707")
+    page.get_by_test_id(f"od-row-{ADDR}").click()
+    detail = page.get_by_test_id("od-detail")
+    detail.get_by_test_id("value-input").fill("2500")
+    detail.get_by_test_id("value-write").click()
+    expect(detail.get_by_test_id("readback-value")).to_have_text("2500")
+
+    page.get_by_test_id("od-search").fill("")
+    page.get_by_test_id("od-read-values").click()
+    expect(page.get_by_test_id("od-read-values")).to_be_visible(timeout=15_000)
+    expect(page.get_by_test_id("od-known")).to_contain_text(re.compile(r"\d+ with live values"))
+    # 6083h now differs from its default (0); the filter keeps it and drops unchanged ones.
+    page.get_by_test_id("od-differs").check()
+    expect(page.get_by_test_id(f"od-row-{ADDR}")).to_be_visible()
+    expect(page.get_by_test_id(f"od-row-{ADDR}")).to_contain_text(re.compile(r"≠\s*2500"))
+    shown = int(page.get_by_test_id("od-count").inner_text().split()[0])
+    assert shown < 14

@@ -1,0 +1,119 @@
+"""The 3D view: the viser client page of the real backend, in headless Chromium.
+
+The UI's 3D view page embeds this page in an iframe (its URL comes from GET /api/v1/viewer);
+the test loads that URL directly, as the iframe does. What a user relies on: the page connects
+(the backend counts it as a client and raises the drives' poll rate), scene updates stream in
+while an axis moves, so the picture keeps moving with the axis, and it stands still when the
+axis does. (viser's websocket lives in a web worker, out of Playwright's sight: the update
+rate a client sees is measured by bench/bench_viewer.py.)
+"""
+
+from __future__ import annotations
+
+import io
+import itertools
+import json
+import time
+import urllib.request
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+from PIL import Image
+from playwright.sync_api import Browser, Page
+
+pytestmark = pytest.mark.browser
+
+SID = "cia402-generic-1"
+#: Changed pixels (of 640 x 420) below which the picture stands, above which it moved.
+STILL, MOVED = 20, 60
+
+
+def api(base: str, method: str, path: str, body: dict[str, Any] | None = None) -> Any:
+    data = json.dumps(body).encode() if body is not None else None
+    req = urllib.request.Request(
+        f"{base}/api/v1{path}",
+        data=data,
+        method=method,
+        headers={"Content-Type": "application/json"},
+    )
+    with urllib.request.urlopen(req, timeout=5) as r:
+        return json.loads(r.read() or b"null")
+
+
+def wait_for(cond: Any, timeout: float, what: str) -> None:
+    end = time.monotonic() + timeout
+    while not cond():
+        if time.monotonic() > end:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.1)
+
+
+def picture(page: Page) -> np.ndarray:
+    # Software WebGL on a loaded 2-core machine can take many seconds to give a frame.
+    png = page.screenshot(timeout=60_000)
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=np.int16)
+
+
+def changed_pixels(a: np.ndarray, b: np.ndarray) -> int:
+    return int((np.abs(a - b).sum(axis=2) > 30).sum())
+
+
+@pytest.fixture
+def viewer_page(browser: Browser, server_url: str) -> Iterator[Page]:
+    info = api(server_url, "GET", "/viewer")
+    assert info["enabled"] and info["running"], info
+    context = browser.new_context(viewport={"width": 640, "height": 420})
+    context.set_default_timeout(15_000)
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    page.goto(info["url"])
+    yield page
+    context.close()
+    assert not errors, f"uncaught errors in the viewer page: {errors}"
+
+
+def test_viewer_page_connects_and_moves_with_the_axis(viewer_page: Page, server_url: str) -> None:
+    page = viewer_page
+    # Connected: the backend counts the browser as a viewer client.
+    wait_for(lambda: api(server_url, "GET", "/viewer")["clients"] >= 1, 20, "the client")
+    page.locator("canvas").first.wait_for(state="visible")
+    api(server_url, "PUT", f"/sessions/{SID}/objects/0x60FF", {"value": 0})
+    api(server_url, "POST", f"/sessions/{SID}/state", {"command": "disable"})
+    # The scene arrives, the client settles its render resolution; then the picture of a
+    # standing axis stands still.
+    still_b = picture(page)
+    for _ in range(15):
+        time.sleep(0.5)
+        still_a, still_b = still_b, picture(page)
+        if changed_pixels(still_a, still_b) < STILL:
+            break
+    else:
+        raise AssertionError("the picture keeps changing while the axis stands")
+
+    # Profile velocity (CiA 402-2 §6.7) at 1/8 revolution per second, towards the middle of
+    # the simulated limit switches (-1.7 and +3.7 revolutions): software rendering is slow,
+    # and the shots below take seconds.
+    state = api(server_url, "GET", f"/sessions/{SID}/state")
+    if state["state"] == "Fault":
+        api(server_url, "POST", f"/sessions/{SID}/state", {"command": "fault_reset"})
+    velocity = (1 << 14) if (state["position"] or 0) < (1 << 17) else -(1 << 14)
+    api(server_url, "POST", f"/sessions/{SID}/state", {"command": "enable"})
+    api(server_url, "PUT", f"/sessions/{SID}/objects/0x6060", {"value": 3})
+    try:
+        api(server_url, "PUT", f"/sessions/{SID}/objects/0x60FF", {"value": velocity})
+        time.sleep(0.5)
+        # The picture keeps moving: each of a few shots differs from the one before.
+        shots = [picture(page)]
+        for _ in range(2):
+            time.sleep(1.0)  # 45 degrees of the disc.
+            shots.append(picture(page))
+        assert api(server_url, "GET", f"/sessions/{SID}/state")["state"] == "Operation enabled"
+    finally:
+        api(server_url, "PUT", f"/sessions/{SID}/objects/0x60FF", {"value": 0})
+        api(server_url, "POST", f"/sessions/{SID}/state", {"command": "disable"})
+    assert changed_pixels(still_b, shots[0]) > MOVED, "the picture did not move with the axis"
+    for a, b in itertools.pairwise(shots):
+        assert changed_pixels(a, b) > MOVED, "the picture stopped while the axis moved"

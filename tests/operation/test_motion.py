@@ -1,0 +1,192 @@
+"""Moves, velocity, torque and cyclic set-points on simulated drives; limits before the bus."""
+
+from __future__ import annotations
+
+import time
+
+from tests.operation.support import (
+    BusSpy,
+    Heartbeats,
+    headers,
+    operation_app,
+    take_and_enable,
+    wait_motion,
+    wait_until,
+)
+
+GENERIC = "cia402-generic-1"
+HIWIN = "hiwin-e-2"
+A = headers("A")
+
+
+def _post(client, sid: str, path: str, body: dict) -> dict:  # type: ignore[no-untyped-def, type-arg]
+    r = client.post(f"/api/v1/sessions/{sid}/{path}", json=body, headers=A)
+    assert r.status_code == 200, r.text
+    return r.json()  # type: ignore[no-any-return]
+
+
+def test_moves_reach_their_targets(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    with operation_app(channel, tmp_path) as (client, sim):
+        drive = sim.drives[0]
+        take_and_enable(client, GENERIC, "A")
+        with client.websocket_connect("/api/v1/ws?client=A") as ws:
+            beats = Heartbeats(ws, GENERIC)
+            move = {"velocity": 500_000, "acceleration": 5_000_000, "deceleration": 5_000_000}
+            st = _post(
+                client, GENERIC, "motion/move", {"mode": "absolute", "target": 131072, **move}
+            )
+            assert st["active"] and st["kind"] == "move" and st["target"] == 131072
+            done = wait_motion(client, GENERIC)
+            assert done["state"] == "reached", done
+            sw = client.get(f"/api/v1/sessions/{GENERIC}/state").json()
+            assert sw["statusword"] & 0x0400  # Target reached (bit 10).
+            assert abs(sw["position"] - 131072) <= 100  # Position window 6067h.
+
+            _post(client, GENERIC, "motion/move", {"mode": "relative", "target": -65536, **move})
+            assert wait_motion(client, GENERIC)["state"] == "reached"
+            assert abs(drive.position - 65536) <= 100
+
+            # Set of set-points (bit 5 = 0): the second target waits for the first.
+            peak = [drive.position]
+            _post(client, GENERIC, "motion/move", {"mode": "absolute", "target": 262144, **move})
+            st = _post(
+                client,
+                GENERIC,
+                "motion/move",
+                {"mode": "absolute", "target": 0, "immediate": False, **move},
+            )
+            assert st["target"] == 0
+            end = time.monotonic() + 5
+            while client.get(f"/api/v1/sessions/{GENERIC}/motion").json()["active"]:
+                peak.append(drive.position)
+                assert time.monotonic() < end
+                time.sleep(0.005)
+            assert max(peak) > 250_000  # It went to the first target...
+            assert abs(drive.position) <= 100  # ...then on to the second.
+            beats.stop()
+
+
+def test_limits_refuse_before_anything_reaches_the_bus(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    spy = BusSpy(channel)
+    try:
+        with operation_app(channel, tmp_path) as (client, _sim):
+            base = f"/api/v1/sessions/{GENERIC}"
+            take_and_enable(client, GENERIC, "A")
+            # The limits are read from the drive, and again after a write.
+            assert client.get(f"{base}/limits").json()["max_velocity"] == 1_000_000
+            for addr, value in (
+                ("0x607F", 300_000),
+                ("0x607D:01", -100_000),
+                ("0x607D:02", 100_000),
+            ):
+                r = client.put(f"{base}/objects/{addr}", json={"value": value}, headers=A)
+                assert r.status_code == 200, r.text
+            lim = client.get(f"{base}/limits").json()
+            assert (lim["max_velocity"], lim["position_min"], lim["position_max"]) == (
+                300_000,
+                -100_000,
+                100_000,
+            )
+            assert lim["max_torque"] == 3000 and lim["modes"] == [1, 3, 4, 6]
+            with client.websocket_connect("/api/v1/ws?client=A") as ws:
+                beats = Heartbeats(ws, GENERIC)
+                for path, body, words in (
+                    (
+                        "motion/jog",
+                        {"velocity": -300_001, "acceleration": 10**6},
+                        ("max velocity", "300000", "0x607F"),
+                    ),
+                    ("motion/velocity", {"velocity": 400_000}, ("max velocity", "300000")),
+                    ("motion/move", {"target": 100_001}, ("limit max", "100000", "0x607D:02")),
+                    ("motion/move", {"target": 50_000, "velocity": 300_001}, ("max velocity",)),
+                    (
+                        "motion/move",
+                        {"mode": "relative", "target": -150_000},
+                        ("limit min", "-100000"),
+                    ),
+                    ("motion/torque", {"torque": 3001}, ("max torque", "3000", "0x6072")),
+                ):
+                    t0 = time.time()
+                    r = client.post(f"{base}/{path}", json=body, headers=A)
+                    t1 = time.time()
+                    assert r.status_code == 400, (path, r.text)
+                    msg = r.json()["message"]
+                    assert all(w in msg for w in words), msg
+                    time.sleep(0.02)  # Anything sent would be on the spy by now.
+                    assert spy.writes(1, t0, t1 + 0.02) == [], (path, spy.writes(1, t0, t1))
+                # Inside the limits it runs.
+                _post(client, GENERIC, "motion/move", {"target": 90_000})
+                assert wait_motion(client, GENERIC)["state"] == "reached"
+                beats.stop()
+    finally:
+        spy.close()
+
+
+def test_velocity_and_torque_modes(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    with operation_app(channel, tmp_path) as (client, sim):
+        drive = sim.drives[0]
+        take_and_enable(client, GENERIC, "A")
+        with client.websocket_connect("/api/v1/ws?client=A") as ws:
+            beats = Heartbeats(ws, GENERIC)
+            st = _post(
+                client, GENERIC, "motion/velocity", {"velocity": -120_000, "acceleration": 10**6}
+            )
+            assert st["mode"] == 3
+            assert wait_until(lambda: abs(drive.velocity + 120_000) < 2000, 1.0)
+            st = _post(client, GENERIC, "motion/halt", {})
+            assert st["state"] == "halted" and not st["active"]
+            assert wait_until(lambda: abs(drive.velocity) < 1000, 1.0)
+            st = _post(client, GENERIC, "motion/torque", {"torque": 50})
+            assert st["mode"] == 4 and drive.mode == 4
+            assert wait_until(lambda: drive.velocity > 10_000, 1.0)  # 5 % torque accelerates.
+            st = _post(client, GENERIC, "motion/stop", {})
+            assert st["state"] == "stopped"
+            beats.stop()
+
+
+def test_cyclic_runs_where_the_family_has_it_and_is_refused_elsewhere(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    with operation_app(channel, tmp_path, "cia402-generic,hiwin-e") as (client, sim):
+        hiwin = sim.drives[1]
+        take_and_enable(client, GENERIC, "A")
+        take_and_enable(client, HIWIN, "A")
+        with client.websocket_connect("/api/v1/ws?client=A") as ws:
+            beats = Heartbeats(ws, GENERIC)
+            body = {
+                "mode": "csp",
+                "waveform": "sine",
+                "amplitude": 20000,
+                "frequency": 2,
+                "duration": 0.5,
+            }
+            r = client.post(f"/api/v1/sessions/{GENERIC}/motion/cyclic", json=body, headers=A)
+            assert r.status_code == 400
+            msg = r.json()["message"]
+            assert "no Cyclic sync position (csp)" in msg and "Profile position (pp)" in msg
+            beats.stop()
+
+            beats = Heartbeats(ws, HIWIN)
+            start = hiwin.position
+            st = _post(client, HIWIN, "motion/cyclic", body)
+            assert st["active"] and st["mode"] == 8
+            seen = []
+            end = time.monotonic() + 5
+            while client.get(f"/api/v1/sessions/{HIWIN}/motion").json()["active"]:
+                seen.append(hiwin.position - start)
+                assert time.monotonic() < end
+                time.sleep(0.005)
+            done = client.get(f"/api/v1/sessions/{HIWIN}/motion").json()
+            assert done["state"] == "done", done
+            # The axis followed the sine (peak ±20000) and came back to its start.
+            assert max(seen) > 15_000 and min(seen) < -15_000
+            assert wait_until(lambda: abs(hiwin.position - start) < 500, 1.0)
+            # HIWIN changes the mode only at standstill (quirk mode_change_at_standstill).
+            assert wait_until(lambda: abs(hiwin.velocity) < 500, 1.0)
+            assert hiwin.state.name == "OPERATION_ENABLED"
+
+            st = _post(
+                client, HIWIN, "motion/cyclic", {**body, "mode": "csv", "amplitude": 100_000}
+            )
+            assert st["mode"] == 9
+            assert wait_until(lambda: abs(hiwin.velocity) > 50_000, 1.0)
+            assert wait_motion(client, HIWIN)["state"] == "done"
+            beats.stop()
