@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 from pathlib import Path
 
 import httpx
@@ -99,3 +100,20 @@ async def test_import_a_third_party_eds_as_a_profile(client: httpx.AsyncClient) 
     assert r.status_code == 400 and ".eds" in r.json()["hint"]
     r = await client.post("/api/v1/profiles/import?filename=bad.eds", content="[DeviceInfo\n")
     assert r.status_code == 400
+
+
+async def test_servo_on_never_starts_motion_from_a_leftover_target(
+    client: httpx.AsyncClient,
+) -> None:
+    # Profile velocity with a target left from an earlier jog, then a stop.
+    await client.post(f"/api/v1/sessions/{SID}/state", json={"command": "disable"})
+    await client.put(f"/api/v1/sessions/{SID}/objects/0x6060", json={"value": 3})
+    await client.put(f"/api/v1/sessions/{SID}/objects/0x60FF", json={"value": 200000})
+    r = await client.post(f"/api/v1/sessions/{SID}/state", json={"command": "enable"})
+    assert r.json()["state"] == "Operation enabled"
+    target = await client.get(f"/api/v1/sessions/{SID}/objects/0x60FF")
+    assert target.json()["value"] == 0
+    await asyncio.sleep(0.3)
+    r = await client.get(f"/api/v1/sessions/{SID}/state")
+    assert r.json()["velocity"] == 0
+    await client.post(f"/api/v1/sessions/{SID}/state", json={"command": "disable"})

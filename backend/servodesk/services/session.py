@@ -46,6 +46,8 @@ HEARTBEAT_TIME = ObjectAddress(0x1017)
 
 #: State commands of the API: single controlword commands, and goals walked step by step.
 COMMANDS: dict[str, cia402.Command] = {c.value: c for c in cia402.Command}
+#: Targets that make an enabled drive move by themselves (target velocity, target torque).
+_MOTION_TARGETS = (ObjectAddress(0x60FF), ObjectAddress(0x6071))
 #: Commands that are always sent: stopping must never be refused.
 _ALWAYS = {cia402.Command.QUICK_STOP, cia402.Command.DISABLE_VOLTAGE}
 #: Where a single command leads, to suggest the step that is missing.
@@ -438,6 +440,8 @@ class Session:
     async def command(self, name: str) -> DriveState:
         """Run a state command or walk to a goal state (``enable``/``disable``)."""
         if name in GOALS:
+            if GOALS[name] is cia402.State.OPERATION_ENABLED:
+                await self._zero_targets()
             await self._walk(GOALS[name])
         elif name in COMMANDS:
             command = COMMANDS[name]
@@ -454,6 +458,22 @@ class Session:
         st = await self.drive_state()
         self._publish_state(st)
         return st
+
+    async def _zero_targets(self) -> None:
+        """Servo on must never start motion: clear velocity and torque targets first.
+
+        In profile velocity or torque mode (CiA 402-2 §6.6, §6.7) the drive follows 60FFh /
+        6071h as soon as it is enabled, so a target left over from an earlier jog would move
+        the axis at once. Only done when the drive is not enabled yet.
+        """
+        sw = await self._read_int(STATUSWORD, DataType.UNSIGNED16)
+        if cia402.decode_state(sw or 0) is cia402.State.OPERATION_ENABLED:
+            return
+        for address in _MOTION_TARGETS:
+            spec = self.profile.spec(address)
+            if spec is not None and spec.access.writable:
+                with contextlib.suppress(ObjectAccessError):
+                    await self.link.write(address, bytes(spec.bits // 8))
 
     async def _check_applies(self, command: cia402.Command) -> None:
         """Refuse a command that has no transition from the present state (CiA 402-2 §6.2)."""
