@@ -7,8 +7,7 @@
  * server names it, so an interrupted restore can be found again and resumed).
  */
 import type { RestoreItem, RestoreItemStatus } from '../api/types';
-import { WS_SUBPROTOCOL } from '../ws/messages';
-import { defaultSocketUrl } from '../ws/socket';
+import { type ProgressWatch, progressSocketUrl, watchMessages } from '../ws/progress';
 
 const STATUSES: ReadonlySet<string> = new Set(['written', 'unchanged', 'skipped_read_only', 'failed', 'pending', 'would_write']);
 
@@ -102,53 +101,15 @@ export function mergeProgressItem(items: readonly ProgressItem[], item: Progress
   return next;
 }
 
-export interface ProgressWatch {
-  /** Resolves once subscribed (or after a short wait: progress is a nicety, not a must). */
-  ready: Promise<void>;
-  close: () => void;
-}
-
 /**
- * Watch `operation` progress of session `sid` on a short-lived socket of its own (the shared
- * socket drops `progress`, see ws/progress.ts); call close() when the operation is over.
+ * Watch `operation` progress of session `sid` (with the restore's per-item detail) on a
+ * short-lived socket of its own; call close() when the operation is over.
  */
 export function watchBackupProgress(
   sid: string,
   operation: 'backup' | 'restore',
   onProgress: (m: BackupProgress) => void,
-  url: () => string = defaultSocketUrl,
+  url: () => string = progressSocketUrl,
 ): ProgressWatch {
-  let ws: WebSocket | null = null;
-  let resolveReady: () => void = () => undefined;
-  const ready = new Promise<void>((r) => {
-    resolveReady = r;
-  });
-  const giveUp = setTimeout(() => resolveReady(), 1500);
-  try {
-    ws = new WebSocket(url(), WS_SUBPROTOCOL);
-    ws.onopen = () => {
-      ws?.send(JSON.stringify({ type: 'subscribe', session: sid }));
-      // The server handles the subscribe before any later publish; a short pause lets it
-      // register before the operation starts.
-      setTimeout(() => resolveReady(), 50);
-    };
-    ws.onmessage = (ev: MessageEvent) => {
-      if (typeof ev.data !== 'string') return;
-      const m = parseBackupProgress(ev.data);
-      if (m && m.session === sid && (!m.operation || m.operation === operation)) onProgress(m);
-    };
-    ws.onerror = () => resolveReady();
-    ws.onclose = () => resolveReady();
-  } catch {
-    resolveReady();
-  }
-  return {
-    ready,
-    close: () => {
-      clearTimeout(giveUp);
-      resolveReady();
-      if (ws && ws.readyState <= WebSocket.OPEN) ws.close(1000, 'operation done');
-      ws = null;
-    },
-  };
+  return watchMessages(sid, operation, parseBackupProgress, onProgress, url);
 }

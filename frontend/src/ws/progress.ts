@@ -43,8 +43,28 @@ export interface ProgressWatch {
   close: () => void;
 }
 
-/** Watch `operation` progress of session `sid`; call close() when the operation is over. */
-export function watchProgress(sid: string, operation: string, onProgress: (m: ProgressMessage) => void, url: () => string = defaultSocketUrl): ProgressWatch {
+/**
+ * The socket URL for a progress watcher: without the tab's `client` id, because the server
+ * ties control and the dead-man to that id, and a watcher's socket closing must not look
+ * like the control owner's.
+ */
+export function progressSocketUrl(): string {
+  const url = new URL(defaultSocketUrl());
+  url.searchParams.delete('client');
+  return url.toString();
+}
+
+/**
+ * Watch the messages of `operation` on session `sid` that `parse` accepts, on a short-lived
+ * socket of its own; call close() when the operation is over.
+ */
+export function watchMessages<M extends { session: string; operation: string }>(
+  sid: string,
+  operation: string,
+  parse: (text: string) => M | null,
+  onMessage: (m: M) => void,
+  url: () => string = progressSocketUrl,
+): ProgressWatch {
   let ws: WebSocket | null = null;
   let resolveReady: () => void = () => undefined;
   const ready = new Promise<void>((r) => {
@@ -62,8 +82,8 @@ export function watchProgress(sid: string, operation: string, onProgress: (m: Pr
     };
     ws.onmessage = (ev: MessageEvent) => {
       if (typeof ev.data !== 'string') return;
-      const m = parseProgress(ev.data);
-      if (m && m.session === sid && (!m.operation || m.operation === operation)) onProgress(m);
+      const m = parse(ev.data);
+      if (m && m.session === sid && (!m.operation || m.operation === operation)) onMessage(m);
     };
     ws.onerror = () => resolveReady();
     ws.onclose = () => resolveReady();
@@ -79,4 +99,14 @@ export function watchProgress(sid: string, operation: string, onProgress: (m: Pr
       ws = null;
     },
   };
+}
+
+/** Watch `operation` progress of session `sid`; call close() when the operation is over. */
+export function watchProgress(
+  sid: string,
+  operation: string,
+  onProgress: (m: ProgressMessage) => void,
+  url: () => string = progressSocketUrl,
+): ProgressWatch {
+  return watchMessages(sid, operation, parseProgress, onProgress, url);
 }
