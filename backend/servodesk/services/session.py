@@ -257,8 +257,10 @@ class Session:
         data = encode_write(address, spec, value, raw_hex)
         audit = self.hub.audit
         old: bytes | None = None
-        if audit is not None and (spec is None or spec.access.readable):
-            # The audit log records the value before the write (DESIGN: who, what, old, new).
+        if audit is not None and (spec is None or (spec.access.readable and not spec.process)):
+            # The audit log records a parameter's value before the write (DESIGN: who, what,
+            # old, new). Process objects (controlword, targets) skip the read: it would delay
+            # every motion command, a halt included, by one SDO round trip.
             with contextlib.suppress(ObjectAccessError):
                 old = await self.link.read(address)
         if address == CONTROLWORD:
