@@ -3,14 +3,26 @@
 from __future__ import annotations
 
 import asyncio
+import os
+import sys
 import time
 from collections.abc import AsyncIterator
 
+import can
+import canopen
 import pytest
 import pytest_asyncio
 
 from servodesk.domain.address import ObjectAddress
-from servodesk.errors import LinkTimeoutError, NotFoundError, ObjectAccessError, ValidationError
+from servodesk.errors import (
+    LinkClosedError,
+    LinkError,
+    LinkTimeoutError,
+    NotFoundError,
+    ObjectAccessError,
+    ValidationError,
+)
+from servodesk.links import canopen_link
 from servodesk.links.base import LinkEvent, LinkParams
 from servodesk.links.canopen_link import CanopenLink, pool, scan
 from servodesk.sim.bus import SimulatedBus
@@ -113,6 +125,66 @@ async def test_absent_node_times_out_with_a_hint(sim: SimulatedBus, channel: str
         await link.close()
 
 
+async def test_a_short_timeout_is_kept_after_a_long_one(link: CanopenLink) -> None:
+    # One response timer serves every request of a link; a request with a shorter time-out
+    # than the one before must still end on its own time.
+    assert await link.read(A(0x1000), timeout=5.0) == bytes.fromhex("92010200")
+    await link.nmt("stop")  # CiA 301 §7.3.2.2.1: no SDO in Stopped.
+    await asyncio.sleep(0.05)
+    t0 = time.monotonic()
+    with pytest.raises(LinkTimeoutError):
+        await link.read(A(0x1000), timeout=0.1)
+    assert time.monotonic() - t0 < 1.0  # Two attempts of 0.1 s, not the earlier 5 s.
+    await link.nmt("preop")
+    await asyncio.sleep(0.05)
+    assert await link.read(A(0x1000)) == bytes.fromhex("92010200")
+
+
+async def test_closing_ends_the_request_in_flight_and_the_queued_ones(
+    sim: SimulatedBus, channel: str
+) -> None:
+    # Node 42 is absent: without the close the first read would wait 2 x 5 s.
+    link = CanopenLink(LinkParams(interface="virtual", channel=channel, node_id=42, timeout=5.0))
+    await link.open()
+    requests, failures = link.requests, link.failures
+    in_flight = asyncio.create_task(link.read(A(0x1000)))
+    queued = asyncio.create_task(link.read(A(0x1008)))
+    await asyncio.sleep(0.05)
+    ended: list[float] = []
+    t0 = time.monotonic()
+    for task in (in_flight, queued):
+        task.add_done_callback(lambda _: ended.append(time.monotonic() - t0))
+    await link.close()
+    for task in (in_flight, queued):
+        with pytest.raises(LinkClosedError):
+            await task
+    assert max(ended) < 0.5
+    # The read in flight failed; the queued one never reached the bus.
+    assert (link.requests - requests, link.failures - failures) == (1, 1)
+    with pytest.raises(LinkClosedError):
+        await link.read(A(0x1000))
+
+
+async def test_network_is_the_shared_canopen_network_while_open(
+    sim: SimulatedBus, channel: str
+) -> None:
+    first = CanopenLink(LinkParams(interface="virtual", channel=channel, node_id=5))
+    second = CanopenLink(LinkParams(interface="virtual", channel=channel, node_id=6))
+    with pytest.raises(LinkError, match="not open"):
+        _ = first.network
+    await first.open()
+    await second.open()
+    try:
+        assert isinstance(first.network, canopen.Network)
+        assert first.network is second.network  # One bus per interface and channel.
+        assert first.network.bus is not None
+    finally:
+        await second.close()
+        await first.close()
+    with pytest.raises(LinkError, match="not open"):
+        _ = first.network
+
+
 async def test_emcy_and_nmt_events_reach_subscribers(link: CanopenLink, sim: SimulatedBus) -> None:
     events: list[LinkEvent] = []
     link.add_event_callback(events.append)
@@ -151,3 +223,70 @@ def test_bad_node_ids_and_buses_are_refused() -> None:
         pool.acquire(LinkParams(interface="nocan"))
     with pytest.raises(NotFoundError, match="cannot open CAN interface"):
         pool.acquire(LinkParams(interface="socketcan", channel="nosuchcan9"))
+
+
+async def test_cancelled_requests_leave_the_link_usable(link: CanopenLink) -> None:
+    tasks = [asyncio.create_task(link.read(a)) for a in (A(0x1000), A(0x1008), A(0x1018, 2))]
+    await asyncio.sleep(0)  # The first is on the bus, the other two wait for their turn.
+    tasks[1].cancel()
+    first, second, third = await asyncio.gather(*tasks, return_exceptions=True)
+    assert first == bytes.fromhex("92010200")
+    assert isinstance(second, asyncio.CancelledError)
+    assert third == bytes.fromhex("02040000")
+    assert await link.read(A(0x1008)) == b"servodesk simulated CiA 402 drive"
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="counts /proc/self/fd")
+async def test_opening_and_closing_leaves_no_descriptor_behind(
+    sim: SimulatedBus, channel: str
+) -> None:
+    params = LinkParams(interface="virtual", channel=channel, node_id=5)
+    before = len(os.listdir("/proc/self/fd"))
+    for _ in range(5):
+        link = CanopenLink(params)
+        await link.open()
+        assert await link.read(A(0x1000)) == bytes.fromhex("92010200")
+        await link.close()
+    assert len(os.listdir("/proc/self/fd")) == before
+
+
+async def test_answers_also_arrive_where_the_loop_cannot_watch_an_eventfd(
+    sim: SimulatedBus, channel: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Windows' proactor loop has no add_reader and other systems no eventfd: the link then
+    # hands answers over with call_soon_threadsafe.
+    monkeypatch.setattr(canopen_link._Doorbell, "attach", classmethod(lambda *_: None))
+    link = CanopenLink(LinkParams(interface="virtual", channel=channel, node_id=5, timeout=5.0))
+    await link.open()
+    try:
+        assert link._doorbell is None
+        assert await link.read(A(0x1008)) == b"servodesk simulated CiA 402 drive"
+        with pytest.raises(ObjectAccessError) as info:
+            await link.write(A(0x6041), b"\x01\x00")
+        assert info.value.code == 0x06010002
+        await link.nmt("stop")
+        await asyncio.sleep(0.05)
+        waiting = asyncio.create_task(link.read(A(0x1000)))
+        await asyncio.sleep(0.05)
+    finally:
+        await link.close()
+    with pytest.raises(LinkClosedError):
+        await waiting
+
+
+async def test_a_frame_the_adapter_refuses_is_a_link_error(
+    link: CanopenLink, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # A real adapter refuses frames in bus-off or with a full transmit queue; python-can
+    # raises CanOperationError, which is not an OSError. The API must see a LinkError (502),
+    # not an unmapped exception (500).
+    def refuse(can_id: int, data: bytes, remote: bool = False) -> None:
+        raise can.CanOperationError("Transmit buffer full")
+
+    failures = link.failures
+    with monkeypatch.context() as patch:
+        patch.setattr(link.network, "send_message", refuse)
+        with pytest.raises(LinkError, match="could not be sent: Transmit buffer full"):
+            await link.read(A(0x1000))
+    assert link.failures == failures + 1
+    assert await link.read(A(0x1000)) == bytes.fromhex("92010200")

@@ -13,6 +13,7 @@ import logging
 import threading
 import time
 from abc import ABC, abstractmethod
+from collections import deque
 from collections.abc import Awaitable, Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
@@ -75,6 +76,52 @@ class LinkEvent:
 EventCallback = Callable[[LinkEvent], None]
 
 
+class _Turn:
+    """First-come, first-served access to one device, taken without awaiting when it is free.
+
+    ``asyncio.Lock`` costs two coroutines and a wake-up scan per request even when nobody
+    waits, which showed in the SDO round trip (bench/bench_sdo.py). Here a free turn is taken
+    by a plain call; a busy one is queued and handed over directly by :meth:`give`, so a
+    newcomer never overtakes a waiting request.
+    """
+
+    __slots__ = ("_held", "_queue")
+
+    def __init__(self) -> None:
+        self._held = False
+        self._queue: deque[asyncio.Future[None]] = deque()
+
+    def try_take(self) -> bool:
+        if self._held:
+            return False
+        self._held = True
+        return True
+
+    async def take(self) -> None:
+        if self.try_take():
+            return
+        turn: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        self._queue.append(turn)
+        try:
+            await turn
+        except asyncio.CancelledError:
+            if turn.done() and not turn.cancelled():
+                self.give()  # Handed over just before the cancel: pass it on.
+            else:
+                with contextlib.suppress(ValueError):
+                    self._queue.remove(turn)
+            raise
+
+    def give(self) -> None:
+        queue = self._queue
+        while queue:
+            turn = queue.popleft()
+            if not turn.done():  # A cancelled waiter is skipped.
+                turn.set_result(None)  # The turn stays held: it passes to that waiter.
+                return
+        self._held = False
+
+
 class ObjectAccess(ABC):
     """Read and write object dictionary entries as raw bytes."""
 
@@ -116,8 +163,8 @@ class DriveLink(ObjectAccess):
     hooks (run in a worker thread) or the async ``_aread``/``_awrite`` hooks (run on the
     event loop, for links whose library lets them await an answer without a thread). Where
     the fieldbus has them, ``_nmt``, ``_identity`` and ``_network_state`` too. Public
-    methods hold this link's lock, so no two requests to one device overlap (the canopen
-    SDO client, for one, is not safe for concurrent use).
+    methods take this link's turn (first come, first served), so no two requests to one
+    device overlap (an SDO answer, for one, does not say which request it answers).
     """
 
     #: Registry name, e.g. "canopen".
@@ -126,7 +173,7 @@ class DriveLink(ObjectAccess):
     def __init__(self, params: LinkParams) -> None:
         self.params = params
         self._lock = threading.Lock()
-        self._alock: asyncio.Lock | None = None
+        self._turn = _Turn()
         self._closed = True
         self._callbacks: list[EventCallback] = []
         self.requests = 0
@@ -228,28 +275,45 @@ class DriveLink(ObjectAccess):
     async def _call(self, fn: Callable[..., T], *args: Any, check_open: bool = True) -> T:
         if check_open and self._closed:
             raise LinkClosedError("the link is closed", hint="open the session again")
-        if self._alock is None:
-            self._alock = asyncio.Lock()
-        # The asyncio lock queues callers fairly without holding threads; the thread
-        # lock guards against callers from other loops or threads.
-        async with self._alock:
+        # The turn queues callers fairly without holding threads; the thread lock guards
+        # against callers from other loops or threads.
+        turn = self._turn
+        if not turn.try_take():
+            await turn.take()
+        try:
             return await asyncio.to_thread(self._locked, fn, *args)
+        finally:
+            turn.give()
 
     async def _acall(
         self, fn: Callable[..., Awaitable[T]], *args: Any, timeout: float | None = None
     ) -> T:
-        """Run an async hook under the link's lock with the shared error mapping."""
+        """Run an async hook under the link's turn with the shared error mapping.
+
+        This is every read and write, so it is written out flat: the turn is taken without
+        an await when the link is idle, and the accounting of :meth:`_counted` is inline
+        (the same :meth:`_failure`).
+        """
         if self._closed:
             raise LinkClosedError("the link is closed", hint="open the session again")
-        if self._alock is None:
-            self._alock = asyncio.Lock()
-        async with self._alock:
-            self._timeout = timeout  # Safe: requests to one link never overlap (the lock).
+        turn = self._turn
+        if not turn.try_take():
+            await turn.take()
+        try:
+            if self._closed:  # Closed while this request queued behind another.
+                raise LinkClosedError("the link is closed", hint="open the session again")
+            self._timeout = timeout  # Safe: requests to one link never overlap (the turn).
+            self.requests += 1
             try:
-                with self._counted():
-                    return await fn(*args)
-            finally:
-                self._timeout = None
+                return await fn(*args)
+            except Exception as exc:
+                error = self._failure(exc)
+                if error is exc:
+                    raise
+                raise error from exc
+        finally:
+            self._timeout = None
+            turn.give()
 
     def _locked(self, fn: Callable[..., T], *args: Any) -> T:
         with self._lock, self._counted():
@@ -261,15 +325,28 @@ class DriveLink(ObjectAccess):
         self.requests += 1
         try:
             yield
-        except ServodeskError:
+        except Exception as exc:
+            error = self._failure(exc)
+            if error is exc:
+                raise
+            raise error from exc
+
+    def _failure(self, exc: Exception) -> Exception:
+        """Count a failed request; the error to raise, mapped into the servodesk tree.
+
+        Servodesk errors pass as they are; a time-out or an OS error of the library becomes
+        a link error; anything else (a bug) passes uncounted.
+        """
+        if isinstance(exc, ServodeskError):
             self.failures += 1
-            raise
-        except TimeoutError as exc:
+            return exc
+        if isinstance(exc, TimeoutError):
             self.failures += 1
-            raise LinkTimeoutError(f"no answer from the device: {exc}") from exc
-        except OSError as exc:
+            return LinkTimeoutError(f"no answer from the device: {exc}")
+        if isinstance(exc, OSError):
             self.failures += 1
-            raise LinkError(f"bus error: {exc}") from exc
+            return LinkError(f"bus error: {exc}")
+        return exc
 
     # Hooks ---------------------------------------------------------------------------
 
