@@ -32,10 +32,13 @@ def live_server(*extra: str, env: dict[str, str] | None = None) -> Iterator[str]
         "SERVODESK_DATA_DIR": data_dir,
         **(env or {}),
     }
+    # The server's output goes to a file: a pipe nobody drains fills up (64 kB of access
+    # log) and blocks the server's event loop in a log write.
+    log_file = tempfile.TemporaryFile("w+")  # noqa: SIM115 - closed in the finally below
     proc = subprocess.Popen(
         [sys.executable, "-m", "servodesk", "serve", "--sim", "--port", str(port), *extra],
         env=full_env,
-        stdout=subprocess.PIPE,
+        stdout=log_file,
         stderr=subprocess.STDOUT,
         text=True,
     )
@@ -44,7 +47,8 @@ def live_server(*extra: str, env: dict[str, str] | None = None) -> Iterator[str]
         deadline = time.monotonic() + 30
         while True:
             if proc.poll() is not None:
-                out = proc.stdout.read() if proc.stdout else ""
+                log_file.seek(0)
+                out = log_file.read()
                 raise RuntimeError(f"servodesk serve exited with {proc.returncode}:\n{out}")
             try:
                 r = httpx.get(f"{base}/api/v1/sessions", timeout=1)
@@ -63,4 +67,5 @@ def live_server(*extra: str, env: dict[str, str] | None = None) -> Iterator[str]
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+        log_file.close()
         shutil.rmtree(data_dir, ignore_errors=True)

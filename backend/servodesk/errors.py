@@ -7,6 +7,7 @@ can render one clear message without parsing strings::
     ServodeskError
      +-- ProfileError               a profile or device-description file is invalid
      +-- ValidationError            a value or request is refused before anything is sent
+     |    +-- PdoRefused            a PDO mapping breaks the family's rules (problems listed)
      +-- LinkError                  the bus or the device is unreachable or misbehaves
      |    +-- LinkTimeoutError      (also a TimeoutError) no answer in time
      |    +-- LinkUnavailableError  a fieldbus backend's library is missing
@@ -18,6 +19,8 @@ can render one clear message without parsing strings::
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 
 class ServodeskError(Exception):
@@ -60,6 +63,42 @@ class ValidationError(ServodeskError):
         out = super().to_dict()
         if self.field:
             out["field"] = self.field
+        return out
+
+
+class PdoRefused(ValidationError):
+    """A PDO configuration is refused before anything is written.
+
+    ``problems`` lists every reason (``servodesk.domain.pdo.Problem`` objects or their dicts),
+    each saying what is wrong, where, and what to do; the API answers 422 with them.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        problems: list[Any] | None = None,
+        field: str | None = None,
+        hint: str | None = None,
+    ) -> None:
+        super().__init__(message, field=field, hint=hint)
+        # domain.pdo.Problem objects (errors.py cannot import the domain: it imports us).
+        self.problems: list[Any] = list(problems or [])
+
+    def problem_dicts(self) -> list[dict[str, object]]:
+        out: list[dict[str, object]] = []
+        for p in self.problems:
+            if isinstance(p, dict):
+                out.append(dict(p))
+            else:
+                to_dict = getattr(p, "to_dict", None)
+                out.append(to_dict() if callable(to_dict) else {"message": str(p)})
+        return out
+
+    def to_dict(self) -> dict[str, object]:
+        out = super().to_dict()
+        out["detail"] = self.message
+        out["problems"] = self.problem_dicts()
         return out
 
 

@@ -35,6 +35,9 @@ class Settings(BaseSettings):
     deadman_ms: int = Field(default=250, ge=50, le=5000)
     #: Port of the 3D viewer (viser), served on ``host``; 0 disables the viewer.
     viewer_port: int = Field(default=8080, ge=0, le=65535)
+    #: The viewer's port has no token check: with ``host`` beyond loopback it is started only
+    #: when this is set (anyone who reaches host:viewer_port then sees the 3D view).
+    viewer_public: bool = False
     log_level: str = "info"
 
     def profile_paths(self) -> list[Path]:

@@ -52,23 +52,22 @@ def _check_operation(op: Any) -> None:
     check()
 
 
-#: Issue 4's operation routes are still being finished: a generated sequence against them
-#: was seen to stall a later request for over 10 s (not yet diagnosed; noted on the issue).
-#: They have their own tests in tests/operation, tests/homing, tests/alarms, tests/viewer.
-_IN_PROGRESS = ("/motion", "/control", "/homing", "/alarms", "/viewer", "/limits")
-
-
 def test_no_5xx_and_answers_match_the_schema() -> None:
     # A short SDO time-out keeps requests to absent nodes quick; only the generic drive runs.
+    # Warnings only: the access log of the ~700 generated requests is noise here. (It once
+    # filled a pipe tests/live.py did not drain and blocked the server in a log write: the
+    # stall once blamed on the operation routes. live_server now logs to a file.)
     env = {
         "SERVODESK_SDO_TIMEOUT": "0.1",
         "SERVODESK_SIM_PROFILES": "cia402-generic",
         "SERVODESK_VIEWER_PORT": "0",
+        "SERVODESK_LOG_LEVEL": "warning",
     }
     with live_server(env=env) as base:
         schema = schemathesis.openapi.from_url(f"{base}/openapi.json")
         operations = [r.ok() for r in schema.get_all_operations()]
-        operations = [op for op in operations if not any(p in op.path for p in _IN_PROGRESS)]
-        assert len(operations) >= 25
+        # Every route, the operation ones (control, motion, homing, alarms, viewer) included.
+        assert len(operations) >= 40
+        assert any("/motion/jog" in op.path for op in operations)
         for op in operations:
             _check_operation(op)

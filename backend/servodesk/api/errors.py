@@ -16,6 +16,7 @@ from servodesk.errors import (
     LinkTimeoutError,
     NotFoundError,
     ObjectAccessError,
+    PdoRefused,
     ProfileError,
     ServodeskError,
     ValidationError,
@@ -38,6 +39,8 @@ def status_for(exc: ServodeskError) -> int:
         if exc.code in _MISSING_ABORTS:
             return 404
         return 409 if exc.code in _STATE_ABORTS else 400
+    if isinstance(exc, PdoRefused):
+        return 422  # docs/pdo.md: {"detail", "problems": [...]}
     if isinstance(exc, ValidationError | ProfileError):
         return 400
     if isinstance(exc, LinkTimeoutError):

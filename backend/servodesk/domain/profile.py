@@ -12,7 +12,7 @@ import enum
 import re
 from collections.abc import Iterator
 from functools import cached_property
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
@@ -114,6 +114,8 @@ class ObjectSpec(BaseModel):
     symbol: str | None = None
     #: Writable only in these CiA 402 states / NMT states (e.g. ["preop"]); empty: any.
     writable_in: tuple[str, ...] = ()
+    #: Only the simulated twin has it; servodesk never expects it on a real drive.
+    sim_only: bool = False
 
     _dt = field_validator("data_type", mode="before")(_parse_data_type)
 
@@ -199,6 +201,8 @@ class ObjectEntry(BaseModel):
     pnu: int | None = None
     symbol: str | None = None
     writable_in: tuple[str, ...] = ()
+    #: Only the simulated twin has it (e.g. LECSN 1600h/1A00h, docs/pdo.md).
+    sim_only: bool = False
     subs: tuple[SubSpec, ...] = ()
 
     @field_validator("data_type", mode="before")
@@ -257,6 +261,7 @@ class ObjectEntry(BaseModel):
                     pnu=s.pnu if s.pnu is not None else self.pnu,
                     symbol=s.symbol,
                     writable_in=self.writable_in if s.writable_in is None else s.writable_in,
+                    sim_only=self.sim_only,
                 )
 
 
@@ -279,6 +284,7 @@ def _common(e: ObjectEntry) -> dict[str, Any]:
         "pnu": e.pnu,
         "symbol": e.symbol,
         "writable_in": e.writable_in,
+        "sim_only": e.sim_only,
     }
 
 
@@ -389,19 +395,151 @@ class Group(BaseModel):
     description: str | None = None
 
 
-class PdoRules(BaseModel):
-    """Process-data limits and procedure of the family."""
+def parse_type_ranges(text: str) -> frozenset[int]:
+    """``"0-240,254-255"`` -> the set of numbers (transmission types of a PDO rule)."""
+    out: set[int] = set()
+    for part in text.replace(" ", "").split(","):
+        if not part:
+            continue
+        lo, _, hi = part.partition("-")
+        a, b = int(lo, 0), int(hi or lo, 0)
+        if not 0 <= a <= b <= 255:
+            raise ValueError(f"{part!r} is not a range inside 0..255")
+        out.update(range(a, b + 1))
+    return frozenset(out)
+
+
+def _check_ranges(v: str) -> str:
+    parse_type_ranges(v)
+    return v
+
+
+class PdoWord(BaseModel):
+    """One entry of a telegram layout or template: an object address, or a word that is no
+    object (telegram 1's STW1), or Reserved padding (``reserved:8``)."""
 
     model_config = _STRICT
 
+    #: ``"0x6040:00"``, ``"reserved:16"``; None for a word that is no object.
+    address: str | None = None
+    #: Length in bits when it is not the object's own (words that are no object, BOOLEAN).
+    bits: int | None = Field(default=None, ge=0, le=64)
+    name: str | None = None
+    data_type: DataType | None = None
+    note: str | None = None
+
+    _dt = field_validator("data_type", mode="before")(_parse_data_type)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _from_text(cls, v: Any) -> Any:
+        return {"address": v} if isinstance(v, str) else v
+
+
+class PdoTelegram(BaseModel):
+    """A PROFIdrive telegram of the family (004 §20.3): its size and its layouts."""
+
+    model_config = _STRICT
+
+    number: int = Field(ge=1, le=65535)
+    name: str
+    #: Size of each direction's IO data in bytes; a variable mapping must total exactly this.
+    bytes: int = Field(ge=0, le=1440)
+    max_entries: int = Field(ge=0, le=255)
+    #: False: the layout is fixed and cannot be changed (telegrams 1 and 100).
+    variable: bool = False
+    #: The layout (fixed telegrams) or the default mapping (variable ones), per direction.
+    rx: tuple[PdoWord, ...] = ()
+    tx: tuple[PdoWord, ...] = ()
+    section: str | None = None
+    description: str | None = None
+
+
+class PdoTemplatePdo(BaseModel):
+    """One PDO of a template; fields left out keep the current value."""
+
+    model_config = _STRICT
+
+    direction: Literal["rx", "tx"]
+    number: int = Field(ge=1, le=512)
+    #: Entries as addresses (``"0x6040:00"``, ``"reserved:8"``); None keeps the current ones.
+    entries: tuple[PdoWord, ...] | None = None
+    enabled: bool | None = None
+    #: An 11-bit CAN id; text may be ``$NODEID+0x180``.
+    cob_id: int | str | None = None
+    rtr_allowed: bool | None = None
+    transmission_type: int | None = Field(default=None, ge=0, le=255)
+    inhibit_time: int | None = Field(default=None, ge=0, le=0xFFFF)
+    event_timer: int | None = Field(default=None, ge=0, le=0xFFFF)
+    sync_start: int | None = Field(default=None, ge=0, le=0xFF)
+
+
+class PdoTemplate(BaseModel):
+    """A ready-made PDO configuration of the family (a documented default or a useful set)."""
+
+    model_config = _STRICT
+
+    id: str = Field(pattern=r"^[a-z0-9][a-z0-9-]*$")
+    name: str
+    description: str
+    section: str | None = None
+    pdos: tuple[PdoTemplatePdo, ...] = ()
+    #: EtherCAT: the mapping objects assigned to the sync managers (1C12h/1C13h).
+    assignment: dict[Literal["rx", "tx"], tuple[int, ...]] | None = None
+    #: PROFINET: the telegram (P922).
+    telegram: int | None = None
+
+
+class PdoRules(BaseModel):
+    """Process-data limits and procedure of the family (see docs/pdo.md)."""
+
+    model_config = _STRICT
+
+    #: Which procedure maps process data: "canopen" (CiA 301 §7.5.2.35/36), "ethercat"
+    #: (mapping objects + 1C12h/1C13h assignment), "fixed" (never written), "telegram"
+    #: (PROFIdrive telegram chosen by P922, variable mapping of telegrams 102/103).
+    kind: Literal["canopen", "ethercat", "fixed", "telegram"] = "canopen"
+    #: Byte order of the process data on the wire.
+    byte_order: Literal["little", "big"] = "little"
     rpdo_count: int = 4
     tpdo_count: int = 4
     max_entries: int = 8
     max_bits: int = 64
+    #: Most bytes of process data per direction (all active PDOs together); None: no limit
+    #: beyond max_bits per PDO.
+    max_bytes: int | None = None
+    #: False: an object may be mapped only once per direction (e.g. HIWIN 000 §3.1).
+    allow_duplicates: bool = True
+    #: Transmission types the drive accepts (CiA 301 §7.5.2.35 table 72 by default).
+    rx_transmission_types: str = "0-240,254-255"
+    tx_transmission_types: str = "0-240,252-255"
+    #: Transmission types for which the event timer applies; with any other type it must
+    #: be 0 (CiA 301 §7.5.2.35: TPDO event timer only for the event-driven types 254/255).
+    rx_timer_types: str = "0-255"
+    tx_timer_types: str = "254-255"
+    #: Where the telegram number is selected (PROFIdrive P922), e.g. "0x039A:00".
+    telegram_object: str | None = None
     #: When mapping may be changed: "preop" (NMT/ESM pre-operational), "safeop", "any", or
     #: "fixed" (the mapping cannot be changed at all).
     mapping_state: str = "preop"
     section: str | None = None
+    telegrams: tuple[PdoTelegram, ...] = ()
+    templates: tuple[PdoTemplate, ...] = ()
+
+    _ranges = field_validator(
+        "rx_transmission_types", "tx_transmission_types", "rx_timer_types", "tx_timer_types"
+    )(_check_ranges)
+
+    def transmission_types(self, direction: str) -> frozenset[int]:
+        return parse_type_ranges(
+            self.rx_transmission_types if direction == "rx" else self.tx_transmission_types
+        )
+
+    def timer_types(self, direction: str) -> frozenset[int]:
+        return parse_type_ranges(self.rx_timer_types if direction == "rx" else self.tx_timer_types)
+
+    def telegram(self, number: int) -> PdoTelegram | None:
+        return next((t for t in self.telegrams if t.number == number), None)
 
 
 class SimSettings(BaseModel):
@@ -442,6 +580,57 @@ class SimSettings(BaseModel):
     rated_speed: float | None = None
 
 
+class RecorderSpec(BaseModel):
+    """A drive-side recorder (trace function): objects sampled inside the drive at a fixed
+    rate, with a trigger and pre-trigger, uploaded afterwards by SDO (docs/scope.md).
+
+    Its objects sit at consecutive indexes from ``index`` (the offsets below). None of the
+    families documents a trace function reachable over the fieldbus, so the shipped profiles
+    give their simulated twin one (``sim_only``) in an index range the family leaves free.
+    """
+
+    model_config = _STRICT
+
+    #: Offsets from ``index``: channels (ARRAY, sub n = ``index << 16 | sub << 8 | bits``),
+    #: divider, depth, trigger, level, pre-trigger, control/status, data (DOMAIN), recorded
+    #: count, trigger sample index.
+    CHANNELS: ClassVar[int] = 0
+    DIVIDER: ClassVar[int] = 1
+    DEPTH: ClassVar[int] = 2
+    TRIGGER: ClassVar[int] = 3
+    LEVEL: ClassVar[int] = 4
+    PRE_TRIGGER: ClassVar[int] = 5
+    CONTROL: ClassVar[int] = 6
+    DATA: ClassVar[int] = 7
+    COUNT: ClassVar[int] = 8
+    TRIGGER_INDEX: ClassVar[int] = 9
+
+    #: First index of the recorder objects (manufacturer area).
+    index: int = Field(ge=0x2000, le=0x5FFF - 9)
+    max_channels: int = Field(default=8, ge=1, le=8)
+    #: Most samples per channel.
+    max_depth: int = Field(default=8192, ge=1, le=8192)
+    #: Samples per second at divider 1 (the simulated plant: 1 kHz control x 4 sub-steps).
+    rate_hz: float = Field(default=4000.0, gt=0)
+    #: Only the simulated twin has it; a session on a real drive reports no recorder.
+    sim_only: bool = True
+    section: str | None = None
+    note: str | None = None
+
+    def object_index(self, offset: int) -> int:
+        """The index of one recorder object, e.g. ``object_index(RecorderSpec.DATA)``."""
+        return self.index + offset
+
+    @staticmethod
+    def recordable(spec: ObjectSpec) -> bool:
+        """Whether the recorder can sample ``spec``: readable, and an integer of at most 32
+        bits or a REAL32 (a sample is one INTEGER32 word)."""
+        dt = spec.data_type
+        return spec.access.readable and (
+            (dt.is_integer and 0 < dt.bits <= 32) or dt is DataType.REAL32
+        )
+
+
 class DeviceProfile(BaseModel):
     """A drive family: identity, objects, codes, modes, rules and quirks."""
 
@@ -468,6 +657,8 @@ class DeviceProfile(BaseModel):
     contradictions: tuple[Contradiction, ...] = ()
     pdo: PdoRules = PdoRules()
     simulation: SimSettings = SimSettings()
+    #: The drive-side recorder, where the drive (or its simulated twin) has one.
+    recorder: RecorderSpec | None = None
 
     @cached_property
     def variables(self) -> dict[ObjectAddress, ObjectSpec]:

@@ -15,9 +15,10 @@ from typing import Any
 import pydantic
 import yaml
 
+from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType
 from servodesk.domain.profile import DeviceProfile, resolve_value
-from servodesk.errors import NotFoundError, ProfileError
+from servodesk.errors import NotFoundError, ProfileError, ServodeskError
 
 try:  # libyaml is ~10x faster on the large profiles.
     _Loader: Any = yaml.CSafeLoader
@@ -72,9 +73,15 @@ def merge(base: DeviceProfile, child: DeviceProfile) -> DeviceProfile:
     groups = list(child.groups) + [
         g for g in base.groups if g.id not in {c.id for c in child.groups}
     ]
-    return child.model_copy(
-        update={"objects": tuple(objects), "errors": tuple(errors), "groups": tuple(groups)}
-    )
+    update: dict[str, object] = {
+        "objects": tuple(objects),
+        "errors": tuple(errors),
+        "groups": tuple(groups),
+    }
+    if child.recorder is None and base.recorder is not None:
+        # The base's recorder objects come along with its objects, so its recorder does too.
+        update["recorder"] = base.recorder
+    return child.model_copy(update=update)
 
 
 def check_profile(p: DeviceProfile) -> list[str]:
@@ -112,6 +119,7 @@ def check_profile(p: DeviceProfile) -> list[str]:
         for spec in p.variables.values():
             if spec.group and spec.group not in group_ids:
                 problems.append(f"{spec.address} {spec.name}: group {spec.group!r} not in groups")
+    problems.extend(_check_pdo_rules(p))
     for m in p.modes:
         if not -128 <= m <= 127:
             problems.append(f"mode {m} does not fit 6060h (INTEGER8)")
@@ -119,6 +127,58 @@ def check_profile(p: DeviceProfile) -> list[str]:
         if not -128 <= h <= 127:
             problems.append(f"homing method {h} does not fit 6098h (INTEGER8)")
     return problems
+
+
+def _check_pdo_word(p: DeviceProfile, text: str, direction: str, where: str) -> str | None:
+    """A template / telegram entry must name an object mappable in its direction."""
+    if text.strip().lower().startswith("reserved"):
+        return None
+    try:
+        addr = ObjectAddress.parse(text)
+    except ServodeskError as exc:
+        return f"{where}: {exc.message}"
+    if addr.index == 0 or 0x0002 <= addr.index <= 0x0007:
+        return None  # Reserved / dummy entries (validated by domain/pdo.py).
+    spec = p.spec(addr)
+    if spec is None:
+        return f"{where}: {addr} is not an object of the profile"
+    ok = spec.pdo_mapping.rx if direction == "rx" else spec.pdo_mapping.tx
+    if not ok:
+        return f"{where}: {addr} {spec.name} is not mappable in {direction}"
+    return None
+
+
+def _check_pdo_rules(p: DeviceProfile) -> list[str]:
+    out: list[str] = []
+    rules = p.pdo
+    numbers = {t.number for t in rules.telegrams}
+    for t in rules.telegrams:
+        for direction, words in (("rx", t.rx), ("tx", t.tx)):
+            for i, w in enumerate(words):
+                if w.address is not None:
+                    err = _check_pdo_word(
+                        p, w.address, direction, f"telegram {t.number} {direction}[{i}]"
+                    )
+                    if err:
+                        out.append(err)
+    ids: set[str] = set()
+    for tpl in rules.templates:
+        if tpl.id in ids:
+            out.append(f"PDO template {tpl.id!r} defined twice")
+        ids.add(tpl.id)
+        if tpl.telegram is not None and tpl.telegram not in numbers:
+            out.append(f"PDO template {tpl.id}: telegram {tpl.telegram} is not in pdo.telegrams")
+        for q in tpl.pdos:
+            count = rules.rpdo_count if q.direction == "rx" else rules.tpdo_count
+            if q.number > count:
+                out.append(f"PDO template {tpl.id}: {q.direction} PDO {q.number} > {count}")
+            for i, w in enumerate(q.entries or ()):
+                if w.address is not None:
+                    where = f"PDO template {tpl.id} {q.direction}{q.number}[{i}]"
+                    err = _check_pdo_word(p, w.address, q.direction, where)
+                    if err:
+                        out.append(err)
+    return out
 
 
 def _check_value_fields(spec: Any, where: str) -> list[str]:

@@ -11,6 +11,7 @@ messages from the session's state poll.
 
 from __future__ import annotations
 
+from collections.abc import Awaitable, Callable
 from typing import Any
 
 from servodesk.domain import cia402
@@ -36,6 +37,7 @@ SPEED_SWITCH = ObjectAddress(0x6099, 1)
 SPEED_ZERO = ObjectAddress(0x6099, 2)
 HOMING_ACC = ObjectAddress(0x609A)
 HOMING_MODE = 6
+CW_HALT = 0x0100
 
 
 def methods(profile: DeviceProfile) -> list[dict[str, Any]]:
@@ -181,7 +183,11 @@ async def status(session: Session) -> dict[str, Any]:
     }
 
 
-async def start(
+#: Sends the controlword that starts the run (the motion service checks that no stop came).
+StartSender = Callable[[int], Awaitable[None]]
+
+
+async def begin(
     session: Session,
     method: int,
     *,
@@ -190,8 +196,15 @@ async def start(
     acceleration: int | None = None,
     offset: int | None = None,
     client: str | None = None,
-) -> dict[str, Any]:
-    """Write the homing parameters and start the run; answers the status just after."""
+    set_mode: Callable[[], Awaitable[None]] | None = None,
+    go: StartSender | None = None,
+) -> bool:
+    """Write the homing parameters and start the run; True when the drive was enabled.
+
+    ``set_mode`` sets 6060h = 6 (default: a plain write); the motion service passes its own,
+    which follows the family's mode-change quirks. ``go`` sends the starting controlword
+    (default: a plain write).
+    """
     profile = session.profile
     if method not in profile.homing_methods:
         raise ValidationError(
@@ -223,15 +236,50 @@ async def start(
                 field=name,
                 hint="leave it out to use the drive's value",
             )
-    # Bit 4 low before the mode change, so the run starts on a clean rising edge.
+    # Bit 4 low before the mode change, so the run starts on a clean rising edge; halt (bit 8)
+    # low too, or the drive would not move (CiA 402-2 §6.8.1: halt interrupts homing).
     cw = await _read_int(session, CONTROLWORD) or (0x0F if enabled else 0)
-    await session.write_object(CONTROLWORD, cw & ~CW_HOMING_START, client=client)
-    await session.write_object(MODE, HOMING_MODE, client=client)
+    cw &= ~(CW_HOMING_START | CW_HALT)
+    await session.write_object(CONTROLWORD, cw, client=client)
+    if set_mode is not None:
+        await set_mode()
+    else:
+        await session.write_object(MODE, HOMING_MODE, client=client)
     await session.write_object(HOMING_METHOD, method, client=client)
     for address, value, _name in writes:
         if value is not None:
             await session.write_object(address, value, client=client)
     _stop_trackers(session)
     session.state_listeners.append(_Tracker(session, method))
-    await session.write_object(CONTROLWORD, cw | CW_HOMING_START, client=client)
+    if go is not None:
+        await go(cw | CW_HOMING_START)
+    else:
+        await session.write_object(CONTROLWORD, cw | CW_HOMING_START, client=client)
+    return enabled
+
+
+async def start(
+    session: Session,
+    method: int,
+    *,
+    speed_switch: int | None = None,
+    speed_zero: int | None = None,
+    acceleration: int | None = None,
+    offset: int | None = None,
+    client: str | None = None,
+) -> dict[str, Any]:
+    """Start a run without a dead-man (scripts, tests); answers the status just after.
+
+    The API starts homing through the motion service instead (MotionService.home), which
+    puts a run that moves the axis under the client's dead-man like a jog.
+    """
+    await begin(
+        session,
+        method,
+        speed_switch=speed_switch,
+        speed_zero=speed_zero,
+        acceleration=acceleration,
+        offset=offset,
+        client=client,
+    )
     return await status(session)

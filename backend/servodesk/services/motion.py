@@ -1,4 +1,4 @@
-"""Motion of a drive session: jog, profile moves, velocity, torque, cyclic set-points, dead-man.
+"""Motion of a drive session: jog, moves, velocity, torque, cyclic set-points, homing, dead-man.
 
 Every motion is started by the client that holds control (:mod:`servodesk.services.control`)
 and lives while that client's WebSocket heartbeats arrive: one watchdog task per active motion
@@ -10,7 +10,13 @@ Before anything is sent, a request is checked against the family's modes (profil
 drive's own limits, read from the drive and cached per session (refreshed after any write
 through the API): software position limits 607Dh, max profile velocity 607Fh, max torque 6072h,
 max acceleration / deceleration 60C5h / 60C6h. A refused request names the limit and its
-value and nothing reaches the bus.
+value and nothing reaches the bus. A limit object the drive refuses (SDO abort) is unknown
+(None, with the reason in ``sources``); only a dead link fails the read.
+
+Jog and profile velocity have no target to check: a command toward a software limit the axis
+is at or beyond is refused, and while they run the monitor halts the axis once the distance it
+needs to stop (sampling lead plus braking at the halt deceleration) reaches the limit.
+Homing started through the API is a motion too (kind ``homing``), under the same dead-man.
 
 Choices where CiA 402 leaves room (documented once):
 
@@ -22,7 +28,7 @@ Choices where CiA 402 leaves room (documented once):
 - Profile position: bit 5 (change set immediately) comes from ``immediate``; a set-point that
   is not immediate joins the drive's set-point buffer (set of set-points) and is sent only when
   set-point acknowledge (statusword bit 12) is 0, since drives discard it otherwise
-  (quirks ``pp_setpoint_buffer``, HIWIN 000 §3.2.2; ``pp_set_point_buffer``, CTMM 003 §4-4-5).
+  (quirk ``pp_set_point_buffer``: HIWIN 000 §3.2.2, CTMM 003 §4-4-5).
 - Cyclic modes (csp, csv, cst) need the family to list mode 8/9/10. Without PDOs the backend
   writes the set-point by SDO every ``cyclic_period`` seconds; the drive interpolates between
   them. Before csp starts, 607Ah is set to the actual position (HIWIN 000 quirk
@@ -52,9 +58,11 @@ from servodesk.errors import (
     ConflictError,
     DriveStateError,
     LinkError,
+    ObjectAccessError,
     ServodeskError,
     ValidationError,
 )
+from servodesk.services import homing
 from servodesk.services.control import ControlService
 from servodesk.services.events import EventHub
 from servodesk.services.manager import SessionManager
@@ -77,6 +85,8 @@ PROFILE_ACC = ObjectAddress(0x6083)
 PROFILE_DEC = ObjectAddress(0x6084)
 TORQUE_SLOPE = ObjectAddress(0x6087)
 TARGET_VELOCITY = ObjectAddress(0x60FF)
+HALT_OPTION = ObjectAddress(0x605D)
+QUICK_STOP_DEC = ObjectAddress(0x6085)
 
 #: Where each limit comes from on the drive.
 LIMIT_OBJECTS: dict[str, ObjectAddress] = {
@@ -97,10 +107,19 @@ CW_HALT = 0x0100
 SW_TARGET_REACHED = 1 << 10
 SW_SETPOINT_ACK = 1 << 12
 
-PP, PV, TQ, CSP, CSV, CST = 1, 3, 4, 8, 9, 10
+PP, PV, TQ, HM, CSP, CSV, CST = 1, 3, 4, 6, 8, 9, 10
+INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
 CYCLIC_MODES = {"csp": CSP, "csv": CSV, "cst": CST}
 #: Standstill when |velocity| is within 606Fh; this when the drive has no 606Fh (inc/s).
 DEFAULT_STANDSTILL = 1000
+#: Continuous motion (jog, profile velocity) near a software position limit: the monitor
+#: samples the position this often, and assumes this stopping time when the family's
+#: deceleration is not in position units per s² (LECSN-T ms ramps, CTMM04x rate registers).
+LIMIT_GUARD_PERIOD = 0.02
+FALLBACK_STOP_S = 0.5
+#: A homing run whose statusword already shows an end state (a drive with an absolute encoder
+#: keeps bit 12 set) is taken as ended only when it stays so this long without running.
+HOMING_SETTLE_S = 0.3
 
 
 @dataclass(frozen=True, slots=True)
@@ -142,6 +161,16 @@ class Motion:
     state: str = "running"
     message: str = ""
     tasks: list[asyncio.Task[None]] = field(default_factory=list)
+    #: Continuous motion near software limits: the limits and the deceleration the halt uses
+    #: (position units per s², None: unknown), for the monitor's stop-before-the-limit check.
+    guard: Limits | None = None
+    halt_decel: float | None = None
+    acceleration: float | None = None
+    #: The commanded speed in position units per s (None: 60FFh is in other units).
+    speed_cap: float | None = None
+    #: 606Ch is in position units per s: the monitor reads it rather than differentiating
+    #: the position (whose sample times jitter with the event loop).
+    read_velocity: bool = False
 
 
 @dataclass(eq=False)
@@ -220,10 +249,24 @@ class MotionService:
             values[name] = None
             spec = profile.spec(address)
             if spec is None or not spec.access.readable:
+                sources[name] = f"unknown: {profile.name} has no readable {address}"
                 continue
             if f"0X{address.index:04X}" in unusable or str(address).upper() in unusable:
+                sources[name] = f"unknown: {address} is not usable (quirk objects_not_usable)"
                 continue
-            v = await self._read_int(session, address)
+            try:
+                v = await self._read_int(session, address)
+            except ObjectAccessError as exc:
+                # A limit the drive does not have or refuses to give is unknown, not an
+                # error: the checks that need it are skipped. Only a dead link (LinkError)
+                # fails the whole read.
+                sources[name] = (
+                    f"unknown: the drive refused {address} (abort 0x{exc.code:08X}: {exc.meaning})"
+                )
+                continue
+            except ValidationError as exc:  # An answer that does not decode as the type.
+                sources[name] = f"unknown: {address} could not be read ({exc.message})"
+                continue
             values[name] = v
             if v is not None:
                 sources[name] = str(address)
@@ -244,7 +287,8 @@ class MotionService:
             spec = profile.spec(address)
             if values[name] is None and spec is not None and isinstance(spec.max, int):
                 values[name] = spec.max
-                sources[name] = f"profile {address} max"
+                why = sources.get(name)
+                sources[name] = f"profile {address} max" + (f" ({why})" if why else "")
         units: dict[str, dict[str, Any]] = {}
         for kind, candidates in (
             ("position", (POSITION, TARGET_POSITION)),
@@ -324,6 +368,85 @@ class MotionService:
                 field=field_name,
                 hint=f"stay within {lo} .. {hi}",
             )
+
+    async def _check_toward_limit(
+        self, axis: _Axis, lim: Limits, direction: float, field_name: str
+    ) -> None:
+        """Refuse continuous motion toward a software limit the axis is already at or beyond."""
+        lo, hi = lim.position_min, lim.position_max
+        if not (direction > 0 and hi is not None) and not (direction < 0 and lo is not None):
+            return
+        pos = await self._read_int(axis.session, POSITION)
+        if pos is None:
+            return
+        if direction > 0 and hi is not None and pos >= hi:
+            which, value, src = "max", hi, lim.sources.get("position_max", "607Dh:02")
+        elif direction < 0 and lo is not None and pos <= lo:
+            which, value, src = "min", lo, lim.sources.get("position_min", "607Dh:01")
+        else:
+            return
+        raise ValidationError(
+            f"the axis is at {pos}, at or beyond the software position limit {which} {value} "
+            f"({src}); {field_name} {direction:g} moves toward it, so it was refused and "
+            "nothing was sent",
+            field=field_name,
+            hint=f"move the other way, back inside {lo} .. {hi}",
+        )
+
+    async def _rate(
+        self, axis: _Axis, address: ObjectAddress, requested: int | None
+    ) -> float | None:
+        """An acceleration or deceleration in position units per s², when it is in those units.
+
+        ``requested`` is the value the motion writes; without it the drive's value is read.
+        """
+        spec = axis.session.profile.spec(address)
+        if spec is None or not _per_s2(spec.raw_unit):
+            return None
+        value: int | None = requested
+        if value is None:
+            with contextlib.suppress(ObjectAccessError, ValidationError):
+                value = await self._read_int(axis.session, address)
+        return float(value) if value is not None and value > 0 else None
+
+    async def _halt_rate(self, axis: _Axis, requested: int | None) -> float | None:
+        """The deceleration a halt uses: CiA 402-2 §6.3.4 halt option code 605Dh.
+
+        1 (and vendor values): the slow-down ramp 6084h; 2: the quick-stop ramp 6085h; 3/4: the
+        current or voltage limit, at least as hard as 6084h, so 6084h is a safe estimate.
+        """
+        option = 1
+        if axis.session.profile.spec(HALT_OPTION) is not None:
+            with contextlib.suppress(ObjectAccessError, ValidationError):
+                option = await self._read_int(axis.session, HALT_OPTION) or 1
+        if option == 2:
+            return await self._rate(axis, QUICK_STOP_DEC, None)
+        return await self._rate(axis, PROFILE_DEC, requested)
+
+    async def _guard(
+        self,
+        axis: _Axis,
+        lim: Limits,
+        velocity: int,
+        acceleration: int | None,
+        deceleration: int | None,
+    ) -> dict[str, Any]:
+        """What the monitor needs to halt continuous motion before a software limit."""
+        lo, hi = lim.position_min, lim.position_max
+        if lo in (None, INT32_MIN) and hi in (None, INT32_MAX):
+            return {}  # No limit, or the whole INTEGER32 range (the generic default).
+        p = axis.session.profile
+        spec = p.spec(TARGET_VELOCITY)
+        # The commanded velocity bounds the speed ahead when 60FFh is in position units per s.
+        cap = float(abs(velocity)) if spec is not None and _per_s(spec.raw_unit) else None
+        actual = p.spec(VELOCITY)
+        return {
+            "guard": lim,
+            "halt_decel": await self._halt_rate(axis, deceleration),
+            "acceleration": await self._rate(axis, PROFILE_ACC, acceleration),
+            "speed_cap": cap,
+            "read_velocity": actual is not None and _per_s(actual.raw_unit),
+        }
 
     @staticmethod
     def _encode(
@@ -479,6 +602,8 @@ class MotionService:
             axis,
             [(PROFILE_ACC, acceleration), (PROFILE_DEC, acceleration), (TARGET_VELOCITY, velocity)],
         )
+        await self._check_toward_limit(axis, lim, velocity, "velocity")
+        guard = await self._guard(axis, lim, velocity, acceleration, acceleration)
         async with self._starting(axis) as epoch:
             await self._require_enabled(axis)
             await self._ensure_mode(axis, PV, client)
@@ -486,7 +611,7 @@ class MotionService:
             await self._go(axis, epoch, CW_ENABLE, client)
             self._begin(
                 axis,
-                Motion("jog", client, PV, velocity, started, message=f"jog at {velocity}"),
+                Motion("jog", client, PV, velocity, started, message=f"jog at {velocity}", **guard),
             )
         return self.status(sid)
 
@@ -516,6 +641,8 @@ class MotionService:
             plan.append((PROFILE_DEC, deceleration))
         plan.append((TARGET_VELOCITY, velocity))
         writes = self._encode(axis, plan)
+        await self._check_toward_limit(axis, lim, velocity, "velocity")
+        guard = await self._guard(axis, lim, velocity, acceleration, deceleration)
         async with self._starting(axis) as epoch:
             await self._require_enabled(axis)
             await self._ensure_mode(axis, PV, client)
@@ -523,7 +650,15 @@ class MotionService:
             await self._go(axis, epoch, CW_ENABLE, client)
             self._begin(
                 axis,
-                Motion("velocity", client, PV, velocity, started, message=f"velocity {velocity}"),
+                Motion(
+                    "velocity",
+                    client,
+                    PV,
+                    velocity,
+                    started,
+                    message=f"velocity {velocity}",
+                    **guard,
+                ),
             )
         return self.status(sid)
 
@@ -651,6 +786,59 @@ class MotionService:
                 )
         return self.status(sid)
 
+    async def home(
+        self,
+        sid: str,
+        client: str,
+        method: int,
+        *,
+        speed_switch: int | None = None,
+        speed_zero: int | None = None,
+        acceleration: int | None = None,
+        offset: int | None = None,
+    ) -> dict[str, Any]:
+        """Start a homing run (services/homing.py) under the client's dead-man, like a jog.
+
+        A run on an enabled drive moves the axis: it is a motion of kind ``homing`` that ends
+        when the statusword shows homing attained or a homing error (CiA 402-2 §6.8.1), and a
+        missing heartbeat, the client's socket closing, losing control or the backend shutting
+        down halt it (the halt bit interrupts homing) and then quick-stop it. A method the
+        family runs without Operation enabled (quirk ``homing_without_enable``) on a drive
+        that is not enabled does not move anything and is not watched.
+        """
+        started = time.monotonic()
+        axis = self._axis(sid)
+        s = axis.session
+        async with self._starting(axis) as epoch:
+            enabled = (
+                cia402.decode_state(await self._statusword(axis)) is cia402.State.OPERATION_ENABLED
+            )
+
+            async def set_mode() -> None:
+                await self._ensure_mode(axis, HM, client)
+
+            async def go(word: int) -> None:
+                await self._go(axis, epoch, word, client)
+
+            await homing.begin(
+                s,
+                method,
+                speed_switch=speed_switch,
+                speed_zero=speed_zero,
+                acceleration=acceleration,
+                offset=offset,
+                client=client,
+                set_mode=set_mode if enabled else None,
+                go=go,
+            )
+            axis.last_target = None  # Homing moves the position's origin.
+            if enabled:
+                self._begin(
+                    axis,
+                    Motion("homing", client, HM, None, started, message=f"homing method {method}"),
+                )
+        return await homing.status(s)
+
     async def _wait_bits(self, axis: _Axis, mask: int, on: bool, timeout: float) -> bool:
         end = time.monotonic() + timeout
         while True:
@@ -743,7 +931,9 @@ class MotionService:
             data_codec = codec(spec.data_type if spec else DataType.INTEGER32)
 
             async def generate() -> None:
-                link = s.link
+                # write_raw: by SDO, or into the RPDO output image when cyclic data carries
+                # the set-point (services/cyclic.py).
+                write = s.write_raw
                 t0 = time.monotonic()
                 k = 0
                 try:
@@ -755,9 +945,9 @@ class MotionService:
                         if t >= run_s:
                             break
                         value = round(base + amplitude * wave(t))
-                        await link.write(address, data_codec.encode(value))
+                        await write(address, data_codec.encode(value))
                     if motion.active:
-                        await link.write(address, data_codec.encode(base))
+                        await write(address, data_codec.encode(base))
                         self._end(axis, motion, "done", f"{mode_name} {waveform} done")
                 except ServodeskError as exc:
                     self._end(axis, motion, "error", f"set-point stream failed: {exc.message}")
@@ -899,13 +1089,28 @@ class MotionService:
             await asyncio.sleep(min(self.watchdog_period, due - now))
 
     async def _monitor(self, axis: _Axis, motion: Motion) -> None:
-        """Ends a move at its target, and any motion when the drive leaves Operation enabled."""
-        period = 0.02 if motion.kind == "move" else 0.05
+        """Ends a move at its target, a homing run at its end, and any motion when the drive
+        leaves Operation enabled; halts continuous motion before a software position limit."""
+        guard = motion.guard
+        if motion.kind == "move":
+            period = 0.02
+        elif guard is not None:
+            period = LIMIT_GUARD_PERIOD
+        else:
+            period = 0.05
+        s = axis.session
         failures = 0
+        last: tuple[float, int] | None = None
+        seen_running = False
+        settled_since: float | None = None
         while motion.active:
             await asyncio.sleep(period)
             try:
                 sw = await self._statusword(axis)
+                pos = await self._read_int(s, POSITION) if guard is not None else None
+                now = time.monotonic()
+                vel = await self._read_int(s, VELOCITY) if motion.read_velocity else None
+                mode = await self._read_int(s, MODE_DISPLAY) if motion.kind == "homing" else None
             except LinkError as exc:
                 failures += 1
                 if failures >= 3:
@@ -922,9 +1127,43 @@ class MotionService:
                 )
                 return
             if motion.kind == "move" and sw & SW_TARGET_REACHED and not sw & SW_SETPOINT_ACK:
-                pos = await self._read_int(axis.session, POSITION)
+                pos = await self._read_int(s, POSITION)
                 self._end(axis, motion, "reached", f"target reached at {pos}")
                 return
+            if motion.kind == "homing":
+                hs = homing.decode(sw, mode)
+                if hs == "running":
+                    seen_running, settled_since = True, None
+                    continue
+                settled_since = settled_since if settled_since is not None else now
+                if not seen_running and now - settled_since < HOMING_SETTLE_S:
+                    continue
+                where: int | None = None
+                with contextlib.suppress(ServodeskError):
+                    where = await self._read_int(s, POSITION)
+                if hs == "attained":
+                    self._end(axis, motion, "done", f"homing attained at {where}")
+                elif hs == "error":
+                    self._end(axis, motion, "error", f"homing error at {where} (bit 13)")
+                else:
+                    self._end(axis, motion, "halted", f"homing interrupted at {where}")
+                return
+            if guard is not None and pos is not None:
+                why = _limit_ahead(motion, guard, pos, vel, last, now)
+                last = (now, pos)
+                if why is not None and axis.motion is motion and motion.active:
+                    log.warning("%s on %s: %s", motion.kind, axis.sid, why)
+                    try:
+                        await self._stop_axis(
+                            axis,
+                            quick=False,
+                            state="halted",
+                            message=why,
+                            who="servodesk (software position limit)",
+                        )
+                    except ServodeskError as exc:
+                        self._end(axis, motion, "error", f"{why}; the halt failed: {exc.message}")
+                    return
 
     # Clients and lifecycle ----------------------------------------------------------------
 
@@ -1010,3 +1249,71 @@ class MotionService:
 
     def _publish(self, axis: _Axis) -> None:
         self.hub.publish({"type": "motion", **self.status(axis.sid)}, session=axis.sid)
+
+
+def _per_s2(raw_unit: str | None) -> bool:
+    """True when a ramp object's raw unit is position units per s² (CiA 402-2 §6.5 default).
+
+    Other families give ramps as times (LECSN-T 6084h in ms) or rate registers (CTMM04x); the
+    stopping distance is then estimated with ``FALLBACK_STOP_S``.
+    """
+    if raw_unit is None:
+        return True
+    unit = raw_unit.replace(" ", "")
+    return "/s²" in unit or "/s^2" in unit or "/s2" in unit
+
+
+def _per_s(raw_unit: str | None) -> bool:
+    """True when a velocity object's raw unit is position units per second."""
+    if raw_unit is None:
+        return True
+    unit = raw_unit.replace(" ", "")
+    return ("/s" in unit) and not _per_s2(raw_unit)
+
+
+def _limit_ahead(
+    motion: Motion,
+    lim: Limits,
+    pos: int,
+    vel: int | None,
+    last: tuple[float, int] | None,
+    now: float,
+) -> str | None:
+    """Why continuous motion must halt now to stop before a software limit (None: it need not).
+
+    The velocity is 606Ch when it is in position units per second, else the difference of
+    two position samples. The stopping distance is what the axis covers until the next sample
+    and the halt take effect, plus the braking distance at the halt deceleration
+    (``FALLBACK_STOP_S`` of braking when that deceleration is not known in position units).
+    """
+    lo, hi = lim.position_min, lim.position_max
+    if vel is not None:
+        v = float(vel)
+    elif last is not None and now > last[0]:
+        v = (pos - last[1]) / (now - last[0])
+    else:
+        v = 0.0
+    direction = v if v != 0 else (motion.target or 0.0)
+    # Until the next sample and the halt reach the drive: three periods, more when the last
+    # samples came late (a busy event loop), since the next one may come as late.
+    interval = now - last[0] if last is not None else LIMIT_GUARD_PERIOD
+    lead = max(3 * LIMIT_GUARD_PERIOD, 1.5 * interval + LIMIT_GUARD_PERIOD)
+    speed = abs(v) + (motion.acceleration or 0.0) * lead
+    if motion.speed_cap is not None:
+        # Still accelerating: not beyond the commanded speed (nor below the measured one).
+        speed = max(abs(v), min(speed, motion.speed_cap))
+    if motion.halt_decel:
+        braking = speed * speed / (2.0 * motion.halt_decel)
+    else:
+        braking = speed * FALLBACK_STOP_S / 2.0
+    distance = speed * lead + braking
+    if direction > 0 and hi is not None and pos + distance >= hi:
+        which, value, src = "max", hi, lim.sources.get("position_max", "607Dh:02")
+    elif direction < 0 and lo is not None and pos - distance <= lo:
+        which, value, src = "min", lo, lim.sources.get("position_min", "607Dh:01")
+    else:
+        return None
+    return (
+        f"halted at {pos} before the software position limit {which} {value} ({src}): "
+        f"at {abs(v):.0f}/s the axis needs about {distance:.0f} to stop"
+    )

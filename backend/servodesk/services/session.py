@@ -14,7 +14,7 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from servodesk.domain import cia402
 from servodesk.domain.address import ObjectAddress
@@ -30,6 +30,9 @@ from servodesk.errors import (
 )
 from servodesk.links.base import DriveLink, Identity, LinkEvent
 from servodesk.services.events import AuditSink, EventHub
+
+if TYPE_CHECKING:
+    from servodesk.services.cyclic import CyclicExchange
 
 log = logging.getLogger(__name__)
 
@@ -154,6 +157,8 @@ class Session:
         #: Poll at least this often (Hz) whatever the watchers: the 3D viewer raises it while
         #: it has clients (services/viewer.py); 0: no floor.
         self.min_poll_hz = 0.0
+        #: The cyclic process data exchange while it runs (services/pdo.py, cyclic.py).
+        self.cyclic: CyclicExchange | None = None
 
     # Lifecycle ----------------------------------------------------------------------------
 
@@ -166,6 +171,9 @@ class Session:
         self._poll_task = asyncio.create_task(self._poll(), name=f"poll {self.id}")
 
     async def close(self) -> None:
+        if self.cyclic is not None:
+            self.cyclic.stop()
+            self.cyclic = None
         if self._poll_task is not None:
             self._poll_task.cancel()
             with contextlib.suppress(asyncio.CancelledError):
@@ -265,7 +273,7 @@ class Session:
                 old = await self.link.read(address)
         if address == CONTROLWORD:
             await self._space_controlword()
-        await self.link.write(address, data)
+        await self.write_raw(address, data)
         if audit is not None:
             audit(self, address, old, data, client or "unknown")
         if address == CONTROLWORD:
@@ -278,6 +286,19 @@ class Session:
         if spec is not None and not spec.access.readable:
             return describe(address, spec, data)
         return await self.read_object(address)
+
+    async def write_raw(self, address: ObjectAddress, data: bytes) -> None:
+        """Write encoded bytes: by SDO, or through the RPDO output image when it carries them.
+
+        An object that travels in an RPDO servodesk produces cannot be written by SDO: the
+        next RPDO (applied at SYNC) would overwrite it. Its value goes into the output image
+        instead, and the call returns once the drive has had it for two cycles.
+        """
+        cyclic = self.cyclic
+        if cyclic is not None and cyclic.outputs and cyclic.carries(address):
+            await cyclic.write_through(address, data)
+        else:
+            await self.link.write(address, data)
 
     async def read_many(self, addresses: list[ObjectAddress]) -> list[ObjectValue | ServodeskError]:
         """Read several objects; a failure is returned in its place, the rest go on."""
@@ -475,7 +496,7 @@ class Session:
             spec = self.profile.spec(address)
             if spec is not None and spec.access.writable:
                 with contextlib.suppress(ObjectAccessError):
-                    await self.link.write(address, bytes(spec.bits // 8))
+                    await self.write_raw(address, bytes(spec.bits // 8))
 
     async def _check_applies(self, command: cia402.Command) -> None:
         """Refuse a command that has no transition from the present state (CiA 402-2 §6.2)."""
@@ -506,7 +527,7 @@ class Session:
 
     async def _write_controlword(self, word: int) -> None:
         await self._space_controlword()
-        await self.link.write(CONTROLWORD, word.to_bytes(2, "little"))
+        await self.write_raw(CONTROLWORD, word.to_bytes(2, "little"))
         self._last_controlword_at = time.monotonic()
 
     async def _space_controlword(self) -> None:

@@ -12,6 +12,10 @@ app, so it cannot be mounted in FastAPI); it serves the client bundled in its wh
 viewer needs no network. The scene is updated from the backend's event loop by a 30 Hz task
 that reads each session's latest polled state; while the viewer has clients, every session is
 asked to poll at least ``poll_hz`` (Session.min_poll_hz) so each frame has a fresh position.
+
+viser's websocket server has no token check: when the backend is bound beyond loopback (where
+every API request needs the token), the viewer is started only with ``public`` set
+(SERVODESK_VIEWER_PUBLIC=1); otherwise ``error`` says why it is off.
 """
 
 from __future__ import annotations
@@ -178,10 +182,14 @@ class ViewerService:
         rate_hz: float = 30.0,
         poll_hz: float = 40.0,
         target_of: Callable[[str], float | None] | None = None,
+        public: bool = False,
     ) -> None:
         self.manager = manager
         self.host = host
         self.requested_port = port
+        #: SERVODESK_VIEWER_PUBLIC: serve the viewer beyond loopback although its port has no
+        #: token check.
+        self.public = public
         self.rate_hz = rate_hz
         #: Poll rate asked of the sessions while clients watch: above ``rate_hz`` so that
         #: nearly every frame has a new sample (a poll also spends time on its reads).
@@ -238,9 +246,27 @@ class ViewerService:
         """Scene updates sent so far (ticks in which something moved or changed)."""
         return self._frames
 
+    @property
+    def exposed(self) -> bool:
+        """True when the viewer would be reachable from other machines (host beyond loopback)."""
+        return not is_loopback(self.host)
+
     async def start(self) -> None:
-        """Bind the viser server and start the update loop (nothing when the port is 0)."""
+        """Bind the viser server and start the update loop (nothing when the port is 0).
+
+        viser's websocket server has no token check, so beyond loopback (where the API needs
+        the token) it is not started unless ``public`` is set.
+        """
         if not self.enabled or self.server is not None:
+            return
+        if self.exposed and not self.public:
+            self.error = (
+                f"the backend is bound to {self.host}, beyond loopback, and the viewer's port "
+                f"{self.requested_port} has no token check, so anyone reaching it would see the "
+                "axes; set SERVODESK_VIEWER_PUBLIC=1 to serve it anyway, or bind the backend to "
+                "127.0.0.1"
+            )
+            log.warning("the 3D viewer is not started: %s", self.error)
             return
         try:
             self.server = await asyncio.to_thread(_make_server, self.host, self.requested_port)
@@ -257,6 +283,14 @@ class ViewerService:
                 self.port,
             )
         log.info("3D viewer at %s", self.url)
+        if self.exposed:
+            log.warning(
+                "the 3D viewer on port %s is served beyond loopback without a token check "
+                "(SERVODESK_VIEWER_PUBLIC=1): anyone who reaches %s:%s sees the axes",
+                self.port,
+                self.host,
+                self.port,
+            )
         self._add_static()
         self._tasks = [
             asyncio.create_task(self._frame_loop(), name="viewer frames"),
@@ -699,6 +733,11 @@ def _nice_step(raw: float) -> float:
         if m * p >= raw:
             return m * p
     return 10.0 * p
+
+
+def is_loopback(host: str) -> bool:
+    """The same rule as Settings.is_loopback: the addresses only this machine reaches."""
+    return host in ("127.0.0.1", "localhost", "::1") or host.startswith("127.")
 
 
 def _node_name(sid: str) -> str:

@@ -15,14 +15,20 @@ CiA 301 behaviour implemented here (beyond python-canopen's ``LocalNode``):
   reloads the 1000h-1FFFh parameters; both send a boot-up message and enter PRE-OPERATIONAL.
 - The heartbeat starts at boot when 1017h is non-zero, restarts on every write of 1017h, and
   carries the NMT state byte (0x7F pre-operational, 0x05 operational, 0x04 stopped).
+- Process data (:mod:`servodesk.sim.pdo`): SYNC, RPDOs and RTRs reach the drive's
+  :class:`~servodesk.sim.pdo.PdoEngine` through a listener on the network's notifier (canopen's
+  own listener drops remote frames), only in OPERATIONAL; the engine is rebuilt when a PDO
+  object (14xxh-1Bxxh, 1C12h/1C13h, 1005h, P922) is written and after a reset.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import struct
 from typing import Any
 
+import can
 from canopen import LocalNode
 from canopen.nmt import COMMAND_TO_STATE, NmtSlave
 from canopen.sdo.constants import EXPEDITED, REQUEST_DOWNLOAD, SDO_STRUCT
@@ -32,6 +38,7 @@ from canopen.sdo.server import SdoServer
 from servodesk.domain.datatypes import Value
 from servodesk.sim.engine import K_HEARTBEAT, SimAbort, SimulatedDrive
 from servodesk.sim.od_build import build_object_dictionary
+from servodesk.sim.pdo import PdoEngine
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +83,24 @@ class _NmtSlave(NmtSlave):
         """Unused: the device restarts the heartbeat itself after a write of 1017h."""
 
 
+class _FrameListener(can.Listener):
+    """Every frame of the bus, remote frames included, to the process-data engine."""
+
+    def __init__(self, engine: PdoEngine) -> None:
+        self._engine = engine
+
+    def on_message_received(self, msg: can.Message) -> None:
+        if msg.is_error_frame:
+            return
+        try:
+            self._engine.on_frame(msg.arbitration_id, msg.data, msg.is_remote_frame)
+        except Exception:  # An exception here would stop the notifier thread (and SDO).
+            log.exception("process data frame 0x%03X not handled", msg.arbitration_id)
+
+    def stop(self) -> None:
+        """Nothing to release."""
+
+
 class SimCanopenDevice(LocalNode):
     """A simulated drive as a CANopen node (attach with ``network.add_node(device)``)."""
 
@@ -86,8 +111,28 @@ class SimCanopenDevice(LocalNode):
         self.sdo = _SdoServer(0x600 + node_id, 0x580 + node_id, self)
         self.nmt = _NmtSlave(node_id, self)
         self._write_callbacks = []  # LocalNode's NmtSlave hook is replaced by _on_drive_write.
+        #: The drive's process data (``pdo`` is python-canopen's own, unused PDO object).
+        self.pdo_engine = PdoEngine(drive, self._send_frame, self._send_pdo_emcy)
+        self._listener = _FrameListener(self.pdo_engine)
+        self._notifier: Any = None
         drive.on_emcy(self._on_emcy)
         drive.on_write(self._on_drive_write)
+
+    def associate_network(self, network: Any) -> None:
+        super().associate_network(network)
+        notifier = getattr(network, "notifier", None)
+        if notifier is None:
+            log.warning("node %d: the network has no notifier; no process data", self.node_id)
+            return
+        notifier.add_listener(self._listener)
+        self._notifier = notifier
+
+    def remove_network(self) -> None:
+        if self._notifier is not None:
+            with contextlib.suppress(ValueError):  # Already gone with the notifier.
+                self._notifier.remove_listener(self._listener)
+            self._notifier = None
+        super().remove_network()
 
     # SDO access goes to the drive's object store --------------------------------------
 
@@ -122,6 +167,8 @@ class SimCanopenDevice(LocalNode):
         """Initialisation finished: boot-up message, PRE-OPERATIONAL, heartbeat per 1017h."""
         self.nmt._state = NMT_BOOTUP
         self.drive.nmt_state = "init"
+        self.pdo_engine.set_operational(False)
+        self.pdo_engine.configure()  # The reset reloaded the PDO parameters.
         self.network.send_message(0x700 + self.node_id, bytes([NMT_BOOTUP]))
         self.set_nmt_state(NMT_PRE_OPERATIONAL)
         self._restart_heartbeat()
@@ -129,6 +176,8 @@ class SimCanopenDevice(LocalNode):
     def set_nmt_state(self, state: int) -> None:
         self.nmt._state = state
         self.drive.nmt_state = _NMT_NAMES.get(state, "preop")
+        # CiA 301 §7.3.2.2.1 table 35: PDOs only in OPERATIONAL.
+        self.pdo_engine.set_operational(state == NMT_OPERATIONAL)
         self.nmt.update_heartbeat()
 
     def reset_node(self) -> None:
@@ -159,6 +208,27 @@ class SimCanopenDevice(LocalNode):
     def _on_drive_write(self, index: int, subindex: int, value: Value) -> None:
         if index << 8 | subindex == K_HEARTBEAT:
             self._restart_heartbeat()
+        self.pdo_engine.on_object_written(index)
+
+    # Process data -------------------------------------------------------------------------
+
+    def _send_frame(self, can_id: int, data: bytes, fd: bool, extended: bool) -> None:
+        if not self.has_network():
+            return
+        network = self.network
+        bus = network.bus
+        if bus is None:
+            return
+        msg = can.Message(arbitration_id=can_id, data=data, is_extended_id=extended, is_fd=fd)
+        try:
+            with network.send_lock:
+                bus.send(msg)
+        except Exception:  # The bus may be gone while shutting down.
+            log.debug("PDO 0x%03X not sent", can_id, exc_info=True)
+
+    def _send_pdo_emcy(self, code: int) -> None:
+        # Error register 11h: generic + communication error (smartris 001 §10-3 example).
+        self._on_emcy(code, 0x11, bytes(5))
 
     # EMCY -------------------------------------------------------------------------------
 

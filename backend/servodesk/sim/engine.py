@@ -37,13 +37,27 @@ Choices where the standard leaves room (documented here once):
   writes in the NMT state named by ``pdo.mapping_state`` ("preop" by default, "any" for no
   restriction) or whenever the PDO is invalid (bit 31 of its COB-ID set): CiA 301 §7.5.2.36
   re-mapping procedure, which disables the PDO first and so may run in OPERATIONAL too.
+  Setting a mapping's count checks the entries (0604 0041h), the family's entry and bit limits
+  (0604 0042h) and, where ``pdo.allow_duplicates`` is false or the quirk
+  ``pdo_no_duplicate_entries`` is set, an object mapped twice (0604 0043h); setting 1C12h/1C13h
+  sub 0 checks the assigned mapping objects against ``max_entries`` and ``max_bytes`` (HIWIN
+  000 §3.1.2 note 1: 0604 0042h). The quirks ``pdo_state_abort`` and
+  ``pdo_unknown_object_abort`` give a family's own abort codes for a mapping write in the
+  wrong state and for an entry naming no object.
+- Process data (sim/pdo.py) reaches the objects through :meth:`SimulatedDrive.write_process`
+  and :meth:`SimulatedDrive.sample`; hooks registered with :meth:`SimulatedDrive.on_cycle`
+  run after every control cycle, so event timers and inhibit times follow simulated time.
+- Hooks registered with :meth:`SimulatedDrive.on_substep` run after every plant sub-step (the
+  drive-side recorder, sim/recorder.py, samples there); with none registered the plant runs a
+  cycle's sub-steps in one call, and with some it runs them one at a time with the same
+  arithmetic, so a hook never changes the simulation.
 """
 
 from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from servodesk.domain.cia402 import STATE_BITS, State, device_transition
@@ -53,7 +67,9 @@ from servodesk.domain.profile import DeviceProfile, ErrorEntry, ObjectSpec
 from servodesk.domain.sdo_abort import ABORT_CODES
 from servodesk.sim.faults import FaultModel
 from servodesk.sim.homing import HomingProcedure, SwitchLayout
+from servodesk.sim.pdo import pdo_kind
 from servodesk.sim.plant import Plant, PlantParams
+from servodesk.sim.recorder import Recorder
 
 # Object keys: index << 8 | subindex (ints are the fastest dict keys in the control cycle).
 K_ERROR_REGISTER = 0x100100
@@ -164,6 +180,7 @@ _NMT_ALIASES = {
 
 EmcyListener = Callable[[int, int, bytes], None]
 WriteListener = Callable[[int, int, Value], None]
+StepHook = Callable[[], None]
 
 # Control kinds.
 _OFF, _POSITION, _VELOCITY, _TORQUE = 0, 1, 2, 3
@@ -247,6 +264,10 @@ class SimulatedDrive:
         self._lock = threading.RLock()
         self._emcy_listeners: list[EmcyListener] = []
         self._write_listeners: list[WriteListener] = []
+        self._cycle_hooks: list[StepHook] = []
+        self._step_hooks: list[StepHook] = []
+        # A tuple, replaced on change: a hook may remove itself while the cycle runs the hooks.
+        self._substep_hooks: tuple[StepHook, ...] = ()
         self._events: list[tuple[int, int, bytes]] = []
 
         # Object store.
@@ -286,6 +307,20 @@ class SimulatedDrive:
             "bit7_edge",
         )
         self._pdo_mapping_state = _NMT_ALIASES.get(_norm(profile.pdo.mapping_state), "any")
+        # Quirk pdo_state_abort (HIWIN 000 §2.8.1 note 1: 0601 0002h): the abort answering a
+        # write of a mapping or assignment object outside the state that allows it.
+        q = profile.quirk("pdo_state_abort")
+        self._pdo_state_abort = coerce_int(q) if q is not None else 0x08000022
+        # Quirk pdo_unknown_object_abort (smartris 001 §2-8 note 1, HIWIN 000 §2.8.1 note 2:
+        # 0602 0000h): the abort for a mapping entry naming no object (CiA 301: 0604 0041h).
+        q = profile.quirk("pdo_unknown_object_abort")
+        self._pdo_unknown_abort = coerce_int(q) if q is not None else 0x06040041
+        # PROFIdrive telegrams pad with Reserved entries: index 0, 0/8/16 bits (004 §20.1.2).
+        self._pdo_reserved = pdo_kind(profile) == "telegram"
+        # HIWIN 000 §3.1 (1600h): an object may be mapped only once (quirk or pdo rule).
+        self._pdo_duplicates = profile.pdo.allow_duplicates and not profile.quirk(
+            "pdo_no_duplicate_entries", False
+        )
         self._homing_equiv = profile.quirk("homing_method_equivalent")
         # Quirk ramp_rate_registers (003 §5-3-1): 609Ah is a PMC842SR rate register, not
         # counts/s²; with multiplier 1 the ramp is Fclk/8 / register [pulses/s²].
@@ -319,8 +354,14 @@ class SimulatedDrive:
         #: NMT (or ESM) state, set by the front-end: "init", "preop", "op", "stopped".
         self.nmt_state = "preop"
         self._cycles = 0
+        #: Plant sub-steps of the current cycle done (inside a sub-step hook: the one just done).
+        self._sub_k = self._substeps
         self._acc_time = 0.0
         self._inputs = 0
+        #: The drive-side recorder (docs/scope.md), where the profile gives the drive one.
+        self.recorder: Recorder | None = None
+        if profile.recorder is not None:
+            self.recorder = Recorder(self, profile.recorder)
         self._reset_runtime()
 
     # ------------------------------------------------------------------ public surface
@@ -375,6 +416,116 @@ class SimulatedDrive:
         """Call ``listener(index, subindex, value)`` after every accepted write."""
         self._write_listeners.append(listener)
 
+    def on_cycle(self, hook: StepHook) -> None:
+        """Call ``hook()`` after every control cycle, under the drive's lock (keep it short:
+        the process-data engine evaluates event timers and inhibit times here)."""
+        self._cycle_hooks.append(hook)
+
+    def on_substep(self, hook: StepHook) -> None:
+        """Call ``hook()`` after every plant sub-step, under the drive's lock (keep it short:
+        it runs at the plant rate); :attr:`plant_steps` is the step just done."""
+        with self._lock:
+            self._substep_hooks = (*self._substep_hooks, hook)
+
+    def remove_substep_hook(self, hook: StepHook) -> None:
+        """Stop calling a hook added with :meth:`on_substep` (no error when it is not there)."""
+        with self._lock:
+            self._substep_hooks = tuple(h for h in self._substep_hooks if h is not hook)
+
+    @property
+    def plant_steps(self) -> int:
+        """Plant sub-steps since the drive was built: the plant's simulated time is
+        ``plant_steps * plant_period``."""
+        return (self._cycles - 1) * self._substeps + self._sub_k
+
+    @property
+    def plant_period(self) -> float:
+        """Seconds per plant sub-step (the control period / ``plant_substeps``)."""
+        return self._sub_dt
+
+    def sampler(self, index: int, subindex: int = 0) -> Callable[[], Value | None]:
+        """A function returning an object's value when called, for sampling inside the
+        control cycle (the drive-side recorder): the live value of the plant-derived objects,
+        the stored value of the others. 60F4h is the cycle's position demand minus the
+        position at that moment (CiA 402-2 §6.5.7), while the drive controls position."""
+        k = _key(index, subindex)
+        if k == K_FE_ACTUAL:
+            return self._following_error_now
+        live = self._live.get(k)
+        if live is not None:
+            return live
+        return lambda: self._values.get(k)
+
+    def _following_error_now(self) -> int:
+        if self._enabled and self._kind == _POSITION:
+            return round(self._dp - (self.plant.encoder_counts + self._pos_offset))
+        return round(self._fe)
+
+    def on_step(self, hook: StepHook) -> None:
+        """Call ``hook()`` at the end of every :meth:`step`, after the lock is released."""
+        self._step_hooks.append(hook)
+
+    @property
+    def lock(self) -> threading.RLock:
+        """The drive's lock: hold it to read several objects as one consistent sample."""
+        return self._lock
+
+    def sample(self, keys: Sequence[int]) -> list[Value | None]:
+        """Current values of objects by key (``index << 8 | subindex``), for process data.
+
+        No access checks: the caller maps only existing, readable objects.
+        """
+        with self._lock:
+            live = self._live
+            values = self._values
+            return [f() if (f := live.get(k)) is not None else values.get(k) for k in keys]
+
+    def write_process(self, items: Sequence[tuple[int, Value]]) -> None:
+        """Write received process data (``(key, value)`` pairs, in mapping order).
+
+        The normal write path runs (the objects' side effects, e.g. controlword transitions,
+        and the state rules that the drive applies to any write); a value the drive refuses is
+        dropped without an answer, as there is none for a PDO (CiA 301 §7.2.2). The
+        controlword is acted upon last, with the other values of the same PDO in place (a new
+        set-point and its target position arrive together).
+        """
+        done: list[tuple[int, int, Value]] = []
+        refresh = False
+        with self._lock:
+            values = self._values
+            cw: list[Value] = []
+            for k, value in items:
+                if k == K_CONTROLWORD:
+                    cw.append(value)
+                    continue
+                # A PDO repeats its data every cycle: an unchanged value has nothing to do
+                # (the controlword always goes through, as its handling counts commands).
+                if values.get(k) == value:
+                    continue
+                spec = self._specs.get(k)
+                if spec is None or not spec.access.writable:
+                    continue
+                try:
+                    self._write(spec, value)
+                except SimAbort:
+                    continue
+                done.append((spec.index, spec.subindex, value))
+                refresh = refresh or k in _FALLBACK
+            if refresh:
+                self._refresh()
+            spec = self._specs.get(K_CONTROLWORD)
+            for value in cw:
+                if spec is not None:
+                    try:
+                        self._write(spec, value)
+                    except SimAbort:
+                        continue
+                    done.append((spec.index, spec.subindex, value))
+        for index, subindex, value in done:
+            for cb in self._write_listeners:
+                cb(index, subindex, value)
+        self._flush()
+
     def has_object(self, index: int, subindex: int = 0) -> bool:
         return _key(index, subindex) in self._specs
 
@@ -395,9 +546,14 @@ class SimulatedDrive:
             if n > 0:
                 self._acc_time -= n * self._T
                 cycle = self._cycle
+                hooks = self._cycle_hooks
                 for _ in range(n):
                     cycle()
+                    for hook in hooks:
+                        hook()
         self._flush()
+        for hook in self._step_hooks:
+            hook()
 
     def read(self, index: int, subindex: int = 0) -> Value:
         """The typed value of an object, as an SDO upload would return it."""
@@ -541,6 +697,12 @@ class SimulatedDrive:
             return
         if _is_mapping(spec.index):
             self._check_mapping(spec, value)
+        elif spec.index in (0x1C12, 0x1C13) and spec.subindex == 0:
+            self._check_assignment(spec.index, value)
+        elif self.recorder is not None and self.recorder.owns(spec.index):
+            refusal = self.recorder.write(spec.index, spec.subindex, value)
+            if refusal is not None:
+                raise SimAbort(*refusal)
         self._values[k] = value
 
     def _after_write(self, index: int, subindex: int, value: Value) -> None:
@@ -557,7 +719,8 @@ class SimulatedDrive:
             if isinstance(comm, int) and comm & 0x80000000:
                 return
             raise SimAbort(
-                0x08000022, "PDO mapping changes need PRE-OPERATIONAL or the PDO disabled"
+                self._pdo_state_abort,
+                "PDO mapping changes need PRE-OPERATIONAL or the PDO disabled",
             )
         if not allowed:
             return
@@ -568,29 +731,61 @@ class SimulatedDrive:
             n = _norm(name)
             if _NMT_ALIASES.get(n, n) in here:
                 return
-        raise SimAbort(0x08000022, f"writable only in {', '.join(allowed)}")
+        code = self._pdo_state_abort if _is_pdo_object(spec.index) else 0x08000022
+        raise SimAbort(code, f"writable only in {', '.join(allowed)}")
 
     def _check_mapping(self, spec: ObjectSpec, value: Value) -> None:
         """CiA 301 §7.5.2.36: mapped objects must exist, be mappable and fit the PDO."""
         assert isinstance(value, int)
         rx = spec.index < 0x1A00
         if spec.subindex == 0:
+            rules = self.profile.pdo
+            if value > rules.max_entries:
+                raise SimAbort(0x06040042, f"at most {rules.max_entries} entries")
             bits = 0
+            seen: set[int] = set()
             for i in range(1, value + 1):
                 entry = self._values.get(_key(spec.index, i))
                 if not isinstance(entry, int):
                     raise SimAbort(0x06040041)
                 self._check_mapped_object(entry, rx)
                 bits += entry & 0xFF
-            if bits > self.profile.pdo.max_bits:
+                obj = entry >> 8
+                if not self._pdo_duplicates and entry >> 16 and obj in seen:
+                    # HIWIN 000 §3.1 (1600h): the same object may not be mapped twice.
+                    raise SimAbort(0x06040043, f"0x{entry:08X} is mapped twice")
+                seen.add(obj)
+            if bits > rules.max_bits:
                 raise SimAbort(0x06040042)
         elif value:
             self._check_mapped_object(value, rx)
 
+    def _check_assignment(self, index: int, value: Value) -> None:
+        """HIWIN 000 §3.1.2 note 1: setting 1C12h/1C13h sub 0 to n checks the assigned
+        mapping objects (0604 0042h when they hold too many objects or bytes)."""
+        assert isinstance(value, int)
+        rules = self.profile.pdo
+        limit = rules.max_bytes * 8 if rules.max_bytes is not None else rules.max_bits
+        total = 0
+        for i in range(1, value + 1):
+            mapping = self._values.get(_key(index, i))
+            if not isinstance(mapping, int) or not _is_mapping(mapping):
+                raise SimAbort(0x06040043, f"sub {i} names no mapping object")
+            count = self._values.get(_key(mapping, 0))
+            if not isinstance(count, int) or count > rules.max_entries:
+                raise SimAbort(0x06040042, f"0x{mapping:04X}: over {rules.max_entries} entries")
+            for s in range(1, count + 1):
+                entry = self._values.get(_key(mapping, s))
+                total += entry & 0xFF if isinstance(entry, int) else 0
+        if total > limit:
+            raise SimAbort(0x06040042, f"{total // 8} bytes assigned, at most {limit // 8}")
+
     def _check_mapped_object(self, entry: int, rx: bool) -> None:
+        if self._pdo_reserved and not entry >> 16 and entry & 0xFF in (0, 8, 16):
+            return  # A Reserved entry (004 §20.1.2).
         target = self._specs.get(entry >> 8 & 0xFFFFFF)
         if target is None:
-            raise SimAbort(0x06040041, f"0x{entry:08X} names no object")
+            raise SimAbort(self._pdo_unknown_abort, f"0x{entry:08X} names no object")
         ok = target.pdo_mapping.rx if rx else target.pdo_mapping.tx
         if not ok or target.bits != entry & 0xFF:
             raise SimAbort(0x06040041, f"0x{entry:08X} cannot be mapped")
@@ -670,7 +865,7 @@ class SimulatedDrive:
         self._values[K_ERROR_CODE] = 0
         if K_ERROR_REGISTER in self._specs:
             self._values[K_ERROR_REGISTER] = 0
-        self._live: dict[int, Callable[[], Value]] = {
+        self._live: dict[int, Callable[[], Value | None]] = {
             K_STATUSWORD: self._statusword,
             K_MODE_DISPLAY: lambda: self._mode,
             K_POSITION: lambda: self.plant.encoder_counts + self._pos_offset,
@@ -679,6 +874,9 @@ class SimulatedDrive:
             K_FE_ACTUAL: lambda: round(self._fe),
             K_INPUTS: lambda: self._inputs | self.switches.inputs(self.plant.encoder_counts),
         }
+        if self.recorder is not None:
+            self.recorder.reset()  # RAM: a power cycle loses the recording (sim/recorder.py).
+            self._live.update(self.recorder.live())
 
     def _refresh(self) -> None:
         """Copy the parameters the control cycle reads into ``_c`` (after every write)."""
@@ -1273,12 +1471,27 @@ class SimulatedDrive:
             self._dp = float(p_act)
             self._dv = 0.0
             self._fe = 0.0
-        plant.step_n(torque, self._sub_dt, self._substeps)
+        hooks = self._substep_hooks
+        if hooks:
+            self._substeps_hooked(torque, hooks)
+        else:
+            plant.step_n(torque, self._sub_dt, self._substeps)
         # I²t of the motor current (torque ratio to rated), a first-order thermal model.
         r = plant.torque / self._rated
         self._i2t += (r * r - self._i2t) * (self._T / self._i2t_tau)
         if self._enabled:
             self._monitor(p_act, v_act)
+
+    def _substeps_hooked(self, torque: float, hooks: tuple[StepHook, ...]) -> None:
+        """The cycle's plant sub-steps one at a time, each followed by the sub-step hooks
+        (Plant.step_n with n = 1 does the same arithmetic as one call for all of them)."""
+        step_n = self.plant.step_n
+        dt = self._sub_dt
+        for k in range(1, self._substeps + 1):
+            step_n(torque, dt, 1)
+            self._sub_k = k
+            for hook in hooks:
+                hook()
 
     def _control(self, p_act: int, v_act: float) -> float:
         g = self.gains
@@ -1391,6 +1604,11 @@ class SimulatedDrive:
 
 def _is_mapping(index: int) -> bool:
     return 0x1600 <= index <= 0x17FF or 0x1A00 <= index <= 0x1BFF
+
+
+def _is_pdo_object(index: int) -> bool:
+    """A mapping object or a sync manager assignment (1C12h/1C13h)."""
+    return _is_mapping(index) or index in (0x1C12, 0x1C13)
 
 
 def _scope(sub: int) -> tuple[int, int]:

@@ -547,7 +547,7 @@ export interface CyclicRequest {
   duration: number;
 }
 
-export type MotionKind = 'jog' | 'move' | 'velocity' | 'torque' | 'cyclic';
+export type MotionKind = 'jog' | 'move' | 'velocity' | 'torque' | 'cyclic' | 'homing';
 
 export interface MotionStatus {
   session: string;
@@ -671,3 +671,241 @@ export interface ViewerInfo {
   message?: string | null;
   reason?: string | null;
 }
+
+// ---------------------------------------------------------------------------------------------
+// PDO mapping and cyclic process data (issue 6) — docs/pdo.md "REST". Appended by the PDO
+// mapping page; everything above belongs to the shared types.
+// ---------------------------------------------------------------------------------------------
+
+/** rx: master -> drive (RPDO, setpoint telegram); tx: drive -> master (TPDO, actual values). */
+export type PdoDirection = 'rx' | 'tx';
+
+/** How a family maps process data (profile `pdo.kind`, docs/pdo.md "Families"). */
+export type PdoKind = 'canopen' | 'ethercat' | 'fixed' | 'telegram';
+
+export interface PdoRules {
+  max_entries: number;
+  max_bits: number;
+  /** Bytes per direction over all active PDOs (HIWIN 000 §2.2: 40), when the family has a limit. */
+  max_bytes: number | null;
+  /** "preop" or "fixed". */
+  mapping_state: string;
+  section: string | null;
+  rpdo_count: number;
+  tpdo_count: number;
+}
+
+/** A reason a mapping is refused, shown next to the PDO / entry / field it names. */
+export interface PdoProblem {
+  message: string;
+  /** Pdo name ("TPDO2"), null for the whole mapping. */
+  pdo: string | null;
+  /** 0-based entry position in that PDO. */
+  entry: number | null;
+  /** "entries", "cob_id", "transmission_type", "assignment", "telegram", ... */
+  field: string | null;
+  section: string | null;
+}
+
+export interface PdoEntryOut {
+  index: number;
+  subindex: number;
+  bits: number;
+  raw_hex: string;
+  /** "0x6064:00"; null for padding. */
+  address: string | null;
+  name: string;
+  /** Type name ("INTEGER32"); the backend sends the CiA 306 number (4) today. */
+  data_type: string | number | null;
+  unit: string | null;
+  offset_bits: number;
+  offset_byte: number;
+  padding: boolean;
+}
+
+export interface PdoOut {
+  direction: PdoDirection;
+  number: number;
+  name: string;
+  mapping_index: number;
+  /** Null: the family has no communication parameters (ethercat, fixed, telegram). */
+  comm_index: number | null;
+  cob_id: number | null;
+  cob_id_hex: string | null;
+  enabled: boolean | null;
+  rtr_allowed: boolean | null;
+  transmission_type: number | null;
+  transmission_text: string | null;
+  inhibit_time: number | null;
+  inhibit_time_ms: number | null;
+  event_timer: number | null;
+  sync_start: number | null;
+  /** On the bus: enabled (canopen), assigned (ethercat), always (fixed, telegram). */
+  active: boolean;
+  bits: number;
+  max_bits: number;
+  bytes: number;
+  frame_length: number;
+  entries: PdoEntryOut[];
+}
+
+export interface PdoAssignment {
+  rx: number[];
+  tx: number[];
+}
+
+/** GET /pdo and the `view` of validate / templates / apply. */
+export interface PdoView {
+  kind: PdoKind;
+  /** "little" (CiA 301) or "big" (LECSN telegrams, 004 §20.1.2). */
+  byte_order: string;
+  rules: PdoRules;
+  pdos: PdoOut[];
+  assignment: PdoAssignment | null;
+  telegram: number | null;
+  nmt_state: string | null;
+  problems: PdoProblem[];
+}
+
+/** One mapping entry as the API takes it (index 0: LECSN Reserved padding). */
+export interface PdoLayoutEntry {
+  index: number;
+  subindex: number;
+  bits: number;
+}
+
+export interface PdoLayoutPdo {
+  direction: PdoDirection;
+  number: number;
+  entries: Array<string | PdoLayoutEntry>;
+  cob_id?: number;
+  enabled?: boolean;
+  rtr_allowed?: boolean;
+  transmission_type?: number;
+  inhibit_time?: number;
+  event_timer?: number;
+  sync_start?: number;
+}
+
+/** The body of validate / plan / apply: PDOs left out keep their current configuration. */
+export interface PdoLayout {
+  pdos: PdoLayoutPdo[];
+  assignment?: PdoAssignment;
+  telegram?: number;
+}
+
+export interface MappableObject {
+  address: string;
+  index: number;
+  subindex: number;
+  name: string;
+  /** Type name ("INTEGER32"); the backend sends the CiA 306 number (4) today. */
+  data_type: string | number;
+  bits: number;
+  unit: string | null;
+  direction: PdoDirection | 'both';
+}
+
+export interface PdoMappable {
+  rx: MappableObject[];
+  tx: MappableObject[];
+}
+
+export interface PdoTemplate {
+  id: string;
+  name: string;
+  description: string | null;
+  section: string | null;
+}
+
+export interface PdoValidation {
+  ok: boolean;
+  problems: PdoProblem[];
+  view: PdoView;
+}
+
+export interface PdoStep {
+  kind: 'write' | 'nmt';
+  address: string | null;
+  value: number;
+  value_hex: string | null;
+  /** nmt: "preop" | "start" | "stop". */
+  command: string | null;
+  why: string;
+}
+
+export interface PdoPlan {
+  steps: PdoStep[];
+  touched: string[];
+}
+
+export interface PdoApplyRequest extends PdoLayout {
+  dry_run: boolean;
+}
+
+export interface PdoApplyReport {
+  ok: boolean;
+  dry_run: boolean;
+  steps: PdoStep[];
+  /** Steps done before the end (all of them when ok). */
+  done: number;
+  duration_s: number;
+  verified: boolean;
+  rolled_back: boolean;
+  error: string | null;
+  failed_step: PdoStep | null;
+  /** The drive after the run; null when it could not be read (link lost). */
+  view: PdoView | null;
+  /** Backend addition: names of the PDOs the plan changed. */
+  touched?: string[];
+  /** Backend addition: why the previous mapping could not be put back. */
+  rollback_error?: string | null;
+}
+
+export interface PdoRate {
+  name: string;
+  cob_id: number | null;
+  /** Backend addition. */
+  cob_id_hex?: string;
+  count: number;
+  /** Null for RX PDOs (the session sends them with each SYNC). */
+  rate_hz: number | null;
+  /** Backend addition: frames that could not be decoded. */
+  errors?: number;
+}
+
+/** One mapped object's latest value from the cyclic data. */
+export interface PdoLiveValue {
+  /** The value as the frame carries it (integer counts); the backend sends `value` only. */
+  raw?: number | string | boolean | null;
+  value: number | string | boolean | null;
+  engineering: number | null;
+  /** Engineering unit. */
+  unit: string | null;
+  /** Name of the PDO that carried it. */
+  pdo: string | null;
+  /** Raw unit, when the server sends it (else the profile's). */
+  raw_unit?: string | null;
+  /** Backend addition: seconds since the frame that carried it. */
+  age_s?: number | null;
+}
+
+export interface PdoCyclicStatus {
+  running: boolean;
+  sync_period_ms: number | null;
+  outputs: boolean;
+  rx_pdos: PdoRate[];
+  tx_pdos: PdoRate[];
+  frames_per_s: number;
+  decode_errors: number;
+  values: Record<string, PdoLiveValue>;
+  /** Backend addition: SYNCs sent. */
+  syncs?: number;
+}
+
+export interface PdoCyclicRequest {
+  sync_period_ms: number;
+  outputs: boolean;
+}
+
+export type PdoExportFormat = 'csv' | 'dcf' | 'esi' | 'json';

@@ -15,6 +15,8 @@ import { ObjectDictionaryPage } from './ObjectDictionaryPage';
 import { OperationPage } from './OperationPage';
 import { OverviewPage } from './OverviewPage';
 import { ParametersPage } from './ParametersPage';
+import { PdoPage } from './PdoPage';
+import { ScopePage } from './ScopePage';
 import { ViewerPage } from './ViewerPage';
 
 export interface PageProps {
@@ -38,12 +40,12 @@ export const PAGES: readonly PageDef[] = [
   { id: 'overview', title: 'Overview', group: 'Drive', scope: 'session', description: 'Identity, state machine, statusword, live values', component: OverviewPage },
   { id: 'operation', title: 'Operation', group: 'Drive', scope: 'session', description: 'Servo on, jog, move, home with a dead-man', component: OperationPage },
   { id: 'tuning', title: 'Tuning', group: 'Drive', scope: 'session', description: 'Gains, one-touch tuning, Bode' },
-  { id: 'scope', title: 'Scope', group: 'Drive', scope: 'session', description: 'Triggered recording of process values' },
+  { id: 'scope', title: 'Scope', group: 'Drive', scope: 'session', description: 'Triggered recording of process values', component: ScopePage },
   { id: 'alarms', title: 'Alarms', group: 'Drive', scope: 'session', description: 'Current alarm, history, causes and remedies', component: AlarmsPage },
   { id: 'parameters', title: 'Parameters', group: 'Data', scope: 'session', description: 'Grouped parameters, hex and units, save to EEPROM', component: ParametersPage },
   { id: 'objects', title: 'Object access', group: 'Data', scope: 'session', description: 'Read and write one object by address', component: ObjectAccessPage },
   { id: 'dictionary', title: 'Object dictionary', group: 'Data', scope: 'session', description: 'Every object of the profile', component: ObjectDictionaryPage },
-  { id: 'pdo', title: 'PDO mapping', group: 'Data', scope: 'session', description: 'Process data layout the PLC needs' },
+  { id: 'pdo', title: 'PDO mapping', group: 'Data', scope: 'session', description: 'Process data layout the PLC needs', component: PdoPage },
   { id: 'backup', title: 'Backup & restore', group: 'Service', scope: 'session', description: 'Back up, restore and compare parameters', component: BackupPage },
   { id: 'view3d', title: '3D view', group: 'Service', scope: 'session', description: 'Live 3D twin of the axes', component: ViewerPage },
 ];

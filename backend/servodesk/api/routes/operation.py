@@ -1,10 +1,14 @@
-"""Homing and alarm routes (issue 4): thin wrappers over services/homing.py and alarms.py."""
+"""Homing and alarm routes (issue 4): thin wrappers over services/homing.py and alarms.py.
+
+Starting homing goes through the motion service (services/motion.py), which watches the run
+with the client's dead-man heartbeat like a jog.
+"""
 
 from __future__ import annotations
 
 from fastapi import APIRouter
 
-from servodesk.api.control_deps import MotionControl, WriteControl
+from servodesk.api.control_deps import MotionControl, OperationDep, WriteControl
 from servodesk.api.deps import StateDep
 from servodesk.api.schemas import (
     ERROR_RESPONSES,
@@ -27,17 +31,17 @@ async def homing_methods(sid: str, state: StateDep) -> list[HomingMethodOut]:
 
 @router.post("/sessions/{sid}/homing", operation_id="start_homing")
 async def start_homing(
-    sid: str, body: HomingRequest, state: StateDep, client: MotionControl
+    sid: str, body: HomingRequest, op: OperationDep, client: MotionControl
 ) -> HomingStatus:
-    session = state.manager.get(sid)
-    out = await homing.start(
-        session,
+    """Start homing; a run that moves the axis lives under the client's dead-man (a jog's)."""
+    out = await op.motion.home(
+        sid,
+        client,
         body.method,
         speed_switch=body.speed_switch,
         speed_zero=body.speed_zero,
         acceleration=body.acceleration,
         offset=body.offset,
-        client=client,
     )
     return HomingStatus.model_validate(out)
 

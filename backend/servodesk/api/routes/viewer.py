@@ -43,6 +43,7 @@ def viewer(app: Any) -> ViewerService:
             host=state.settings.host,
             port=state.settings.viewer_port,
             target_of=target_of,
+            public=state.settings.viewer_public,
         )
         app.state.servodesk_viewer = service
     return service

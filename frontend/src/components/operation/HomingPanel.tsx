@@ -15,7 +15,7 @@ import { FailureBox } from '../FailureBox';
 import { Hint, ModeUnavailable, PanelFooter } from './common';
 import type { PanelContext } from './context';
 import { NumberField, useRawField } from './NumberField';
-import { operationLive, setHoming } from './operationStore';
+import { beginHeartbeat, operationLive, setHoming, startAnswered } from './operationStore';
 
 export function HomingPanel({ ctx, modes }: { ctx: PanelContext; modes: readonly number[] }) {
   const sid = ctx.sid;
@@ -88,9 +88,14 @@ export function HomingPanel({ ctx, modes }: { ctx: PanelContext; modes: readonly
   async function start() {
     setFailure(null);
     setBusy(true);
+    // A run that moves the axis is under this tab's dead-man like a jog (docs/api.md): the
+    // heartbeats begin before the request, and end with the motion GET /motion reports.
+    beginHeartbeat(sid);
     try {
       setHoming(sid, await operationApi.startHoming(sid, req));
+      startAnswered(sid, await operationApi.motion(sid));
     } catch (e) {
+      startAnswered(sid, null);
       setFailure(failureOf(e, 'Start homing'));
     } finally {
       setBusy(false);

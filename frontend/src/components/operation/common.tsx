@@ -22,7 +22,11 @@ export function LimitNote({
   if (!limits) return <>limit unknown (the server checks it)</>;
   const v = limits[name];
   const src = limits.sources[name];
-  if (v === null) return <>no limit{src ? ` (${src})` : ''}</>;
+  if (v === null) {
+    // The server says "unknown: the drive refused ..." when it could not read the limit.
+    if (src?.startsWith('unknown')) return <>limit unknown ({src.replace(/^unknown:\s*/, '')})</>;
+    return <>no limit{src ? ` (${src})` : ''}</>;
+  }
   return (
     <>
       limit {signed ? '±' : '≤ '}

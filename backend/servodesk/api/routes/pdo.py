@@ -1,0 +1,174 @@
+"""PDO mapping and cyclic data routes (issue 6): thin wrappers over services/pdo.py.
+
+Reading, validating and planning change nothing and need no control; applying a mapping,
+starting or stopping cyclic data and setting outputs are writes (control ownership, 409
+naming the owner otherwise). Shapes: docs/pdo.md.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, Query
+from fastapi.responses import Response
+from pydantic import BaseModel, ConfigDict, Field
+
+from servodesk.api.control_deps import WriteControl
+from servodesk.api.deps import StateDep
+from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.domain import pdo as pdomod
+from servodesk.services import pdo as pdosvc
+
+router = APIRouter(tags=["pdo"], responses=ERROR_RESPONSES)
+
+_BODY = ConfigDict(extra="forbid")
+
+
+class EntryIn(BaseModel):
+    model_config = _BODY
+    index: int = Field(ge=0, le=0xFFFF)
+    subindex: int = Field(ge=0, le=0xFF)
+    bits: int = Field(ge=0, le=64)
+
+
+class PdoIn(BaseModel):
+    model_config = _BODY
+    direction: Literal["rx", "tx"]
+    number: int = Field(ge=1, le=512)
+    entries: list[Annotated[str, Field(max_length=32)] | EntryIn] | None = Field(
+        default=None, max_length=64
+    )
+    cob_id: int | None = Field(default=None, ge=0, le=0x7FF)
+    enabled: bool | None = None
+    rtr_allowed: bool | None = None
+    transmission_type: int | None = Field(default=None, ge=0, le=255)
+    inhibit_time: int | None = Field(default=None, ge=0, le=0xFFFF)
+    event_timer: int | None = Field(default=None, ge=0, le=0xFFFF)
+    sync_start: int | None = Field(default=None, ge=0, le=240)
+
+
+class PdoLayout(BaseModel):
+    model_config = _BODY
+    pdos: list[PdoIn] = Field(default_factory=list, max_length=64)
+    assignment: dict[Literal["rx", "tx"], list[Annotated[int, Field(ge=0, le=0xFFFF)]]] | None = (
+        None
+    )
+    telegram: int | None = Field(default=None, ge=0, le=65535)
+
+
+class ApplyRequest(PdoLayout):
+    dry_run: bool = False
+
+
+class CyclicRequest(BaseModel):
+    model_config = _BODY
+    sync_period_ms: float = Field(default=10.0, ge=1.0, le=1000.0)
+    outputs: bool = False
+
+
+class OutputsRequest(BaseModel):
+    model_config = _BODY
+    values: dict[Annotated[str, Field(max_length=32)], int | float | bool] = Field(max_length=64)
+
+
+def _body(layout: PdoLayout) -> dict[str, Any]:
+    return layout.model_dump(exclude_none=True, exclude={"dry_run"})
+
+
+@router.get("/sessions/{sid}/pdo", operation_id="pdo_view")
+async def pdo_view(sid: str, state: StateDep) -> dict[str, Any]:
+    return await pdosvc.view(state.manager.get(sid))
+
+
+@router.get("/sessions/{sid}/pdo/mappable", operation_id="pdo_mappable")
+async def pdo_mappable(sid: str, state: StateDep) -> dict[str, list[dict[str, Any]]]:
+    return pdosvc.mappable(state.manager.get(sid))
+
+
+@router.get("/sessions/{sid}/pdo/templates", operation_id="pdo_templates")
+async def pdo_templates(sid: str, state: StateDep) -> list[dict[str, Any]]:
+    return pdosvc.templates(state.manager.get(sid))
+
+
+@router.post("/sessions/{sid}/pdo/templates/{template_id}", operation_id="pdo_from_template")
+async def pdo_from_template(sid: str, template_id: str, state: StateDep) -> dict[str, Any]:
+    return await pdosvc.from_template(state.manager.get(sid), template_id)
+
+
+@router.post("/sessions/{sid}/pdo/validate", operation_id="pdo_validate")
+async def pdo_validate(sid: str, body: PdoLayout, state: StateDep) -> dict[str, Any]:
+    return await pdosvc.check(state.manager.get(sid), _body(body))
+
+
+@router.post("/sessions/{sid}/pdo/plan", operation_id="pdo_plan")
+async def pdo_plan(sid: str, body: PdoLayout, state: StateDep) -> dict[str, Any]:
+    plan = await pdosvc.make_plan(state.manager.get(sid), _body(body))
+    return {"steps": [pdosvc.step_dict(s) for s in plan.steps], "touched": list(plan.touched)}
+
+
+@router.post("/sessions/{sid}/pdo/apply", operation_id="pdo_apply")
+async def pdo_apply(
+    sid: str, body: ApplyRequest, state: StateDep, client: WriteControl
+) -> dict[str, Any]:
+    return await pdosvc.apply(
+        state.manager.get(sid), _body(body), dry_run=body.dry_run, client=client
+    )
+
+
+_MEDIA = {
+    "json": "application/json",
+    "csv": "text/csv",
+    "dcf": "text/plain",
+    "esi": "application/xml",
+}
+
+
+@router.get(
+    "/sessions/{sid}/pdo/export",
+    operation_id="pdo_export",
+    response_class=Response,
+    responses={
+        200: {
+            "description": "the layout as a file (CSV, DCF, ESI XML or JSON)",
+            "content": {m: {"schema": {"type": "string"}} for m in _MEDIA.values()},
+        }
+    },
+)
+async def pdo_export(
+    sid: str,
+    state: StateDep,
+    format: Annotated[Literal["json", "csv", "dcf", "esi"], Query()] = "csv",
+) -> Response:
+    session = state.manager.get(sid)
+    config = await pdosvc.read_config(session)
+    text = pdomod.export(session.profile, config, format, session.link.params.node_id)
+    ext = {"esi": "xml"}.get(format, format)
+    return Response(
+        text,
+        media_type=_MEDIA[format],
+        headers={"Content-Disposition": f'attachment; filename="{sid}-pdo.{ext}"'},
+    )
+
+
+@router.get("/sessions/{sid}/pdo/cyclic", operation_id="pdo_cyclic_status")
+async def pdo_cyclic_status(sid: str, state: StateDep) -> dict[str, Any]:
+    return pdosvc.cyclic_status(state.manager.get(sid))
+
+
+@router.post("/sessions/{sid}/pdo/cyclic", operation_id="pdo_cyclic_start")
+async def pdo_cyclic_start(
+    sid: str, body: CyclicRequest, state: StateDep, client: WriteControl
+) -> dict[str, Any]:
+    return await pdosvc.start_cyclic(state.manager.get(sid), body.sync_period_ms, body.outputs)
+
+
+@router.delete("/sessions/{sid}/pdo/cyclic", operation_id="pdo_cyclic_stop")
+async def pdo_cyclic_stop(sid: str, state: StateDep, client: WriteControl) -> dict[str, Any]:
+    return await pdosvc.stop_cyclic(state.manager.get(sid))
+
+
+@router.put("/sessions/{sid}/pdo/cyclic/outputs", operation_id="pdo_cyclic_outputs")
+async def pdo_cyclic_outputs(
+    sid: str, body: OutputsRequest, state: StateDep, client: WriteControl
+) -> dict[str, Any]:
+    return pdosvc.set_outputs(state.manager.get(sid), body.values)

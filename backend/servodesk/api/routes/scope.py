@@ -1,0 +1,151 @@
+"""Live scope routes (issue 7): thin wrappers over services/scope.py; shapes: docs/scope.md.
+
+The scope belongs to the application (its channels may come from several sessions), so its
+routes sit under ``/scope``; only the drive-side recorder's description is per session. The
+scope reads the drives and never changes the axis (a recorder's configuration objects are
+the only writes), so no route needs control ownership. The binary stream is
+api/scope_ws.py. The router's lifespan stops the acquisition before the sessions close.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import AsyncIterator
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, FastAPI, Query, Request
+from fastapi.responses import Response
+from pydantic import BaseModel, ConfigDict, Field
+
+from servodesk.api.deps import AppState, StateDep
+from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.domain import scope as core
+from servodesk.services import scope as scopesvc
+from servodesk.services.scope import ScopeService
+
+
+def scope_of(app: Any) -> ScopeService:
+    """The application's scope (created on first use)."""
+    service: ScopeService | None = getattr(app.state, "servodesk_scope", None)
+    if service is None:
+        state: AppState = app.state.servodesk
+        service = ScopeService(state.manager)
+        app.state.servodesk_scope = service
+    return service
+
+
+@contextlib.asynccontextmanager
+async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
+    try:
+        yield
+    finally:
+        service: ScopeService | None = getattr(app.state, "servodesk_scope", None)
+        if service is not None:
+            await service.close()
+
+
+router = APIRouter(tags=["scope"], responses=ERROR_RESPONSES, lifespan=_lifespan)
+
+_BODY = ConfigDict(extra="forbid")
+
+
+class ChannelIn(BaseModel):
+    model_config = _BODY
+    id: int = Field(ge=0, le=255, description="Channel id 0..7")
+    session: str = Field(min_length=1, max_length=128)
+    address: str = Field(min_length=1, max_length=32, description='e.g. "0x6064:00"')
+    source: Literal["auto", "pdo", "sdo", "recorder"] = "auto"
+    scale: float = Field(default=1.0, allow_inf_nan=False)
+    offset: float = Field(default=0.0, allow_inf_nan=False)
+    visible: bool = True
+    label: str | None = Field(default=None, max_length=64)
+    rate_hz: float = Field(
+        default=0.0,
+        ge=0.0,
+        le=100_000.0,
+        description="SDO: requested poll rate (0: as fast as the link answers); "
+        "recorder: requested sample rate (0: the recorder's fastest)",
+    )
+
+
+class ChannelsIn(BaseModel):
+    model_config = _BODY
+    # The scope's own limit (8) is checked by the service, which names it in the answer.
+    channels: list[ChannelIn] = Field(max_length=64)
+
+
+class TriggerIn(BaseModel):
+    model_config = _BODY
+    mode: Literal["roll", "single", "normal"] = "roll"
+    kind: Literal["level", "edge", "state", "fault"] = "level"
+    channel: int = Field(default=0, ge=0, le=7)
+    level: float = Field(default=0.0, allow_inf_nan=False)
+    slope: Literal["rising", "falling", "either"] = "rising"
+    pre: float = Field(default=0.2, ge=0.0, le=1.0)
+    window_s: float = Field(default=1.0, gt=0.0, le=60.0)
+    holdoff_s: float = Field(default=0.0, ge=0.0, le=3600.0)
+
+
+class RunIn(BaseModel):
+    model_config = _BODY
+    action: Literal["start", "stop", "arm"]
+
+
+@router.get("/scope", operation_id="scope_status")
+async def scope_status(request: Request) -> dict[str, Any]:
+    return scope_of(request.app).status()
+
+
+@router.put("/scope/channels", operation_id="scope_set_channels")
+async def scope_set_channels(
+    body: ChannelsIn, request: Request, state: StateDep
+) -> dict[str, Any]:
+    # The sessions first: a channel of a session that does not exist is a 404 naming it,
+    # whatever else is wrong with the request.
+    for c in body.channels:
+        state.manager.get(c.session)
+    configs = [scopesvc.parse_channel(c.model_dump()) for c in body.channels]
+    return await scope_of(request.app).set_channels(configs)
+
+
+@router.put("/scope/trigger", operation_id="scope_set_trigger")
+async def scope_set_trigger(body: TriggerIn, request: Request) -> dict[str, Any]:
+    return await scope_of(request.app).set_trigger(core.Trigger(**body.model_dump()))
+
+
+@router.post("/scope/run", operation_id="scope_run")
+async def scope_run(body: RunIn, request: Request) -> dict[str, Any]:
+    return await scope_of(request.app).run(body.action)
+
+
+@router.get("/scope/capture", operation_id="scope_capture")
+async def scope_capture(request: Request) -> dict[str, Any]:
+    return scope_of(request.app).capture()
+
+
+@router.get("/scope/export", operation_id="scope_export", response_class=Response)
+async def scope_export(
+    request: Request,
+    format: Annotated[Literal["csv", "mdf4"], Query()] = "csv",
+    window: Annotated[Literal["capture", "buffer"], Query()] = "buffer",
+) -> Response:
+    data, media, filename = scope_of(request.app).export(format, window)
+    return Response(
+        data,
+        media_type=media,
+        headers={"Content-Disposition": f'attachment; filename="{filename}"'},
+    )
+
+
+@router.post("/scope/import", operation_id="scope_import")
+async def scope_import(
+    request: Request,
+    filename: Annotated[str, Query(min_length=1, max_length=255)] = "recording.csv",
+) -> dict[str, Any]:
+    body = await request.body()
+    return scope_of(request.app).import_recording(body, filename)
+
+
+@router.get("/sessions/{sid}/recorder", operation_id="scope_recorder")
+async def scope_recorder(sid: str, state: StateDep) -> dict[str, Any]:
+    return scopesvc.recorder_info(state.manager.get(sid))

@@ -1,0 +1,1 @@
+"""Benchmarks that ship with the package, so that ``servodesk bench ...`` runs them anywhere."""

@@ -1,0 +1,657 @@
+"""The live scope's benchmark (issue 7 "Measure"): ``servodesk bench scope [--json]``.
+
+Three processes, as in a deployment: the simulated drives (each on its own bus: one SYNC
+producer per network, CiA 301 §7.2.5), the servodesk server (uvicorn on 127.0.0.1, the real
+application), and this process with the WebSocket clients (the ``websockets`` package, with
+permessage-deflate as a browser negotiates it). For each source (PDO at 1 ms SYNC, the
+drive-side recorder at 4 kHz) the scope gets ``--channels`` objects of each of ``--drives``
+drives, ``--clients`` clients read the stream, and the bench reports:
+
+- samples produced per second (the limit) and what every client received per second;
+- samples dropped for clients that keep up (must be 0): the produced count minus what each
+  client received, after the scope stopped and the last frame arrived, and skipped frames;
+- latency from each sample's time (the backend clock) to the client's receipt, p50/p99;
+- CPU of the server process (its process time over wall time; 1.0 = one core busy), of the
+  drives' process and of this one (the clients), and the load average.
+
+Production is never faked: the samples counted are the scope's own count of what the drives
+delivered. Where a source falls short of the issue's 4 kHz x 8 channels per drive, the JSON
+says what it achieved and why (a 1 ms SYNC is the cyclic exchange's fastest period; the
+recorder's data comes by segmented SDO upload, whose measured throughput bounds its share of
+recording time).
+
+Children: ``python -m servodesk.benchmarks.scope --child sim|server ...`` (internal).
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import json
+import os
+import selectors
+import signal
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+PROFILE = "cia402-generic"
+#: The drive objects a channel can take, in the order channels are assigned (the generic
+#: twin: every object is both TPDO-mappable and recordable).
+OBJECTS = [
+    "0x6064:00",
+    "0x606C:00",
+    "0x60F4:00",
+    "0x60FD:00",
+    "0x6077:00",
+    "0x6041:00",
+    "0x603F:00",
+    "0x6061:00",
+]
+#: TPDO layout carrying all of them on every SYNC (CiA 301: at most 64 bits per classic PDO).
+TPDOS = [OBJECTS[0:2], OBJECTS[2:4], OBJECTS[4:8]]
+#: The issue's target per drive: 8 channels at 4 kHz.
+TARGET_HZ = 4000.0
+SYNC_PERIOD_MS = 1.0
+CLK_TCK = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+
+
+# Processes ---------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class BusSpec:
+    """Where one simulated drive is: a udp_multicast group and port of its own, its node."""
+
+    channel: str
+    port: int
+    node: int
+
+    def text(self) -> str:
+        return f"{self.channel}/{self.port}/{self.node}"
+
+    @classmethod
+    def parse(cls, text: str) -> BusSpec:
+        channel, port, node = text.split("/")
+        return cls(channel, int(port), int(node))
+
+
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU seconds of a process (all its threads), from /proc."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+    except OSError:
+        return float("nan")
+    # Fields after the command: state is [0], utime [11], stime [12] (proc(5)).
+    return (int(fields[11]) + int(fields[12])) / CLK_TCK
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("", 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+def sim_child(buses: list[BusSpec], interface: str) -> int:
+    """The simulated drives, each on its own bus, stepped by one runner thread."""
+    import canopen
+
+    from servodesk.domain.profile_loader import ProfileCatalog
+    from servodesk.sim.canopen_device import SimCanopenDevice
+    from servodesk.sim.engine import SimulatedDrive
+    from servodesk.sim.runner import SimRunner
+
+    catalog = ProfileCatalog()
+    networks: list[Any] = []
+    devices: list[SimCanopenDevice] = []
+    drives: list[SimulatedDrive] = []
+    for b in buses:
+        network = canopen.Network()
+        network.NOTIFIER_CYCLE = 0.05
+        kwargs: dict[str, Any] = {"interface": interface, "channel": b.channel}
+        if interface == "udp_multicast":
+            kwargs["port"] = b.port
+        network.connect(**kwargs)
+        drive = SimulatedDrive(catalog.get(PROFILE), b.node)
+        dev = SimCanopenDevice(drive)
+        network.add_node(dev)
+        networks.append(network)
+        devices.append(dev)
+        drives.append(drive)
+    runner = SimRunner(drives)
+    for d in drives:
+        d.step(d.CONTROL_PERIOD)  # Leave "Not ready to switch on" before boot-up.
+    for dev in devices:
+        dev.boot()
+    runner.start()
+    flag = {"stop": False}
+
+    def on_signal(signum: int, frame: object) -> None:
+        flag["stop"] = True
+
+    signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
+    print("ready", flush=True)
+    while not flag["stop"]:
+        time.sleep(0.2)
+    runner.stop()
+    for dev in devices:
+        with contextlib.suppress(Exception):
+            dev.shutdown()
+    for n in networks:
+        with contextlib.suppress(Exception):
+            n.disconnect()
+    return 0
+
+
+def server_child(buses: list[BusSpec], interface: str, max_channels: int, data_dir: str) -> int:
+    """The servodesk application on uvicorn (127.0.0.1, a free port), sessions opened."""
+    return asyncio.run(_serve(buses, interface, max_channels, data_dir))
+
+
+async def _serve(buses: list[BusSpec], interface: str, max_channels: int, data_dir: str) -> int:
+    import uvicorn
+
+    from servodesk.api.app import create_app
+    from servodesk.links.base import LinkParams
+    from servodesk.services.scope import ScopeService
+    from servodesk.settings import Settings
+
+    sim = None
+    if interface == "virtual":
+        # Drives in this process (the option --bus virtual): one bus each.
+        from servodesk.sim.bus import SimulatedBus
+
+        sim = [
+            SimulatedBus.start([(PROFILE, b.node)], interface="virtual", channel=b.channel)
+            for b in buses
+        ]
+    app = create_app(Settings(data_dir=Path(data_dir), viewer_port=0))
+    manager = app.state.servodesk.manager
+    # The bench's scope takes every drive's channels (the application's scope: 8).
+    app.state.servodesk_scope = ScopeService(manager, max_channels=max_channels)
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    sock.bind(("127.0.0.1", 0))
+    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
+    task = asyncio.create_task(server.serve(sockets=[sock]))
+    while not server.started:
+        if task.done():
+            task.result()
+        await asyncio.sleep(0.02)
+    sids = []
+    for b in buses:
+        extra = {"port": b.port} if interface == "udp_multicast" else {}
+        params = LinkParams(interface=interface, channel=b.channel, node_id=b.node, extra=extra)
+        session = await manager.open(params, PROFILE, simulated=True)
+        sids.append(session.id)
+    print(json.dumps({"port": sock.getsockname()[1], "sessions": sids}), flush=True)
+    await task
+    if sim is not None:
+        for s in sim:
+            s.stop()
+    return 0
+
+
+def _first_line(proc: subprocess.Popen[str], timeout: float = 60.0) -> str:
+    assert proc.stdout is not None
+    sel = selectors.DefaultSelector()
+    sel.register(proc.stdout, selectors.EVENT_READ)
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if sel.select(timeout=0.2):
+            return proc.stdout.readline()
+        if proc.poll() is not None:
+            break
+    return ""
+
+
+@contextlib.contextmanager
+def child(args: list[str]) -> Any:
+    """A child process of this module; yields (process, its first stdout line)."""
+    with tempfile.TemporaryFile("w+") as err:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "servodesk.benchmarks.scope", "--child", *args],
+            stdout=subprocess.PIPE,
+            stderr=err,
+            text=True,
+        )
+        try:
+            line = _first_line(proc)
+            if not line:
+                err.seek(0)
+                raise RuntimeError(f"the {args[0]} process did not start: {err.read()[-2000:]}")
+            yield proc, line
+        finally:
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGINT)
+                try:
+                    proc.wait(15)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    proc.wait(5)
+            if proc.stdout is not None:
+                proc.stdout.close()
+
+
+# Clients -----------------------------------------------------------------------------------
+
+
+@dataclass
+class Client:
+    """One WebSocket client reading as fast as it can, tallying what it gets."""
+
+    frames: int = 0
+    samples: int = 0
+    bytes: int = 0
+    skipped: int = 0
+    flagged: int = 0
+    seq_gaps: int = 0
+    last_seq: int = 0
+    last_rx: float = 0.0
+    measuring: bool = False
+    latencies: list[np.ndarray] = field(default_factory=list)
+    ready: asyncio.Event = field(default_factory=asyncio.Event)
+    error: str | None = None
+
+    def snapshot(self) -> tuple[int, int, int]:
+        return self.samples, self.frames, self.bytes
+
+
+async def read_stream(url: str, c: Client, compression: bool) -> None:
+    import websockets
+
+    from servodesk.domain import scope_wire as wire
+
+    try:
+        async with websockets.connect(
+            url,
+            subprotocols=[wire.SUBPROTOCOL],  # type: ignore[list-item]
+            compression="deflate" if compression else None,
+            max_size=None,
+        ) as ws:
+            c.ready.set()
+            async for msg in ws:
+                now = time.time()
+                assert isinstance(msg, bytes)
+                f = wire.decode_frame(msg)
+                c.frames += 1
+                c.bytes += len(msg)
+                c.last_rx = time.monotonic()
+                if f.seq != c.last_seq + 1:
+                    c.seq_gaps += 1
+                c.last_seq = f.seq
+                c.skipped = f.skipped
+                if f.skipped_before:
+                    c.flagged += 1
+                if f.kind != wire.KIND_SAMPLES:
+                    continue
+                for b in f.blocks:
+                    c.samples += b.n
+                    if c.measuring and b.n:
+                        c.latencies.append(now - (f.t_ref + b.offsets()))
+    except Exception as exc:  # Reported in the JSON, not a traceback.
+        c.error = f"{type(exc).__name__}: {exc}"
+        c.ready.set()
+
+
+# The bench ---------------------------------------------------------------------------------
+
+
+async def _phase(
+    http: Any,
+    url: str,
+    sids: list[str],
+    source: str,
+    *,
+    seconds: float,
+    channels: int,
+    clients: int,
+    compression: bool,
+    pids: dict[str, int],
+) -> dict[str, Any]:
+    """One source: configure, stream to the clients, measure, stop, drain, count."""
+
+    async def ok(r: Any) -> Any:
+        if r.status_code >= 300:
+            raise RuntimeError(f"{r.request.method} {r.request.url.path}: {r.text}")
+        return r.json()
+
+    for sid in sids:
+        if source == "pdo":
+            layout = {
+                "pdos": [
+                    *(
+                        {
+                            "direction": "tx",
+                            "number": i + 1,
+                            "entries": entries,
+                            "transmission_type": 1,
+                            "enabled": True,
+                        }
+                        for i, entries in enumerate(TPDOS)
+                    ),
+                    {"direction": "tx", "number": 4, "enabled": False},
+                ]
+            }
+            rep = await ok(await http.post(f"/api/v1/sessions/{sid}/pdo/apply", json=layout))
+            if not rep["ok"]:
+                raise RuntimeError(f"{sid}: the PDO mapping failed: {rep['error']}")
+            await ok(
+                await http.post(
+                    f"/api/v1/sessions/{sid}/pdo/cyclic", json={"sync_period_ms": SYNC_PERIOD_MS}
+                )
+            )
+        else:
+            await http.delete(f"/api/v1/sessions/{sid}/pdo/cyclic")
+    chans = [
+        {"id": d * channels + k, "session": sid, "address": OBJECTS[k], "source": source}
+        for d, sid in enumerate(sids)
+        for k in range(channels)
+    ]
+    await ok(await http.put("/api/v1/scope/channels", json={"channels": chans}))
+    tallies = [Client() for _ in range(clients)]
+    tasks = [asyncio.create_task(read_stream(url, c, compression)) for c in tallies]
+    for c in tallies:
+        await c.ready.wait()
+    await ok(await http.post("/api/v1/scope/run", json={"action": "start"}))
+    await asyncio.sleep(1.5)  # Sources settle (first recordings, first frames).
+
+    def produced(st: dict[str, Any]) -> int:
+        return sum(int(ch["samples"]) for ch in st["channels"])
+
+    st0 = await ok(await http.get("/api/v1/scope"))
+    cpu0 = {k: cpu_seconds(p) for k, p in pids.items()}
+    snaps0 = [c.snapshot() for c in tallies]
+    for c in tallies:
+        c.measuring = True
+    w0 = time.perf_counter()
+    await asyncio.sleep(seconds)
+    wall = time.perf_counter() - w0
+    cpu1 = {k: cpu_seconds(p) for k, p in pids.items()}
+    st1 = await ok(await http.get("/api/v1/scope"))
+    snaps1 = [c.snapshot() for c in tallies]
+    for c in tallies:
+        c.measuring = False
+    cyclic = []
+    if source == "pdo":
+        for sid in sids:
+            cs = await ok(await http.get(f"/api/v1/sessions/{sid}/pdo/cyclic"))
+            cyclic.append(
+                {
+                    "session": sid,
+                    "tpdo_frames_per_s": cs["frames_per_s"],
+                    "syncs": cs.get("syncs"),
+                }
+            )
+    final = await ok(await http.post("/api/v1/scope/run", json={"action": "stop"}))
+    # Drain: every frame sent before the stop reaches the clients that keep up.
+    end = time.monotonic() + 15.0
+    while time.monotonic() < end:
+        await asyncio.sleep(0.25)
+        if all(time.monotonic() - c.last_rx > 1.0 for c in tallies):
+            break
+    for t in tasks:
+        t.cancel()
+    for t in tasks:
+        with contextlib.suppress(asyncio.CancelledError):
+            await t
+    total = produced(final)
+    prod_rate = (produced(st1) - produced(st0)) / wall
+    per_channel = [float(ch["throughput_hz"] or 0.0) for ch in st1["channels"]]
+    out_clients: list[dict[str, Any]] = []
+    delivered: list[float] = []
+    for c, a, b in zip(tallies, snaps0, snaps1, strict=True):
+        delivered.append(round((b[0] - a[0]) / wall, 1))
+        out_clients.append(
+            {
+                "delivered_samples_per_s": delivered[-1],
+                "frames_per_s": round((b[1] - a[1]) / wall, 1),
+                "kbytes_per_s": round((b[2] - a[2]) / wall / 1000, 1),
+                "received_total": c.samples,
+                "dropped_samples": total - c.samples,
+                "skipped_frames": c.skipped,
+                "seq_gaps": c.seq_gaps,
+                "error": c.error,
+            }
+        )
+    lat = np.concatenate([x for c in tallies for x in c.latencies]) if tallies else np.zeros(0)
+    n_expected = len(sids) * channels * (1000.0 / SYNC_PERIOD_MS if source == "pdo" else TARGET_HZ)
+    result: dict[str, Any] = {
+        "source": source,
+        "channels": len(chans),
+        "target_samples_per_s": len(sids) * channels * TARGET_HZ,
+        "source_max_samples_per_s": n_expected,
+        "produced_samples_per_s": round(prod_rate, 1),
+        "produced_per_channel_hz": {
+            "min": round(min(per_channel), 1),
+            "median": round(statistics.median(per_channel), 1),
+            "max": round(max(per_channel), 1),
+        },
+        "produced_total": total,
+        "delivered_per_client_samples_per_s": {
+            "min": min(delivered),
+            "max": max(delivered),
+        },
+        "delivered_over_produced": round(min(delivered) / prod_rate, 4) if prod_rate else None,
+        "dropped_samples_fast_clients": sum(max(0, total - c.samples) for c in tallies),
+        "skipped_frames_fast_clients": sum(c.skipped for c in tallies),
+        "latency_ms": {
+            "p50": round(float(np.percentile(lat, 50)) * 1000, 2) if lat.size else None,
+            "p99": round(float(np.percentile(lat, 99)) * 1000, 2) if lat.size else None,
+            "max": round(float(lat.max()) * 1000, 2) if lat.size else None,
+            "samples": int(lat.size),
+        },
+        "cpu_core_fraction": {
+            k: round((cpu1[k] - cpu0[k]) / wall, 3) for k in pids if cpu0[k] == cpu0[k]
+        },
+        "clients": out_clients,
+        "seconds": round(wall, 2),
+    }
+    if cyclic:
+        result["cyclic"] = cyclic
+    if source == "recorder":
+        result["recorders"] = st1.get("recorders", [])
+    result["why"] = _why(result, channels)
+    return result
+
+
+def _why(r: dict[str, Any], channels: int) -> str:
+    """What limited production, in words, from the figures."""
+    drives = r["channels"] // max(channels, 1)
+    per_drive = r["produced_samples_per_s"] / max(drives, 1)
+    target = channels * TARGET_HZ
+    if r["source"] == "pdo":
+        return (
+            f"PDO at a {SYNC_PERIOD_MS:g} ms SYNC (the cyclic exchange's shortest period, "
+            f"services/cyclic.py MIN_PERIOD) carries {1000 / SYNC_PERIOD_MS:g} samples/s per "
+            f"channel: at most {channels * 1000 / SYNC_PERIOD_MS:g} per drive against the "
+            f"target {target:g}; achieved {per_drive:.0f} per drive"
+            + (
+                f" ({per_drive / (channels * 1000 / SYNC_PERIOD_MS) * 100:.0f} % of the SYNC "
+                "rate: SYNCs and TPDOs lost to CPU load show up here)"
+            )
+        )
+    recs = r.get("recorders") or []
+    share = [x["recording_share"] for x in recs if x.get("recording_share") is not None]
+    upload = [x["upload_bytes_per_s"] for x in recs if x.get("upload_bytes_per_s")]
+    need = channels * TARGET_HZ * 4
+    text = (
+        f"the recorder samples at {TARGET_HZ:g} Hz inside the drive, but its data comes by "
+        f"segmented SDO upload: {channels} channels x {TARGET_HZ:g} Hz x 4 bytes = "
+        f"{need / 1000:.0f} kB/s per drive"
+    )
+    if upload:
+        text += (
+            f" against {statistics.median(upload) / 1000:.1f} kB/s uploaded (7 bytes per "
+            "round trip)"
+        )
+    if share:
+        text += f", so it records {statistics.median(share) * 100:.0f} % of the time"
+    return text + f"; achieved {per_drive:.0f} samples/s per drive (target {target:g})"
+
+
+async def bench(
+    *,
+    seconds: float,
+    drives: int,
+    clients: int,
+    channels: int,
+    sources: list[str],
+    interface: str,
+    compression: bool,
+) -> dict[str, Any]:
+    import httpx
+
+    if not 1 <= channels <= len(OBJECTS):
+        raise ValueError(f"--channels must be 1..{len(OBJECTS)}")
+    tag = os.getpid()
+    buses = [
+        BusSpec(
+            f"239.74.{(tag >> 8) % 250 + 1}.{(tag + i) % 250 + 1}"
+            if interface == "udp_multicast"
+            else f"bench-scope-{tag}-{i}",
+            _free_udp_port() if interface == "udp_multicast" else 0,
+            i + 1,
+        )
+        for i in range(drives)
+    ]
+    bus_arg = ",".join(b.text() for b in buses)
+    data_dir = tempfile.mkdtemp(prefix="servodesk-bench-scope-")
+    out: dict[str, Any] = {
+        "what": f"live scope: {drives} simulated {PROFILE} drives x {channels} channels, "
+        f"{clients} WebSocket clients over a uvicorn server on 127.0.0.1",
+        "bus": (
+            "udp_multicast, one group and port per drive; the drives in their own process"
+            if interface == "udp_multicast"
+            else "python-can virtual, one channel per drive; the drives in the server process"
+        ),
+        "compression": "permessage-deflate" if compression else "none",
+        "cpus": os.cpu_count(),
+        "load_before": [round(x, 2) for x in os.getloadavg()],
+        "phases": {},
+    }
+    with contextlib.ExitStack() as stack:
+        pids: dict[str, int] = {"bench_clients": os.getpid()}
+        if interface == "udp_multicast":
+            sim_proc, _ = stack.enter_context(child(["sim", "--buses", bus_arg]))
+            pids["drives"] = sim_proc.pid
+        server_proc, line = stack.enter_context(
+            child(
+                [
+                    "server",
+                    "--buses",
+                    bus_arg,
+                    "--interface",
+                    interface,
+                    "--max-channels",
+                    str(drives * channels),
+                    "--data-dir",
+                    data_dir,
+                ]
+            )
+        )
+        pids["server"] = server_proc.pid
+        info = json.loads(line)
+        base = f"http://127.0.0.1:{info['port']}"
+        url = f"ws://127.0.0.1:{info['port']}/api/v1/scope/ws"
+        sids: list[str] = info["sessions"]
+        async with httpx.AsyncClient(base_url=base, timeout=60) as http:
+            # The axes move (profile velocity, CiA 402-2 §6.6): signals, not constants.
+            for i, sid in enumerate(sids):
+                await http.put(f"/api/v1/sessions/{sid}/objects/0x6060:00", json={"value": 3})
+                await http.post(f"/api/v1/sessions/{sid}/state", json={"command": "enable"})
+                await http.put(
+                    f"/api/v1/sessions/{sid}/objects/0x60FF:00",
+                    json={"value": 20000 * (i + 1)},
+                )
+            for source in sources:
+                out["phases"][source] = await _phase(
+                    http,
+                    url,
+                    sids,
+                    source,
+                    seconds=seconds,
+                    channels=channels,
+                    clients=clients,
+                    compression=compression,
+                    pids=pids,
+                )
+            for sid in sids:
+                await http.post(f"/api/v1/sessions/{sid}/state", json={"command": "disable"})
+    out["load_after"] = [round(x, 2) for x in os.getloadavg()]
+    return out
+
+
+def summary(out: dict[str, Any]) -> str:
+    lines = [out["what"], f"bus: {out['bus']}; load {out['load_before']} -> {out['load_after']}"]
+    for name, p in out["phases"].items():
+        lines.append(
+            f"{name}: produced {p['produced_samples_per_s']:.0f} samples/s (source max "
+            f"{p['source_max_samples_per_s']:.0f}, target {p['target_samples_per_s']:.0f}); "
+            f"per client {p['delivered_per_client_samples_per_s']['min']:.0f}-"
+            f"{p['delivered_per_client_samples_per_s']['max']:.0f}/s; dropped "
+            f"{p['dropped_samples_fast_clients']}; latency p50 {p['latency_ms']['p50']} ms, "
+            f"p99 {p['latency_ms']['p99']} ms; CPU {p['cpu_core_fraction']}"
+        )
+        lines.append(f"  why: {p['why']}")
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    sources = [s.strip() for s in args.sources.split(",") if s.strip()]
+    out = asyncio.run(
+        bench(
+            seconds=args.seconds,
+            drives=args.drives,
+            clients=args.clients,
+            channels=args.channels,
+            sources=sources,
+            interface=args.bus,
+            compression=not args.no_compression,
+        )
+    )
+    if args.json:
+        json.dump(out, sys.stdout, indent=2)
+        sys.stdout.write("\n")
+    else:
+        print(summary(out))
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["--child"]:
+        cp = argparse.ArgumentParser(prog="servodesk.benchmarks.scope --child")
+        cp.add_argument("kind", choices=["sim", "server"])
+        cp.add_argument("--buses", required=True)
+        cp.add_argument("--interface", default="udp_multicast")
+        cp.add_argument("--max-channels", type=int, default=8)
+        cp.add_argument("--data-dir", default=".")
+        a = cp.parse_args(argv[1:])
+        buses = [BusSpec.parse(x) for x in a.buses.split(",")]
+        if a.kind == "sim":
+            return sim_child(buses, a.interface)
+        return server_child(buses, a.interface, a.max_channels, a.data_dir)
+    from servodesk.cli.bench import add_scope_arguments
+
+    p = argparse.ArgumentParser(
+        prog="bench_scope", description="Live scope benchmark (issue 7 'Measure')."
+    )
+    add_scope_arguments(p)
+    return run(p.parse_args(argv))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,545 @@
+"""PDO configuration of a session: read, validate, plan, apply with rollback, and cyclic data.
+
+The planning is pure (``domain/pdo.py``); this module runs it against a drive. An apply reads
+the present configuration, refuses an invalid one before anything is written, runs the plan's
+steps in order with progress, reads everything back, and when a step fails puts the previous
+configuration back (a full rewrite, since the failure may have left any part half done) and
+says in the report what happened. Cyclic data is stopped while the mapping changes and
+restarted on the new one.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import time
+import weakref
+from typing import TYPE_CHECKING, Any
+
+from servodesk.domain import pdo as pdomod
+from servodesk.domain.address import ObjectAddress
+from servodesk.domain.datatypes import Value, codec, coerce_int
+from servodesk.errors import (
+    ConflictError,
+    LinkError,
+    ObjectAccessError,
+    PdoRefused,
+    ServodeskError,
+    ValidationError,
+)
+from servodesk.links.cyclic import padded_length, transport_for
+from servodesk.services.cyclic import MAX_PERIOD, MIN_PERIOD, CyclicExchange, bus_cob_id
+
+if TYPE_CHECKING:
+    from servodesk.services.session import Session
+
+#: CiA 301 gives no time for an NMT command to take effect (it is not confirmed); real
+#: drives need a few milliseconds before the next SDO is served in the new state.
+NMT_SETTLE_S = 0.02
+
+_TRANSMISSION = {
+    0: "synchronous, acyclic",
+    252: "RTR only, synchronous",
+    253: "RTR only, event-driven",
+    254: "event-driven (manufacturer)",
+    255: "event-driven (profile)",
+}
+
+_busy: weakref.WeakKeyDictionary[Any, asyncio.Lock] = weakref.WeakKeyDictionary()
+
+
+def _lock(session: Session) -> asyncio.Lock:
+    lock = _busy.get(session)
+    if lock is None:
+        lock = _busy[session] = asyncio.Lock()
+    return lock
+
+
+def transmission_text(t: int | None) -> str | None:
+    if t is None:
+        return None
+    if 1 <= t <= 240:
+        return "synchronous, every SYNC" if t == 1 else f"synchronous, every {t}th SYNC"
+    return _TRANSMISSION.get(t, "reserved")
+
+
+# Reading -------------------------------------------------------------------------------------
+
+
+async def read_config(session: Session) -> pdomod.PdoConfig:
+    """The drive's PDO configuration, read object by object."""
+    profile = session.profile
+    values: dict[ObjectAddress, int] = {}
+    for address in pdomod.config_addresses(profile):
+        try:
+            raw = await session.link.read(address)
+        except ObjectAccessError:
+            continue  # An entry the drive does not have (e.g. sub 6 of an older firmware).
+        spec = profile.spec(address)
+        if spec is None:
+            continue
+        v = codec(spec.data_type).decode(raw)
+        if isinstance(v, bool | int):
+            values[address] = int(v)
+    return pdomod.parse_config(profile, values)
+
+
+def _pdo_out(session: Session, config: pdomod.PdoConfig, p: pdomod.Pdo) -> dict[str, Any]:
+    profile = session.profile
+    rules = profile.pdo
+    active = p in config.active(p.direction)
+    entries = []
+    for s in pdomod.layout(profile, p):
+        entries.append(
+            {
+                "index": s.entry.index,
+                "subindex": s.entry.subindex,
+                "bits": s.bits,
+                "raw_hex": f"0x{s.entry.raw:08X}",
+                "address": str(s.address) if s.address is not None else None,
+                "name": s.name,
+                "data_type": s.data_type.name if s.data_type is not None else None,
+                "unit": s.unit,
+                "offset_bits": s.offset_bits,
+                "offset_byte": s.offset_bits // 8,
+                "padding": s.entry.is_padding,
+            }
+        )
+    c = p.comm
+    max_bits = rules.max_bits
+    if rules.kind == "telegram" and config.telegram is not None:
+        tg = _telegram_rules(session, config.telegram)
+        if tg is not None:
+            max_bits = int(tg.get("bytes", max_bits // 8)) * 8
+    nbytes = (p.bits + 7) // 8
+    return {
+        "direction": p.direction.value,
+        "number": p.number,
+        "name": p.name,
+        "mapping_index": p.mapping_index,
+        "comm_index": p.comm_index,
+        "cob_id": bus_cob_id(profile, p, session.link.params.node_id),
+        "cob_id_hex": f"0x{bus_cob_id(profile, p, session.link.params.node_id):03X}",
+        "enabled": c.enabled if c is not None else active,
+        "rtr_allowed": c.rtr_allowed if c is not None else None,
+        "transmission_type": c.transmission_type if c is not None else None,
+        "transmission_text": transmission_text(c.transmission_type) if c is not None else None,
+        "inhibit_time": c.inhibit_time if c is not None else None,
+        "inhibit_time_ms": c.inhibit_time / 10 if c is not None else None,
+        "event_timer": c.event_timer if c is not None else None,
+        "sync_start": c.sync_start if c is not None else None,
+        "active": active,
+        "bits": p.bits,
+        "max_bits": max_bits,
+        "bytes": nbytes,
+        "frame_length": padded_length(nbytes) if nbytes <= 64 else nbytes,
+        "entries": entries,
+    }
+
+
+def _telegram_rules(session: Session, telegram: int) -> dict[str, Any] | None:
+    tgs = getattr(session.profile.pdo, "telegrams", None)
+    if not tgs:
+        return None
+    if isinstance(tgs, dict):
+        t = tgs.get(telegram) or tgs.get(str(telegram))
+        return t if isinstance(t, dict) else None
+    for t in tgs:
+        number = t.get("number") if isinstance(t, dict) else getattr(t, "number", None)
+        if number == telegram:
+            return t if isinstance(t, dict) else t.model_dump()
+    return None
+
+
+def problem_dict(p: pdomod.Problem) -> dict[str, Any]:
+    return {
+        "message": p.message,
+        "pdo": p.pdo,
+        "entry": p.entry,
+        "field": p.field,
+        "section": p.section,
+    }
+
+
+async def view(
+    session: Session,
+    config: pdomod.PdoConfig | None = None,
+    problems: list[pdomod.Problem] | None = None,
+) -> dict[str, Any]:
+    """The ``PdoView`` of docs/pdo.md (reads the drive when ``config`` is None)."""
+    if config is None:
+        config = await read_config(session)
+    rules = session.profile.pdo
+    try:
+        nmt = await session.link.network_state()
+    except ServodeskError:
+        nmt = "unknown"
+    return {
+        "kind": rules.kind,
+        "byte_order": rules.byte_order,
+        "rules": {
+            "max_entries": rules.max_entries,
+            "max_bits": rules.max_bits,
+            "max_bytes": rules.max_bytes,
+            "mapping_state": rules.mapping_state,
+            "section": rules.section,
+            "rpdo_count": rules.rpdo_count,
+            "tpdo_count": rules.tpdo_count,
+        },
+        "pdos": [_pdo_out(session, config, p) for p in config.pdos],
+        "assignment": (
+            {d.value: list(v) for d, v in config.assignment.items()}
+            if config.assignment is not None
+            else None
+        ),
+        "telegram": config.telegram,
+        "nmt_state": nmt,
+        "problems": [problem_dict(p) for p in (problems or [])],
+    }
+
+
+def mappable(session: Session) -> dict[str, list[dict[str, Any]]]:
+    out: dict[str, list[dict[str, Any]]] = {}
+    for d in pdomod.Direction:
+        items = []
+        for spec in pdomod.mappable(session.profile, d):
+            items.append(
+                {
+                    "address": str(spec.address),
+                    "index": spec.index,
+                    "subindex": spec.subindex,
+                    "name": spec.name,
+                    "data_type": spec.data_type.name,
+                    "bits": spec.bits,
+                    "unit": spec.unit,
+                    "direction": spec.pdo_mapping.value,
+                }
+            )
+        out[d.value] = items
+    return out
+
+
+def templates(session: Session) -> list[dict[str, Any]]:
+    return [
+        {"id": t.id, "name": t.name, "description": t.description, "section": t.section}
+        for t in pdomod.templates(session.profile)
+    ]
+
+
+async def from_template(session: Session, template_id: str) -> dict[str, Any]:
+    current = await read_config(session)
+    desired = pdomod.apply_template(session.profile, current, template_id)
+    return await view(session, desired, pdomod.validate(session.profile, desired))
+
+
+async def desired_from(session: Session, body: dict[str, Any]) -> pdomod.PdoConfig:
+    """The present configuration with the PDOs of a ``PdoLayout`` body replaced."""
+    current = await read_config(session)
+    return pdomod.config_from_json(session.profile, body, current=current)
+
+
+async def check(session: Session, body: dict[str, Any]) -> dict[str, Any]:
+    desired = await desired_from(session, body)
+    problems = pdomod.validate(session.profile, desired)
+    return {
+        "ok": not problems,
+        "problems": [problem_dict(p) for p in problems],
+        "view": await view(session, desired, problems),
+    }
+
+
+def step_dict(s: pdomod.Step) -> dict[str, Any]:
+    return {
+        "kind": s.kind,
+        "address": str(s.address) if s.address is not None else None,
+        "value": s.value,
+        "value_hex": f"0x{s.value:X}" if s.kind == "write" else None,
+        "command": s.command,
+        "why": s.why,
+    }
+
+
+async def _nmt_state(session: Session) -> str:
+    try:
+        return await session.link.network_state()
+    except ServodeskError:
+        return "unknown"
+
+
+async def make_plan(session: Session, body: dict[str, Any]) -> pdomod.Plan:
+    desired = await desired_from(session, body)
+    current = await read_config(session)
+    return pdomod.plan(session.profile, current, desired, nmt_state=await _nmt_state(session))
+
+
+# Applying ------------------------------------------------------------------------------------
+
+
+async def _run_step(session: Session, step: pdomod.Step, client: str | None) -> None:
+    if step.kind == "nmt":
+        assert step.command is not None
+        await session.link.nmt(step.command)
+        await asyncio.sleep(NMT_SETTLE_S)
+        return
+    assert step.address is not None and step.data_type is not None
+    data = codec(step.data_type).encode(coerce_int(step.value, step.data_type))
+    await session.link.write(step.address, data)
+    spec = session.profile.spec(step.address)
+    if spec is None or spec.persist:
+        session.dirty.add(step.address)
+    audit = session.hub.audit
+    if audit is not None:
+        audit(session, step.address, None, data, client or "unknown")
+
+
+async def _run(
+    session: Session, steps: tuple[pdomod.Step, ...], label: str, client: str | None
+) -> tuple[int, pdomod.Step | None, ServodeskError | None]:
+    n = len(steps)
+    for i, step in enumerate(steps):
+        try:
+            await _run_step(session, step, client)
+        except ServodeskError as exc:
+            return i, step, exc
+        if i % 4 == 0 or i == n - 1:
+            session._progress("pdo", (i + 1) / max(1, n) * 0.9, f"{label}: {step.why}")
+    return n, None, None
+
+
+def _same(a: pdomod.PdoConfig, b: pdomod.PdoConfig, names: tuple[str, ...] | None) -> bool:
+    for p in b.pdos:
+        if names is not None and p.name not in names:
+            continue
+        q = a.pdo(p.direction, p.number)
+        if q.entries != p.entries or (p.comm is not None and q.comm != p.comm):
+            return False
+    return a.assignment == b.assignment and a.telegram == b.telegram
+
+
+async def apply(
+    session: Session, body: dict[str, Any], *, dry_run: bool, client: str | None = None
+) -> dict[str, Any]:
+    """Apply a ``PdoLayout``: the ``ApplyReport`` of docs/pdo.md."""
+    lock = _lock(session)
+    if lock.locked():
+        raise ConflictError(
+            f"a PDO apply on {session.id} is already running",
+            hint="wait for its report (progress on the WebSocket)",
+        )
+    async with lock:
+        profile = session.profile
+        current = await read_config(session)
+        desired = await desired_from(session, body)
+        nmt = await _nmt_state(session)
+        plan = pdomod.plan(profile, current, desired, nmt_state=nmt)  # PdoRefused if invalid
+        report: dict[str, Any] = {
+            "ok": True,
+            "dry_run": dry_run,
+            "steps": [step_dict(s) for s in plan.steps],
+            "touched": list(plan.touched),
+            "done": 0,
+            "duration_s": 0.0,
+            "verified": False,
+            "rolled_back": False,
+            "error": None,
+            "failed_step": None,
+        }
+        if dry_run:
+            report["view"] = await view(session, desired)
+            return report
+        t0 = time.monotonic()
+        restart = stop_cyclic_now(session)
+        session._progress("pdo", 0.0, f"applying {len(plan.steps)} steps")
+        done, failed, exc = await _run(session, plan.steps, "apply", client)
+        report["done"] = done
+        final = desired
+        if exc is None:
+            after = await read_config(session)
+            report["verified"] = _same(after, desired, plan.touched)
+            if not report["verified"]:
+                report["ok"] = False
+                report["error"] = "read back differs from what was written"
+            final = after
+        else:
+            report["ok"] = False
+            report["error"] = exc.message
+            report["failed_step"] = step_dict(failed) if failed else None
+            report.update(await _roll_back(session, current, client))
+            final = current
+        report["duration_s"] = round(time.monotonic() - t0, 3)
+        if restart is not None:
+            with contextlib.suppress(ServodeskError):
+                await start_cyclic(session, restart[0] * 1000, restart[1])
+        session._progress(
+            "pdo",
+            1.0,
+            "applied and verified"
+            if report["ok"]
+            else f"failed: {report['error']}; "
+            + ("previous mapping restored" if report["rolled_back"] else "see the report"),
+        )
+        report["view"] = await _view_or_none(session, final)
+        return report
+
+
+async def _view_or_none(session: Session, config: pdomod.PdoConfig) -> dict[str, Any] | None:
+    try:
+        return await view(session)
+    except LinkError:
+        return None
+
+
+async def _roll_back(
+    session: Session, previous: pdomod.PdoConfig, client: str | None
+) -> dict[str, Any]:
+    """Put ``previous`` back, everything rewritten; report whether it is back."""
+    out: dict[str, Any] = {"rolled_back": False, "rollback_error": None}
+    try:
+        nmt = await _nmt_state(session)
+        plan = pdomod.full_plan(session.profile, previous, nmt_state=nmt)
+    except ServodeskError as exc:
+        out["rollback_error"] = exc.message
+        return out
+    _, _, failure = await _run(session, plan.steps, "rollback", client)
+    if failure is not None:
+        out["rollback_error"] = failure.message
+        return out
+    try:
+        out["rolled_back"] = _same(await read_config(session), previous, None)
+    except ServodeskError as e:
+        out["rollback_error"] = e.message
+    return out
+
+
+# Cyclic data ---------------------------------------------------------------------------------
+
+
+def cyclic_of(session: Session) -> CyclicExchange | None:
+    ex: CyclicExchange | None = getattr(session, "cyclic", None)
+    return ex
+
+
+def stop_cyclic_now(session: Session) -> tuple[float, bool] | None:
+    """Stop the exchange; returns (period, outputs) when it ran, to restart it later."""
+    ex = cyclic_of(session)
+    if ex is None:
+        return None
+    ex.stop()
+    session.cyclic = None
+    return ex.period, ex.outputs
+
+
+async def start_cyclic(session: Session, sync_period_ms: float, outputs: bool) -> dict[str, Any]:
+    period = sync_period_ms / 1000.0
+    if not MIN_PERIOD <= period <= MAX_PERIOD:
+        raise ValidationError(
+            f"sync_period_ms {sync_period_ms} is outside "
+            f"{MIN_PERIOD * 1000:g}..{MAX_PERIOD * 1000:g}",
+            field="sync_period_ms",
+        )
+    transport = transport_for(session.link)
+    config = await read_config(session)
+    if not config.active(pdomod.Direction.TX) and not config.active(pdomod.Direction.RX):
+        raise ValidationError(
+            "no PDO is enabled and mapped: nothing to exchange",
+            hint="map objects into a PDO and apply first",
+        )
+    image: dict[ObjectAddress, Value] = {}
+    if outputs:
+        # Start the output image from the drive's present values: turning outputs on
+        # must not change anything on the axis.
+        for p in config.active(pdomod.Direction.RX):
+            for s in pdomod.layout(session.profile, p):
+                if s.address is not None and s.data_type is not None:
+                    with contextlib.suppress(ObjectAccessError):
+                        image[s.address] = codec(s.data_type).decode(
+                            await session.link.read(s.address)
+                        )
+    previous = cyclic_of(session)
+    stop_cyclic_now(session)
+    # CiA 301 §7.3.2.2.1: PDOs are exchanged only in NMT OPERATIONAL. The node is put back
+    # into the state it had when cyclic data is stopped (a restart keeps the first state).
+    before = previous.nmt_before if previous is not None else await _nmt_state(session)
+    if await _nmt_state(session) != "operational":
+        await session.link.nmt("start")
+        await asyncio.sleep(NMT_SETTLE_S)
+    ex = CyclicExchange(session, transport, config, period=period, outputs=outputs, image=image)
+    ex.nmt_before = before
+    ex.start()
+    session.cyclic = ex
+    return ex.status()
+
+
+async def stop_cyclic(session: Session) -> dict[str, Any]:
+    ex = cyclic_of(session)
+    stop_cyclic_now(session)
+    if ex is None:
+        return idle_status()
+    if ex.nmt_before in ("preop", "unknown", "bootup"):
+        with contextlib.suppress(ServodeskError):
+            await session.link.nmt("preop")
+    status = ex.status()
+    status["running"] = False
+    return status
+
+
+def idle_status() -> dict[str, Any]:
+    return {
+        "running": False,
+        "sync_period_ms": None,
+        "outputs": False,
+        "syncs": 0,
+        "rx_pdos": [],
+        "tx_pdos": [],
+        "frames_per_s": 0.0,
+        "decode_errors": 0,
+        "values": {},
+    }
+
+
+def cyclic_status(session: Session) -> dict[str, Any]:
+    ex = cyclic_of(session)
+    return ex.status() if ex is not None else idle_status()
+
+
+def set_outputs(session: Session, values: dict[str, Any]) -> dict[str, Any]:
+    ex = cyclic_of(session)
+    if ex is None or not ex.outputs:
+        raise ConflictError(
+            "cyclic outputs are off", hint="start cyclic data with outputs: true first"
+        )
+    from servodesk.domain.values import check_value
+
+    allowed = ex.rx_addresses()
+    parsed: dict[ObjectAddress, Value] = {}
+    for key, value in values.items():
+        address = ObjectAddress.parse(key)
+        if address not in allowed:
+            raise ValidationError(
+                f"{address} is not mapped into an active RX PDO",
+                field=key,
+                hint="map it first, or write it by SDO",
+            )
+        spec = session.profile.spec(address)
+        if spec is None:
+            raise ValidationError(f"{address} is not in the profile", field=key)
+        parsed[address] = check_value(spec, value)
+    ex.set_outputs(parsed)
+    return ex.status()
+
+
+__all__ = [
+    "PdoRefused",
+    "apply",
+    "check",
+    "cyclic_status",
+    "from_template",
+    "make_plan",
+    "mappable",
+    "read_config",
+    "set_outputs",
+    "start_cyclic",
+    "stop_cyclic",
+    "templates",
+    "view",
+]

@@ -1,0 +1,192 @@
+/**
+ * Cyclic process data (docs/pdo.md "REST": /pdo/cyclic): start and stop the session's SYNC
+ * producer and PDO exchange at a chosen period, and its status: frames per second, decode
+ * errors and the rate of each PDO. The values themselves are shown next to the mapped objects
+ * in the PDO tables.
+ */
+import { useCallback, useEffect, useState } from 'react';
+import { pdoApi } from '../../api/pdo';
+import type { ErrorInfo, PdoCyclicStatus, PdoRate } from '../../api/types';
+import { type Failure, failureOf } from '../../lib/codes';
+import { type Observable, useObservable } from '../../state/observable';
+import { FailureBox } from '../FailureBox';
+import { NumberBox, decimalParser } from './fields';
+import type { PdoLive } from './pdoLive';
+
+const DEFAULT_PERIOD_MS = 10;
+
+function RateRows({ rates, live, dir }: { rates: readonly PdoRate[]; live: Record<string, number>; dir: string }) {
+  return (
+    <>
+      {rates.map((r) => {
+        const hz = live[r.name] ?? r.rate_hz;
+        const sent = dir === 'to the drive';
+        return (
+          <tr key={`${dir}-${r.name}`} data-testid={`pdo-rate-${r.name}`}>
+            <td>{r.name}</td>
+            <td className="muted small">{dir}</td>
+            <td className="mono">{r.cob_id_hex ?? (r.cob_id !== null ? `0x${r.cob_id.toString(16).toUpperCase().padStart(3, '0')}` : '—')}</td>
+            <td className="num mono">{r.count}</td>
+            <td className="num mono">{hz !== null && hz !== undefined ? hz.toFixed(1) : sent ? <span className="muted small">with each SYNC</span> : '—'}</td>
+          </tr>
+        );
+      })}
+    </>
+  );
+}
+
+export function CyclicPanel({
+  sid,
+  live,
+  errors,
+  onStatus,
+}: {
+  sid: string;
+  live: Observable<PdoLive>;
+  errors: readonly ErrorInfo[];
+  onStatus?: (s: PdoCyclicStatus) => void;
+}) {
+  const [status, setStatus] = useState<PdoCyclicStatus | null>(null);
+  const [period, setPeriod] = useState(DEFAULT_PERIOD_MS);
+  const [busy, setBusy] = useState(false);
+  const [failure, setFailure] = useState<Failure | null>(null);
+  const l = useObservable(live);
+
+  const got = useCallback(
+    (s: PdoCyclicStatus) => {
+      setStatus(s);
+      onStatus?.(s);
+    },
+    [onStatus],
+  );
+
+  const read = useCallback(async () => {
+    try {
+      got(await pdoApi.cyclic(sid));
+      setFailure((f) => (f?.action === 'Read the cyclic data status' ? null : f));
+    } catch (e) {
+      setFailure(failureOf(e, 'Read the cyclic data status', errors));
+    }
+  }, [sid, got, errors]);
+
+  useEffect(() => {
+    void read();
+  }, [read]);
+
+  // While it runs, the counters change: read them every second (the values come by socket).
+  const running = status?.running ?? false;
+  useEffect(() => {
+    if (!running) return;
+    const t = setInterval(() => void read(), 1000);
+    return () => clearInterval(t);
+  }, [running, read]);
+
+  useEffect(() => {
+    if (status?.running && status.sync_period_ms) setPeriod(status.sync_period_ms);
+    // Only when the server's period changes, not on every poll.
+  }, [status?.running, status?.sync_period_ms]);
+
+  async function start() {
+    setBusy(true);
+    setFailure(null);
+    try {
+      got(await pdoApi.startCyclic(sid, { sync_period_ms: period, outputs: false }));
+    } catch (e) {
+      setFailure(failureOf(e, 'Start cyclic data', errors));
+    } finally {
+      setBusy(false);
+    }
+  }
+
+  async function stop() {
+    setBusy(true);
+    setFailure(null);
+    try {
+      got(await pdoApi.stopCyclic(sid));
+    } catch (e) {
+      setFailure(failureOf(e, 'Stop cyclic data', errors));
+    } finally {
+      setBusy(false);
+    }
+  }
+
+  const periodChanged = running && status?.sync_period_ms !== period;
+  const rates = [...(status?.rx_pdos ?? []), ...(status?.tx_pdos ?? [])];
+  return (
+    <section className="card" data-testid="pdo-cyclic-card">
+      <h2>
+        Cyclic data
+        <span className="h2-side small">
+          {running ? (
+            <span className="pdo-ok-text" data-testid="pdo-cyclic-state" data-running="true">
+              running
+            </span>
+          ) : (
+            <span className="muted" data-testid="pdo-cyclic-state" data-running="false">
+              stopped
+            </span>
+          )}
+          {!l.connected && <span className="muted"> · live socket connecting…</span>}
+        </span>
+      </h2>
+      <div className="bk-row">
+        <label className="pdo-inline small muted">
+          SYNC period
+          <NumberBox
+            value={period}
+            onChange={setPeriod}
+            parse={decimalParser(1, 1000, 1)}
+            testid="pdo-cyclic-period"
+            label="SYNC period in ms"
+            width={60}
+            title="1 ms to 1000 ms"
+          />
+          ms
+        </label>
+        {!running && (
+          <button type="button" className="go" disabled={busy} onClick={() => void start()} data-testid="pdo-cyclic-start">
+            Start
+          </button>
+        )}
+        {running && periodChanged && (
+          <button type="button" disabled={busy} onClick={() => void start()} data-testid="pdo-cyclic-reconfigure">
+            Use {period} ms
+          </button>
+        )}
+        {running && (
+          <button type="button" disabled={busy} onClick={() => void stop()} data-testid="pdo-cyclic-stop">
+            Stop
+          </button>
+        )}
+        {status && (
+          <span className="small" data-testid="pdo-cyclic-stats">
+            <span className="mono">{status.frames_per_s.toFixed(0)}</span> frames/s
+            {status.sync_period_ms ? <> · SYNC every {status.sync_period_ms} ms</> : null} ·{' '}
+            <span className={status.decode_errors ? 'pdo-over-text' : ''}>
+              <span className="mono">{status.decode_errors}</span> decode errors
+            </span>
+          </span>
+        )}
+      </div>
+      <div className="muted small">Inputs only: the drive's TPDOs are read, no RPDO set-points are sent.</div>
+      {failure && <FailureBox f={failure} testid="pdo-cyclic-failure" />}
+      {rates.length > 0 && (
+        <table className="grid pdo-rates" data-testid="pdo-rates">
+          <thead>
+            <tr>
+              <th>PDO</th>
+              <th />
+              <th>COB-ID</th>
+              <th className="num">Frames</th>
+              <th className="num">Rate (Hz)</th>
+            </tr>
+          </thead>
+          <tbody>
+            <RateRows rates={status?.rx_pdos ?? []} live={l.rates} dir="to the drive" />
+            <RateRows rates={status?.tx_pdos ?? []} live={l.rates} dir="from the drive" />
+          </tbody>
+        </table>
+      )}
+    </section>
+  );
+}

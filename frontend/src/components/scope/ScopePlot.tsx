@@ -1,0 +1,337 @@
+/**
+ * The scope's plot on uPlot: draws the model's visible window at most once per animation
+ * frame (uPlot `setData` with the window's, display-decimated, data), with zoom by dragging a
+ * range, pan by shift-drag or the wheel (ctrl+wheel zooms around the pointer), a click to
+ * place the active cursor, the two cursors and the trigger drawn on the canvas, and a PNG of
+ * the view with its legend.
+ *
+ * uPlot is rebuilt only when the traces change (names, colours, units); new data and a moved
+ * window only call setData and setScale in one batch.
+ */
+import { useEffect, useRef } from 'react';
+import uPlot from 'uplot';
+import type { ScopeModel, TraceDef } from './model';
+
+/** What the page wants drawn besides the traces. */
+export interface Overlay {
+  /** Trigger level line: the trace key it belongs to and the shown value. */
+  level: { key: string; value: number } | null;
+}
+
+export interface PlotApi {
+  /** The view as a PNG with a legend below it (lines of text with colour swatches). */
+  png: (title: string, legend: readonly { colour: string; text: string }[]) => Promise<Blob | null>;
+}
+
+interface Props {
+  model: ScopeModel;
+  overlay: React.MutableRefObject<Overlay>;
+  onPlaceCursor: (x: number) => void;
+  onApi?: (api: PlotApi | null) => void;
+  height?: number;
+}
+
+const FONT = '11px ui-monospace, "DejaVu Sans Mono", monospace';
+const AXIS_STROKE = '#555';
+const GRID = { stroke: '#e4e7eb', width: 1 };
+
+function scaleKey(unit: string): string {
+  return `y:${unit}`;
+}
+
+function signature(traces: readonly TraceDef[]): string {
+  return traces.map((t) => `${t.key}|${t.label}|${t.colour}|${t.unit}`).join(';');
+}
+
+/** Tick labels with as many decimals as the tick spacing needs. */
+function ticks(values: number[], suffix = ''): string[] {
+  const step = values.length > 1 ? Math.abs((values[1] as number) - (values[0] as number)) : 1;
+  const dec = step > 0 ? Math.max(0, Math.min(9, -Math.floor(Math.log10(step)) + (step / 10 ** Math.floor(Math.log10(step)) < 1.5 ? 1 : 0))) : 0;
+  return values.map((v) => {
+    const a = Math.abs(v);
+    if (a !== 0 && (a >= 1e7 || a < 1e-4)) return v.toExponential(2) + suffix;
+    return v.toFixed(dec) + suffix;
+  });
+}
+
+function buildOptions(model: ScopeModel, width: number, height: number, overlay: React.MutableRefObject<Overlay>, onZoom: (x0: number, x1: number) => void): uPlot.Options {
+  const units: string[] = [];
+  for (const t of model.traces) if (!units.includes(t.unit)) units.push(t.unit);
+  if (!units.length) units.push('');
+  const scales: uPlot.Scales = { x: { time: false, auto: false } };
+  for (const u of units) scales[scaleKey(u)] = { auto: true };
+  const axes: uPlot.Axis[] = [
+    {
+      stroke: AXIS_STROKE,
+      grid: GRID,
+      ticks: { stroke: '#ccd', width: 1 },
+      font: FONT,
+      values: (_u, v) => ticks(v, ' s'),
+    },
+  ];
+  units.forEach((u, i) => {
+    const first = model.traces.find((t) => t.unit === u);
+    axes.push({
+      scale: scaleKey(u),
+      show: i < 2,
+      side: i === 0 ? 3 : 1,
+      stroke: first?.colour ?? AXIS_STROKE,
+      grid: i === 0 ? GRID : { show: false },
+      font: FONT,
+      size: 70,
+      label: u || undefined,
+      labelFont: FONT,
+      labelSize: 14,
+      values: (_u, v) => ticks(v),
+    });
+  });
+  const series: uPlot.Series[] = [{ label: 't' }];
+  for (const t of model.traces) {
+    series.push({
+      label: t.label,
+      scale: scaleKey(t.unit),
+      stroke: t.colour,
+      width: 1,
+      dash: t.kind === 'math' ? [6, 3] : undefined,
+      spanGaps: true,
+    });
+  }
+  return {
+    width,
+    height,
+    legend: { show: false },
+    cursor: {
+      drag: { x: true, y: false, setScale: false, dist: 5 },
+      points: { show: false },
+    },
+    scales,
+    axes,
+    series,
+    hooks: {
+      setSelect: [
+        (u) => {
+          if (u.select.width > 4) {
+            const x0 = u.posToVal(u.select.left, 'x');
+            const x1 = u.posToVal(u.select.left + u.select.width, 'x');
+            onZoom(x0, x1);
+          }
+          u.setSelect({ left: 0, top: 0, width: 0, height: 0 }, false);
+        },
+      ],
+      draw: [
+        (u) => {
+          model.draws++;
+          const { ctx } = u;
+          const { left, top, width: w, height: h } = u.bbox;
+          const px = uPlot.pxRatio;
+          ctx.save();
+          ctx.beginPath();
+          ctx.rect(left, top, w, h);
+          ctx.clip();
+          const vline = (x: number, colour: string, dash: number[], label: string) => {
+            const cx = Math.round(u.valToPos(x, 'x', true));
+            if (cx < left || cx > left + w) return;
+            ctx.strokeStyle = colour;
+            ctx.lineWidth = px;
+            ctx.setLineDash(dash.map((d) => d * px));
+            ctx.beginPath();
+            ctx.moveTo(cx + 0.5, top);
+            ctx.lineTo(cx + 0.5, top + h);
+            ctx.stroke();
+            ctx.setLineDash([]);
+            ctx.fillStyle = colour;
+            ctx.font = `${11 * px}px ui-monospace, monospace`;
+            ctx.fillText(label, cx + 3 * px, top + 12 * px);
+          };
+          if (model.kind !== 'live' && model.triggerTime !== null) vline(0, '#c0262d', [2, 3], 'T');
+          if (model.cursorA !== null) vline(model.cursorA, '#17324d', [], 'A');
+          if (model.cursorB !== null) vline(model.cursorB, '#17324d', [5, 3], 'B');
+          const lv = overlay.current.level;
+          const tr = lv ? model.traces.find((t) => t.key === lv.key) : null;
+          if (lv && tr) {
+            const cy = Math.round(u.valToPos(lv.value, scaleKey(tr.unit), true));
+            if (cy >= top && cy <= top + h) {
+              ctx.strokeStyle = tr.colour;
+              ctx.lineWidth = px;
+              ctx.setLineDash([2 * px, 4 * px]);
+              ctx.beginPath();
+              ctx.moveTo(left, cy + 0.5);
+              ctx.lineTo(left + w, cy + 0.5);
+              ctx.stroke();
+              ctx.setLineDash([]);
+              ctx.fillStyle = tr.colour;
+              ctx.font = `${11 * px}px ui-monospace, monospace`;
+              ctx.fillText('trigger level', left + 4 * px, cy - 3 * px);
+            }
+          }
+          ctx.restore();
+        },
+      ],
+    },
+  };
+}
+
+export function ScopePlot({ model, overlay, onPlaceCursor, onApi, height = 380 }: Props) {
+  const host = useRef<HTMLDivElement | null>(null);
+  const placeRef = useRef(onPlaceCursor);
+  placeRef.current = onPlaceCursor;
+  const apiRef = useRef(onApi);
+  apiRef.current = onApi;
+
+  useEffect(() => {
+    const found = host.current;
+    if (!found) return;
+    const el: HTMLDivElement = found;
+    let plot: uPlot | null = null;
+    let built = '';
+    let frame = 0;
+    const widthOf = () => Math.max(300, el.clientWidth);
+
+    const build = () => {
+      plot?.destroy();
+      built = signature(model.traces);
+      plot = new uPlot(buildOptions(model, widthOf(), height, overlay, (x0, x1) => model.zoomTo(x0, x1)), [[]], el);
+      attach(plot);
+    };
+
+    const draw = () => {
+      frame = 0;
+      const started = performance.now();
+      if (!plot || signature(model.traces) !== built) build();
+      const u = plot as uPlot;
+      const cols = Math.max(50, Math.round(u.over.clientWidth || u.bbox.width / uPlot.pxRatio));
+      const d = model.plotData(cols);
+      const [x0, x1] = d.window;
+      u.batch(() => {
+        u.setData([d.x, ...d.ys] as uPlot.AlignedData, false);
+        u.setScale('x', { min: x0, max: x1 > x0 ? x1 : x0 + 1e-3 });
+      });
+      el.dataset.length = String(d.x.length);
+      el.dataset.points = String(d.points);
+      el.dataset.samples = String(model.sampleCount());
+      el.dataset.decimated = String(d.decimated);
+      el.dataset.kind = model.kind;
+      el.dataset.x0 = x0.toFixed(6);
+      el.dataset.x1 = x1.toFixed(6);
+      model.drawMs += performance.now() - started;
+    };
+    const schedule = () => {
+      if (!frame) frame = requestAnimationFrame(draw);
+    };
+
+    // Interactions on uPlot's plot area ("over").
+    let detach = () => {};
+    function attach(u: uPlot) {
+      detach();
+      const over = u.over;
+      let pan: { x: number; moved: boolean } | null = null;
+      let press: { x: number; y: number } | null = null;
+      const secondsPerPx = () => {
+        const [x0, x1] = model.window();
+        return (x1 - x0) / Math.max(1, over.clientWidth);
+      };
+      const onDownCapture = (e: MouseEvent) => {
+        if (e.button !== 0) return;
+        if (e.shiftKey) {
+          // Shift-drag pans: keep uPlot from starting a zoom selection.
+          e.stopPropagation();
+          e.preventDefault();
+          pan = { x: e.clientX, moved: false };
+          window.addEventListener('mousemove', onPanMove);
+          window.addEventListener('mouseup', onPanUp);
+        } else press = { x: e.clientX, y: e.clientY };
+      };
+      const onPanMove = (e: MouseEvent) => {
+        if (!pan) return;
+        const dx = e.clientX - pan.x;
+        if (dx === 0) return;
+        pan.x = e.clientX;
+        pan.moved = true;
+        model.pan(-dx * secondsPerPx());
+      };
+      const onPanUp = () => {
+        pan = null;
+        window.removeEventListener('mousemove', onPanMove);
+        window.removeEventListener('mouseup', onPanUp);
+      };
+      const onUp = (e: MouseEvent) => {
+        if (!press) return;
+        const moved = Math.abs(e.clientX - press.x) + Math.abs(e.clientY - press.y) > 3;
+        press = null;
+        if (moved) return;
+        const rect = over.getBoundingClientRect();
+        placeRef.current(u.posToVal(e.clientX - rect.left, 'x'));
+      };
+      const onWheel = (e: WheelEvent) => {
+        e.preventDefault();
+        const unit = e.deltaMode === 1 ? 16 : e.deltaMode === 2 ? over.clientWidth : 1;
+        if (e.ctrlKey || e.metaKey) {
+          const rect = over.getBoundingClientRect();
+          model.zoomAround(u.posToVal(e.clientX - rect.left, 'x'), 1.15 ** ((e.deltaY * unit) / 100));
+        } else {
+          const d = Math.abs(e.deltaX) > Math.abs(e.deltaY) ? e.deltaX : e.deltaY;
+          model.pan(d * unit * secondsPerPx());
+        }
+      };
+      el.addEventListener('mousedown', onDownCapture, true);
+      over.addEventListener('mouseup', onUp);
+      over.addEventListener('wheel', onWheel, { passive: false });
+      detach = () => {
+        el.removeEventListener('mousedown', onDownCapture, true);
+        over.removeEventListener('mouseup', onUp);
+        over.removeEventListener('wheel', onWheel);
+        onPanUp();
+      };
+    }
+
+    const png: PlotApi['png'] = (title, legend) => {
+      const u = plot;
+      if (!u) return Promise.resolve(null);
+      const src = u.ctx.canvas;
+      const px = uPlot.pxRatio;
+      const line = 18 * px;
+      const out = document.createElement('canvas');
+      out.width = src.width;
+      out.height = src.height + line * (legend.length + 1) + 10 * px;
+      const ctx = out.getContext('2d');
+      if (!ctx) return Promise.resolve(null);
+      ctx.fillStyle = '#ffffff';
+      ctx.fillRect(0, 0, out.width, out.height);
+      ctx.fillStyle = '#1c2430';
+      ctx.font = `bold ${12 * px}px system-ui, sans-serif`;
+      ctx.fillText(title, 8 * px, 14 * px);
+      ctx.drawImage(src, 0, line);
+      ctx.font = `${11 * px}px ui-monospace, "DejaVu Sans Mono", monospace`;
+      legend.forEach((row, i) => {
+        const y = line + src.height + 6 * px + i * line;
+        ctx.fillStyle = row.colour;
+        ctx.fillRect(8 * px, y + 3 * px, 14 * px, 4 * px);
+        ctx.fillStyle = '#1c2430';
+        ctx.fillText(row.text, 28 * px, y + 9 * px);
+      });
+      return new Promise((resolve) => out.toBlob((b) => resolve(b), 'image/png'));
+    };
+    apiRef.current?.({ png });
+
+    const unsub = model.subscribe(schedule);
+    const ro = new ResizeObserver(() => {
+      if (plot && Math.abs(plot.width - widthOf()) > 1) {
+        plot.setSize({ width: widthOf(), height });
+        schedule();
+      }
+    });
+    ro.observe(el);
+    draw();
+    return () => {
+      unsub();
+      ro.disconnect();
+      if (frame) cancelAnimationFrame(frame);
+      detach();
+      plot?.destroy();
+      plot = null;
+      apiRef.current?.(null);
+    };
+  }, [model, height, overlay]);
+
+  return <div className="scope-plot" ref={host} data-testid="scope-plot" />;
+}

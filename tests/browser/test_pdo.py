@@ -1,0 +1,244 @@
+"""The PDO mapping page against the real backend and the simulated generic CiA 402 drive.
+
+What a commissioning engineer relies on (issue 6 "Done when"): drag an object from the palette
+into a TPDO, see the bit budget and the check follow, review the planned steps, apply them,
+start the cyclic data and see the mapped object's value update live next to it, raw and
+engineering side by side. The drive is left as it was found: the mapping is put back, cyclic
+data stopped, the axis disabled and control released.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+from playwright.sync_api import Page, expect
+
+pytestmark = pytest.mark.browser
+
+SID = "cia402-generic-1"
+PDO = f"/api/v1/sessions/{SID}/pdo"
+#: The client that moves the axis: its own id and WebSocket (for the dead-man heartbeat),
+#: so the page under test does not have to hold control.
+MOVER = "pdo-test-mover"
+MOVER_HEADERS = {"X-Servodesk-Client": MOVER, "Content-Type": "application/json"}
+#: Target velocity (60FFh, raw counts/s): slow enough to stay far from the simulated
+#: drive's limit switches (-1.7 / +3.7 revolutions of 131072 counts) for the whole test.
+VELOCITY = 20_000
+
+
+def layout_of(view: dict[str, Any]) -> dict[str, Any]:
+    """A PdoLayout (docs/pdo.md) that writes back exactly the PDOs of ``view``."""
+    pdos = []
+    for p in view["pdos"]:
+        out: dict[str, Any] = {
+            "direction": p["direction"],
+            "number": p["number"],
+            "entries": [
+                {"index": e["index"], "subindex": e["subindex"], "bits": e["bits"]}
+                for e in p["entries"]
+            ],
+        }
+        if p["comm_index"] is not None:
+            out.update(
+                cob_id=p["cob_id"] & 0x7FF,
+                enabled=p["enabled"],
+                transmission_type=p["transmission_type"],
+                inhibit_time=p["inhibit_time"],
+                event_timer=p["event_timer"],
+            )
+            if p["direction"] == "tx":
+                out.update(rtr_allowed=p["rtr_allowed"], sync_start=p["sync_start"])
+        pdos.append(out)
+    layout: dict[str, Any] = {"pdos": pdos}
+    if view.get("assignment") is not None:
+        layout["assignment"] = view["assignment"]
+    if view.get("telegram") is not None:
+        layout["telegram"] = view["telegram"]
+    return layout
+
+
+def post(page: Page, path: str, body: dict[str, Any], headers: dict[str, str] | None = None) -> Any:
+    r = page.request.post(
+        path,
+        data=json.dumps(body),
+        headers=headers or {"Content-Type": "application/json"},
+    )
+    assert r.ok, f"POST {path}: {r.status} {r.text()}"
+    return r.json()
+
+
+def start_mover(page: Page) -> None:
+    """Open the mover's WebSocket in the page and heartbeat every 50 ms (the dead-man)."""
+    page.evaluate(
+        """([sid, client]) => new Promise((resolve, reject) => {
+            const url = new URL('/api/v1/ws', location.href);
+            url.protocol = location.protocol === 'https:' ? 'wss:' : 'ws:';
+            url.searchParams.set('client', client);
+            const ws = new WebSocket(url.toString(), 'servodesk.v1');
+            ws.onopen = () => {
+                const msg = JSON.stringify({type: 'heartbeat', session: sid});
+                const beat = () => ws.readyState === 1 && ws.send(msg);
+                beat();
+                window.__pdoMover = {ws, timer: setInterval(beat, 50)};
+                resolve(true);
+            };
+            ws.onerror = () => reject(new Error('the mover socket did not open'));
+        })""",
+        [SID, MOVER],
+    )
+
+
+def stop_mover(page: Page) -> None:
+    page.evaluate(
+        """() => {
+            const m = window.__pdoMover;
+            if (!m) return;
+            clearInterval(m.timer);
+            m.ws.close();
+            window.__pdoMover = null;
+        }"""
+    )
+
+
+@pytest.fixture
+def pdo_page(page: Page) -> Iterator[Page]:
+    original = page.request.get(PDO)
+    assert original.ok, f"GET {PDO}: {original.status} {original.text()}"
+    restore = layout_of(original.json())
+    # A known start, whatever ran before: TPDO1 carries the statusword only, event-driven.
+    tpdo1 = {"direction": "tx", "number": 1, "entries": ["0x6041:00"], "transmission_type": 255}
+    report = post(page, f"{PDO}/apply", {"pdos": [tpdo1], "dry_run": False})
+    assert report["ok"], report
+    page.goto(f"/#/pdo/{SID}")
+    expect(page.get_by_test_id("pdo-page")).to_be_visible()
+    try:
+        yield page
+    finally:
+        # Leave the drive as the other tests expect it.
+        page.request.post(f"/api/v1/sessions/{SID}/motion/halt", data="{}", headers=MOVER_HEADERS)
+        page.request.post(
+            f"/api/v1/sessions/{SID}/state", data='{"command":"disable"}', headers=MOVER_HEADERS
+        )
+        page.request.post(
+            f"/api/v1/sessions/{SID}/control", data='{"action":"release"}', headers=MOVER_HEADERS
+        )
+        stop_mover(page)
+        page.request.delete(f"{PDO}/cyclic")
+        r = page.request.post(
+            f"{PDO}/apply",
+            data=json.dumps({**restore, "dry_run": False}),
+            headers={"Content-Type": "application/json"},
+        )
+        assert r.ok and r.json()["ok"], f"putting the mapping back failed: {r.status} {r.text()}"
+
+
+def live_raw(page: Page, testid: str) -> int:
+    raw = page.get_by_test_id(testid).get_attribute("data-raw")
+    assert raw is not None and re.fullmatch(r"-?\d+", raw), f"{testid} shows raw {raw!r}"
+    return int(raw)
+
+
+def test_drag_into_tpdo_apply_and_see_it_live(pdo_page: Page) -> None:
+    page = pdo_page
+    card = page.get_by_test_id("pdo-card-TPDO1")
+    expect(card).to_be_visible()
+    # TPDO1 starts with the statusword only (16 of 64 bits).
+    expect(page.get_by_test_id("pdo-TPDO1-budget")).to_have_attribute("data-used", "16")
+    expect(page.get_by_test_id("pdo-TPDO1-entry-1")).to_have_count(0)
+
+    # Find the object in the palette and drag it into TPDO1.
+    page.get_by_test_id("pdo-palette-tx").click()
+    page.get_by_test_id("pdo-palette-search").fill("position actual")
+    item = page.get_by_test_id("pdo-palette-item-0x6064:00")
+    expect(item).to_be_visible()
+    # The palette stays on screen (sticky) while the tables scroll: bring the drop place into
+    # view first, as a person would, so the page does not scroll in the middle of the drag.
+    dropzone = page.get_by_test_id("pdo-TPDO1-dropzone")
+    dropzone.scroll_into_view_if_needed()
+    item.drag_to(dropzone)
+
+    entry = page.get_by_test_id("pdo-TPDO1-entry-1")
+    expect(entry).to_have_attribute("data-address", "0x6064:00")
+    expect(entry).to_contain_text("Position actual value")
+    # Byte offset 2, bit 0: right after the 16-bit statusword.
+    expect(entry.locator("td").nth(1)).to_have_text("2")
+    expect(entry.locator("td").nth(2)).to_have_text("0")
+    expect(page.get_by_test_id("pdo-TPDO1-budget")).to_have_attribute("data-used", "48")
+    expect(page.get_by_test_id("pdo-TPDO1-changed")).to_be_visible()
+
+    # Send it on every SYNC (CiA 301 transmission type 1), so the cyclic data carries it.
+    page.get_by_test_id("pdo-TPDO1-transmission_type").select_option("n")
+    expect(page.get_by_test_id("pdo-TPDO1-transmission_n")).to_have_value("1")
+
+    # The live check passes, which enables the review.
+    check = page.get_by_test_id("pdo-check")
+    expect(check).to_have_attribute("data-state", "done", timeout=10_000)
+    expect(check).to_have_attribute("data-problems", "0")
+    review = page.get_by_test_id("pdo-review")
+    expect(review).to_be_enabled()
+
+    # A dry run says what would be written and writes nothing.
+    page.get_by_test_id("pdo-dry-run").click()
+    expect(page.get_by_test_id("pdo-report")).to_have_attribute("data-dry-run", "true")
+    expect(page.get_by_test_id("pdo-report-result")).to_contain_text("nothing was written")
+    before = page.request.get(PDO).json()
+    assert [e["address"] for e in before["pdos"][4]["entries"]] == ["0x6041:00"]
+
+    review.click()
+
+    # The plan lists the steps in order, with why each is there; confirm it.
+    plan = page.get_by_test_id("pdo-plan")
+    expect(plan).to_be_visible(timeout=10_000)
+    steps = page.get_by_test_id("pdo-plan-steps")
+    expect(steps).to_contain_text("0x1A00:00")
+    expect(steps).to_contain_text("0x60640020")
+    page.get_by_test_id("pdo-apply-confirm").click()
+    report = page.get_by_test_id("pdo-report")
+    expect(report).to_have_attribute("data-ok", "true", timeout=20_000)
+    expect(page.get_by_test_id("pdo-report-flags")).to_contain_text("verified")
+    # The editor now shows the drive's mapping: nothing left to apply.
+    expect(page.get_by_test_id("pdo-TPDO1-changed")).to_have_count(0)
+    expect(page.get_by_test_id("pdo-TPDO1-entry-1")).to_have_attribute("data-address", "0x6064:00")
+    drive = page.request.get(PDO).json()
+    tpdo1 = next(p for p in drive["pdos"] if p["name"] == "TPDO1")
+    assert [e["address"] for e in tpdo1["entries"]] == ["0x6041:00", "0x6064:00"]
+    assert tpdo1["transmission_type"] == 1
+
+    # The PLC programmer's export has the new layout.
+    with page.expect_download() as download:
+        page.get_by_test_id("pdo-export-csv").click()
+    csv = download.value.path().read_text(encoding="utf-8")
+    # pdo, COB-ID, byte offset, bit offset, bits, address, name.
+    assert "TPDO1,0x181,2,0,32,0x6064:00,Position actual value" in csv, csv
+
+    # Start the cyclic data at the default 10 ms SYNC.
+    expect(page.get_by_test_id("pdo-cyclic-period")).to_have_value("10")
+    page.get_by_test_id("pdo-cyclic-start").click()
+    expect(page.get_by_test_id("pdo-cyclic-state")).to_have_attribute("data-running", "true")
+    live = "pdo-live-TPDO1-0x6064:00"
+    expect(page.get_by_test_id(live)).to_have_attribute(
+        "data-raw", re.compile(r"^-?\d+$"), timeout=5_000
+    )
+    # Raw and engineering side by side, each with its unit (profile: inc and deg).
+    expect(page.get_by_test_id(live)).to_contain_text("inc")
+    expect(page.get_by_test_id(live)).to_contain_text("deg")
+
+    # Move the axis (another client, with its own dead-man heartbeat) ...
+    start_mover(page)
+    post(page, f"/api/v1/sessions/{SID}/control", {"action": "take"}, MOVER_HEADERS)
+    post(page, f"/api/v1/sessions/{SID}/state", {"command": "enable"}, MOVER_HEADERS)
+    post(page, f"/api/v1/sessions/{SID}/motion/velocity", {"velocity": VELOCITY}, MOVER_HEADERS)
+
+    # ... and the value next to the mapped object follows, live.
+    first = live_raw(page, live)
+    expect(page.get_by_test_id(live)).not_to_have_attribute("data-raw", str(first), timeout=3_000)
+    second = live_raw(page, live)
+    page.wait_for_timeout(300)
+    third = live_raw(page, live)
+    assert first != second != third, f"position shown {first}, {second}, {third}"
+    assert third > first, f"moving forward, the position went {first} -> {third}"
+    expect(page.get_by_test_id("pdo-TPDO1-rate")).to_be_visible()

@@ -1,0 +1,268 @@
+"""The Scope page against the real backend and the simulated generic CiA 402 drive.
+
+What a commissioning engineer relies on (issue 7 "Done when"): pick position and velocity
+actual of a drive, start the scope and see the traces follow the moving axis; set a level
+trigger, single, with 20 % pre-trigger, arm it and get the captured window with the trigger
+sample at 0 s and a fifth of the window before it; export the capture as CSV and as MDF4 with
+the page's buttons and open both files again in the scope, with the same channels and samples.
+The drive and the scope are left as they were found: the scope stopped and empty, the axis
+halted and disabled, control released.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from playwright.sync_api import Page, expect
+
+pytestmark = pytest.mark.browser
+
+SID = "cia402-generic-1"
+#: The client that moves the axis: its own id and WebSocket (for the dead-man heartbeat),
+#: so the page under test does not have to hold control.
+MOVER = "scope-test-mover"
+MOVER_HEADERS = {"X-Servodesk-Client": MOVER, "Content-Type": "application/json"}
+#: Target velocity (60FFh, raw inc/s): slow enough to stay far from the simulated drive's
+#: limit switches (-1.7 / +3.7 revolutions of 131072 inc) for the whole test.
+VELOCITY = 20_000
+REVOLUTION = 131_072
+POSITION = "0x6064:00"
+VELOCITY_ACTUAL = "0x606C:00"
+
+
+def post(page: Page, path: str, body: dict[str, Any], headers: dict[str, str] | None = None) -> Any:
+    r = page.request.post(
+        path, data=json.dumps(body), headers=headers or {"Content-Type": "application/json"}
+    )
+    assert r.ok, f"POST {path}: {r.status} {r.text()}"
+    return r.json()
+
+
+def put(page: Page, path: str, body: dict[str, Any]) -> Any:
+    r = page.request.put(path, data=json.dumps(body), headers={"Content-Type": "application/json"})
+    assert r.ok, f"PUT {path}: {r.status} {r.text()}"
+    return r.json()
+
+
+def start_mover(page: Page) -> None:
+    """Open the mover's WebSocket in the page and heartbeat every 50 ms (the dead-man)."""
+    page.evaluate(
+        """([sid, client]) => new Promise((resolve, reject) => {
+            const url = new URL('/api/v1/ws', location.href);
+            url.protocol = location.protocol === 'https:' ? 'wss:' : 'ws:';
+            url.searchParams.set('client', client);
+            const ws = new WebSocket(url.toString(), 'servodesk.v1');
+            ws.onopen = () => {
+                const msg = JSON.stringify({type: 'heartbeat', session: sid});
+                const beat = () => ws.readyState === 1 && ws.send(msg);
+                beat();
+                window.__scopeMover = {ws, timer: setInterval(beat, 50)};
+                resolve(true);
+            };
+            ws.onerror = () => reject(new Error('the mover socket did not open'));
+        })""",
+        [SID, MOVER],
+    )
+
+
+def stop_mover(page: Page) -> None:
+    page.evaluate(
+        """() => {
+            const m = window.__scopeMover;
+            if (!m) return;
+            clearInterval(m.timer);
+            m.ws.close();
+            window.__scopeMover = null;
+        }"""
+    )
+
+
+def reset_scope(page: Page) -> None:
+    page.request.post(
+        "/api/v1/scope/run", data='{"action":"stop"}', headers={"Content-Type": "application/json"}
+    )
+    put(page, "/api/v1/scope/channels", {"channels": []})
+    put(page, "/api/v1/scope/trigger", {"mode": "roll"})
+
+
+@pytest.fixture
+def scope_page(page: Page) -> Iterator[Page]:
+    page.goto(f"/#/overview/{SID}")
+    reset_scope(page)
+    page.goto(f"/#/scope/{SID}")
+    expect(page.get_by_test_id("scope-page")).to_be_visible()
+    expect(page.get_by_test_id("scope-connection")).to_have_attribute(
+        "data-connected", "true", timeout=10_000
+    )
+    try:
+        yield page
+    finally:
+        page.request.post(f"/api/v1/sessions/{SID}/motion/halt", data="{}", headers=MOVER_HEADERS)
+        page.request.post(
+            f"/api/v1/sessions/{SID}/state", data='{"command":"disable"}', headers=MOVER_HEADERS
+        )
+        page.request.post(
+            f"/api/v1/sessions/{SID}/control", data='{"action":"release"}', headers=MOVER_HEADERS
+        )
+        stop_mover(page)
+        reset_scope(page)
+
+
+def pick_object(page: Page, channel: int, query: str, address: str) -> None:
+    page.get_by_test_id("scope-add-channel").click()
+    picker = page.get_by_test_id(f"scope-channel-{channel}-object")
+    picker.click()
+    picker.fill(query)
+    page.get_by_test_id(f"scope-object-{address}").click()
+    row = page.get_by_test_id(f"scope-channel-{channel}")
+    expect(row).to_have_attribute("data-address", address)
+
+
+def plot_int(page: Page, attribute: str) -> int:
+    value = page.get_by_test_id("scope-plot").get_attribute(attribute)
+    assert value is not None and value.isdigit(), f"scope-plot {attribute}={value!r}"
+    return int(value)
+
+
+def latest_raw(page: Page, channel: int) -> float:
+    raw = page.get_by_test_id(f"scope-channel-{channel}-latest").get_attribute("data-raw")
+    assert raw, f"channel {channel} shows no newest value"
+    return float(raw)
+
+
+def view_counts(page: Page) -> tuple[int, int]:
+    view = page.get_by_test_id("scope-view")
+    return int(view.get_attribute("data-channels") or -1), int(
+        view.get_attribute("data-samples") or -1
+    )
+
+
+def import_file(page: Page, path: Path, name: str) -> None:
+    page.get_by_test_id("scope-import-file").set_input_files(
+        {"name": name, "mimeType": "application/octet-stream", "buffer": path.read_bytes()}
+    )
+
+
+def test_scope_traces_trigger_export_and_reimport(scope_page: Page, tmp_path: Path) -> None:
+    page = scope_page
+
+    # Two channels of the drive the page was opened for, source chosen by the server.
+    pick_object(page, 0, "position actual", POSITION)
+    pick_object(page, 1, "velocity actual", VELOCITY_ACTUAL)
+    # The server took them and says which source each got and the rate it achieves.
+    achieved = page.get_by_test_id("scope-channel-0-achieved")
+    expect(achieved).not_to_have_attribute("data-source", "", timeout=10_000)
+    expect(page.get_by_test_id("scope-channel-0-unit")).to_contain_text("deg")
+    expect(page.get_by_test_id("scope-channel-0-unit")).to_contain_text("inc")
+
+    # Roll: start and see samples arrive.
+    page.get_by_test_id("scope-trigger-mode-roll").click()
+    page.get_by_test_id("scope-run").click()
+    expect(page.get_by_test_id("scope-state")).to_have_attribute("data-state", "rolling")
+    expect(page.get_by_test_id("scope-channel-0-latest")).not_to_have_attribute(
+        "data-raw", "", timeout=10_000
+    )
+    expect(achieved).not_to_have_attribute("data-rate", "", timeout=10_000)
+    rate = float(achieved.get_attribute("data-rate") or 0)
+    assert rate > 10, f"achieved rate {rate} Hz"
+
+    # Move the axis (another client, with its own dead-man heartbeat), away from the nearer
+    # limit switch.
+    start_mover(page)
+    position = page.request.get(f"/api/v1/sessions/{SID}/objects/{POSITION}").json()["value"]
+    direction = -1 if position > REVOLUTION else 1
+    post(page, f"/api/v1/sessions/{SID}/control", {"action": "take"}, MOVER_HEADERS)
+    post(page, f"/api/v1/sessions/{SID}/state", {"command": "enable"}, MOVER_HEADERS)
+    post(
+        page,
+        f"/api/v1/sessions/{SID}/motion/velocity",
+        {"velocity": direction * VELOCITY},
+        MOVER_HEADERS,
+    )
+
+    # The traces follow: the stored samples grow and the newest position changes.
+    samples0 = plot_int(page, "data-samples")
+    first = latest_raw(page, 0)
+    page.wait_for_timeout(1_000)
+    assert plot_int(page, "data-samples") > samples0
+    second = latest_raw(page, 0)
+    assert (second - first) * direction > 0, f"moving {direction:+d}: position {first} -> {second}"
+    assert plot_int(page, "data-length") > 0
+    expect(page.get_by_test_id("scope-stats-c1")).not_to_have_attribute("data-n", "0")
+
+    # Level trigger on the position, single, 20 % pre-trigger, 1 s window: the level two
+    # seconds ahead of the axis, entered as shown (deg) and sent raw.
+    page.get_by_test_id("scope-trigger-mode-single").click()
+    page.get_by_test_id("scope-trigger-kind").select_option("level")
+    page.get_by_test_id("scope-trigger-channel").select_option("0")
+    page.get_by_test_id("scope-trigger-slope").select_option(
+        "rising" if direction > 0 else "falling"
+    )
+    page.get_by_test_id("scope-trigger-pre").fill("20")
+    page.get_by_test_id("scope-trigger-pre").press("Enter")
+    page.get_by_test_id("scope-trigger-window").fill("1")
+    page.get_by_test_id("scope-trigger-window").press("Enter")
+    status = page.request.get("/api/v1/scope").json()
+    eng_per_raw = next(c["eng_scale"] for c in status["channels"] if c["id"] == 0)
+    now = page.request.get(f"/api/v1/sessions/{SID}/objects/{POSITION}").json()["value"]
+    level_raw = now + direction * VELOCITY * 2
+    page.get_by_test_id("scope-trigger-level").fill(f"{level_raw * eng_per_raw:.9f}")
+    page.get_by_test_id("scope-trigger-level").press("Enter")
+    level_sent = page.get_by_test_id("scope-trigger-level-raw")
+    # The raw level the drive compares: a whole number of increments.
+    expect(level_sent).to_have_attribute("data-raw", str(level_raw))
+
+    page.get_by_test_id("scope-arm").click()
+    view = page.get_by_test_id("scope-view")
+    expect(view).to_have_attribute("data-kind", "capture", timeout=20_000)
+    state = page.get_by_test_id("scope-state")
+    expect(state).to_have_attribute("data-state", "done", timeout=10_000)
+    expect(view).not_to_have_attribute("data-samples", "0")
+
+    # The captured window: the trigger sample at 0 s with a fifth of the window before it,
+    # and the position crossing the level there.
+    capture = page.evaluate(
+        """() => {
+            const m = window.__servodeskScope.model;
+            const s = m.seriesOf(0);
+            const o = m.origin;
+            let i = 0;
+            while (i < s.n && s.t[i] < o) i++;
+            return {first: s.t[0] - o, last: s.t[s.n - 1] - o, at: s.v[i], before: s.v[i - 1],
+                    trigger: m.triggerTime === null ? null : m.triggerTime - o};
+        }"""
+    )
+    assert capture["trigger"] == 0
+    assert -0.2 - 0.01 <= capture["first"] <= -0.2 + 0.01, capture
+    assert 0.8 - 0.05 <= capture["last"] <= 0.8 + 0.01, capture
+    sent = float(level_sent.get_attribute("data-raw") or 0)
+    if direction > 0:
+        assert capture["before"] < sent <= capture["at"], capture
+    else:
+        assert capture["before"] > sent >= capture["at"], capture
+    channels, samples = view_counts(page)
+    assert channels == 2 and samples > 1000, (channels, samples)
+
+    # Export the capture with the page's buttons (both while it is shown) ...
+    files: list[tuple[Path, str]] = []
+    for fmt, ext in (("csv", "csv"), ("mdf4", "mf4")):
+        with page.expect_download() as download:
+            page.get_by_test_id(f"scope-export-{fmt}").click()
+        name = download.value.suggested_filename
+        assert name.endswith(f".{ext}"), name
+        path = tmp_path / name
+        download.value.save_as(path)
+        assert path.stat().st_size > 1000, f"{name}: {path.stat().st_size} bytes"
+        files.append((path, name))
+
+    # ... and open each file again: the same channels and samples.
+    for path, name in files:
+        import_file(page, path, name)
+        expect(view).to_have_attribute("data-kind", "recording", timeout=10_000)
+        expect(view).to_have_attribute("data-name", name)
+        assert view_counts(page) == (channels, samples), f"{name} reopened with other counts"
+    expect(page.get_by_test_id("scope-failure")).to_have_count(0)
