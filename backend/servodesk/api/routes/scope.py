@@ -97,9 +97,7 @@ async def scope_status(request: Request) -> dict[str, Any]:
 
 
 @router.put("/scope/channels", operation_id="scope_set_channels")
-async def scope_set_channels(
-    body: ChannelsIn, request: Request, state: StateDep
-) -> dict[str, Any]:
+async def scope_set_channels(body: ChannelsIn, request: Request, state: StateDep) -> dict[str, Any]:
     # The sessions first: a channel of a session that does not exist is a 404 naming it,
     # whatever else is wrong with the request.
     for c in body.channels:
