@@ -232,9 +232,12 @@ async def from_template(session: Session, template_id: str) -> dict[str, Any]:
     return await view(session, desired, pdomod.validate(session.profile, desired))
 
 
-async def desired_from(session: Session, body: dict[str, Any]) -> pdomod.PdoConfig:
+async def desired_from(
+    session: Session, body: dict[str, Any], current: pdomod.PdoConfig | None = None
+) -> pdomod.PdoConfig:
     """The present configuration with the PDOs of a ``PdoLayout`` body replaced."""
-    current = await read_config(session)
+    if current is None:
+        current = await read_config(session)
     return pdomod.config_from_json(session.profile, body, current=current)
 
 
@@ -267,8 +270,8 @@ async def _nmt_state(session: Session) -> str:
 
 
 async def make_plan(session: Session, body: dict[str, Any]) -> pdomod.Plan:
-    desired = await desired_from(session, body)
     current = await read_config(session)
+    desired = await desired_from(session, body, current)
     return pdomod.plan(session.profile, current, desired, nmt_state=await _nmt_state(session))
 
 
@@ -329,7 +332,7 @@ async def apply(
     async with lock:
         profile = session.profile
         current = await read_config(session)
-        desired = await desired_from(session, body)
+        desired = await desired_from(session, body, current)
         nmt = await _nmt_state(session)
         plan = pdomod.plan(profile, current, desired, nmt_state=nmt)  # PdoRefused if invalid
         report: dict[str, Any] = {
