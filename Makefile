@@ -74,6 +74,8 @@ test: setup chromium lint typecheck unit wheel
 bench: setup
 	$(PY) bench/bench_sdo.py --json
 	$(PY) bench/bench_sim.py --json
+	$(PY) bench/bench_pdo.py --json
+	$(VENV)/bin/servodesk bench scope --json
 
 openapi: $(VENV)/.synced
 	$(VENV)/bin/servodesk openapi > backend/openapi.json
