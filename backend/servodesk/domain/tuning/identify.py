@@ -1,0 +1,530 @@
+"""System identification from recorded drive signals: inertia and friction, FRF, resonances.
+
+Three estimators (anchors-tuning.md §2.2-2.4):
+
+- :func:`identify_rigid`: batch least squares on the torque equation
+  ``tau = J alpha + b w + Tc sign(w) + g`` over a test move, with velocity and acceleration from
+  a zero-phase Savitzky-Golay differentiator;
+- :func:`frequency_response`: the plant velocity / torque FRF measured in closed loop, with the
+  injected test signal as the instrument (Welch averaging);
+- :func:`inertia_from_frf` and :func:`find_resonances`: the rigid-body line ``1 / (J w)`` and the
+  peaks that stand above it.
+
+:func:`plant_from_identification` turns the results into a :class:`~.model.PlantModel` for
+``design.design_gains``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from scipy import optimize, signal  # type: ignore[import-untyped]
+
+from servodesk.domain.tuning.model import Mode, PlantModel
+
+FloatArray = npt.NDArray[np.float64]
+ComplexArray = npt.NDArray[np.complex128]
+
+TWO_PI = 2.0 * math.pi
+
+
+# ----------------------------------------------------------------------------------------------
+# Inertia and friction from a test move
+
+
+@dataclass(frozen=True, slots=True)
+class InertiaEstimate:
+    """Least-squares fit of ``tau = J alpha + b w + Tc sign(w) + g`` (SI units).
+
+    ``residual_rms`` is the RMS of the fit residual [N m] over the ``n`` samples used.
+    """
+
+    inertia: float
+    viscous: float
+    coulomb: float
+    gravity: float
+    residual_rms: float
+    n: int
+
+
+def _sample_period(t: npt.ArrayLike | float) -> float:
+    """Sample period from a rate [Hz] or from a uniformly sampled time vector."""
+    if np.ndim(t) == 0:
+        rate = float(t)  # type: ignore[arg-type]
+        if not rate > 0.0:
+            raise ValueError(f"sample rate must be positive, not {rate}")
+        return 1.0 / rate
+    tt = np.asarray(t, dtype=np.float64)
+    if len(tt) < 2:
+        raise ValueError("need at least two samples")
+    dt = np.diff(tt)
+    period = float(np.median(dt))
+    if not period > 0.0 or np.max(np.abs(dt - period)) > 0.01 * period:
+        raise ValueError("samples must be uniformly spaced in time")
+    return period
+
+
+def identify_rigid(
+    t: npt.ArrayLike | float,
+    torque: npt.ArrayLike,
+    position_rad: npt.ArrayLike | None = None,
+    velocity: npt.ArrayLike | None = None,
+    *,
+    window_s: float = 0.004,
+    polyorder: int = 3,
+    min_speed_fraction: float = 0.05,
+    torque_delay_s: float = 0.0,
+    fit_viscous: bool = True,
+    fit_gravity: bool = True,
+) -> InertiaEstimate:
+    """Inertia, viscous and Coulomb friction and a constant (gravity) torque from a test move.
+
+    ``t`` is the time vector [s] or the sample rate [Hz]; give either ``position_rad`` (the
+    encoder angle) or ``velocity`` [rad/s]. Every signal, the torque included, goes through the
+    same Savitzky-Golay filter (``window_s`` long, cubic): it is zero-phase, so no lag appears
+    between torque and acceleration, and filtering both sides of the regression alike keeps the
+    linear terms unbiased (anchors-tuning.md §2.2: "zero-phase filtering"). The window sets the
+    regression bandwidth, ~``1.3 / window_s`` for cubic fits: keep it below ``f_ar / 3`` of a
+    compliant axis (§2.2 rule), i.e. ``window_s >= 4 / f_ar``.
+
+    Samples are left out of the regression where ``|w| < min_speed_fraction * max |w|``: near
+    standstill ``sign(w)`` is ill-defined and the friction is static (stick), not Coulomb. Half a
+    window is also dropped at both ends (the filter's edge fits are less accurate).
+
+    ``torque_delay_s`` aligns the torque command with the motion when the current loop and
+    computation delay are known (the torque is shifted later by that much, by linear
+    interpolation).
+    """
+    dt = _sample_period(t)
+    tau = np.asarray(torque, dtype=np.float64)
+    n = len(tau)
+    win = max(polyorder + 2, round(window_s / dt))
+    if win % 2 == 0:
+        win += 1
+    if n < 3 * win:
+        raise ValueError(f"need at least {3 * win} samples for a {window_s} s window, got {n}")
+    if torque_delay_s:
+        k = np.arange(n, dtype=np.float64)
+        tau = np.interp(k - torque_delay_s / dt, k, tau)
+    sg = {"window_length": win, "polyorder": polyorder, "mode": "interp"}
+    if position_rad is not None:
+        pos = np.asarray(position_rad, dtype=np.float64)
+        w = signal.savgol_filter(pos, deriv=1, delta=dt, **sg)
+        alpha = signal.savgol_filter(pos, deriv=2, delta=dt, **sg)
+    elif velocity is not None:
+        vel = np.asarray(velocity, dtype=np.float64)
+        w = signal.savgol_filter(vel, deriv=0, **sg)
+        alpha = signal.savgol_filter(vel, deriv=1, delta=dt, **sg)
+    else:
+        raise ValueError("give position_rad or velocity")
+    tau_f = signal.savgol_filter(tau, deriv=0, **sg)
+
+    keep = np.ones(n, dtype=bool)
+    keep[: win // 2 + 1] = False
+    keep[-(win // 2 + 1) :] = False
+    keep &= np.abs(w) >= min_speed_fraction * np.max(np.abs(w))
+    if keep.sum() < 10:
+        raise ValueError("too few moving samples to identify")
+    cols = [alpha[keep]]
+    names = ["J"]
+    if fit_viscous:
+        cols.append(w[keep])
+        names.append("b")
+    cols.append(np.sign(w[keep]))
+    names.append("Tc")
+    if fit_gravity:
+        cols.append(np.ones(int(keep.sum())))
+        names.append("g")
+    a = np.column_stack(cols)
+    y = tau_f[keep]
+    # Scale the columns so that lstsq's rank decision does not depend on units.
+    scale = np.maximum(np.max(np.abs(a), axis=0), 1e-300)
+    coef, *_ = np.linalg.lstsq(a / scale, y, rcond=None)
+    coef = coef / scale
+    resid = y - a @ coef
+    vals = dict(zip(names, (float(c) for c in coef), strict=True))
+    return InertiaEstimate(
+        inertia=vals["J"],
+        viscous=vals.get("b", 0.0),
+        coulomb=vals["Tc"],
+        gravity=vals.get("g", 0.0),
+        residual_rms=float(np.sqrt(np.mean(resid**2))),
+        n=int(keep.sum()),
+    )
+
+
+# ----------------------------------------------------------------------------------------------
+# Frequency response
+
+
+@dataclass(frozen=True, slots=True)
+class Frf:
+    """A measured frequency response: ``g`` (velocity / torque, rad/s per N m) at ``f_hz``.
+
+    ``coherence`` is the smaller of the coherences instrument -> torque and instrument ->
+    velocity (0..1): the estimate is only as good as the weaker of the two spectra it divides.
+    """
+
+    f_hz: FloatArray
+    g: ComplexArray
+    coherence: FloatArray
+    averages: int = 0
+
+    def band(self, f_lo: float, f_hi: float) -> Frf:
+        """The part within ``f_lo <= f <= f_hi``."""
+        m = (self.f_hz >= f_lo) & (self.f_hz <= f_hi)
+        return Frf(self.f_hz[m], self.g[m], self.coherence[m], self.averages)
+
+
+def frequency_response(
+    t: npt.ArrayLike | float,
+    injected: npt.ArrayLike,
+    torque_cmd: npt.ArrayLike,
+    velocity: npt.ArrayLike,
+    nperseg: int = 4096,
+    *,
+    noverlap: int | None = None,
+    window: str = "hann",
+    detrend: str | bool = "linear",
+    f_min_hz: float = 0.0,
+) -> Frf:
+    """Plant FRF ``G = S_rv / S_r,tau`` measured inside a closed loop.
+
+    ``r`` (``injected``) is the test signal added to the torque command, ``tau`` the torque
+    command the plant actually received (docs/tuning.md 2110h:07) and ``v`` the measured
+    velocity. Inside the loop the torque is correlated with the measurement noise fed back by the
+    controller, so the plain H1 estimate ``S_tau,v / S_tau,tau`` is biased towards ``-1/C``
+    wherever the loop gain is high. ``r`` is independent of that noise and drives both signals:
+    with it as the instrument, ``S_rv / S_r,tau = (S_r,tau G) / S_r,tau = G`` without bias
+    (the standard "indirect / instrumental" closed-loop estimate; anchors-tuning.md §2.3).
+
+    Welch averaging with ``nperseg`` samples per segment (resolution ``rate / nperseg``; keep it
+    below a tenth of the lowest anti-resonance, §2.3) and 50 % overlap by default.
+    """
+    dt = _sample_period(t)
+    fs = 1.0 / dt
+    r = np.asarray(injected, dtype=np.float64)
+    tau = np.asarray(torque_cmd, dtype=np.float64)
+    v = np.asarray(velocity, dtype=np.float64)
+    if not len(r) == len(tau) == len(v):
+        raise ValueError("injected, torque and velocity must have the same length")
+    nperseg = min(nperseg, len(r))
+    kw = {
+        "fs": fs,
+        "nperseg": nperseg,
+        "noverlap": noverlap,
+        "window": window,
+        "detrend": detrend,
+    }
+    f, s_rv = signal.csd(r, v, **kw)
+    _, s_rt = signal.csd(r, tau, **kw)
+    _, s_rr = signal.welch(r, **kw)
+    _, s_tt = signal.welch(tau, **kw)
+    _, s_vv = signal.welch(v, **kw)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g = s_rv / s_rt
+        coh_t = np.abs(s_rt) ** 2 / (s_rr * s_tt)
+        coh_v = np.abs(s_rv) ** 2 / (s_rr * s_vv)
+    coh = np.nan_to_num(np.minimum(coh_t, coh_v), nan=0.0)
+    step = nperseg - (noverlap if noverlap is not None else nperseg // 2)
+    averages = max(1, 1 + (len(r) - nperseg) // max(step, 1))
+    m = (f > max(f_min_hz, 0.0)) & np.isfinite(g)
+    return Frf(
+        np.asarray(f[m], dtype=np.float64),
+        np.asarray(g[m], dtype=np.complex128),
+        np.asarray(coh[m], dtype=np.float64),
+        averages,
+    )
+
+
+def inertia_from_frf(
+    frf: Frf,
+    band: tuple[float, float],
+    *,
+    min_coherence: float = 0.8,
+    current_loop_hz: float | None = None,
+    resonances: Sequence[Resonance] = (),
+) -> float:
+    """Total inertia from the rigid-body band of an FRF, where ``|G| = 1 / |J jw + b|``.
+
+    Weighted least squares of ``|1/G|^2 = J^2 w^2 + b^2`` (linear in ``J^2`` and ``b^2``) over
+    the points of ``band`` with coherence at least ``min_coherence``, weights = coherence. Using
+    the magnitude only makes the fit insensitive to the loop's dead time (a pure phase);
+    ``current_loop_hz`` divides out the first-order current-loop magnitude if known.
+
+    Choose the band above the friction-distorted low frequencies and well below the lowest
+    anti-resonance (anchors-tuning.md §2.2, "From the FRF"): a two-mass axis is already 25 %
+    off the rigid line at half its anti-resonance when R = 3. With the ``resonances`` found by
+    :func:`find_resonances` their two-mass shape (:func:`two_mass_shape`) is divided out first,
+    so the band may reach up to about half the lowest anti-resonance.
+    """
+    sel = (frf.f_hz >= band[0]) & (frf.f_hz <= band[1]) & (frf.coherence >= min_coherence)
+    if sel.sum() < 2:
+        raise ValueError(f"fewer than two coherent FRF points in {band[0]}..{band[1]} Hz")
+    f = frf.f_hz[sel]
+    mag = np.abs(frf.g[sel])
+    if current_loop_hz:
+        mag = mag * np.sqrt(1.0 + (f / current_loop_hz) ** 2)
+    for r in resonances:
+        if r.anti_freq_hz is not None:
+            mag = mag / np.abs(two_mass_shape(f, r.freq_hz, r.anti_freq_hz, r.damping_estimate))
+    w = TWO_PI * f
+    y = 1.0 / mag**2
+    wt = frf.coherence[sel]
+    a = np.column_stack([w**2, np.ones_like(w)])
+    sw = np.sqrt(wt)
+    coef, *_ = np.linalg.lstsq(a * sw[:, None], y * sw, rcond=None)
+    j2 = float(coef[0])
+    if j2 <= 0.0 or float(coef[1]) < 0.0:
+        # A negative friction term is noise: fit J alone.
+        j2 = float(np.sum(wt * y * w**2) / np.sum(wt * w**4))
+    return math.sqrt(j2)
+
+
+# ----------------------------------------------------------------------------------------------
+# Resonances
+
+
+@dataclass(frozen=True, slots=True)
+class Resonance:
+    """A resonance of the motor-side FRF.
+
+    ``freq_hz``: peak of ``|G|``; ``anti_freq_hz``: the anti-resonance below it (deepest dip of
+    ``|G| J w`` between the previous resonance and this one; None if there is no clear dip);
+    ``peak_db``: height of the peak above the rigid-body line ``1 / (J w)``; ``damping_estimate``
+    from the half-power width of the peak, ``(f2 - f1) / (2 f_r)``.
+    """
+
+    freq_hz: float
+    anti_freq_hz: float | None
+    peak_db: float
+    damping_estimate: float
+
+
+def two_mass_shape(
+    f: npt.ArrayLike, f_r: float, f_ar: float, zeta: float = 0.03, zeta_ar: float | None = None
+) -> ComplexArray:
+    """Motor-side two-mass response relative to the rigid line ``1 / (J_tot s)``.
+
+    ``(1 + 2 z_a s / w_ar + s^2 / w_ar^2) / (1 + 2 z s / w_r + s^2 / w_r^2)`` (anchors-tuning.md
+    §2.1: the load's zero pair at the anti-resonance, the pole pair at the resonance; the shaft
+    damper gives ``z_a = z w_ar / w_r``).
+    """
+    s = 1j * np.asarray(f, dtype=np.float64) / f_r
+    q = f_r / f_ar
+    za = zeta / q if zeta_ar is None else zeta_ar
+    num = 1.0 + 2.0 * za * q * s + (q * s) ** 2
+    return num / (1.0 + 2.0 * zeta * s + s * s)  # type: ignore[no-any-return]
+
+
+def find_resonances(
+    frf: Frf,
+    inertia: float,
+    *,
+    min_coherence: float = 0.6,
+    min_prominence_db: float = 6.0,
+    min_freq_hz: float = 0.0,
+    max_freq_hz: float | None = None,
+    max_count: int = 3,
+) -> list[Resonance]:
+    """Resonances of a motor-side FRF, lowest first.
+
+    The FRF is divided by the rigid-body line ``1 / (J w)`` (``inertia`` = the total inertia),
+    which leaves 0 dB in the rigid band, a dip at each anti-resonance and a peak at each
+    resonance; a two-mass axis ends on the motor-alone plateau ``20 log10(1 + R)``.
+
+    Thresholds (documented choices):
+
+    - coherence gating: points with coherence below ``min_coherence`` (0.6) are dropped: at
+      ~20 averages the magnitude of such points scatters by several dB and would make peaks;
+    - the ratio is smoothed over 3 points in dB (median) against single-bin spikes;
+    - a peak must stand ``min_prominence_db`` (6 dB, i.e. a factor of 2) above its surroundings
+      (scipy ``find_peaks`` prominence): a lightly damped mode (zeta <= 0.1) stands 10-30 dB
+      above the motor-alone line, while current-loop roll-off, dead time and the ZOH are smooth
+      and monotonic and never make a 6 dB bump;
+    - at most ``max_count`` resonances, the most prominent, are returned.
+
+    Each peak is then refined by a weighted least-squares fit (weights = coherence) of the
+    two-mass shape (:func:`two_mass_shape`, plus a dB offset absorbing an error of ``inertia``)
+    to the ratio in dB between the previous peak (or a tenth of this one's frequency) and
+    1.5 x this one: the anti-resonance itself is usually gated out (little motion there, low
+    coherence), but the slopes on both sides of it fix it (anchors-tuning.md §2.3, "Fit"). The
+    peak frequency falls back to a parabola through the three highest points when the fit
+    fails or moves it by more than 5 %.
+    """
+    ok = (frf.coherence >= min_coherence) & (frf.f_hz > max(min_freq_hz, 0.0))
+    if max_freq_hz is not None:
+        ok &= frf.f_hz <= max_freq_hz
+    f = frf.f_hz[ok]
+    if len(f) < 5:
+        return []
+    ratio_db = 20.0 * np.log10(np.abs(frf.g[ok]) * inertia * TWO_PI * f)
+    coh = frf.coherence[ok]
+    smooth = signal.medfilt(ratio_db, 3)
+    smooth[0], smooth[-1] = ratio_db[0], ratio_db[-1]
+    peaks, props = signal.find_peaks(smooth, prominence=min_prominence_db)
+    if len(peaks) == 0:
+        return []
+    order = np.argsort(props["prominences"])[::-1][:max_count]
+    peaks = np.sort(peaks[order])
+    out: list[Resonance] = []
+    prev_f = 0.0
+    for p in peaks:
+        f_peak = _refine_peak(f, ratio_db, int(p))
+        lo = max(prev_f * 1.2, 0.1 * f_peak)
+        fit = _fit_two_mass(f, ratio_db, coh, f_peak, lo, 1.5 * f_peak)
+        zeta = _half_power_damping(f, np.abs(frf.g[ok]), int(p), f_peak)
+        fr, anti = f_peak, None
+        if fit is not None:
+            fr_fit, far_fit, zeta_fit = fit
+            if abs(fr_fit / f_peak - 1.0) < 0.05:
+                fr = fr_fit
+            if far_fit < 0.97 * fr:
+                anti = far_fit
+            if not math.isfinite(zeta):
+                zeta = zeta_fit
+        out.append(Resonance(fr, anti, float(smooth[p]), zeta))
+        prev_f = fr
+    return out
+
+
+def _fit_two_mass(
+    f: FloatArray, ratio_db: FloatArray, coh: FloatArray, fr0: float, lo: float, hi: float
+) -> tuple[float, float, float] | None:
+    """``(f_r, f_ar, zeta)`` of the two-mass shape fitted to ``ratio_db`` in ``lo..hi``."""
+    sel = (f >= lo) & (f <= hi)
+    if sel.sum() < 8:
+        return None
+    ff, yy, ww = f[sel], ratio_db[sel], np.sqrt(coh[sel])
+    below = ff < fr0
+    if not below.any():
+        return None
+    far0 = float(ff[below][np.argmin(yy[below])])
+    far0 = min(max(far0, 0.1 * fr0), 0.9 * fr0)
+
+    def resid(x: FloatArray) -> FloatArray:
+        fr, far, zr, za, off = math.exp(x[0]), math.exp(x[1]), math.exp(x[2]), math.exp(x[3]), x[4]
+        model = 20.0 * np.log10(np.abs(two_mass_shape(ff, fr, far, zr, za))) + off
+        return (model - yy) * ww  # type: ignore[no-any-return]
+
+    x0 = np.array([math.log(fr0), math.log(far0), math.log(0.03), math.log(0.03), 0.0])
+    lb = [math.log(0.9 * fr0), math.log(0.05 * fr0), math.log(1e-3), math.log(1e-3), -6.0]
+    ub = [math.log(1.1 * fr0), math.log(0.999 * fr0), math.log(0.5), math.log(0.5), 6.0]
+    try:
+        res = optimize.least_squares(resid, x0, bounds=(lb, ub), x_scale=1.0)
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+    if not res.success:
+        return None
+    return math.exp(res.x[0]), math.exp(res.x[1]), math.exp(res.x[2])
+
+
+def _refine_peak(f: FloatArray, y: FloatArray, i: int) -> float:
+    if i <= 0 or i >= len(f) - 1:
+        return float(f[i])
+    x = np.log(f[i - 1 : i + 2])
+    yy = y[i - 1 : i + 2]
+    c2, c1, _ = np.polyfit(x - x[1], yy, 2)
+    if c2 >= 0.0:
+        return float(f[i])
+    dx = float(np.clip(-c1 / (2.0 * c2), x[0] - x[1], x[2] - x[1]))
+    return float(f[i] * math.exp(dx))
+
+
+def _half_power_damping(f: FloatArray, mag: FloatArray, i: int, fr: float) -> float:
+    """``(f2 - f1) / (2 f_r)`` from the -3 dB points of ``|G|`` around the peak."""
+    level = mag[i] / math.sqrt(2.0)
+    lo = i
+    while lo > 0 and mag[lo] > level:
+        lo -= 1
+    hi = i
+    while hi < len(f) - 1 and mag[hi] > level:
+        hi += 1
+    if mag[lo] > level or mag[hi] > level:
+        return math.nan
+
+    def cross(a: int, b: int) -> float:
+        # Linear interpolation of the crossing between samples a and b.
+        ma, mb = mag[a], mag[b]
+        frac = (ma - level) / (ma - mb) if ma != mb else 0.0
+        return float(f[a] + frac * (f[b] - f[a]))
+
+    f1 = cross(lo + 1, lo)
+    f2 = cross(hi - 1, hi)
+    return max(0.0, (f2 - f1) / (2.0 * fr))
+
+
+# ----------------------------------------------------------------------------------------------
+# Model from the identification
+
+
+def plant_from_identification(
+    inertia: float,
+    resonances: Sequence[Resonance] = (),
+    *,
+    viscous: float = 0.0,
+    current_loop_hz: float | None = 2000.0,
+    default_damping: float = 0.03,
+) -> PlantModel:
+    """A :class:`PlantModel` from the total inertia and the resonances found.
+
+    The first resonance that has an anti-resonance becomes the two-mass model: its ratio
+    ``R = (f_r / f_ar)^2 - 1`` (anchors-tuning.md §2.1) splits ``J`` into ``J_M = J / (1 + R)``
+    and ``J_L``. Further resonances become extra modes whose modal gain is estimated from the
+    peak height: at its resonance a mode ``A s / (s^2 + 2 z w s + w^2)`` adds the real
+    ``A / (2 z w)`` to the imaginary baseline ``1 / (j J_base w)`` (``J_base`` the inertia the
+    FRF shows there), so ``A = 2 z w sqrt(|G_peak|^2 - 1 / (J_base w)^2)``. Damping estimates
+    that are missing or implausible (outside 0.002..0.3) are replaced by ``default_damping``.
+    """
+    main: Resonance | None = None
+    for r in resonances:
+        if r.anti_freq_hz is not None and r.anti_freq_hz < r.freq_hz:
+            main = r
+            break
+    if main is None:
+        base = PlantModel(inertia, 0.0, None, default_damping, viscous, current_loop_hz)
+        jm_base = inertia
+    else:
+        assert main.anti_freq_hz is not None
+        ratio = (main.freq_hz / main.anti_freq_hz) ** 2 - 1.0
+        jm = inertia / (1.0 + ratio)
+        base = PlantModel(
+            jm,
+            inertia - jm,
+            main.freq_hz,
+            _plausible(main.damping_estimate, default_damping),
+            viscous,
+            current_loop_hz,
+        )
+        jm_base = jm
+    modes: list[Mode] = []
+    for r in resonances:
+        if r is main:
+            continue
+        zeta = _plausible(r.damping_estimate, default_damping)
+        wr = TWO_PI * r.freq_hz
+        j_here = jm_base if main is not None and r.freq_hz > main.freq_hz else inertia
+        # At resonance the mode term is real and the baseline 1/(j J w) imaginary.
+        g_peak = 10.0 ** (r.peak_db / 20.0) / (inertia * wr)
+        g_base = 1.0 / (j_here * wr)
+        excess = math.sqrt(max(g_peak**2 - g_base**2, (0.5 * g_base) ** 2))
+        modes.append(Mode(r.freq_hz, zeta, 2.0 * zeta * wr * excess))
+    if modes:
+        return PlantModel(
+            base.motor_inertia,
+            base.load_inertia,
+            base.resonance_hz,
+            base.damping,
+            base.viscous,
+            base.current_loop_hz,
+            tuple(modes),
+        )
+    return base
+
+
+def _plausible(zeta: float, default: float) -> float:
+    return zeta if math.isfinite(zeta) and 0.002 <= zeta <= 0.3 else default

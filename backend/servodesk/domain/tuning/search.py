@@ -1,0 +1,229 @@
+"""Gains ranked by what they do to a move: the tuner's last step, and the benchmark's oracle.
+
+:func:`design_gains` (design.py) finds filters and the highest velocity gain that meets the
+margins. The gain set that settles a move fastest is near it but not at it: the integral time,
+the position gain and the inertia feed-forward trade overshoot against speed in ways the
+margins do not show (anchors-tuning.md §3.6: most of the headroom of compliant axes is there).
+So the candidates around the design that meet the margins on *every* model of the robustness
+set are run through a reference move on a model (simulate.py, all at once) and ranked by the
+oracle's objective (anchors-tuning.md §3.4): settling to +-10 counts, then +-100, then the
+following error RMS.
+
+- The tuner calls :func:`tune_on_model` with the plant it identified.
+- The benchmark's oracle calls :func:`search_gains` with the exact plant and a wider grid
+  (benchmarks/tuning.py); its candidates are also checked on the exact plant's margins.
+
+The reference move is the benchmark's (anchors-tuning.md §3.2): half a revolution, jerk-limited
+(2 ms ramps), acceleration 0.7 x torque limit / total inertia, at most 50 rev/s, then 0.5 s at
+rest.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from servodesk.domain.tuning.design import Design, design_gains, robustness_set
+from servodesk.domain.tuning.gains import ServoGains
+from servodesk.domain.tuning.metrics import (
+    MoveMetrics,
+    jerk_limited_profile,
+    move_metrics,
+    profile_duration,
+)
+from servodesk.domain.tuning.model import LoopModel, Margins, PlantModel
+from servodesk.domain.tuning.simulate import MechanicalModel, simulate_batch
+
+REF_DISTANCE_REV = 0.5
+REF_JERK_S = 0.002
+REF_ACC_SHARE = 0.7
+REF_VMAX_REV_S = 50.0
+REF_HOLD_S = 0.5
+PM_MIN, GM_MIN_DB, MS_MAX_DB = 45.0, 8.0, 6.0
+
+
+@dataclass(frozen=True, slots=True)
+class SearchResult:
+    """The chosen gains, their margins on the model, and the move they give on it."""
+
+    gains: ServoGains
+    margins: Margins
+    position_margins: Margins
+    bandwidth_hz: float
+    metrics: MoveMetrics
+    candidates: int
+    feasible: int
+    notes: tuple[str, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class ReferenceMove:
+    """A demand per tick (rad, rad/s, rad/s²) and where its commanded profile ends."""
+
+    t: np.ndarray
+    p: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    t_end: float
+    target_counts: float
+
+
+def reference_move(
+    inertia: float, torque_limit: float, counts_per_rev: float, rate_hz: float
+) -> ReferenceMove:
+    """The benchmark's move (module docstring) for an axis of ``inertia``."""
+    d = REF_DISTANCE_REV * 2.0 * math.pi
+    a_max = REF_ACC_SHARE * torque_limit / inertia
+    v_max = REF_VMAX_REV_S * 2.0 * math.pi
+    prof = jerk_limited_profile(d, v_max, a_max, REF_JERK_S, rate_hz, hold_s=REF_HOLD_S)
+    t_end = profile_duration(d, v_max, a_max, REF_JERK_S)
+    return ReferenceMove(prof.t, prof.p, prof.v, prof.a, t_end, REF_DISTANCE_REV * counts_per_rev)
+
+
+def mechanical(
+    plant: PlantModel,
+    *,
+    counts_per_rev: float,
+    torque_limit: float,
+    coulomb: float = 0.0,
+    gravity: float = 0.0,
+) -> MechanicalModel:
+    """The time-domain model of an identified (or exact) plant."""
+    return MechanicalModel(
+        motor_inertia=plant.motor_inertia,
+        load_inertia=plant.load_inertia,
+        resonance_hz=plant.resonance_hz,
+        damping=plant.damping,
+        viscous=plant.viscous,
+        coulomb=coulomb,
+        gravity=gravity,
+        current_loop_hz=plant.current_loop_hz or 1e6,
+        peak_torque=torque_limit,
+        counts_per_rev=round(counts_per_rev),
+    )
+
+
+def candidates_around(g: ServoGains, wide: bool = False) -> list[ServoGains]:
+    """Variations of a design: velocity gain, integral time, position gain, inertia FF."""
+    kv = (1.0, 0.85, 0.7, 0.55) if not wide else (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4)
+    ti = (0.5, 1.0, 2.0, 4.0) if not wide else (0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 3.0, 5.0)
+    kp = (0.6, 1.0, 1.5) if not wide else (0.4, 0.6, 0.8, 1.0, 1.3, 1.7, 2.2)
+    ff = (0.95, 1.0) if not wide else (0.9, 0.95, 1.0, 1.03)
+    out = []
+    for a, b, c, d in itertools.product(kv, ti, kp, ff):
+        out.append(
+            replace(
+                g,
+                kp_vel=g.kp_vel * a,
+                ti_vel=g.ti_vel * b if g.ti_vel > 0.0 else 0.0,
+                kp_pos=g.kp_pos * c * a,
+                inertia_ff=g.inertia_ff * d,
+                vel_ff=1.0,
+            )
+        )
+    return out
+
+
+def _margins_ok(plants: Sequence[PlantModel], rate_hz: float, g: ServoGains) -> bool:
+    for p in plants:
+        loop = LoopModel(p, rate_hz, g)
+        if not loop.velocity_margins().meets(PM_MIN, GM_MIN_DB, MS_MAX_DB):
+            return False
+        if not loop.position_margins().meets(PM_MIN, GM_MIN_DB, MS_MAX_DB):
+            return False
+    return True
+
+
+def search_gains(
+    plant: PlantModel,
+    rate_hz: float,
+    candidates: Sequence[ServoGains],
+    move: ReferenceMove,
+    sim_model: MechanicalModel,
+    *,
+    check_plants: Sequence[PlantModel] | None = None,
+    torque_limit: float | None = None,
+) -> tuple[ServoGains, MoveMetrics, int] | None:
+    """The feasible candidate with the best move on ``sim_model``; None when none is feasible.
+
+    Feasible: margins met on every plant of ``check_plants`` (default: ``plant``).
+    """
+    plants = list(check_plants) if check_plants is not None else [plant]
+    feasible = [g for g in candidates if _margins_ok(plants, rate_hz, g)]
+    if not feasible:
+        return None
+    trace = simulate_batch(
+        sim_model, feasible, rate_hz, move.p, move.v, move.a, torque_limit=torque_limit
+    )
+    cpr = sim_model.counts_per_rev
+    demand = move.p * cpr / (2.0 * math.pi)
+    best: tuple[tuple[float, float, float], int, MoveMetrics] | None = None
+    for i in range(len(feasible)):
+        if trace.diverged[i]:
+            continue
+        m = move_metrics(move.t, move.target_counts, trace.position_counts[i], move.t_end, demand)
+        key = m.key()
+        if best is None or key < best[0]:
+            best = (key, i, m)
+    if best is None:
+        return None
+    return feasible[best[1]], best[2], len(feasible)
+
+
+def tune_on_model(
+    plant: PlantModel,
+    rate_hz: float,
+    mode: str,
+    *,
+    counts_per_rev: float,
+    torque_limit: float,
+    coulomb: float = 0.0,
+    gravity: float = 0.0,
+) -> SearchResult:
+    """The tuner's design: :func:`design_gains` at the response level, then for ``high`` the
+    best move among the variations that keep the margins on the robustness set."""
+    design: Design = design_gains(plant, rate_hz, mode)
+    move = reference_move(plant.total_inertia, torque_limit, counts_per_rev, rate_hz)
+    model = mechanical(
+        plant,
+        counts_per_rev=counts_per_rev,
+        torque_limit=torque_limit,
+        coulomb=coulomb,
+        gravity=gravity,
+    )
+    notes = list(design.notes)
+    chosen = design.gains
+    cands = [design.gains]
+    if mode == "high":
+        cands += candidates_around(design.gains)
+    found = search_gains(
+        plant, rate_hz, cands, move, model, check_plants=robustness_set(plant, 0.03)
+    )
+    n_feasible = 0
+    if found is not None:
+        chosen, metrics, n_feasible = found
+    else:
+        notes.append("no variation kept the margins on the robustness set: the design as is")
+        tr = simulate_batch(model, [chosen], rate_hz, move.p, move.v, move.a)
+        metrics = move_metrics(
+            move.t,
+            move.target_counts,
+            tr.position_counts[0],
+            move.t_end,
+            move.p * model.counts_per_rev / (2.0 * math.pi),
+        )
+    loop = LoopModel(plant, rate_hz, chosen)
+    return SearchResult(
+        gains=chosen,
+        margins=loop.velocity_margins(),
+        position_margins=loop.position_margins(),
+        bandwidth_hz=loop.velocity_bandwidth_hz(),
+        metrics=metrics,
+        candidates=len(cands),
+        feasible=n_feasible,
+        notes=tuple(notes),
+    )

@@ -1,0 +1,171 @@
+"""servodesk's own tuning (services/tuning_own.py) on simulated drives built from plant files.
+
+The procedure talks to the twin through typed object access on simulated time (the benchmark's
+SimIO), so these run as fast as the computer allows; the API test runs the same procedure on
+the wall clock over the virtual CAN bus (tests/tuning_api). What a user relies on: the inertia
+and resonance it reports are the machine's, the gains it leaves meet the margins on the real
+plant and settle the axis, it stays inside the travel window and the time budget, and whatever
+goes wrong, the drive's gains and limits are as they were before.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from typing import Any
+
+import pytest
+
+from servodesk.benchmarks.tuning import SimIO, build_drive, exact_model, measure, run_plant
+from servodesk.domain.tuning.gains import ServoGains
+from servodesk.domain.tuning.model import LoopModel
+from servodesk.errors import DriveStateError, ValidationError
+from servodesk.services.tuning_own import OwnTuning, OwnTuningRequest, TuningFailed
+from servodesk.sim.plantfile import PlantSpec
+
+GAINS = [(0x2100, 0), (0x2101, 0), (0x2102, 0), (0x2104, 0), (0x2106, 1)]
+
+
+def _tune(spec: PlantSpec, mode: str = "high", **kw: Any) -> tuple[dict[str, Any], Any]:
+    drive = build_drive(spec)
+    req = OwnTuningRequest(mode, kw.pop("window", 0.5), kw.pop("torque", 175.0))  # type: ignore[arg-type]
+    result = asyncio.run(OwnTuning(SimIO(drive), req, offload=False).run())
+    return result, drive
+
+
+def _gains(result: dict[str, Any]) -> ServoGains:
+    return ServoGains.from_dict({g["name"]: g["after"] for g in result["gains"]})
+
+
+def test_rigid_axis_inertia_margins_and_settling() -> None:
+    spec = PlantSpec(inertia_ratio=3.0)
+    result, drive = _tune(spec)
+    j = spec.motor_inertia * (1 + spec.inertia_ratio)
+    assert abs(result["identified"]["inertia_kgm2"] / j - 1.0) < 0.03
+    assert result["identified"]["resonances"] == []
+    # Friction identified near the plant file's 2 % of peak torque.
+    assert result["identified"]["coulomb_nm"] == pytest.approx(0.02 * spec.peak_torque, rel=0.3)
+    g = _gains(result)
+    assert g.notch1_hz == 0.0 and g.notch2_hz == 0.0  # Nothing to notch on a rigid axis.
+    # On the drive: every mapped gain object holds the new value.
+    assert drive.read(0x2101, 0) == pytest.approx(g.kp_vel, rel=1e-6)
+    m = measure(spec, g)
+    assert m["stable"] and m["phase_margin_deg"] >= 45.0 and m["gain_margin_db"] >= 8.0
+    assert m["settling_10_s"] < 0.02  # The untuned axis takes far longer (below).
+    assert result["step"]["after"]["metrics"]["settling_100_s"] < 0.05
+    before = result["step"]["before"]["metrics"]["settling_100_s"]
+    assert not math.isfinite(before) or before > result["step"]["after"]["metrics"]["settling_100_s"]
+    assert result["axis_time_s"] <= 5.0 and result["excursion_rev"] <= 1.0
+    # Limits and the mode are back as they were (the torque limit was the user's meanwhile).
+    assert drive.read(0x6072, 0) == 3000 and drive.read(0x6065, 0) == build_drive(spec).read(0x6065, 0)
+
+
+def test_resonance_found_and_notched() -> None:
+    spec = PlantSpec(inertia_ratio=3.0, resonance_hz=400.0)
+    result, _drive = _tune(spec)
+    res = result["identified"]["resonances"]
+    assert res and abs(res[0]["freq_hz"] / 400.0 - 1.0) < 0.02
+    assert abs(res[0]["anti_freq_hz"] / 200.0 - 1.0) < 0.05  # f_r / sqrt(1 + R)
+    j = spec.motor_inertia * (1 + spec.inertia_ratio)
+    assert abs(result["identified"]["inertia_kgm2"] / j - 1.0) < 0.05
+    g = _gains(result)
+    assert abs(g.notch1_hz / 400.0 - 1.0) < 0.05
+    loop = LoopModel(exact_model(spec), float(spec.loop_rate_hz), g)
+    assert loop.is_stable()
+    assert loop.velocity_margins().meets(45.0, 8.0, 6.5)
+
+
+def test_response_levels_are_ordered() -> None:
+    spec = PlantSpec(inertia_ratio=3.0)
+    bw = {}
+    for mode in ("low", "high"):
+        result, _ = _tune(spec, mode)
+        bw[mode] = result["margins"]["bandwidth_hz"]
+    assert bw["high"] > 1.5 * bw["low"]
+
+
+def test_refused_before_anything_moves() -> None:
+    spec = PlantSpec(inertia_ratio=3.0)
+    drive = build_drive(spec)
+    drive.write(0x6040, 0, 0x07)  # Disable operation: Switched on.
+    drive.step(0.05)
+    io = SimIO(drive)
+    with pytest.raises(DriveStateError, match="Operation enabled"):
+        asyncio.run(OwnTuning(io, OwnTuningRequest("high", 0.5, 175.0), offload=False).run())
+    with pytest.raises(ValidationError, match="travel window"):
+        OwnTuning(io, OwnTuningRequest("high", 0.0, 175.0))
+    with pytest.raises(ValidationError, match="torque limit"):
+        OwnTuning(io, OwnTuningRequest("high", 0.5, 5.0))
+    # A window that does not fit the software limits.
+    drive = build_drive(spec)
+    drive.write(0x607D, 1, -1000)
+    drive.write(0x607D, 2, 1000)
+    with pytest.raises(ValidationError, match="software limits"):
+        asyncio.run(
+            OwnTuning(SimIO(drive), OwnTuningRequest("high", 0.5, 175.0), offload=False).run()
+        )
+
+
+def test_a_fault_midway_puts_everything_back() -> None:
+    spec = PlantSpec(inertia_ratio=3.0)
+    drive = build_drive(spec)
+    before = [drive.read(i, s) for i, s in GAINS]
+    limits = [drive.read(0x6072, 0), drive.read(0x6065, 0), drive.read(0x6060, 0)]
+    io = SimIO(drive)
+    sleeps = 0
+
+    async def faulty_sleep(seconds: float) -> None:
+        nonlocal sleeps
+        sleeps += 1
+        drive.step(seconds)
+        if sleeps == 40:
+            drive.raise_fault(0x8611)
+
+    io.sleep = faulty_sleep  # type: ignore[method-assign]
+    with pytest.raises(TuningFailed, match="left Operation enabled"):
+        asyncio.run(OwnTuning(io, OwnTuningRequest("high", 0.5, 175.0), offload=False).run())
+    assert [drive.read(i, s) for i, s in GAINS] == before
+    assert [drive.read(0x6072, 0), drive.read(0x6065, 0), drive.read(0x6060, 0)] == limits
+
+
+def test_cancelled_midway_puts_the_gains_back() -> None:
+    """A stop or the dead-man cancels the task: the gains are restored before it ends."""
+    spec = PlantSpec(inertia_ratio=3.0)
+    drive = build_drive(spec)
+    before = [drive.read(i, s) for i, s in GAINS]
+    io = SimIO(drive)
+    sleeps = 0
+
+    async def cancelling_sleep(seconds: float) -> None:
+        nonlocal sleeps
+        sleeps += 1
+        drive.step(seconds)
+        if sleeps == 60:
+            raise asyncio.CancelledError
+
+    io.sleep = cancelling_sleep  # type: ignore[method-assign]
+    with pytest.raises(asyncio.CancelledError):
+        asyncio.run(OwnTuning(io, OwnTuningRequest("high", 0.5, 175.0), offload=False).run())
+    assert [drive.read(i, s) for i, s in GAINS] == before
+
+
+def test_benchmark_row_has_the_issue_keys(tmp_path: Any) -> None:
+    row = run_plant("R3-rigid", PlantSpec(inertia_ratio=3.0), "high", str(tmp_path))
+    for key in (
+        "plant",
+        "settling_10_s",
+        "oracle_settling_10_s",
+        "bandwidth_hz",
+        "oracle_bandwidth_hz",
+        "phase_margin_deg",
+        "gain_margin_db",
+        "inertia_error",
+        "tuning_axis_time_s",
+        "excursion_rev",
+        "stable",
+    ):
+        assert key in row, key
+    assert row["stable"] and row["oracle_cached"] is False
+    again = run_plant("R3-rigid", PlantSpec(inertia_ratio=3.0), "high", str(tmp_path))
+    assert again["oracle_cached"] is True
+    assert again["oracle_gains"] == row["oracle_gains"]
