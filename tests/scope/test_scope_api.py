@@ -159,7 +159,7 @@ async def test_recorder_description(fresh: Rig) -> None:
     assert r.status_code == 200
     info = r.json()
     assert info["present"] is True
-    assert (info["max_channels"], info["rate_hz"], info["depth"]) == (8, 4000.0, 8192)
+    assert (info["max_channels"], info["rate_hz"], info["depth"]) == (8, 4000.0, 32768)
     assert {"0x6064:00", "0x606C:00", "0x6077:00", "0x60F4:00"} <= set(info["objects"])
     assert not any(a.startswith("0x2F0") for a in info["objects"])  # Not its own objects.
     r = await fresh.client.get("/api/v1/sessions/nope-9/recorder")

@@ -3,6 +3,10 @@
 Other programs (servodesk itself, a PLC, plain python-canopen code) talk to it over the bus:
 ``servodesk sim --profile cia402-generic --node-id 5 --interface udp_multicast
 --channel 239.74.163.9``. Runs until SIGINT or SIGTERM.
+
+``--plant FILE`` simulates the axis a TOML plant file describes (docs/tuning.md, "Plant
+files"; sim/plantfile.py) at its loop rate, in place of the profile's ``simulation`` section;
+a file that cannot be read or holds a bad key or value is refused with the message (exit 2).
 """
 
 from __future__ import annotations
@@ -35,25 +39,35 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument(
         "--serial", type=lambda s: int(s, 0), default=None, help="serial number (1018h:04)"
     )
+    p.add_argument(
+        "--plant",
+        default=None,
+        metavar="FILE",
+        help="TOML plant file: motor, load, compliance, noise, loop rate (docs/tuning.md)",
+    )
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     # Imported here so that `servodesk --help` does not load canopen.
     from servodesk.sim.bus import SimulatedBus
+    from servodesk.sim.plantfile import PlantSpec, load_plant_file
 
     stop = threading.Event()
 
     def _on_signal(signum: int, frame: FrameType | None) -> None:
         stop.set()
 
+    plant_file: str | None = getattr(args, "plant", None)
     try:
+        plant: PlantSpec | None = load_plant_file(plant_file) if plant_file else None
         bus = SimulatedBus.start(
             drives=[(args.profile, args.node_id)],
             interface=args.interface,
             channel=args.channel,
             bitrate=args.bitrate,
             serials=[args.serial],
+            plant=plant,
         )
     except ServodeskError as exc:
         print(f"servodesk sim: error: {exc.message}", file=sys.stderr)
@@ -68,6 +82,13 @@ def run(args: argparse.Namespace) -> int:
             f"{drive.node_id} on {args.interface}:{args.channel}; Ctrl+C stops",
             flush=True,
         )
+        if plant is not None:
+            kind = "rigid" if plant.rigid else f"resonance {plant.resonance_hz:g} Hz"
+            print(
+                f"servodesk sim: plant {plant_file}: inertia ratio {plant.inertia_ratio:g}, "
+                f"{kind}, loop {plant.loop_rate_hz} Hz",
+                flush=True,
+            )
         while not stop.wait(0.5):
             pass
     finally:

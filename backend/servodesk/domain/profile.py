@@ -8,6 +8,7 @@ every other layer uses.
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import re
 from collections.abc import Iterator
@@ -18,6 +19,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, Value, coerce_int
+from servodesk.domain.tuning.gains import ServoGains
 from servodesk.errors import ServodeskError
 
 Scalar = int | float | str | None
@@ -578,6 +580,103 @@ class SimSettings(BaseModel):
     #: Speed [counts/s] that acceleration time constants in ms refer to (e.g. 609Ah of a
     #: drive whose ramps are "ms from 0 to the rated speed"); None: the maximum velocity.
     rated_speed: float | None = None
+    #: Servo loop and plant rate [Hz]: loop_rate_hz / 1000 plant sub-steps per 1 ms control
+    #: cycle (docs/tuning.md; 4 kHz keeps five live twins in real time on a laptop).
+    loop_rate_hz: int = Field(default=4000, ge=1000, le=32000)
+
+    @field_validator("loop_rate_hz")
+    @classmethod
+    def _whole_ticks(cls, v: int) -> int:
+        if v % 1000:
+            raise ValueError(f"{v} Hz: the loop rate must be a multiple of 1000 Hz")
+        return v
+
+
+#: The canonical servo gains (docs/tuning.md, "Canonical gains"): the fields of
+#: :class:`~servodesk.domain.tuning.gains.ServoGains`, in order.
+SERVO_GAIN_NAMES: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(ServoGains))
+
+#: Gains a ``tuning.kind: gains`` profile must map: the cascade cannot run without them.
+REQUIRED_GAINS: tuple[str, ...] = ("kp_pos", "kp_vel", "ti_vel")
+
+
+class GainObject(BaseModel):
+    """Where one canonical gain lives: SI value = raw object value * ``scale``."""
+
+    model_config = _STRICT
+
+    #: The object's address, e.g. ``"0x2101:00"``.
+    object: str
+    scale: float = Field(default=1.0, gt=0)
+    #: The SI unit of the canonical gain (docs/tuning.md), e.g. ``"N m s/rad"``.
+    unit: str
+
+    @field_validator("object")
+    @classmethod
+    def _address(cls, v: str) -> str:
+        try:
+            ObjectAddress.parse(v)
+        except ServodeskError as exc:
+            raise ValueError(exc.message) from exc
+        return v
+
+    @property
+    def address(self) -> ObjectAddress:
+        return ObjectAddress.parse(self.object)
+
+
+class TuningSpec(BaseModel):
+    """How a family is tuned (docs/tuning.md): the drive's own built-in tuning, servodesk's
+    tuning through a gain map, or nothing to tune."""
+
+    model_config = _STRICT
+
+    #: Sub-indexes of the test signal generator objects at ``signal_index``.
+    SIGNAL_SUBS: ClassVar[int] = 8
+
+    kind: Literal["gains", "builtin", "none"]
+    #: Canonical gain name -> object and scale (kind ``gains``).
+    gains: dict[str, GainObject] = Field(default_factory=dict)
+    #: The read-only object reporting the servo loop rate [Hz], e.g. ``"0x2108:00"``.
+    loop_rate_object: str | None = None
+    #: The read-only object reporting the current loop bandwidth [Hz] (the tuning's model).
+    current_loop_object: str | None = None
+    #: Index of the test signal generator (subs 1-8, docs/tuning.md); simulated twins only.
+    signal_index: int | None = Field(default=None, ge=0x2000, le=0x5FFF)
+    section: str | None = None
+    note: str | None = None
+
+    @model_validator(mode="after")
+    def _check(self) -> TuningSpec:
+        unknown = sorted(set(self.gains) - set(SERVO_GAIN_NAMES))
+        if unknown:
+            raise ValueError(
+                f"unknown gain {', '.join(unknown)}: the gains are {', '.join(SERVO_GAIN_NAMES)}"
+            )
+        if self.kind == "gains":
+            missing = [g for g in REQUIRED_GAINS if g not in self.gains]
+            if missing:
+                raise ValueError(f"kind gains needs the gains {', '.join(missing)} mapped")
+        for key in ("loop_rate_object", "current_loop_object"):
+            text = getattr(self, key)
+            if text is not None:
+                try:
+                    ObjectAddress.parse(text)
+                except ServodeskError as exc:
+                    raise ValueError(f"{key}: {exc.message}") from exc
+        return self
+
+    @property
+    def loop_rate_address(self) -> ObjectAddress | None:
+        if self.loop_rate_object is None:
+            return None
+        return ObjectAddress.parse(self.loop_rate_object)
+
+    @property
+    def current_loop_address(self) -> ObjectAddress | None:
+        if self.current_loop_object is None:
+            return None
+        return ObjectAddress.parse(self.current_loop_object)
 
 
 class RecorderSpec(BaseModel):
@@ -608,9 +707,10 @@ class RecorderSpec(BaseModel):
     #: First index of the recorder objects (manufacturer area).
     index: int = Field(ge=0x2000, le=0x5FFF - 9)
     max_channels: int = Field(default=8, ge=1, le=8)
-    #: Most samples per channel.
-    max_depth: int = Field(default=8192, ge=1, le=8192)
-    #: Samples per second at divider 1 (the simulated plant: 1 kHz control x 4 sub-steps).
+    #: Most samples per channel (the depth object is UNSIGNED16).
+    max_depth: int = Field(default=8192, ge=1, le=65535)
+    #: Samples per second at divider 1: the simulated plant, ``simulation.loop_rate_hz``
+    #: (a twin built from a plant file samples at that file's loop rate).
     rate_hz: float = Field(default=4000.0, gt=0)
     #: Only the simulated twin has it; a session on a real drive reports no recorder.
     sim_only: bool = True
@@ -659,6 +759,8 @@ class DeviceProfile(BaseModel):
     simulation: SimSettings = SimSettings()
     #: The drive-side recorder, where the drive (or its simulated twin) has one.
     recorder: RecorderSpec | None = None
+    #: How the family is tuned (docs/tuning.md); None: not described.
+    tuning: TuningSpec | None = None
 
     @cached_property
     def variables(self) -> dict[ObjectAddress, ObjectSpec]:

@@ -81,6 +81,9 @@ def merge(base: DeviceProfile, child: DeviceProfile) -> DeviceProfile:
     if child.recorder is None and base.recorder is not None:
         # The base's recorder objects come along with its objects, so its recorder does too.
         update["recorder"] = base.recorder
+    if child.tuning is None and base.tuning is not None:
+        # Likewise the gain objects and the signal generator.
+        update["tuning"] = base.tuning
     return child.model_copy(update=update)
 
 
@@ -120,6 +123,7 @@ def check_profile(p: DeviceProfile) -> list[str]:
             if spec.group and spec.group not in group_ids:
                 problems.append(f"{spec.address} {spec.name}: group {spec.group!r} not in groups")
     problems.extend(_check_pdo_rules(p))
+    problems.extend(_check_tuning(p))
     for m in p.modes:
         if not -128 <= m <= 127:
             problems.append(f"mode {m} does not fit 6060h (INTEGER8)")
@@ -127,6 +131,64 @@ def check_profile(p: DeviceProfile) -> list[str]:
         if not -128 <= h <= 127:
             problems.append(f"homing method {h} does not fit 6098h (INTEGER8)")
     return problems
+
+
+#: Test signal generator sub-index -> (data type, writable) (docs/tuning.md).
+_SIGNAL_OBJECTS: dict[int, tuple[DataType, bool]] = {
+    1: (DataType.UNSIGNED8, True),
+    2: (DataType.REAL32, True),
+    3: (DataType.REAL32, True),
+    4: (DataType.REAL32, True),
+    5: (DataType.REAL32, True),
+    6: (DataType.UNSIGNED8, True),
+    7: (DataType.REAL32, False),
+    8: (DataType.REAL32, False),
+}
+
+
+def _check_tuning(p: DeviceProfile) -> list[str]:
+    """The ``tuning:`` block names objects the profile has, of usable types; the recorder
+    samples at the simulation's loop rate (docs/tuning.md)."""
+    out: list[str] = []
+    rec = p.recorder
+    if rec is not None and rec.rate_hz != p.simulation.loop_rate_hz:
+        out.append(
+            f"recorder.rate_hz {rec.rate_hz:g} is not simulation.loop_rate_hz "
+            f"{p.simulation.loop_rate_hz} (the recorder samples every loop tick)"
+        )
+    t = p.tuning
+    if t is None:
+        return out
+    for name, g in t.gains.items():
+        spec = p.spec(g.address)
+        where = f"tuning.gains.{name}: {g.object}"
+        if spec is None:
+            out.append(f"{where} is not an object of the profile")
+        elif not (spec.data_type.is_integer or spec.data_type.is_real):
+            out.append(f"{where} {spec.name} is {spec.data_type.name}, not a number")
+        elif not (spec.access.readable and spec.access.writable):
+            out.append(f"{where} {spec.name} must be readable and writable")
+    addr = t.loop_rate_address
+    if addr is not None:
+        spec = p.spec(addr)
+        if spec is None:
+            out.append(f"tuning.loop_rate_object: {addr} is not an object of the profile")
+        elif not spec.access.readable or not spec.data_type.is_integer:
+            out.append(f"tuning.loop_rate_object: {addr} must be a readable integer")
+    if t.signal_index is not None:
+        entry = p.entries.get(t.signal_index)
+        if entry is None:
+            out.append(f"tuning.signal_index: {t.signal_index:04X}h is missing")
+            return out
+        if not entry.sim_only:
+            out.append(f"tuning.signal_index: {t.signal_index:04X}h is not marked sim_only")
+        subs = {s.subindex: s for s in entry.specs()}
+        for sub, (dt, writable) in _SIGNAL_OBJECTS.items():
+            s = subs.get(sub)
+            if s is None or s.data_type is not dt or s.access.writable != writable:
+                access = "writable" if writable else "read-only"
+                out.append(f"tuning: {t.signal_index:04X}h:{sub:02X} must be a {access} {dt.name}")
+    return out
 
 
 def _check_pdo_word(p: DeviceProfile, text: str, direction: str, where: str) -> str | None:

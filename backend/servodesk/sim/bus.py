@@ -5,7 +5,10 @@ on the bus (the python-can ``virtual`` bus delivers between different Bus instan
 same channel, ``udp_multicast`` between processes), attaches one
 :class:`~servodesk.sim.canopen_device.SimCanopenDevice` per drive, sends their boot-up
 messages and steps them all from one :class:`~servodesk.sim.runner.SimRunner` thread.
-``servodesk serve --sim`` and ``servodesk sim`` use it.
+``servodesk serve --sim`` and ``servodesk sim`` use it. With a ``plant``
+(:class:`~servodesk.sim.plantfile.PlantSpec`, ``servodesk sim --plant FILE``) every drive
+simulates that axis at its loop rate instead of the profile's ``simulation`` section (the
+torque noise seeded with the node id).
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from servodesk.domain.profile_loader import ProfileCatalog
 from servodesk.errors import LinkError, LinkUnavailableError, ValidationError
 from servodesk.sim.canopen_device import SimCanopenDevice
 from servodesk.sim.engine import SimulatedDrive
+from servodesk.sim.plantfile import PlantSpec
 from servodesk.sim.runner import SimRunner
 
 log = logging.getLogger(__name__)
@@ -54,6 +58,7 @@ class SimulatedBus:
         bitrate: int | None = None,
         catalog: ProfileCatalog | None = None,
         serials: Sequence[int | None] | None = None,
+        plant: PlantSpec | None = None,
     ) -> SimulatedBus:
         """Start the drives; raises ValidationError / NotFoundError / LinkError."""
         catalog = catalog or ProfileCatalog()
@@ -70,7 +75,19 @@ class SimulatedBus:
                 )
             seen.add(node_id)
             serial = serials[i] if serials is not None and i < len(serials) else None
-            sims.append(SimulatedDrive(catalog.get(profile_id), node_id, serial))
+            profile = catalog.get(profile_id)
+            if plant is None:
+                sims.append(SimulatedDrive(profile, node_id, serial))
+            else:
+                sims.append(
+                    SimulatedDrive(
+                        profile,
+                        node_id,
+                        serial,
+                        plant_params=plant.plant_params(seed=node_id),
+                        loop_rate_hz=plant.loop_rate_hz,
+                    )
+                )
         network = canopen.Network()
         # The notifier thread wakes this often to see whether it should stop (default 1 s).
         network.NOTIFIER_CYCLE = 0.05

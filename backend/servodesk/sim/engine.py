@@ -51,6 +51,17 @@ Choices where the standard leaves room (documented here once):
   drive-side recorder, sim/recorder.py, samples there); with none registered the plant runs a
   cycle's sub-steps in one call, and with some it runs them one at a time with the same
   arithmetic, so a hook never changes the simulation.
+- The loop rate (``simulation.loop_rate_hz``, or a plant file's ``[loop] rate_hz`` given to
+  the constructor) sets the plant sub-steps: rate / 1000 per 1 ms control cycle. A profile
+  with ``tuning.kind: gains`` (docs/tuning.md) runs the servo loop of sim/servo.py once per
+  sub-step, its gains read from the mapped objects (raw * scale) and reloaded after every
+  write to one of them (and after a node reset restores them); the control cycle only
+  generates the demand, which the loop interpolates linearly across the cycle. The test
+  signal generator (sim/siggen.py) adds its torque in the loop while it runs; it starts only
+  in Operation enabled (0800 0022h otherwise) and stops when the drive is disabled. Other
+  profiles keep the cycle-rate cascade (:class:`ControllerGains`) with the torque held over
+  the cycle's sub-steps. A plant with another encoder resolution than the profile's keeps the
+  profile's speeds, switch positions and homing travel in revolutions.
 """
 
 from __future__ import annotations
@@ -63,13 +74,27 @@ from dataclasses import dataclass
 from servodesk.domain.cia402 import STATE_BITS, State, device_transition
 from servodesk.domain.datatypes import Value, codec, coerce_int
 from servodesk.domain.homing import resolve_method
-from servodesk.domain.profile import DeviceProfile, ErrorEntry, ObjectSpec
+from servodesk.domain.profile import DeviceProfile, ErrorEntry, ObjectSpec, SimSettings
 from servodesk.domain.sdo_abort import ABORT_CODES
 from servodesk.sim.faults import FaultModel
 from servodesk.sim.homing import HomingProcedure, SwitchLayout
+from servodesk.sim.onetouch import OneTouchTuning
 from servodesk.sim.pdo import pdo_kind
 from servodesk.sim.plant import Plant, PlantParams
 from servodesk.sim.recorder import Recorder
+from servodesk.sim.servo import POSITION, TORQUE, VELOCITY, ServoGains, ServoLoop
+from servodesk.sim.siggen import (
+    SUB_AMPLITUDE,
+    SUB_CONTROL,
+    SUB_DURATION,
+    SUB_F_END,
+    SUB_F_START,
+    SUB_KIND,
+    SUB_TORQUE,
+    SUB_VALUE,
+    SignalConfig,
+    SignalGenerator,
+)
 
 # Object keys: index << 8 | subindex (ints are the fastest dict keys in the control cycle).
 K_ERROR_REGISTER = 0x100100
@@ -256,8 +281,9 @@ class SimulatedDrive:
         serial: int | None = None,
         *,
         plant_params: PlantParams | None = None,
-        plant_substeps: int = 4,
+        plant_substeps: int | None = None,
         gains: ControllerGains | None = None,
+        loop_rate_hz: int | None = None,
     ) -> None:
         self.profile = profile
         self.node_id = node_id
@@ -337,9 +363,22 @@ class SimulatedDrive:
         # Physics and control.
         sim = profile.simulation
         self.plant_params = plant_params or PlantParams.from_settings(sim)
+        if self.plant_params.counts_per_rev != sim.counts_per_rev:
+            # A plant file's encoder: keep the travel, speeds and switches in revolutions.
+            sim = _rescaled(sim, self.plant_params.counts_per_rev)
+        #: The simulation settings in effect (the profile's, rescaled to the plant's encoder).
+        self.sim_settings = sim
         self.plant = Plant(self.plant_params)
         self.gains = gains or ControllerGains.from_plant(self.plant_params)
-        self._substeps = max(1, plant_substeps)
+        if plant_substeps is not None:
+            rate = 1000 * max(1, plant_substeps)
+        else:
+            rate = loop_rate_hz if loop_rate_hz is not None else sim.loop_rate_hz
+        if rate < 1000 or rate % 1000:
+            raise ValueError(f"loop rate {rate} Hz: a multiple of 1000 Hz (whole ticks per cycle)")
+        #: Servo loop and plant rate [Hz]: loop_rate_hz / 1000 plant sub-steps per cycle.
+        self.loop_rate_hz = int(rate)
+        self._substeps = self.loop_rate_hz // 1000
         self._T = self.CONTROL_PERIOD
         self._sub_dt = self._T / self._substeps
         self._rated = self.plant_params.rated_torque
@@ -350,6 +389,7 @@ class SimulatedDrive:
         self._i2t_tau = max(sim.i2t_time_constant, 1e-3)
         self._i2t_limit = sim.i2t_limit_ratio**2
         self._i2t = 0.0
+        self._init_servo(profile)
 
         #: NMT (or ESM) state, set by the front-end: "init", "preop", "op", "stopped".
         self.nmt_state = "preop"
@@ -362,6 +402,10 @@ class SimulatedDrive:
         self.recorder: Recorder | None = None
         if profile.recorder is not None:
             self.recorder = Recorder(self, profile.recorder)
+        #: Built-in one-touch tuning (quirk one_touch_tuning, 004 §20.8.7; sim/onetouch.py).
+        self.one_touch: OneTouchTuning | None = None
+        if profile.quirk("one_touch_tuning") is not None:
+            self.one_touch = OneTouchTuning(self, profile)
         self._reset_runtime()
 
     # ------------------------------------------------------------------ public surface
@@ -458,6 +502,9 @@ class SimulatedDrive:
 
     def _following_error_now(self) -> int:
         if self._enabled and self._kind == _POSITION:
+            if self.servo is not None:
+                # The servo loop's interpolated demand at this sub-step (docs/tuning.md).
+                return round(self._raw0 + self._inc * self._sub_k - self.plant.encoder_counts)
             return round(self._dp - (self.plant.encoder_counts + self._pos_offset))
         return round(self._fe)
 
@@ -703,7 +750,15 @@ class SimulatedDrive:
             refusal = self.recorder.write(spec.index, spec.subindex, value)
             if refusal is not None:
                 raise SimAbort(*refusal)
+        elif self.one_touch is not None and self.one_touch.owns(spec.index):
+            refusal = self.one_touch.write(spec.index, spec.subindex, value)
+            if refusal is not None:
+                raise SimAbort(*refusal)
+        elif spec.index == self._sig_index:
+            self._signal_write(spec.subindex, value)
         self._values[k] = value
+        if k in self._gain_keys:
+            self._load_gains()  # docs/tuning.md: a gain acts from the next loop tick on.
 
     def _after_write(self, index: int, subindex: int, value: Value) -> None:
         for cb in self._write_listeners:
@@ -877,6 +932,33 @@ class SimulatedDrive:
         if self.recorder is not None:
             self.recorder.reset()  # RAM: a power cycle loses the recording (sim/recorder.py).
             self._live.update(self.recorder.live())
+        if self.one_touch is not None:
+            self.one_touch.reset()  # A run is lost; the gains follow the PB values.
+            self._live.update(self.one_touch.live())
+        if self.servo is not None:
+            self._load_gains()
+            self.servo.reset(self.plant.encoder_counts)
+            if self._loop_rate_key is not None:
+                self._live[self._loop_rate_key] = lambda: self.loop_rate_hz
+        if self.siggen is not None:
+            self.siggen.stop()
+            base = self._sig_index << 8
+            self._live[base | SUB_CONTROL] = lambda: self.siggen.status if self.siggen else 0
+            self._live[base | SUB_TORQUE] = lambda: self.servo.command if self.servo else 0.0
+            # The test signal itself, recordable: the instrument of the frequency response.
+            self._live[base | SUB_VALUE] = lambda: self.siggen.value if self.siggen else 0.0
+        if self.servo is not None:
+            # What a drive knows of its motor and loops (the tuning reads them): encoder
+            # resolution 608Fh, rated torque 6076h (mN m) and the current loop bandwidth.
+            pp = self.plant_params
+            self._live[_key(0x608F, 1)] = lambda: pp.counts_per_rev
+            self._live[_key(0x608F, 2)] = lambda: 1
+            self._live[_key(0x6076, 0)] = lambda: round(pp.rated_torque * 1000.0)
+            tuning = self.profile.tuning
+            cur = tuning.current_loop_address if tuning is not None else None
+            if cur is not None:
+                hz = 1.0 / (2.0 * math.pi * pp.current_tau) if pp.current_tau > 0.0 else 0.0
+                self._live[_key(cur.index, cur.subindex)] = lambda: hz
 
     def _refresh(self) -> None:
         """Copy the parameters the control cycle reads into ``_c`` (after every write)."""
@@ -1105,6 +1187,8 @@ class SimulatedDrive:
         self._tq_demand = 0.0
         # A limit switch already active at enable is not a new limit event.
         self._limit_prev = self.switches.inputs(self.plant.encoder_counts) & 0x03
+        if self.servo is not None:
+            self.servo.reset(self.plant.encoder_counts)
         self._begin_motion()
 
     def _disable(self) -> None:
@@ -1119,6 +1203,8 @@ class SimulatedDrive:
         self._sat = False
         self._clipped = False
         self._fe_flag = False
+        if self.siggen is not None:
+            self.siggen.stop()  # The test signal needs the loops running.
 
     def _begin_motion(self) -> None:
         """Set the control kind for the active mode (after enable, mode change, resume)."""
@@ -1251,7 +1337,7 @@ class SimulatedDrive:
             # 004 §20.9.3.10(7): time constant from 0 to the rated speed; 0: no ramp.
             if acc <= 0:
                 return 0.0
-            sim = self.profile.simulation
+            sim = self.sim_settings
             rated = sim.rated_speed or sim.max_velocity
             return rated / (acc * 0.001)
         return acc
@@ -1415,6 +1501,10 @@ class SimulatedDrive:
         p_act = plant.encoder_counts + self._pos_offset
         v_act = plant.velocity_counts
         torque = 0.0
+        # The position demand at the start of the cycle (raw counts), for the servo loop's
+        # interpolation toward this cycle's demand (docs/tuning.md).
+        raw0 = self._dp - self._pos_offset
+        self._raw0 = raw0
         if self._enabled:
             # 1. Demand (set-point generators, stop ramps, halt).
             stop = self._stop
@@ -1472,7 +1562,9 @@ class SimulatedDrive:
             self._dv = 0.0
             self._fe = 0.0
         hooks = self._substep_hooks
-        if hooks:
+        if self.servo is not None:
+            self._servo_substeps(raw0, hooks)
+        elif hooks:
             self._substeps_hooked(torque, hooks)
         else:
             plant.step_n(torque, self._sub_dt, self._substeps)
@@ -1494,6 +1586,9 @@ class SimulatedDrive:
                 hook()
 
     def _control(self, p_act: int, v_act: float) -> float:
+        if self.servo is not None:
+            self._servo_prepare(p_act, v_act)
+            return 0.0
         g = self.gains
         kind = self._kind
         limit = self._c[K_MAX_TORQUE] * 0.001 * self._rated
@@ -1539,6 +1634,202 @@ class SimulatedDrive:
             return -limit
         self._sat = False
         return t
+
+    # ------------------------------------------------------------------ the servo loop
+
+    def _init_servo(self, profile: DeviceProfile) -> None:
+        """The servo loop of a ``tuning.kind: gains`` profile (docs/tuning.md, sim/servo.py):
+        gains from the mapped objects, the loop rate object, the test signal generator."""
+        #: The servo loop (None: the profile keeps the cycle-rate controller).
+        self.servo: ServoLoop | None = None
+        #: The test signal generator (docs/tuning.md), where the profile has its objects.
+        self.siggen: SignalGenerator | None = None
+        self._gain_keys: dict[int, tuple[str, float]] = {}
+        self._loop_rate_key: int | None = None
+        self._sig_index = -1
+        self._srv_vlim = math.inf
+        #: This cycle's position demand at its start (raw counts) and per tick (sub-step).
+        self._raw0 = 0.0
+        self._inc = 0.0
+        tuning = profile.tuning
+        if tuning is None or tuning.kind != "gains":
+            return
+        for name, g in tuning.gains.items():
+            a = g.address
+            k = _key(a.index, a.subindex)
+            if k not in self._specs:
+                raise ValueError(f"tuning.gains.{name}: {g.object} is not an object")
+            self._gain_keys[k] = (name, g.scale)
+        addr = tuning.loop_rate_address
+        if addr is not None:
+            self._loop_rate_key = _key(addr.index, addr.subindex)
+        self.servo = ServoLoop(
+            self._gains_from_objects(),
+            self.loop_rate_hz,
+            self.plant_params.counts_per_rev,
+            self.plant_params.peak_torque,
+        )
+        if tuning.signal_index is not None:
+            self.siggen = SignalGenerator(self.loop_rate_hz)
+            self._sig_index = tuning.signal_index
+
+    def _gains_from_objects(self) -> ServoGains:
+        """SI gains from the gain objects (raw * scale); an unmapped gain is 0, the
+        :class:`ServoGains` default (its feature off: no feed-forward, no filter)."""
+        si: dict[str, float] = {"kp_pos": 0.0, "kp_vel": 0.0, "ti_vel": 0.0}
+        values = self._values
+        for k, (name, scale) in self._gain_keys.items():
+            v = values.get(k)
+            if isinstance(v, int | float):
+                si[name] = float(v) * scale
+        return ServoGains(**si)
+
+    def _load_gains(self) -> None:
+        if self.servo is not None:
+            self.servo.set_gains(self._gains_from_objects())
+
+    @property
+    def servo_gains(self) -> ServoGains | None:
+        """The gains the servo loop runs with (None: no servo loop)."""
+        return self.servo.gains if self.servo is not None else None
+
+    def _signal_write(self, sub: int, value: Value) -> None:
+        """A write to the test signal generator (docs/tuning.md): 1 starts and 0 stops at
+        the control sub; the configuration is refused while a signal runs."""
+        sig = self.siggen
+        assert sig is not None
+        if sub == SUB_CONTROL:
+            if value == 0:
+                sig.stop()
+                return
+            if value != 1:
+                raise SimAbort(0x06090030, "write 1 to start or 0 to stop the test signal")
+            if self._state is not State.OPERATION_ENABLED or not self._enabled:
+                raise SimAbort(0x08000022, "the test signal needs Operation enabled")
+            base = self._sig_index << 8
+
+            def num(sub: int) -> float:
+                v = self._values.get(base | sub)
+                return float(v) if isinstance(v, int | float) else 0.0
+
+            cfg = SignalConfig(
+                kind=int(num(SUB_KIND)),
+                amplitude=num(SUB_AMPLITUDE),
+                f_start=num(SUB_F_START),
+                f_end=num(SUB_F_END),
+                duration=num(SUB_DURATION),
+            )
+            try:
+                sig.start(cfg)
+            except ValueError as exc:
+                raise SimAbort(0x08000020, str(exc)) from exc
+            return
+        if sig.running:
+            raise SimAbort(0x08000022, "the test signal runs: write 0 to the control object first")
+
+    def _servo_prepare(self, p_act: int, v_act: float) -> None:
+        """Per control cycle: the torque limit, and the demand of the active control kind
+        (the sub-steps then run the loop, :meth:`_servo_substeps`)."""
+        servo = self.servo
+        assert servo is not None
+        limit = self._c[K_MAX_TORQUE] * 0.001 * self._rated
+        pk = self.plant_params.peak_torque
+        servo.torque_limit = limit if limit < pk else pk
+        kind = self._kind
+        if kind == _TORQUE:
+            self._fe = 0.0
+            tgt = self._c[K_TARGET_TORQUE] * 0.001 * self._rated
+            # cst applies the set-point at once; 6087h shapes profile torque only.
+            slope = self._c[K_TORQUE_SLOPE] if self._mode == 4 else 0
+            if slope:
+                step = slope * 0.001 * self._rated * self._T
+                d = tgt - self._tq_demand
+                self._tq_demand += max(-step, min(step, d))
+            else:
+                self._tq_demand = tgt
+            # Speed limit (607Fh or the simulation's maximum) so a free motor cannot run away.
+            vmax = float(self._c[K_MAX_PROFILE_VEL]) or self._vmax_sim
+            self._srv_vlim = vmax / self._counts_per_rad
+            self._dp = float(p_act)
+            self._dv = v_act
+        elif kind == _POSITION:
+            # The demand and the position at the same instant, the start of the cycle (the
+            # loop reaches this cycle's demand only at its last tick).
+            self._fe = self._raw0 + self._pos_offset - p_act
+        else:
+            self._fe = 0.0
+            self._dp = float(p_act)
+
+    def _servo_substeps(self, raw0: float, hooks: tuple[StepHook, ...]) -> None:
+        """The cycle's plant sub-steps, the servo loop ticking before each (one tick per
+        sub-step: the loop and the plant run at the loop rate), the test signal added, the
+        position demand interpolated linearly from ``raw0`` to this cycle's demand; the
+        sub-step hooks after every sub-step, as :meth:`_substeps_hooked` does."""
+        servo = self.servo
+        assert servo is not None
+        plant = self.plant
+        dt = self._sub_dt
+        n = self._substeps
+        if not self._enabled:
+            servo.command = 0.0  # The power stage is off: no torque command.
+            if hooks:
+                self._substeps_hooked(0.0, hooks)
+            else:
+                plant.step_n(0.0, dt, n)
+            return
+        sig = self.siggen
+        signal = sig.next if sig is not None and sig.running else None
+        if signal is None:
+            servo.tau_test = 0.0
+        rad = 1.0 / self._counts_per_rad
+        kind = self._kind
+        after = self._after_tick if hooks else None
+        if kind == _POSITION:
+            self._inc = inc = (self._dp - self._pos_offset - raw0) / n
+            _, sat = servo.run(
+                n,
+                plant.step_counts,
+                dt,
+                plant.encoder_counts,
+                mode=POSITION,
+                p0=raw0,
+                inc=inc,
+                v_demand=self._dv * rad,
+                a_demand=self._da * rad,
+                signal=signal,
+                after=after,
+            )
+        elif kind == _VELOCITY:
+            _, sat = servo.run(
+                n,
+                plant.step_counts,
+                dt,
+                plant.encoder_counts,
+                mode=VELOCITY,
+                v_demand=self._dv * rad,
+                a_demand=self._da * rad,
+                signal=signal,
+                after=after,
+            )
+        else:
+            _, sat = servo.run(
+                n,
+                plant.step_counts,
+                dt,
+                plant.encoder_counts,
+                mode=TORQUE,
+                tau_demand=self._tq_demand,
+                v_limit=self._srv_vlim,
+                signal=signal,
+                after=after,
+            )
+        self._sat = sat
+
+    def _after_tick(self, k: int) -> None:
+        """After servo tick ``k`` of the cycle: the sub-step hooks (the recorder)."""
+        self._sub_k = k
+        for hook in self._substep_hooks:
+            hook()
 
     def _monitor(self, p_act: int, v_act: float) -> None:
         T = self._T
@@ -1600,6 +1891,28 @@ class SimulatedDrive:
                 or (not self._homing_started and stopped)
                 or (self._homing_error and stopped)
             )
+
+
+def _rescaled(sim: SimSettings, counts_per_rev: int) -> SimSettings:
+    """``sim`` for another encoder resolution: the counts-valued settings (speeds, switch
+    positions, index offset) keep their value in revolutions."""
+    f = counts_per_rev / sim.counts_per_rev
+
+    def scale(v: int | None) -> int | None:
+        return None if v is None else round(v * f)
+
+    return sim.model_copy(
+        update={
+            "counts_per_rev": counts_per_rev,
+            "max_velocity": sim.max_velocity * f,
+            "limit_negative": scale(sim.limit_negative),
+            "limit_positive": scale(sim.limit_positive),
+            "home_switch_low": scale(sim.home_switch_low),
+            "home_switch_high": scale(sim.home_switch_high),
+            "index_offset": round(sim.index_offset * f),
+            "rated_speed": None if sim.rated_speed is None else sim.rated_speed * f,
+        }
+    )
 
 
 def _is_mapping(index: int) -> bool:

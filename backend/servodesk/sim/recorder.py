@@ -26,7 +26,9 @@ Choices (documented here once):
 
 - Sampling happens after every plant sub-step (:meth:`SimulatedDrive.on_substep`): position
   6064h, velocity 606Ch and torque 6077h are the plant's state at that sub-step, following
-  error 60F4h is the control cycle's position demand minus the sub-step's position; any other
+  error 60F4h is the control cycle's position demand minus the sub-step's position (with the
+  servo loop of a ``tuning.kind: gains`` profile: the loop's demand at that sub-step,
+  interpolated across the cycle, docs/tuning.md); any other
   object is its latest value (set-points and parameters change once per control cycle at most).
   The first sample is the first plant step after the start. (With encoder noise, a test-only
   plant parameter, each reading of 6064h draws noise, as an SDO read of it does.)
