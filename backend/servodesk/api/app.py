@@ -16,7 +16,17 @@ from servodesk import __version__
 from servodesk.api import errors
 from servodesk.api.auth import TokenMiddleware
 from servodesk.api.deps import AppState
-from servodesk.api.routes import backups, motion, operation, pdo, scope, sessions, system, viewer
+from servodesk.api.routes import (
+    backups,
+    motion,
+    operation,
+    pdo,
+    scope,
+    sessions,
+    system,
+    tuning,
+    viewer,
+)
 from servodesk.api.scope_ws import router as scope_ws_router
 from servodesk.api.ws import router as ws_router
 from servodesk.domain.profile_loader import ProfileCatalog, default_profile_dirs
@@ -92,6 +102,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(pdo.router, prefix="/api/v1")
     app.include_router(scope.router, prefix="/api/v1")  # Stops the scope at shutdown.
     app.include_router(scope_ws_router, prefix="/api/v1")
+    # Included after motion: its lifespan is nested inside, so running tuning jobs stop (and
+    # put the gains back) before the motion router halts the axes at shutdown.
+    app.include_router(tuning.router, prefix="/api/v1")
 
     swagger = WEB_DIST / "vendor" / "swagger-ui"
 

@@ -382,7 +382,7 @@ class StopRequest(BaseModel):
 class MotionStatusOut(BaseModel):
     session: str
     active: bool
-    kind: Literal["jog", "move", "velocity", "torque", "cyclic", "homing"] | None
+    kind: Literal["jog", "move", "velocity", "torque", "cyclic", "homing", "tuning"] | None
     owner: str | None
     mode: int | None
     target: float | None

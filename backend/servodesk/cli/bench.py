@@ -10,12 +10,14 @@ servodesk/benchmarks/scope.py for what each figure means.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from pathlib import Path
 from typing import Any
 
 
 def register(sub: Any) -> None:
-    p = sub.add_parser("bench", help="run a benchmark (scope)")
+    p = sub.add_parser("bench", help="run a benchmark (scope, tuning)")
     cmds = p.add_subparsers(dest="bench_command", metavar="BENCHMARK")
     s = cmds.add_parser(
         "scope",
@@ -25,6 +27,24 @@ def register(sub: Any) -> None:
     )
     add_scope_arguments(s)
     s.set_defaults(func=_run_scope)
+    t = cmds.add_parser(
+        "tuning",
+        help="servodesk's tuning on simulated plants against an oracle",
+        description="Tune a generic twin on each plant (plant files, or the default set of "
+        "issue 8), then a 0.5-revolution move on the true plant; the same for the oracle's "
+        "gains (exact plant knowledge). One JSON object per plant.",
+    )
+    t.add_argument("--plant", action="append", metavar="FILE", help="a plant file (repeatable)")
+    t.add_argument("--only", help="comma-separated parts of plant names to run")
+    t.add_argument("--mode", choices=["low", "basic", "high"], default="high")
+    t.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")
+    t.add_argument(
+        "--cache",
+        default=str(Path.home() / ".cache" / "servodesk" / "oracle"),
+        help="where oracle results are cached per plant hash ('' for none)",
+    )
+    t.add_argument("--json", action="store_true", help="print the results as JSON")
+    t.set_defaults(func=_run_tuning)
     p.set_defaults(func=lambda args: _usage(p))
 
 
@@ -53,6 +73,17 @@ def add_scope_arguments(p: argparse.ArgumentParser) -> None:
 def _usage(p: argparse.ArgumentParser) -> int:
     p.print_help(sys.stderr)
     return 2
+
+
+def _run_tuning(args: argparse.Namespace) -> int:
+    from servodesk.benchmarks.tuning import run
+    from servodesk.errors import ServodeskError
+
+    try:
+        return run(args)
+    except ServodeskError as exc:  # A bad plant file: say what is wrong, exit 2.
+        print(f"servodesk bench tuning: {exc.message}", file=sys.stderr)
+        return 2
 
 
 def _run_scope(args: argparse.Namespace) -> int:

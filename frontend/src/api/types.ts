@@ -547,7 +547,7 @@ export interface CyclicRequest {
   duration: number;
 }
 
-export type MotionKind = 'jog' | 'move' | 'velocity' | 'torque' | 'cyclic' | 'homing';
+export type MotionKind = 'jog' | 'move' | 'velocity' | 'torque' | 'cyclic' | 'homing' | 'tuning';
 
 export interface MotionStatus {
   session: string;

@@ -17,6 +17,7 @@ import { OverviewPage } from './OverviewPage';
 import { ParametersPage } from './ParametersPage';
 import { PdoPage } from './PdoPage';
 import { ScopePage } from './ScopePage';
+import { TuningPage } from './TuningPage';
 import { ViewerPage } from './ViewerPage';
 
 export interface PageProps {
@@ -39,7 +40,7 @@ export const PAGES: readonly PageDef[] = [
   { id: 'network', title: 'Network configuration', group: 'Bus', scope: 'session', description: 'Station name, addresses, telegram, LEDs' },
   { id: 'overview', title: 'Overview', group: 'Drive', scope: 'session', description: 'Identity, state machine, statusword, live values', component: OverviewPage },
   { id: 'operation', title: 'Operation', group: 'Drive', scope: 'session', description: 'Servo on, jog, move, home with a dead-man', component: OperationPage },
-  { id: 'tuning', title: 'Tuning', group: 'Drive', scope: 'session', description: 'Gains, one-touch tuning, Bode' },
+  { id: 'tuning', title: 'Tuning', group: 'Drive', scope: 'session', description: 'Gains, one-touch tuning, Bode', component: TuningPage },
   { id: 'scope', title: 'Scope', group: 'Drive', scope: 'session', description: 'Triggered recording of process values', component: ScopePage },
   { id: 'alarms', title: 'Alarms', group: 'Drive', scope: 'session', description: 'Current alarm, history, causes and remedies', component: AlarmsPage },
   { id: 'parameters', title: 'Parameters', group: 'Data', scope: 'session', description: 'Grouped parameters, hex and units, save to EEPROM', component: ParametersPage },

@@ -3,6 +3,7 @@
  */
 import type { DriveState, SessionInfo } from '../api';
 import type { HomingStatus, MotionStatus } from '../api/types';
+import type { TuningJob } from '../api/tuning';
 
 export const WS_SUBPROTOCOL = 'servodesk.v1';
 /** Close code a server of another protocol version uses (docs/api.md). */
@@ -77,6 +78,14 @@ export interface DeadmanMessage {
 
 export type HomingMessage = { type: 'homing' } & HomingStatus;
 
+/** A tuning job's progress and end (docs/tuning.md "Service and API"). */
+export interface TuningMessage {
+  type: 'tuning';
+  session: string;
+  sid: string;
+  job: TuningJob;
+}
+
 export type ServerMessage =
   | HelloMessage
   | SessionsMessage
@@ -87,7 +96,8 @@ export type ServerMessage =
   | ControlMessage
   | MotionMessage
   | DeadmanMessage
-  | HomingMessage;
+  | HomingMessage
+  | TuningMessage;
 export type ServerMessageType = ServerMessage['type'];
 export type MessageOf<T extends ServerMessageType> = Extract<ServerMessage, { type: T }>;
 
@@ -107,6 +117,7 @@ const KNOWN: ReadonlySet<string> = new Set([
   'motion',
   'deadman',
   'homing',
+  'tuning',
 ]);
 
 /** Parse one text frame; null for anything that is not a known message. */

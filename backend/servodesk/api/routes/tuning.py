@@ -1,0 +1,141 @@
+"""Tuning routes (issue 8): thin wrappers over services/tuning.py; shapes: docs/tuning.md.
+
+Starting a tuning moves the axis: it needs control and the client's WebSocket (its dead-man
+heartbeat), like a jog. Stopping is never refused, from any client. Undo and store write
+parameters (control ownership, 409 naming the owner otherwise). Progress goes out as WebSocket
+``tuning`` messages. The router's lifespan stops running jobs at shutdown (before the motion
+router halts the axes and the sessions close).
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import AsyncIterator
+from typing import Any, Literal
+
+from fastapi import APIRouter, FastAPI, Request
+from pydantic import BaseModel, ConfigDict, Field
+
+from servodesk.api.control_deps import ClientId, MotionControl, WriteControl, operation
+from servodesk.api.deps import AppState
+from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.services.tuning import MAX_TORQUE_PCT, MAX_TRAVEL_REV, TuningService
+
+
+def _recorder_busy(app: Any) -> Any:
+    def busy(sid: str) -> bool:
+        # The scope exists once someone used it; never created here.
+        scope = getattr(app.state, "servodesk_scope", None)
+        if scope is None or not scope.running:
+            return False
+        return any(r.get("session") == sid for r in scope.status().get("recorders", []))
+
+    return busy
+
+
+def tuning_of(app: Any) -> TuningService:
+    """The application's tuning service (created on first use)."""
+    service: TuningService | None = getattr(app.state, "servodesk_tuning", None)
+    if service is None:
+        state: AppState = app.state.servodesk
+        op = operation(app)
+        service = TuningService(
+            state.manager, op.motion, state.hub, recorder_busy=_recorder_busy(app)
+        )
+        app.state.servodesk_tuning = service
+    return service
+
+
+@contextlib.asynccontextmanager
+async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
+    try:
+        yield
+    finally:
+        service: TuningService | None = getattr(app.state, "servodesk_tuning", None)
+        if service is not None:
+            await service.shutdown()
+
+
+router = APIRouter(tags=["tuning"], responses=ERROR_RESPONSES, lifespan=_lifespan)
+
+_BODY = ConfigDict(extra="forbid")
+
+
+class StartRequest(BaseModel):
+    model_config = _BODY
+    mode: Literal["low", "basic", "high"] = Field(description="response mode")
+    travel_window_rev: float = Field(
+        gt=0,
+        le=MAX_TRAVEL_REV,
+        allow_inf_nan=False,
+        description="width of the window the axis may move in [rev], centred on where it stands",
+    )
+    torque_limit_pct: float = Field(
+        gt=0,
+        le=MAX_TORQUE_PCT,
+        allow_inf_nan=False,
+        description="torque limit during the run [% of rated], written to 6072h",
+    )
+
+
+class UndoRequest(BaseModel):
+    model_config = _BODY
+    to: Literal["before", "defaults"]
+
+
+class EmptyBody(BaseModel):
+    model_config = _BODY
+
+
+def _svc(request: Request) -> TuningService:
+    return tuning_of(request.app)
+
+
+@router.get("/sessions/{sid}/tuning", operation_id="tuning_info")
+async def tuning_info(sid: str, request: Request) -> dict[str, Any]:
+    """``TuningInfo``: kind (builtin / gains / none), reason, modes, gains, inputs, job."""
+    return await _svc(request).info(sid)
+
+
+@router.post("/sessions/{sid}/tuning/start", operation_id="tuning_start", status_code=202)
+async def tuning_start(
+    sid: str, body: StartRequest, request: Request, client: MotionControl
+) -> dict[str, Any]:
+    """Start a tuning job (moves the axis under the client's dead-man); 202 + the job."""
+    return await _svc(request).start(
+        sid,
+        client,
+        mode=body.mode,
+        travel_window_rev=body.travel_window_rev,
+        torque_limit_pct=body.torque_limit_pct,
+    )
+
+
+@router.post("/sessions/{sid}/tuning/stop", operation_id="tuning_stop")
+async def tuning_stop(
+    sid: str, request: Request, client: ClientId, body: EmptyBody | None = None
+) -> dict[str, Any]:
+    """Stop the job: never refused, from any client. The gains from before are put back."""
+    return await _svc(request).stop(sid, client)
+
+
+@router.get("/sessions/{sid}/tuning/result", operation_id="tuning_result")
+async def tuning_result(sid: str, request: Request) -> dict[str, Any]:
+    """The last job's ``TuningResult``; 404 when there is none."""
+    return _svc(request).result(sid)
+
+
+@router.post("/sessions/{sid}/tuning/undo", operation_id="tuning_undo")
+async def tuning_undo(
+    sid: str, body: UndoRequest, request: Request, client: WriteControl
+) -> dict[str, Any]:
+    """Gains back to before the last run or to the defaults (builtin: P11603)."""
+    return await _svc(request).undo(sid, client, body.to)
+
+
+@router.post("/sessions/{sid}/tuning/store", operation_id="tuning_store")
+async def tuning_store(
+    sid: str, request: Request, client: WriteControl, body: EmptyBody | None = None
+) -> dict[str, Any]:
+    """Store the parameters to non-volatile memory (only on this explicit call)."""
+    return await _svc(request).store(sid, client)

@@ -1,0 +1,415 @@
+"""``servodesk bench tuning``: servodesk's tuning on a set of simulated plants, against an oracle.
+
+For each plant (a plant file, docs/tuning.md; by default the set of issue 8: inertia ratio
+1, 3, 10, 30 x rigid or a resonance at 800, 400, 200, 100 Hz, plus stress cases):
+
+1. A generic twin (cia402-generic) is built on that plant and enabled, with the profile's
+   default gains. servodesk's own tuning (services/tuning_own.py, the same code a session
+   runs) tunes it through :class:`SimIO`: typed object access straight into the simulated
+   drive and simulated time, stepped as fast as the computer allows.
+2. The harness runs the reference move (domain/tuning/search.py: 0.5 rev, jerk-limited,
+   0.7 x peak torque / total inertia, 50 rev/s at most) on the true plant with the tuned gains:
+   the drive's servo loop (sim/servo.py) on the drive's plant (sim/plant.py), friction, gravity
+   and torque noise included. Bandwidth and margins are computed on the exact plant's linear
+   model with the tuned gains (domain/tuning/model.py).
+3. The oracle: the same gain features searched globally with exact plant knowledge (filters
+   and the highest gain meeting the margins from the exact model, then a wide grid around it
+   ranked by the reference move on the exact model), then measured exactly like the tuned
+   gains. Cached per plant hash in ``--cache`` (a plant's oracle never changes).
+
+The JSON has one object per plant with the keys issue 8 names (``plant``, ``settling_10_s``,
+``oracle_settling_10_s``, ``bandwidth_hz``, ``oracle_bandwidth_hz``, ``phase_margin_deg``,
+``gain_margin_db``, ``inertia_error``, ``tuning_axis_time_s``, ``excursion_rev``, ``stable``) and
+more, and a summary with the median and worst of each metric and the ratios against the oracle.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import math
+import os
+import statistics
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from servodesk.domain.address import ObjectAddress
+from servodesk.domain.datatypes import Value
+from servodesk.domain.profile import DeviceProfile
+from servodesk.domain.tuning.design import design_gains
+from servodesk.domain.tuning.gains import ServoGains
+from servodesk.domain.tuning.metrics import MoveMetrics, move_metrics
+from servodesk.domain.tuning.model import LoopModel, PlantModel
+from servodesk.domain.tuning.search import (
+    ReferenceMove,
+    candidates_around,
+    mechanical,
+    reference_move,
+    search_gains,
+)
+from servodesk.sim.plant import Plant, mechanics_for
+from servodesk.sim.plantfile import PlantSpec, load_plant_file
+from servodesk.sim.servo import ServoLoop
+
+#: The travel window and torque limit the benchmark confirms for every tuning run.
+TRAVEL_WINDOW_REV = 0.5
+TORQUE_LIMIT_PCT = 175.0
+
+
+def default_plants() -> list[tuple[str, PlantSpec]]:
+    """Issue 8's set: 4 inertia ratios x (rigid, 800, 400, 200, 100 Hz), and stress cases."""
+    out: list[tuple[str, PlantSpec]] = []
+    for ratio in (1.0, 3.0, 10.0, 30.0):
+        out.append((f"R{ratio:g}-rigid", PlantSpec(inertia_ratio=ratio)))
+        for fr in (800.0, 400.0, 200.0, 100.0):
+            out.append((f"R{ratio:g}-{fr:g}Hz", PlantSpec(inertia_ratio=ratio, resonance_hz=fr)))
+    out += [
+        ("stress-friction5", PlantSpec(inertia_ratio=3.0, coulomb=0.05)),
+        ("stress-gravity10", PlantSpec(inertia_ratio=3.0, gravity=0.10)),
+        ("stress-noise4x", PlantSpec(inertia_ratio=3.0, resonance_hz=400.0, noise_torque=0.02)),
+        ("stress-current1k", PlantSpec(inertia_ratio=3.0, current_loop_hz=1000.0)),
+        ("stress-loop8k", PlantSpec(inertia_ratio=3.0, resonance_hz=400.0, loop_rate_hz=8000)),
+        ("stress-soft60Hz", PlantSpec(inertia_ratio=30.0, resonance_hz=60.0, damping=0.01)),
+    ]
+    return out
+
+
+def exact_model(spec: PlantSpec) -> PlantModel:
+    """The plant's linear model, exactly (what the oracle knows)."""
+    return PlantModel(
+        spec.motor_inertia,
+        spec.load_inertia,
+        spec.resonance_hz,
+        spec.damping,
+        spec.viscous,
+        spec.current_loop_hz,
+    )
+
+
+# --------------------------------------------------------------------------- the drive
+
+
+class SimIO:
+    """:class:`~servodesk.services.tuning_io.TuningIO` straight into a simulated drive, on
+    simulated time (every sleep steps the drive)."""
+
+    def __init__(self, drive: Any) -> None:
+        self.drive = drive
+        self.profile: DeviceProfile = drive.profile
+
+    async def read(self, address: ObjectAddress) -> Value:
+        return self.drive.read(address.index, address.subindex)  # type: ignore[no-any-return]
+
+    async def write(self, address: ObjectAddress, value: Value) -> None:
+        self.drive.write(address.index, address.subindex, value)
+
+    async def read_bytes(self, address: ObjectAddress) -> bytes:
+        return self.drive.read_bytes(address.index, address.subindex)  # type: ignore[no-any-return]
+
+    async def sleep(self, seconds: float) -> None:
+        self.drive.step(seconds)
+
+    def now(self) -> float:
+        return float(self.drive.time)
+
+
+def build_drive(spec: PlantSpec, seed: int = 1) -> Any:
+    """An enabled generic twin on ``spec``'s plant at its loop rate."""
+    from servodesk.domain.profile_loader import ProfileCatalog
+    from servodesk.sim.engine import SimulatedDrive
+
+    profile = ProfileCatalog().get("cia402-generic")
+    drive = SimulatedDrive(
+        profile, 1, plant_params=spec.plant_params(seed), loop_rate_hz=spec.loop_rate_hz
+    )
+    # The machine allows 50 rev/s (the reference move's top speed): the profile's 607Fh is
+    # for its own 2^17-count twin.
+    drive.write(0x607F, 0, round(50 * spec.encoder_counts))
+    drive.step(0.01)
+    for word in (0x06, 0x07, 0x0F):
+        drive.write(0x6040, 0, word)
+        drive.step(0.01)
+    drive.step(0.2)  # Gravity and friction settle under the default gains.
+    return drive
+
+
+async def tune(spec: PlantSpec, mode: str = "high") -> tuple[dict[str, Any], Any]:
+    """servodesk's tuning on a twin of ``spec``; returns (result JSON, drive)."""
+    from servodesk.services.tuning_own import OwnTuning, OwnTuningRequest
+
+    drive = build_drive(spec)
+    io = SimIO(drive)
+    req = OwnTuningRequest(mode, TRAVEL_WINDOW_REV, TORQUE_LIMIT_PCT)  # type: ignore[arg-type]
+    result = await OwnTuning(io, req, offload=False).run()
+    return result, drive
+
+
+# --------------------------------------------------------------------------- measuring
+
+
+def run_move(spec: PlantSpec, gains: ServoGains, move: ReferenceMove, seed: int = 7) -> np.ndarray:
+    """The reference move on the true plant with ``gains``: motor position per tick [counts]."""
+    params = spec.plant_params(seed)
+    plant = Plant(params, mechanics_for(params))
+    rate = float(spec.loop_rate_hz)
+    loop = ServoLoop(gains, rate, spec.encoder_counts, spec.peak_torque)
+    dt = 1.0 / rate
+    pos = np.empty(len(move.p))
+    step = plant.step
+    update = loop.update
+    p, v, a = move.p.tolist(), move.v.tolist(), move.a.tolist()
+    if spec.gravity:
+        # Start where the axis rests under gravity: the loop holds it with its integral.
+        hold = ServoLoop(gains, rate, spec.encoder_counts, spec.peak_torque)
+        for _ in range(int(0.3 * rate)):
+            step(hold.update(0.0, 0.0, 0.0, plant.encoder_counts), dt)
+        loop = hold
+        update = loop.update
+    for k in range(len(p)):
+        enc = plant.encoder_counts
+        pos[k] = enc
+        tau = update(p[k], v[k], a[k], enc)
+        if not math.isfinite(tau):
+            pos[k:] = math.nan
+            break
+        step(tau, dt)
+    return pos
+
+
+def measure(spec: PlantSpec, gains: ServoGains) -> dict[str, Any]:
+    """Move metrics on the true plant, bandwidth and margins on the exact model."""
+    rate = float(spec.loop_rate_hz)
+    move = reference_move(
+        spec.motor_inertia + spec.load_inertia, spec.peak_torque, spec.encoder_counts, rate
+    )
+    pos = run_move(spec, gains, move)
+    demand = move.p * spec.encoder_counts / (2.0 * math.pi)
+    finite = bool(np.isfinite(pos).all())
+    m: MoveMetrics | None = None
+    if finite:
+        m = move_metrics(move.t, move.target_counts, pos, move.t_end, demand)
+    loop = LoopModel(exact_model(spec), rate, gains)
+    vm = loop.velocity_margins()
+    pm = loop.position_margins()
+    # Stable: the loop's eigenvalues inside the unit circle and the move bounded on the true
+    # plant. Settling is a separate figure: a soft axis may be stable and still ring for
+    # longer than the observation window (anchors-tuning.md §3.6).
+    stable = finite and loop.is_stable() and m is not None
+    return {
+        "settling_10_s": m.settling_10_s if m else math.inf,
+        "settling_100_s": m.settling_100_s if m else math.inf,
+        "overshoot_counts": m.overshoot_counts if m else math.inf,
+        "following_error_rms_counts": m.fe_rms_counts if m else math.inf,
+        "bandwidth_hz": loop.velocity_bandwidth_hz(),
+        "phase_margin_deg": min(vm.phase_margin_deg, pm.phase_margin_deg),
+        "gain_margin_db": min(vm.gain_margin_db, pm.gain_margin_db),
+        "velocity_phase_margin_deg": vm.phase_margin_deg,
+        "velocity_gain_margin_db": vm.gain_margin_db,
+        "stable": stable,
+    }
+
+
+def oracle_gains(spec: PlantSpec) -> ServoGains:
+    """The best gains with exact plant knowledge (module docstring, step 3)."""
+    rate = float(spec.loop_rate_hz)
+    plant = exact_model(spec)
+    base = design_gains(plant, rate, "high").gains
+    move = reference_move(plant.total_inertia, spec.peak_torque, spec.encoder_counts, rate)
+    model = mechanical(
+        plant,
+        counts_per_rev=spec.encoder_counts,
+        torque_limit=spec.peak_torque,
+        coulomb=spec.coulomb * spec.peak_torque,
+        gravity=spec.gravity * spec.peak_torque,
+    )
+    exact_ff = replace(base, inertia_ff=plant.total_inertia)
+    cands = [base, *candidates_around(base, wide=True), *candidates_around(exact_ff, wide=True)]
+    found = search_gains(plant, rate, cands, move, model)
+    return found[0] if found is not None else base
+
+
+def cached_oracle(spec: PlantSpec, cache: Path | None) -> tuple[ServoGains, bool]:
+    """(gains, from the cache)."""
+    path = cache / f"oracle-{spec.sha256()[:24]}.json" if cache else None
+    if path is not None and path.is_file():
+        try:
+            return ServoGains.from_dict(json.loads(path.read_text())["gains"]), True
+        except (ValueError, KeyError, json.JSONDecodeError):
+            pass  # A damaged cache entry is computed again.
+    g = oracle_gains(spec)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(json.dumps({"gains": g.as_dict(), "plant": spec.canonical()}))
+        os.replace(tmp, path)
+    return g, False
+
+
+def run_plant(name: str, spec: PlantSpec, mode: str, cache: str | None) -> dict[str, Any]:
+    """One row of the benchmark."""
+    t0 = time.process_time()
+    row: dict[str, Any] = {"plant": name, "plant_sha256": spec.sha256()[:16]}
+    try:
+        result, _drive = asyncio.run(tune(spec, mode))
+    except Exception as exc:
+        row.update({"stable": False, "error": f"{type(exc).__name__}: {exc}"})
+        result = None
+    t1 = time.process_time()
+    if result is not None:
+        gains = ServoGains.from_dict({g["name"]: g["after"] for g in result["gains"]})
+        ours = measure(spec, gains)
+        ident = result["identified"]
+        j_true = spec.motor_inertia + spec.load_inertia
+        res = ident["resonances"]
+        row.update(ours)
+        row.update(
+            {
+                "inertia_error": ident["inertia_kgm2"] / j_true - 1.0,
+                "resonance_hz": res[0]["freq_hz"] if res else None,
+                "resonance_error": (res[0]["freq_hz"] / spec.resonance_hz - 1.0)
+                if res and spec.resonance_hz
+                else None,
+                "notch_hz": [f for f in (gains.notch1_hz, gains.notch2_hz) if f > 0.0],
+                "tuning_axis_time_s": result["axis_time_s"],
+                "excursion_rev": result["excursion_rev"],
+                "tuning_peak_torque_of_peak": result["peak_torque_pct"]
+                * spec.rated_torque
+                / 100.0
+                / spec.peak_torque,
+                "gains": gains.as_dict(),
+            }
+        )
+    og, from_cache = cached_oracle(spec, Path(cache) if cache else None)
+    t2 = time.process_time()
+    o = measure(spec, og)
+    row.update(
+        {
+            "oracle_settling_10_s": o["settling_10_s"],
+            "oracle_settling_100_s": o["settling_100_s"],
+            "oracle_bandwidth_hz": o["bandwidth_hz"],
+            "oracle_phase_margin_deg": o["phase_margin_deg"],
+            "oracle_gain_margin_db": o["gain_margin_db"],
+            "oracle_gains": og.as_dict(),
+            "oracle_cached": from_cache,
+            "compute_tuning_s": round(t1 - t0, 2),
+            "compute_oracle_s": round(t2 - t1, 2),
+        }
+    )
+    if result is not None:
+        row["settling_ratio"] = _ratio(row["settling_10_s"], o["settling_10_s"])
+        row["bandwidth_ratio"] = _ratio(row["bandwidth_hz"], o["bandwidth_hz"])
+    return row
+
+
+def _ratio(a: float, b: float) -> float:
+    if b == 0.0:
+        return 1.0 if a == 0.0 else math.inf
+    return a / b
+
+
+def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    def stat(key: str, worst: str) -> dict[str, float] | None:
+        vals = [r[key] for r in rows if isinstance(r.get(key), int | float)]
+        if not vals:
+            return None
+        w = max(vals) if worst == "max" else min(vals)
+        return {"median": statistics.median(vals), "worst": w}
+
+    return {
+        "plants": len(rows),
+        "stable": sum(1 for r in rows if r.get("stable")),
+        "margins_met": sum(
+            1
+            for r in rows
+            if r.get("phase_margin_deg", 0) >= 45.0 and r.get("gain_margin_db", 0) >= 8.0
+        ),
+        "settling_ratio": stat("settling_ratio", "max"),
+        "bandwidth_ratio": stat("bandwidth_ratio", "min"),
+        "phase_margin_deg": stat("phase_margin_deg", "min"),
+        "gain_margin_db": stat("gain_margin_db", "min"),
+        "inertia_error_rigid_abs": stat_abs(rows, "inertia_error", rigid_only=True),
+        "tuning_axis_time_s": stat("tuning_axis_time_s", "max"),
+        "excursion_rev": stat("excursion_rev", "max"),
+        "settling_10_s": stat("settling_10_s", "max"),
+        "oracle_settling_10_s": stat("oracle_settling_10_s", "max"),
+    }
+
+
+def stat_abs(rows: list[dict[str, Any]], key: str, rigid_only: bool) -> dict[str, float] | None:
+    vals = [
+        abs(r[key])
+        for r in rows
+        if isinstance(r.get(key), float) and (not rigid_only or "rigid" in r["plant"])
+    ]
+    if not vals:
+        return None
+    return {"median": statistics.median(vals), "worst": max(vals)}
+
+
+def _finite(x: Any) -> Any:
+    """JSON has no infinity: an axis that never settled is reported as null."""
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [_finite(v) for v in x]
+    return x
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.plant:
+        plants = [(Path(p).stem, load_plant_file(p)) for p in args.plant]
+    else:
+        plants = default_plants()
+    if args.only:
+        plants = [(n, s) for n, s in plants if any(o in n for o in args.only.split(","))]
+    t0 = time.perf_counter()
+    jobs = max(1, args.jobs)
+    if jobs == 1 or len(plants) == 1:
+        rows = [run_plant(n, s, args.mode, args.cache) for n, s in plants]
+    else:
+        with ProcessPoolExecutor(jobs) as pool:
+            futures = [pool.submit(run_plant, n, s, args.mode, args.cache) for n, s in plants]
+            rows = [f.result() for f in futures]
+    wall = time.perf_counter() - t0
+    out = {
+        "benchmark": "tuning",
+        "mode": args.mode,
+        "travel_window_rev": TRAVEL_WINDOW_REV,
+        "torque_limit_pct_rated": TORQUE_LIMIT_PCT,
+        "jobs": jobs,
+        "wall_s": round(wall, 1),
+        "cpu_count": os.cpu_count(),
+        "summary": summarise(rows),
+        "plants": rows,
+    }
+    if args.json:
+        print(json.dumps(_finite(out), indent=1))
+    else:
+        for r in rows:
+            print(
+                f"{r['plant']:>18}  stable={r.get('stable')}  ts10={_ms(r.get('settling_10_s'))}"
+                f" oracle={_ms(r.get('oracle_settling_10_s'))}  bw={_num(r.get('bandwidth_hz'))}"
+                f"/{_num(r.get('oracle_bandwidth_hz'))} Hz  PM={_num(r.get('phase_margin_deg'))}"
+                f"  GM={_num(r.get('gain_margin_db'))}  J_err={_num(r.get('inertia_error'), 3)}"
+                + (f"  error={r['error']}" if "error" in r else "")
+            )
+        print(json.dumps(_finite(out["summary"]), indent=1))
+        print(f"wall {wall:.1f} s", file=sys.stderr)
+    return 0 if all("error" not in r for r in rows) else 1
+
+
+def _ms(x: Any) -> str:
+    return "inf" if not isinstance(x, float) or not math.isfinite(x) else f"{x * 1e3:.1f}ms"
+
+
+def _num(x: Any, nd: int = 1) -> str:
+    return "-" if not isinstance(x, int | float) else f"{x:.{nd}f}"

@@ -1,0 +1,800 @@
+"""servodesk's own one-touch tuning: identify, measure, design, verify (docs/tuning.md).
+
+For a drive whose profile maps its servo gains (``tuning.kind: gains``). The steps, each a few
+hundred milliseconds of axis motion inside the travel window the user confirmed:
+
+1. Before: the drive's gains as they are, a verification move recorded by the drive-side
+   recorder (the "before" step response).
+2. Frequency response: a logarithmic torque chirp from the drive's test signal generator while
+   the loops hold the axis; the recorder captures the test signal, the torque command and the
+   velocity at the loop rate; the plant's response is their instrumental estimate
+   (domain/tuning/identify.py). Resonances come from its peaks over the rigid-body line.
+3. Inertia and friction: back-and-forth profile-position moves, sized from the first estimate so
+   that the inertial torque is about half the tuning torque limit and the acceleration phases
+   last several periods of the lowest anti-resonance (anchors-tuning.md §3.7: faster moves
+   identify the motor, not the machine); least squares on torque against acceleration.
+4. Design: the identified two-mass model, notches where a resonance limits the loop, the
+   highest velocity gain meeting PM >= 45 deg, GM >= 8 dB, Ms <= 6 dB (domain/tuning/design.py)
+   scaled to the response level; then the candidates near it ranked by what they do to a move
+   on the identified model (settling to +-10 counts, then +-100 counts, then following error),
+   the same objective as the benchmark's oracle (domain/tuning/search.py).
+5. Apply and verify: the new gains are written, the verification move runs again (the "after"
+   step response); a result that does not settle or is worse than before is undone.
+
+Safety (issue 8 §7): during tuning the torque limit 6072h is the user's, the software position
+limits 607Dh are the travel window and the following error window 6065h is widened (the low
+default gains of an untuned axis lag far behind a brisk identification move). All of them, the
+mode and every gain are put back when the tuning ends, fails or is cancelled (stop, dead-man);
+the new gains stay only after a successful verification, and nothing is stored to non-volatile
+memory unless the user asks (POST .../tuning/store).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import functools
+import logging
+import math
+import multiprocessing
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, replace
+from typing import Any, Literal
+
+import numpy as np
+from scipy.signal import lfilter  # type: ignore[import-untyped]
+
+from servodesk.domain.address import ObjectAddress
+from servodesk.domain.cia402 import State, decode_state
+from servodesk.domain.datatypes import Value
+from servodesk.domain.profile import TuningSpec
+from servodesk.domain.tuning.gains import ServoGains
+from servodesk.domain.tuning.identify import (
+    Frf,
+    InertiaEstimate,
+    Resonance,
+    find_resonances,
+    frequency_response,
+    identify_rigid,
+    inertia_from_frf,
+    plant_from_identification,
+)
+from servodesk.domain.tuning.metrics import move_metrics
+from servodesk.domain.tuning.model import LoopModel, PlantModel
+from servodesk.domain.tuning.search import tune_on_model
+from servodesk.errors import DriveStateError, ServodeskError, ValidationError
+from servodesk.services.session import Session
+from servodesk.services.tuning_io import DriveRecorder, Recording, SessionIO, TuningIO, read_float
+
+log = logging.getLogger(__name__)
+
+Progress = Callable[[float, str], None]
+
+CONTROLWORD = ObjectAddress(0x6040)
+STATUSWORD = ObjectAddress(0x6041)
+MODE = ObjectAddress(0x6060)
+POSITION = ObjectAddress(0x6064)
+FE_WINDOW = ObjectAddress(0x6065)
+VELOCITY = ObjectAddress(0x606C)
+MAX_TORQUE = ObjectAddress(0x6072)
+RATED_TORQUE = ObjectAddress(0x6076)
+TARGET = ObjectAddress(0x607A)
+SOFT_MIN = ObjectAddress(0x607D, 1)
+SOFT_MAX = ObjectAddress(0x607D, 2)
+PROFILE_VELOCITY = ObjectAddress(0x6081)
+PROFILE_ACC = ObjectAddress(0x6083)
+PROFILE_DEC = ObjectAddress(0x6084)
+MAX_PROFILE_VELOCITY = ObjectAddress(0x607F)
+ENCODER_INCREMENTS = ObjectAddress(0x608F, 1)
+ENCODER_REVOLUTIONS = ObjectAddress(0x608F, 2)
+
+PP = 1
+CW_ENABLED = 0x000F
+CW_NEW_SETPOINT = 0x0010
+CW_IMMEDIATE = 0x0020
+SW_FAULT = 0x0008
+SW_TARGET_REACHED = 0x0400
+
+#: Test signal generator sub-indexes (docs/tuning.md).
+SIG_KIND, SIG_AMPLITUDE, SIG_F0, SIG_F1, SIG_DURATION, SIG_CONTROL, SIG_TORQUE, SIG_VALUE = range(
+    1, 9
+)
+SIG_PRBS = 2
+
+#: Response levels the page offers.
+Mode = Literal["low", "basic", "high"]
+
+#: Chirp: from this frequency, for this long, at this share of the tuning torque limit.
+CHIRP_F0_HZ = 10.0
+CHIRP_S = 1.0
+CHIRP_SHARE = 0.12
+#: The frequency response is measured travelling this far (or 90 % of the window).
+FRF_TRAVEL_REV = 0.45
+#: Identification moves: inertial torque as a share of the tuning torque limit.
+MOVE_TORQUE_SHARE = 0.35
+#: Acceleration phases last at least this many periods of the lowest anti-resonance.
+MOVE_AR_PERIODS = 3.0
+#: Verification move: distance as a share of the travel window (at most this many rev).
+VERIFY_REV = 0.25
+VERIFY_SETTLE_S = 0.25
+
+
+@dataclass(frozen=True, slots=True)
+class OwnTuningRequest:
+    mode: Mode
+    #: The axis stays within +-window of where it stood [rev].
+    travel_window_rev: float
+    #: Torque limit during tuning [% of the rated torque].
+    torque_limit_pct: float
+
+
+class TuningFailed(ServodeskError):
+    """The tuning stopped before it had a result it could stand behind."""
+
+
+@dataclass(slots=True)
+class _Drive:
+    """What the procedure learns about the drive before it moves it."""
+
+    rate_hz: float
+    counts_per_rev: float
+    rated_torque: float
+    limit_torque: float
+    current_loop_hz: float | None
+    start_counts: int
+    window_counts: float
+    #: The fastest profile velocity the drive allows (607Fh) [counts/s].
+    max_velocity: float
+
+
+class OwnTuning:
+    """One tuning run over a :class:`TuningIO` (a session's drive, or a simulated one)."""
+
+    def __init__(
+        self,
+        io: TuningIO,
+        request: OwnTuningRequest,
+        progress: Progress | None = None,
+        *,
+        current_loop_hz: float | None = None,
+        offload: bool = True,
+    ) -> None:
+        spec = io.profile.tuning
+        if spec is None or spec.kind != "gains":
+            raise ValidationError(
+                f"{io.profile.name} has no gain map for servodesk's tuning",
+                hint="see the Tuning page for what this family offers",
+            )
+        if request.mode not in ("low", "basic", "high"):
+            raise ValidationError(
+                f"mode {request.mode!r} is not one of low, basic, high", field="mode"
+            )
+        if not 0.05 <= request.travel_window_rev <= 100.0:
+            raise ValidationError(
+                f"travel window {request.travel_window_rev} rev is outside 0.05..100 rev",
+                field="travel_window_rev",
+            )
+        if not 10.0 <= request.torque_limit_pct <= 500.0:
+            raise ValidationError(
+                f"torque limit {request.torque_limit_pct} % is outside 10..500 % of rated",
+                field="torque_limit_pct",
+            )
+        self.io = io
+        self.spec: TuningSpec = spec
+        self.request = request
+        self._progress = progress
+        self._current_loop_hz = current_loop_hz
+        self._offload = offload
+        self.axis_time_s = 0.0
+        self.excursion = (0.0, 0.0)
+        self.peak_torque = 0.0
+
+    # ------------------------------------------------------------------ small helpers
+
+    def progress(self, fraction: float, step: str) -> None:
+        log.info("tuning %.0f %%: %s", fraction * 100.0, step)
+        if self._progress is not None:
+            self._progress(fraction, step)
+
+    def _gain_address(self, name: str) -> ObjectAddress | None:
+        g = self.spec.gains.get(name)
+        return None if g is None else g.address
+
+    async def read_gains(self) -> ServoGains:
+        values: dict[str, float] = {}
+        for name, g in self.spec.gains.items():
+            values[name] = await read_float(self.io, g.address) * g.scale
+        return ServoGains.from_dict(values)
+
+    async def write_gains(self, gains: ServoGains) -> None:
+        """Every mapped gain; the loop state stays (the drive takes them from the next tick)."""
+        d = gains.as_dict()
+        for n in (1, 2):
+            if d[f"notch{n}_hz"] == 0.0:
+                # A notch that is off: its width and depth do nothing, keep them in range.
+                d[f"notch{n}_width"] = max(d[f"notch{n}_width"], 1.0)
+        for name, g in self.spec.gains.items():
+            spec = self.io.profile.spec(g.address)
+            raw: Value = d[name] / g.scale
+            if spec is not None and spec.data_type.is_integer:
+                raw = round(float(raw))
+            await self.io.write(g.address, raw)
+
+    async def _has(self, address: ObjectAddress) -> bool:
+        return self.io.profile.spec(address) is not None
+
+    async def _statusword(self) -> int:
+        return int(await read_float(self.io, STATUSWORD))
+
+    async def _check_healthy(self) -> None:
+        sw = await self._statusword()
+        state = decode_state(sw)
+        if state is not State.OPERATION_ENABLED:
+            raise TuningFailed(
+                f"the drive left Operation enabled during tuning ({state.value})",
+                hint="read the Alarms page, clear the cause, then tune again",
+            )
+
+    # ------------------------------------------------------------------ the run
+
+    async def run(self) -> dict[str, Any]:
+        """Tune; returns the TuningResult JSON (docs/tuning.md). On any failure or
+        cancellation the previous gains and settings are back before the error propagates."""
+        sw = await self._statusword()
+        if decode_state(sw) is not State.OPERATION_ENABLED:
+            raise DriveStateError(
+                f"tuning needs Operation enabled; the drive is in {decode_state(sw).value}",
+                hint="servo on first (Operation page)",
+            )
+        drive = await self._learn()
+        before = await self.read_gains()
+        saved = await self._save_settings()
+        try:
+            await self._set_safety(drive)
+            self.progress(0.05, "frequency response (PRBS torque while travelling)")
+            frf = await self._measure_frf(drive)
+            j_rough = self._inertia_from_frf(frf, drive, (2.0 * CHIRP_F0_HZ, 8.0 * CHIRP_F0_HZ))
+            first = self._resonances(frf, j_rough, drive)
+            j_frf, frf_band_ok = self._inertia_corrected(frf, drive, first, j_rough)
+            self.progress(0.3, "verification move with the present gains")
+            profile = self._verify_profile(drive, j_frf)
+            step_before = await self._verify_move(drive, profile)
+            self.progress(0.4, "inertia and friction (test moves)")
+            est = await self._identify(drive, j_frf, first)
+            # A compliant axis: the inertia of the frequency response's rigid-body band, with
+            # the two-mass shape divided out, is the better estimate (the test moves' fit must
+            # smooth over the shaft oscillation); a rigid axis: the moves' fit (friction and
+            # gravity apart).
+            compliant = any(r.anti_freq_hz for r in first)
+            inertia = j_frf if compliant and frf_band_ok else est.inertia
+            est = replace(est, inertia=inertia)
+            resonances = self._resonances(frf, inertia, drive)
+            model = plant_from_identification(
+                inertia,
+                resonances,
+                viscous=max(est.viscous, 0.0),
+                current_loop_hz=drive.current_loop_hz,
+            )
+            self.progress(0.65, "designing gains and filters")
+            job = functools.partial(
+                tune_on_model,
+                model,
+                drive.rate_hz,
+                self.request.mode,
+                counts_per_rev=drive.counts_per_rev,
+                torque_limit=drive.limit_torque,
+                coulomb=max(est.coulomb, 0.0),
+                gravity=est.gravity,
+            )
+            if self._offload:
+                # Its own process: the search is seconds of Python arithmetic that, in a
+                # thread, would hold the GIL against the event loop (heartbeats, dead-man).
+                loop = asyncio.get_running_loop()
+                design = await loop.run_in_executor(_design_pool(), job)
+            else:
+                design = job()
+            self.progress(0.8, "applying the new gains and verifying")
+            await self.write_gains(design.gains)
+            step_after = await self._verify_move(drive, profile)
+            await self._check_healthy()
+            if not math.isfinite(step_after["metrics"]["settling_100_s"]) and math.isfinite(
+                step_before["metrics"]["settling_100_s"]
+            ):
+                raise TuningFailed(
+                    "the verification move did not settle with the new gains; "
+                    "the previous gains are back",
+                    hint="tune with a lower response level",
+                )
+        except BaseException:
+            await _quietly(self.write_gains(before))
+            await _quietly(self._restore_settings(saved))
+            raise
+        await self._restore_settings(saved)
+        self.progress(1.0, "done")
+        return self._result(
+            drive, before, design, est, resonances, model, frf, step_before, step_after
+        )
+
+    async def _learn(self) -> _Drive:
+        io = self.io
+        prof = io.profile
+        rate_addr = self.spec.loop_rate_address
+        rate = (
+            await read_float(io, rate_addr)
+            if rate_addr is not None
+            else (prof.recorder.rate_hz if prof.recorder else 0.0)
+        )
+        if not rate > 0.0:
+            raise TuningFailed("the drive reports no servo loop rate")
+        if await self._has(ENCODER_INCREMENTS):
+            inc = await read_float(io, ENCODER_INCREMENTS)
+            revs = (
+                await read_float(io, ENCODER_REVOLUTIONS)
+                if await self._has(ENCODER_REVOLUTIONS)
+                else 1.0
+            )
+            cpr = inc / max(revs, 1.0)
+        else:
+            cpr = float(prof.simulation.counts_per_rev)
+        if await self._has(RATED_TORQUE):
+            rated = await read_float(io, RATED_TORQUE) * 1e-3  # 6076h is in mN m.
+        else:
+            rated = prof.simulation.rated_torque
+        limit = rated * self.request.torque_limit_pct / 100.0
+        if await self._has(MAX_TORQUE):
+            drive_max = await read_float(io, MAX_TORQUE) * 1e-3 * rated
+            if drive_max > 0.0:
+                limit = min(limit, drive_max)
+        current = self._current_loop_hz
+        addr = self.spec.current_loop_address
+        if current is None and addr is not None:
+            current = await read_float(io, addr)
+        p0 = int(await read_float(io, POSITION))
+        window = self.request.travel_window_rev * cpr
+        if await self._has(SOFT_MIN) and await self._has(SOFT_MAX):
+            lo = await read_float(io, SOFT_MIN)
+            hi = await read_float(io, SOFT_MAX)
+            if lo < hi and (p0 - window < lo or p0 + window > hi):
+                raise ValidationError(
+                    f"the travel window +-{self.request.travel_window_rev:g} rev around "
+                    f"{p0} does not fit the software limits {lo:.0f}..{hi:.0f} (607Dh)",
+                    field="travel_window_rev",
+                    hint="move the axis away from the limit or give a smaller window",
+                )
+        vmax = math.inf
+        if await self._has(MAX_PROFILE_VELOCITY):
+            vmax = await read_float(io, MAX_PROFILE_VELOCITY) or math.inf
+        return _Drive(rate, cpr, rated, limit, current, p0, window, vmax)
+
+    async def _save_settings(self) -> list[tuple[ObjectAddress, Value]]:
+        saved: list[tuple[ObjectAddress, Value]] = []
+        for a in (
+            MODE,
+            FE_WINDOW,
+            MAX_TORQUE,
+            SOFT_MIN,
+            SOFT_MAX,
+            PROFILE_VELOCITY,
+            PROFILE_ACC,
+            PROFILE_DEC,
+        ):
+            spec = self.io.profile.spec(a)
+            if spec is not None and spec.access.readable and spec.access.writable:
+                saved.append((a, await self.io.read(a)))
+        return saved
+
+    async def _restore_settings(self, saved: list[tuple[ObjectAddress, Value]]) -> None:
+        for a, v in saved:
+            await self.io.write(a, v)
+
+    async def _write_if(self, address: ObjectAddress, value: Value) -> None:
+        spec = self.io.profile.spec(address)
+        if spec is not None and spec.access.writable:
+            await self.io.write(address, value)
+
+    async def _set_safety(self, drive: _Drive) -> None:
+        """The user's torque limit, the travel window as the software limits and a following
+        error window as wide as the travel window (module docstring)."""
+        await self._write_if(
+            MAX_TORQUE, max(1, round(drive.limit_torque / drive.rated_torque * 1e3))
+        )
+        if await self._has(SOFT_MIN) and await self._has(SOFT_MAX):
+            await self._write_if(SOFT_MIN, round(drive.start_counts - drive.window_counts))
+            await self._write_if(SOFT_MAX, round(drive.start_counts + drive.window_counts))
+        await self._write_if(FE_WINDOW, round(drive.window_counts))
+        await self.io.write(MODE, PP)
+
+    # ------------------------------------------------------------------ motion
+
+    def _within(self, drive: _Drive, target: float) -> None:
+        if abs(target - drive.start_counts) > drive.window_counts:
+            raise TuningFailed(
+                f"a test move to {target:.0f} would leave the travel window "
+                f"{drive.start_counts}+-{drive.window_counts:.0f} counts"
+            )
+
+    async def _move(self, drive: _Drive, target: float, velocity: float, acc: float) -> None:
+        """An absolute profile-position move (CiA 402-2 §6.5: new set-point on the rising edge
+        of bit 4, change immediately), checked against the travel window first."""
+        self._within(drive, target)
+        await self.io.write(PROFILE_VELOCITY, max(1, round(velocity)))
+        await self.io.write(PROFILE_ACC, max(1, round(acc)))
+        await self.io.write(PROFILE_DEC, max(1, round(acc)))
+        await self.io.write(TARGET, round(target))
+        await self.io.write(CONTROLWORD, CW_ENABLED | CW_IMMEDIATE)
+        await self.io.write(CONTROLWORD, CW_ENABLED | CW_IMMEDIATE | CW_NEW_SETPOINT)
+        await self.io.write(CONTROLWORD, CW_ENABLED | CW_IMMEDIATE)
+
+    async def _wait_reached(self, timeout_s: float) -> bool:
+        """Until the drive reports target reached (statusword bit 10), at most ``timeout_s``
+        (an untuned axis may creep into its window for long: the metrics then say so)."""
+        start = self.io.now()
+        while not await self._statusword() & SW_TARGET_REACHED:
+            if self.io.now() - start > timeout_s:
+                return False
+            await self.io.sleep(0.002)
+        return True
+
+    async def _run_moves(
+        self,
+        drive: _Drive,
+        targets: list[float],
+        velocity: float,
+        acc: float,
+        rest_s: float,
+        *,
+        settle: bool = False,
+    ) -> tuple[Recording, list[tuple[float, float]]]:
+        """Moves one after the other, recorded (position, torque command) at the loop rate
+        (or a divider that makes the recording fit). Returns the recording and each move's
+        (start, end of its commanded profile) in recording time. ``settle``: each move waits
+        for target reached (verification); otherwise the next starts ``rest_s`` after the
+        profile's end, wherever the axis is (identification needs motion, not arrival)."""
+        distance = max(
+            abs(b - a) for a, b in zip([float(drive.start_counts), *targets], targets, strict=False)
+        )
+        cruise = max(0.0, distance / velocity - velocity / acc)
+        duration = 2.0 * velocity / acc + cruise
+        # Room for the axis to arrive late (an untuned loop lags its profile).
+        total = len(targets) * (duration + rest_s) + 0.02
+        rec = DriveRecorder(self.io, drive.rate_hz)
+        assert rec.spec is not None
+        divider = max(1, math.ceil(total * drive.rate_hz / rec.spec.max_depth))
+        torque = self._signal(SIG_TORQUE)
+        await rec.configure([POSITION, torque], total, divider)
+        await rec.start()
+        t0 = self.io.now()
+        spans: list[tuple[float, float]] = []
+        for target in targets:
+            start = self.io.now() - t0
+            await self._move(drive, target, velocity, acc)
+            spans.append((start, start + duration))
+            await self.io.sleep(duration)
+            if settle:
+                await self._wait_reached(1.0)
+            await self.io.sleep(rest_s)
+            await self._check_healthy()
+        recording = await rec.finish()
+        self.axis_time_s += len(targets) * duration
+        self._account(drive, recording[POSITION], recording[torque])
+        return recording, spans
+
+    def _account(self, drive: _Drive, position: np.ndarray, torque: np.ndarray) -> None:
+        if len(position):
+            lo = (float(position.min()) - drive.start_counts) / drive.counts_per_rev
+            hi = (float(position.max()) - drive.start_counts) / drive.counts_per_rev
+            self.excursion = (min(self.excursion[0], lo), max(self.excursion[1], hi))
+        if len(torque):
+            self.peak_torque = max(self.peak_torque, float(np.max(np.abs(torque))))
+
+    def _signal(self, sub: int) -> ObjectAddress:
+        index = self.spec.signal_index
+        if index is None:
+            raise TuningFailed(
+                f"{self.io.profile.name} has no test signal generator",
+                hint="servodesk's tuning needs the drive to inject a test signal",
+            )
+        return ObjectAddress(index, sub)
+
+    # ------------------------------------------------------------------ measurements
+
+    async def _measure_frf(self, drive: _Drive) -> Frf:
+        """The plant's frequency response: a PRBS torque from the drive's signal generator
+        while the axis travels at a constant speed (a profile-position move across the
+        window), so that Coulomb friction is a constant torque rather than stick-slip, which
+        would make a small-signal response look stiffer than the machine (anchors-tuning.md
+        §3.7: "use a velocity offset")."""
+        r_addr = self._signal(SIG_VALUE)
+        t_addr = self._signal(SIG_TORQUE)
+        rec = DriveRecorder(self.io, drive.rate_hz)
+        seconds = CHIRP_S + 0.02
+        await rec.configure([r_addr, t_addr, VELOCITY], seconds)
+        distance = min(FRF_TRAVEL_REV * drive.counts_per_rev, 0.9 * drive.window_counts)
+        velocity = min(distance / (CHIRP_S + 0.15), 0.95 * drive.max_velocity)
+        acc = velocity / 0.02  # At speed within 20 ms, long before the recording starts.
+        await self.io.write(self._signal(SIG_KIND), SIG_PRBS)
+        await self.io.write(self._signal(SIG_AMPLITUDE), CHIRP_SHARE * drive.limit_torque)
+        await self.io.write(self._signal(SIG_F0), CHIRP_F0_HZ)
+        await self.io.write(self._signal(SIG_F1), min(0.25 * drive.rate_hz, 4000.0))
+        await self.io.write(self._signal(SIG_DURATION), CHIRP_S)
+        await self._move(drive, drive.start_counts + distance, velocity, acc)
+        await self.io.sleep(0.06)
+        await rec.start()
+        await self.io.write(self._signal(SIG_CONTROL), 1)
+        try:
+            await self.io.sleep(seconds)
+            recording = await rec.finish()
+        finally:
+            await _quietly(self.io.write(self._signal(SIG_CONTROL), 0))
+        await self._check_healthy()
+        await self._wait_reached(1.0)
+        await self._move(drive, drive.start_counts, velocity * 2.0, acc)
+        await self.io.sleep(distance / (2.0 * velocity) + 0.05)
+        await self._wait_reached(1.0)
+        self.axis_time_s += CHIRP_S + 0.1 + distance / (2.0 * velocity)
+        self.excursion = (
+            min(self.excursion[0], 0.0),
+            max(self.excursion[1], distance / drive.counts_per_rev),
+        )
+        rad = 2.0 * math.pi / drive.counts_per_rev
+        velocity_rad = recording[VELOCITY] * rad
+        self._account(drive, np.zeros(0), recording[t_addr])
+        nperseg = 1 << max(8, round(math.log2(recording.rate_hz / 8.0)))
+        return frequency_response(
+            recording.rate_hz,
+            recording[r_addr],
+            recording[t_addr],
+            velocity_rad,
+            nperseg=min(nperseg, recording.samples),
+            f_min_hz=CHIRP_F0_HZ,
+        )
+
+    def _resonances(self, frf: Frf, inertia: float, drive: _Drive) -> list[Resonance]:
+        """Resonances up to an eighth of the loop rate (plant files allow no higher), and
+        below twice the current loop bandwidth: above that the measured response is the
+        current loop's roll-off and quantisation, not the machine's."""
+        top = drive.rate_hz / 8.0
+        if drive.current_loop_hz:
+            top = min(top, 2.0 * drive.current_loop_hz)
+        return find_resonances(frf, inertia, min_freq_hz=2.0 * CHIRP_F0_HZ, max_freq_hz=top)
+
+    def _inertia_from_frf(self, frf: Frf, drive: _Drive, band: tuple[float, float]) -> float:
+        try:
+            return inertia_from_frf(frf, band, current_loop_hz=drive.current_loop_hz)
+        except ValueError as exc:
+            raise TuningFailed(
+                f"the frequency response gives no inertia: {exc}",
+                hint="check that the axis is free to move and the torque limit is not tiny",
+            ) from exc
+
+    def _inertia_corrected(
+        self, frf: Frf, drive: _Drive, resonances: list[Resonance], rough: float
+    ) -> tuple[float, bool]:
+        """The total inertia from the rigid-body band below the lowest anti-resonance, the
+        two-mass shape divided out (identify.py); (estimate, True when the band was wide
+        enough: at least 15 Hz above the lowest frequency measured)."""
+        anti = [r.anti_freq_hz for r in resonances if r.anti_freq_hz]
+        top = min(0.7 * min(anti), 400.0) if anti else min(400.0, 0.05 * drive.rate_hz)
+        lo = 2.0 * CHIRP_F0_HZ
+        if top < lo + 15.0:
+            return rough, False
+        try:
+            j = inertia_from_frf(
+                frf, (lo, top), current_loop_hz=drive.current_loop_hz, resonances=resonances
+            )
+        except ValueError:
+            return rough, False
+        return j, True
+
+    def _move_profile(
+        self, drive: _Drive, inertia: float, resonances: list[Resonance], distance: float
+    ) -> tuple[float, float]:
+        """(velocity, acceleration) in counts/s and counts/s² for identification moves."""
+        acc_rad = MOVE_TORQUE_SHARE * drive.limit_torque / inertia
+        anti = [r.anti_freq_hz for r in resonances if r.anti_freq_hz]
+        if anti:
+            # Accelerate for MOVE_AR_PERIODS periods of the lowest anti-resonance or longer:
+            # t_acc = sqrt(d / a) for a triangular move.
+            f_ar = min(anti)
+            d_rad = distance * 2.0 * math.pi / drive.counts_per_rev
+            acc_rad = min(acc_rad, d_rad * (f_ar / MOVE_AR_PERIODS) ** 2)
+        acc = acc_rad * drive.counts_per_rev / (2.0 * math.pi)
+        # A cruise at constant speed between the ramps: Coulomb and viscous friction show
+        # there, apart from the inertia (accelerating) and the standstill (stick) samples.
+        velocity = min(0.6 * math.sqrt(acc * distance), 0.95 * drive.max_velocity)
+        return velocity, acc
+
+    async def _identify(
+        self, drive: _Drive, j_frf: float, resonances: list[Resonance]
+    ) -> InertiaEstimate:
+        distance = min(0.2 * drive.counts_per_rev, 0.4 * drive.window_counts)
+        inertia = j_frf
+        est: InertiaEstimate | None = None
+        anti = [r.anti_freq_hz for r in resonances if r.anti_freq_hz]
+        window_s = max(0.0005, 4.0 / min(anti)) if anti else 0.0005
+        for _attempt in range(2):
+            velocity, acc = self._move_profile(drive, inertia, resonances, distance)
+            rec, _spans = await self._run_moves(
+                drive, [drive.start_counts + distance, drive.start_counts] * 3, velocity, acc, 0.01
+            )
+            rad = 2.0 * math.pi / drive.counts_per_rev
+            # The recorded torque command is the one reaching the current loop on that tick
+            # (the compute delay is behind it); the torque at the shaft is that through the
+            # current loop, a first-order lag at its bandwidth.
+            torque = rec[self._signal(SIG_TORQUE)]
+            if drive.current_loop_hz:
+                alpha = 1.0 - math.exp(-2.0 * math.pi * drive.current_loop_hz / rec.rate_hz)
+                torque = lfilter([alpha], [1.0, alpha - 1.0], torque)
+            try:
+                est = identify_rigid(
+                    rec.rate_hz, torque, position_rad=rec[POSITION] * rad, window_s=window_s
+                )
+            except ValueError as exc:
+                raise TuningFailed(f"the test moves give no inertia: {exc}") from exc
+            log.debug("identification pass: sized for J=%.4g, got %s", inertia, est)
+            if not est.inertia > 0.0:
+                raise TuningFailed("the test moves give a negative inertia")
+            if 0.7 <= est.inertia / inertia <= 1.4:
+                break
+            inertia = est.inertia  # The moves were sized for another inertia: once more.
+        assert est is not None
+        return est
+
+    def _verify_profile(self, drive: _Drive, inertia: float) -> tuple[float, float, float]:
+        """(distance, velocity, acceleration) of the verification move, the same before and
+        after: a quarter revolution (or less in a small window) at a third of the limit."""
+        distance = min(VERIFY_REV * drive.counts_per_rev, 0.5 * drive.window_counts)
+        acc = (drive.limit_torque / 3.0) / inertia * drive.counts_per_rev / (2.0 * math.pi)
+        velocity = min(0.8 * math.sqrt(acc * distance), 0.95 * drive.max_velocity)
+        return distance, velocity, acc
+
+    async def _verify_move(
+        self, drive: _Drive, profile: tuple[float, float, float]
+    ) -> dict[str, Any]:
+        distance, velocity, acc = profile
+        start = float(drive.start_counts)
+        rec, spans = await self._run_moves(
+            drive, [start + distance], velocity, acc, VERIFY_SETTLE_S
+        )
+        back, _ = await self._run_moves(drive, [start], velocity, acc, 0.05, settle=True)
+        del back
+        pos = rec[POSITION]
+        t = rec.t
+        t_end = spans[0][1]
+        m = move_metrics(t, start + distance, pos, t_end)
+        keep = max(1, len(t) // 800)  # The page draws about 800 points.
+        return {
+            "t_s": [round(float(x), 6) for x in t[::keep]],
+            "position": [float(x - start) for x in pos[::keep]],
+            "target": distance,
+            "unit": "counts",
+            "metrics": {
+                "settling_10_s": m.settling_10_s,
+                "settling_100_s": m.settling_100_s,
+                "overshoot_counts": m.overshoot_counts,
+                "following_error_rms_counts": m.fe_rms_counts,
+            },
+        }
+
+    # ------------------------------------------------------------------ the result
+
+    def _result(
+        self,
+        drive: _Drive,
+        before: ServoGains,
+        design: Any,
+        est: InertiaEstimate,
+        resonances: list[Resonance],
+        model: PlantModel,
+        frf: Frf,
+        step_before: dict[str, Any],
+        step_after: dict[str, Any],
+    ) -> dict[str, Any]:
+        new: ServoGains = design.gains
+        gains = []
+        b, a = before.as_dict(), new.as_dict()
+        for name, g in self.spec.gains.items():
+            gains.append(
+                {
+                    "name": name,
+                    "object": g.object,
+                    "unit": g.unit,
+                    "before": b[name],
+                    "after": a[name],
+                    "raw_before": b[name] / g.scale,
+                    "raw_after": a[name] / g.scale,
+                }
+            )
+        loop = LoopModel(model, drive.rate_hz, new)
+        w = 2.0 * math.pi * frf.f_hz
+        g_model = model.response(w)
+        jm = model.motor_inertia
+        return {
+            "kind": "gains",
+            "status": "done",
+            "error": None,
+            "mode": self.request.mode,
+            "identified": {
+                "inertia_kgm2": est.inertia,
+                "inertia_ratio": (est.inertia - jm) / jm if model.resonance_hz else None,
+                "coulomb_nm": est.coulomb,
+                "viscous_nms": est.viscous,
+                "gravity_nm": est.gravity,
+                "resonances": [
+                    {"freq_hz": r.freq_hz, "anti_freq_hz": r.anti_freq_hz, "peak_db": r.peak_db}
+                    for r in resonances
+                ],
+            },
+            "bode": {
+                "freq_hz": _round(frf.f_hz),
+                "measured_mag_db": _round(20.0 * np.log10(np.abs(frf.g))),
+                "measured_phase_deg": _round(np.degrees(np.angle(frf.g))),
+                "coherence": _round(frf.coherence),
+                "model_mag_db": _round(20.0 * np.log10(np.abs(g_model))),
+                "model_phase_deg": _round(np.degrees(np.angle(g_model))),
+            },
+            "margins": {
+                "phase_margin_deg": design.margins.phase_margin_deg,
+                "gain_margin_db": design.margins.gain_margin_db,
+                "crossover_hz": design.margins.crossover_hz,
+                "bandwidth_hz": design.bandwidth_hz,
+            },
+            "notes": list(design.notes),
+            "gains": gains,
+            "step": {"before": step_before, "after": step_after},
+            "axis_time_s": self.axis_time_s,
+            "excursion_rev": self.excursion[1] - self.excursion[0],
+            "peak_torque_pct": 100.0 * self.peak_torque / drive.rated_torque,
+            "loop_rate_hz": drive.rate_hz,
+            "counts_per_rev": drive.counts_per_rev,
+            "applied": True,
+            "stored": False,
+            "_loop": loop,
+        }
+
+
+def json_safe(x: Any) -> Any:
+    """The result as JSON allows it: a figure that is not finite (a move that did not settle
+    in the observation window, a following error without a demand) becomes null."""
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, np.floating):
+        return json_safe(float(x))
+    if isinstance(x, dict):
+        return {k: json_safe(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [json_safe(v) for v in x]
+    return x
+
+
+def _round(x: np.ndarray) -> list[float]:
+    return [round(float(v), 4) if math.isfinite(float(v)) else 0.0 for v in x]
+
+
+_POOL: ProcessPoolExecutor | None = None
+
+
+def _design_pool() -> ProcessPoolExecutor:
+    """One worker process for the gain search, started on first use (spawned, not forked:
+    the server has bus threads a fork would copy in whatever state they are)."""
+    global _POOL
+    if _POOL is None:
+        _POOL = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+    return _POOL
+
+
+async def _quietly(aw: Any) -> None:
+    """Best effort (restoring after a failure): a second error must not hide the first."""
+    try:
+        await aw
+    except Exception as exc:
+        log.warning("tuning: restoring failed: %s", exc)
+
+
+async def run_own_tuning(
+    session: Session, request: OwnTuningRequest, progress: Progress, client: str | None = None
+) -> dict[str, Any]:
+    """Tune the drive of ``session``; returns the TuningResult JSON (docs/tuning.md)."""
+    result = await OwnTuning(SessionIO(session, client), request, progress).run()
+    result.pop("_loop", None)
+    return dict(json_safe(result))

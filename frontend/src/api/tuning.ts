@@ -1,0 +1,209 @@
+/**
+ * REST client and shapes of the tuning routes (docs/tuning.md "Service and API", docs/api.md
+ * "Tuning"): `/api/v1/sessions/{sid}/tuning...`.
+ *
+ * Requests carry the same headers as the shared client (token, this tab's client id, which the
+ * server needs for control ownership and the dead-man), and failures become {@link ApiError}s
+ * with the server's message and hint.
+ */
+import { getToken } from './auth';
+import { API_BASE, ApiError, normaliseErrorBody } from './client';
+import type { StoreResult } from './types';
+import { CLIENT_HEADER, tabClientId } from '../lib/backupClientId';
+
+export type TuningKind = 'builtin' | 'gains' | 'none';
+export type TuningMode = 'low' | 'basic' | 'high';
+export type JobState = 'running' | 'done' | 'failed' | 'stopped';
+
+/** A decoded result code: the drive's (builtin: P11604 with the profile's table) or servodesk's reason. */
+export interface TuningError {
+  code: number | null;
+  code_hex: string | null;
+  name: string;
+  cause: string | null;
+  remedy: string | null;
+  section?: string | null;
+}
+
+export interface TuningJob {
+  id: string;
+  session: string;
+  kind: TuningKind;
+  mode: string;
+  state: JobState;
+  progress: number;
+  step: string;
+  owner: string;
+  started: number;
+  ended: number | null;
+  message: string;
+  error: TuningError | null;
+  travel_window_rev: number;
+  torque_limit_pct: number;
+}
+
+export interface GainRow {
+  name: string;
+  label: string;
+  object: string;
+  symbol: string | null;
+  unit: string | null;
+  raw_unit: string | null;
+  scale: number;
+  value: number | null;
+  raw: number | string | null;
+  default: number | string | null;
+  error: string | null;
+}
+
+export interface TuningInfo {
+  session: string;
+  profile_id: string;
+  profile_name: string;
+  kind: TuningKind;
+  reason: string;
+  applies: { page: string; group: string; label: string }[];
+  modes: TuningMode[];
+  gains: GainRow[];
+  loop_rate_hz: number | null;
+  defaults: { mode: TuningMode; travel_window_rev: number; torque_limit_pct: number };
+  limits: { travel_window_rev: { min: number; max: number }; torque_limit_pct: { min: number; max: number } };
+  position: {
+    actual: number | null;
+    raw_unit: string | null;
+    unit: string | null;
+    scale: number;
+    units_per_rev: number;
+    units_per_rev_source: string;
+    min: number | null;
+    max: number | null;
+    limits_source: string | null;
+  };
+  torque_limit: { object: string | null; present_pct: number | null };
+  state: string;
+  step_source: 'recorder' | 'sdo' | null;
+  undo: { before: boolean; defaults: boolean; note: string | null };
+  job: TuningJob | null;
+  result_available: boolean;
+}
+
+export interface StepMetrics {
+  settling_s: number | null;
+  overshoot: number | null;
+  following_error_rms: number | null;
+}
+
+export interface StepResponse {
+  t_s: number[];
+  position: number[];
+  target: number;
+  unit: string;
+  units_per_rev?: number;
+  source?: 'recorder' | 'sdo';
+  rate_hz?: number;
+  note?: string;
+  metrics: StepMetrics;
+}
+
+export interface Bode {
+  freq_hz: number[];
+  measured_mag_db: number[];
+  measured_phase_deg: number[];
+  coherence?: number[];
+  model_mag_db?: number[];
+  model_phase_deg?: number[];
+}
+
+export interface ResultGain {
+  name: string;
+  label?: string;
+  object: string;
+  symbol?: string | null;
+  unit: string | null;
+  raw_unit?: string | null;
+  before: number | null;
+  after: number | null;
+  raw_before: number | string | null;
+  raw_after: number | string | null;
+}
+
+export interface Identified {
+  inertia_kgm2: number | null;
+  inertia_ratio: number | null;
+  coulomb_nm: number | null;
+  viscous_nms: number | null;
+  gravity_nm: number | null;
+  resonances: { freq_hz: number; anti_freq_hz: number | null; peak_db: number | null }[];
+}
+
+export interface TuningResult {
+  kind: TuningKind;
+  status: JobState;
+  error: TuningError | null;
+  drive_code?: TuningError | null;
+  mode: string;
+  identified: Identified | null;
+  bode: Bode | null;
+  margins: { phase_margin_deg: number | null; gain_margin_db: number | null; crossover_hz: number | null; bandwidth_hz: number | null } | null;
+  gains: ResultGain[];
+  step: { before: StepResponse | null; after: StepResponse | null } | null;
+  axis_time_s: number | null;
+  excursion_rev: number | null;
+  peak_torque_pct: number | null;
+  applied: boolean;
+  stored: boolean;
+  notes?: string[];
+  undone?: 'before' | 'defaults';
+}
+
+export interface StartRequest {
+  mode: TuningMode;
+  travel_window_rev: number;
+  torque_limit_pct: number;
+}
+
+export interface UndoResult {
+  session: string;
+  to: 'before' | 'defaults';
+  gains: GainRow[];
+  stored: boolean;
+  note: string;
+}
+
+async function request<T>(action: string, method: string, path: string, body?: unknown): Promise<T> {
+  const headers: Record<string, string> = { Accept: 'application/json', [CLIENT_HEADER]: tabClientId() };
+  const token = getToken();
+  if (token) headers.Authorization = `Bearer ${token}`;
+  if (body !== undefined) headers['Content-Type'] = 'application/json';
+  let res: Response;
+  try {
+    res = await fetch(API_BASE + path, { method, headers, body: body === undefined ? null : JSON.stringify(body) });
+  } catch {
+    throw new ApiError(action, 0, {
+      error: 'NetworkError',
+      message: 'the servodesk server did not answer',
+      hint: 'check that "servodesk serve" is still running and reachable from this browser',
+    });
+  }
+  const text = await res.text();
+  let payload: unknown = text;
+  try {
+    payload = text ? JSON.parse(text) : null;
+  } catch {
+    // Keep the text: normaliseErrorBody shows it when it is short.
+  }
+  if (!res.ok) throw new ApiError(action, res.status, normaliseErrorBody(res.status, res.statusText, payload));
+  return payload as T;
+}
+
+const base = (sid: string) => `/sessions/${encodeURIComponent(sid)}/tuning`;
+
+export const tuningApi = {
+  info: (sid: string) => request<TuningInfo>('Read the tuning', 'GET', base(sid)),
+  start: (sid: string, body: StartRequest) => request<TuningJob>('Start the tuning', 'POST', `${base(sid)}/start`, body),
+  stop: (sid: string) => request<TuningJob>('Stop the tuning', 'POST', `${base(sid)}/stop`, {}),
+  result: (sid: string) => request<TuningResult>('Read the tuning result', 'GET', `${base(sid)}/result`),
+  undo: (sid: string, to: 'before' | 'defaults') =>
+    request<UndoResult>(to === 'before' ? 'Undo to the gains before tuning' : 'Undo to the default gains', 'POST', `${base(sid)}/undo`, { to }),
+  store: (sid: string) => request<StoreResult & { session: string }>('Store to EEPROM', 'POST', `${base(sid)}/store`, {}),
+};

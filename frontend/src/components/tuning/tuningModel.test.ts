@@ -1,0 +1,142 @@
+import { describe, expect, it } from 'vitest';
+import type { Bode, ResultGain, StepResponse, TuningInfo } from '../../api/tuning';
+import {
+  bodeSeries,
+  changeText,
+  checkInputs,
+  fmtNumber,
+  fmtRaw,
+  gainLines,
+  jobLabel,
+  largestWindow,
+  parseDecimal,
+  stepSeries,
+  windowInUnits,
+  withUnit,
+} from './tuningModel';
+
+const INFO: Pick<TuningInfo, 'limits' | 'position'> = {
+  limits: { travel_window_rev: { min: 0, max: 100 }, torque_limit_pct: { min: 0, max: 300 } },
+  position: {
+    actual: 1000,
+    raw_unit: 'pos units',
+    unit: 'pos units',
+    scale: 1,
+    units_per_rev: 131072,
+    units_per_rev_source: 'simulation',
+    min: null,
+    max: null,
+    limits_source: null,
+  },
+};
+
+describe('safety inputs', () => {
+  it('parses decimals, also with a comma, and refuses the rest', () => {
+    expect(parseDecimal('0.5')).toBe(0.5);
+    expect(parseDecimal(' 0,25 ')).toBe(0.25);
+    expect(parseDecimal('.5')).toBe(0.5);
+    expect(parseDecimal('1e1')).toBe(10);
+    expect(parseDecimal('')).toBeNull();
+    expect(parseDecimal('abc')).toBeNull();
+    expect(parseDecimal('1.2.3')).toBeNull();
+  });
+
+  it('centres the window on the position, in position units', () => {
+    expect(windowInUnits(0.5, 131072, 1000)).toEqual({ half: 32768, lo: 1000 - 32768, hi: 1000 + 32768 });
+    expect(windowInUnits(1e-9, 131072, 0).half).toBe(1);
+  });
+
+  it('names the largest window the software limits allow', () => {
+    expect(largestWindow(0, 131072, null, null)).toBeNull();
+    expect(largestWindow(0, 131072, -13107, 13107)).toBeCloseTo(0.2, 4);
+    expect(largestWindow(10000, 131072, -13107, 13107)).toBeCloseTo((2 * 3107) / 131072, 6);
+    expect(largestWindow(20000, 131072, -13107, 13107)).toBe(0);
+  });
+
+  it('checks the inputs as the server does', () => {
+    const ok = checkInputs({ mode: 'basic', travel: '0.5', torque: '100' }, INFO);
+    expect(ok.ok).toBe(true);
+    expect(ok.travelRev).toBe(0.5);
+    expect(ok.torquePct).toBe(100);
+    const bad = checkInputs({ mode: 'basic', travel: '0', torque: '400' }, INFO);
+    expect(bad.ok).toBe(false);
+    expect(bad.travel).toContain('more than 0');
+    expect(bad.torque).toContain('at most 300');
+    const junk = checkInputs({ mode: 'basic', travel: 'x', torque: '' }, INFO);
+    expect(junk.travel).toContain('revolutions');
+    expect(junk.torque).toContain('%');
+  });
+
+  it('refuses a window beyond the software limits and says what fits', () => {
+    const limited = { ...INFO, position: { ...INFO.position, actual: 0, min: -13107, max: 13107 } };
+    const c = checkInputs({ mode: 'low', travel: '0.5', torque: '50' }, limited);
+    expect(c.ok).toBe(false);
+    expect(c.window).toContain('at most 0.199 rev fits');
+    expect(checkInputs({ mode: 'low', travel: '0.1', torque: '50' }, limited).ok).toBe(true);
+  });
+});
+
+describe('gain table', () => {
+  const gains: ResultGain[] = [
+    { name: 'inertia_ratio', label: 'PB06 Load to motor inertia ratio', object: '0x2086:00', unit: 'times', raw_unit: '0.01 times', before: 7, after: 2.89, raw_before: 700, raw_after: 289 },
+    { name: 'speed_integral', object: '0x208A:00', unit: 'ms', before: 33.7, after: 33.7, raw_before: 337, raw_after: 337 },
+    { name: 'x', object: '0x2100:00', unit: null, before: null, after: 1, raw_before: null, raw_after: 1 },
+  ];
+
+  it('shows old -> new with units and the raw values beside them', () => {
+    const [a, b, c] = gainLines(gains);
+    expect(a).toMatchObject({ label: 'PB06 Load to motor inertia ratio', before: '7', after: '2.89', rawBefore: '700', rawAfter: '289', unit: 'times', rawUnit: '0.01 times', changed: true });
+    expect(changeText(a!.change)).toBe('-59 %');
+    expect(b).toMatchObject({ label: 'speed_integral', changed: false });
+    expect(changeText(b!.change)).toBe('±0 %');
+    expect(c).toMatchObject({ before: '—', rawBefore: '—', change: null });
+    expect(changeText(c!.change)).toBe('');
+  });
+
+  it('formats numbers for cells', () => {
+    expect(fmtNumber(118.80000000000001)).toBe('118.8');
+    expect(fmtNumber(1.48e-4)).toBe('1.480e-4');
+    expect(fmtNumber(null)).toBe('—');
+    expect(withUnit(0.0465, 'N m s/rad')).toBe('0.0465 N m s/rad');
+    expect(withUnit(1, '1')).toBe('1');
+    expect(fmtRaw(0.04650000110268593)).toBe('0.0465');
+    expect(fmtRaw(700)).toBe('700');
+    expect(fmtRaw(null)).toBe('—');
+    expect(fmtRaw('0a0b')).toBe('0a0b');
+  });
+
+  it('shows REAL32 raw values to their precision and no unit for dimensionless gains', () => {
+    const [line] = gainLines([{ name: 'vel_ff', object: '0x2103:00', unit: '1', before: 1, after: 0.8, raw_before: 1, raw_after: 0.800000011920929 }]);
+    expect(line).toMatchObject({ unit: '', rawAfter: '0.8' });
+  });
+
+  it('labels a job', () => {
+    expect(jobLabel({ state: 'running', progress: 0.424, step: 'drive tuning 40 %' })).toBe('42 % · drive tuning 40 %');
+    expect(jobLabel({ state: 'failed', progress: 0.5, step: 'failed' })).toBe('failed · failed');
+  });
+});
+
+describe('plots', () => {
+  const step = (t: number[], p: number[]): StepResponse => ({ t_s: t, position: p, target: 10, unit: 'inc', metrics: { settling_s: null, overshoot: null, following_error_rms: null } });
+
+  it('overlays two step responses on one time axis in ms', () => {
+    const d = stepSeries(step([0, 0.001, 0.002], [0, 5, 10]), step([0, 0.002, 0.004], [0, 9, 10]));
+    expect(d[0]).toEqual([0, 1, 2, 4]);
+    expect(d[1]).toEqual([0, 5, 10, null]);
+    expect(d[2]).toEqual([0, null, 9, 10]);
+    expect(d[3]).toEqual([10, 10, 10, 10]);
+  });
+
+  it('draws a lone step response', () => {
+    const d = stepSeries(step([0, 0.001], [0, 10]), null);
+    expect(d[2]).toEqual([null, null]);
+  });
+
+  it('keeps positive frequencies for the log axis and the model where it exists', () => {
+    const b: Bode = { freq_hz: [0, 10, 100], measured_mag_db: [1, 2, 3], measured_phase_deg: [-1, -2, -3], model_mag_db: [5, 6, Number.NaN] };
+    const s = bodeSeries(b);
+    expect(s.freq).toEqual([10, 100]);
+    expect(s.mag).toEqual([[2, 3], [6, null]]);
+    expect(s.phase).toEqual([[-2, -3], [null, null]]);
+  });
+});

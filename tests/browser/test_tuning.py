@@ -1,0 +1,123 @@
+"""The Tuning page against the real backend and the simulated drives (``serve --sim``).
+
+What a commissioning engineer relies on: on the LECSN-T twin the page says the drive tunes
+itself, takes the travel window, torque limit and mode, runs the drive's one-touch tuning with
+a progress bar to 100 % while the page keeps the dead-man alive, shows the gains old -> new
+and the step responses, and Undo returns the gains (the drive's P11603). On the CTMM04x the
+page says plainly that there is nothing to tune and what applies instead.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+from playwright.sync_api import Page, expect
+
+pytestmark = pytest.mark.browser
+
+LECSN = "lecsn-t-5"
+CTMM = "ctmm04x-4"
+PB_DEFAULTS = [700, 150, 370, 823, 337]
+
+
+def client_id(page: Page) -> str:
+    cid = page.evaluate("() => sessionStorage.getItem('servodesk.client')")
+    assert isinstance(cid, str) and cid, "the UI did not make a client id"
+    return cid
+
+
+def tuning_info(page: Page, sid: str) -> dict[str, Any]:
+    r = page.request.get(f"/api/v1/sessions/{sid}/tuning")
+    assert r.ok, r.text()
+    body: dict[str, Any] = r.json()
+    return body
+
+
+@pytest.fixture
+def lecsn_page(page: Page) -> Iterator[Page]:
+    page.goto(f"/#/tuning/{LECSN}")
+    expect(page.get_by_test_id("tuning-page")).to_have_attribute("data-kind", "builtin")
+    try:
+        yield page
+    finally:
+        cid = client_id(page)
+        headers = {"X-Servodesk-Client": cid, "Content-Type": "application/json"}
+        page.request.post(f"/api/v1/sessions/{LECSN}/tuning/stop", data="{}", headers=headers)
+        page.request.post(
+            f"/api/v1/sessions/{LECSN}/state", data='{"command":"disable"}', headers=headers
+        )
+        page.request.post(
+            f"/api/v1/sessions/{LECSN}/control", data='{"action":"release"}', headers=headers
+        )
+
+
+def test_lecsn_one_touch_tuning_from_the_page_then_undo(lecsn_page: Page) -> None:
+    page = lecsn_page
+    kind = page.get_by_test_id("tuning-kind-text")
+    expect(kind).to_contain_text("one-touch tuning")
+    expect(page.get_by_test_id("tuning-present-gains")).to_contain_text("PB06")
+    # Nothing can start before control, servo on and the confirmation.
+    start = page.get_by_test_id("tuning-start")
+    expect(start).to_be_disabled()
+    page.get_by_test_id("control-take").click()
+    expect(page.get_by_test_id("control-owner")).to_have_attribute("data-you", "true")
+    page.get_by_test_id("servo-on").click()
+    expect(page.get_by_test_id("servo-on")).to_be_disabled(timeout=10_000)  # Enabled now.
+    # Safety inputs: the window is shown in position units too.
+    page.get_by_test_id("tuning-travel").fill("0.25")
+    expect(page.get_by_test_id("tuning-window-units")).to_contain_text("±16384")
+    page.get_by_test_id("tuning-mode-basic").check()
+    expect(start).to_be_disabled()
+    page.get_by_test_id("tuning-confirm").check()
+    expect(start).to_be_enabled()
+    start.click()
+
+    # Running: Stop is on screen and the page sends the dead-man heartbeat.
+    expect(page.get_by_test_id("tuning-stop")).to_be_visible()
+    expect(page.get_by_test_id("heartbeat-indicator")).to_be_visible()
+    expect(page.get_by_test_id("tuning-step-text")).to_contain_text("drive tuning", timeout=15_000)
+    progress = page.get_by_test_id("tuning-progress")
+    expect(progress).to_have_attribute("aria-valuenow", "100", timeout=90_000)
+    expect(page.get_by_test_id("tuning-job")).to_have_attribute("data-state", "done")
+    expect(page.get_by_test_id("tuning-stop")).to_have_count(0)
+    expect(page.get_by_test_id("heartbeat-indicator")).to_have_count(0, timeout=5_000)
+
+    # The result: finished normally, gains old -> new with raw values, step responses.
+    status = page.get_by_test_id("tuning-result-status")
+    expect(status).to_have_attribute("data-status", "done")
+    expect(status).to_contain_text("finished normally")
+    gains = page.get_by_test_id("tuning-gains")
+    expect(gains).to_contain_text("PB06 Load to motor inertia ratio")
+    expect(gains.get_by_test_id("gain-inertia_ratio")).to_contain_text("700 →")
+    expect(page.get_by_test_id("tuning-step-plot").locator("canvas")).to_have_count(1)
+    expect(page.get_by_test_id("tuning-step-metrics")).to_contain_text("recorder")
+    tuned = [g["raw"] for g in tuning_info(page, LECSN)["gains"]]
+    assert tuned != PB_DEFAULTS, tuned
+
+    # Undo, after a confirmation: the drive returns the gains before tuning (P11603 = 0001h).
+    page.get_by_test_id("tuning-undo-before").click()
+    dialog = page.get_by_test_id("tuning-confirm-dialog")
+    expect(dialog).to_contain_text("before the last tuning")
+    page.get_by_test_id("tuning-confirm-dialog-confirm").click()
+    expect(page.get_by_test_id("tuning-undo-note")).to_contain_text("EEP-ROM")
+    expect(status).to_contain_text("Undone")
+    assert [g["raw"] for g in tuning_info(page, LECSN)["gains"]] == PB_DEFAULTS
+
+
+def test_ctmm04x_says_there_is_nothing_to_tune(page: Page) -> None:
+    page.goto(f"/#/tuning/{CTMM}")
+    root = page.get_by_test_id("tuning-page")
+    expect(root).to_have_attribute("data-kind", "none")
+    text = page.get_by_test_id("tuning-kind-text")
+    expect(text).to_contain_text("Nothing to tune")
+    expect(text).to_contain_text("pulse trains to external drives")
+    heading = page.get_by_test_id("tuning-kind")
+    expect(heading).to_contain_text("What this drive can do: Nothing to tune")
+    applies = page.get_by_test_id("tuning-applies")
+    expect(applies).to_contain_text("Pulse output")
+    expect(applies.locator("a").first).to_have_attribute("href", f"#/parameters/{CTMM}")
+    # No inputs, no start: there is nothing to run.
+    expect(page.get_by_test_id("tuning-start")).to_have_count(0)
+    expect(page.get_by_test_id("tuning-inputs")).to_have_count(0)
