@@ -54,10 +54,14 @@ def test_rigid_axis_inertia_margins_and_settling() -> None:
     assert m["settling_10_s"] < 0.02  # The untuned axis takes far longer (below).
     assert result["step"]["after"]["metrics"]["settling_100_s"] < 0.05
     before = result["step"]["before"]["metrics"]["settling_100_s"]
-    assert not math.isfinite(before) or before > result["step"]["after"]["metrics"]["settling_100_s"]
+    assert (
+        not math.isfinite(before) or before > result["step"]["after"]["metrics"]["settling_100_s"]
+    )
     assert result["axis_time_s"] <= 5.0 and result["excursion_rev"] <= 1.0
     # Limits and the mode are back as they were (the torque limit was the user's meanwhile).
-    assert drive.read(0x6072, 0) == 3000 and drive.read(0x6065, 0) == build_drive(spec).read(0x6065, 0)
+    assert drive.read(0x6072, 0) == 3000 and drive.read(0x6065, 0) == build_drive(spec).read(
+        0x6065, 0
+    )
 
 
 def test_resonance_found_and_notched() -> None:

@@ -417,6 +417,9 @@ class OwnTuning:
         """An absolute profile-position move (CiA 402-2 §6.5: new set-point on the rising edge
         of bit 4, change immediately), checked against the travel window first."""
         self._within(drive, target)
+        # UNSIGNED32 objects: a wild estimate must not become a refused write.
+        velocity = min(velocity, drive.max_velocity, 0xFFFFFFFF)
+        acc = min(acc, 0xFFFFFFFF)
         await self.io.write(PROFILE_VELOCITY, max(1, round(velocity)))
         await self.io.write(PROFILE_ACC, max(1, round(acc)))
         await self.io.write(PROFILE_DEC, max(1, round(acc)))
