@@ -1594,15 +1594,7 @@ class SimulatedDrive:
         limit = self._c[K_MAX_TORQUE] * 0.001 * self._rated
         if kind == _TORQUE:
             self._fe = 0.0
-            tgt = self._c[K_TARGET_TORQUE] * 0.001 * self._rated
-            # cst applies the set-point at once; 6087h shapes profile torque only.
-            slope = self._c[K_TORQUE_SLOPE] if self._mode == 4 else 0
-            if slope:
-                step = slope * 0.001 * self._rated * self._T
-                d = tgt - self._tq_demand
-                self._tq_demand += max(-step, min(step, d))
-            else:
-                self._tq_demand = tgt
+            self._torque_demand_step()
             t = self._tq_demand
             # Speed limit (607Fh or the simulation's maximum) so a free motor cannot run away.
             vmax = float(self._c[K_MAX_PROFILE_VEL]) or self._vmax_sim
@@ -1738,15 +1730,7 @@ class SimulatedDrive:
         kind = self._kind
         if kind == _TORQUE:
             self._fe = 0.0
-            tgt = self._c[K_TARGET_TORQUE] * 0.001 * self._rated
-            # cst applies the set-point at once; 6087h shapes profile torque only.
-            slope = self._c[K_TORQUE_SLOPE] if self._mode == 4 else 0
-            if slope:
-                step = slope * 0.001 * self._rated * self._T
-                d = tgt - self._tq_demand
-                self._tq_demand += max(-step, min(step, d))
-            else:
-                self._tq_demand = tgt
+            self._torque_demand_step()
             # Speed limit (607Fh or the simulation's maximum) so a free motor cannot run away.
             vmax = float(self._c[K_MAX_PROFILE_VEL]) or self._vmax_sim
             self._srv_vlim = vmax / self._counts_per_rad
@@ -1830,6 +1814,18 @@ class SimulatedDrive:
         self._sub_k = k
         for hook in self._substep_hooks:
             hook()
+
+    def _torque_demand_step(self) -> None:
+        """One cycle of the torque demand toward 6071h: cst applies the set-point at once;
+        6087h (torque slope) shapes profile torque only."""
+        tgt = self._c[K_TARGET_TORQUE] * 0.001 * self._rated
+        slope = self._c[K_TORQUE_SLOPE] if self._mode == 4 else 0
+        if slope:
+            step = slope * 0.001 * self._rated * self._T
+            d = tgt - self._tq_demand
+            self._tq_demand += max(-step, min(step, d))
+        else:
+            self._tq_demand = tgt
 
     def _monitor(self, p_act: int, v_act: float) -> None:
         T = self._T
