@@ -290,3 +290,35 @@ async def test_a_frame_the_adapter_refuses_is_a_link_error(
             await link.read(A(0x1000))
     assert link.failures == failures + 1
     assert await link.read(A(0x1000)) == bytes.fromhex("92010200")
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="uvloop is not on Windows")
+def test_time_outs_on_uvloop_even_when_the_timer_is_re_armed_late(
+    sim: SimulatedBus, channel: str
+) -> None:
+    """servodesk serve runs on uvloop, whose call_at of a time already past gives a handle
+    without when(): the watchdog must not depend on it (it once raised in the timer callback,
+    the request then waited forever: a session opened on an absent node hung the API)."""
+    import uvloop
+
+    async def main() -> None:
+        link = CanopenLink(
+            LinkParams(interface="virtual", channel=channel, node_id=42, timeout=0.05)
+        )
+        await link.open()
+        try:
+            loop = asyncio.get_running_loop()
+            # Re-armed for a deadline the loop has already passed (a late timer on a busy
+            # machine): the callback then gets a plain Handle.
+            link._watchdog_at = loop.time() - 1.0
+            link._watchdog = loop.call_at(loop.time() - 0.5, link._on_watchdog)
+            for _ in range(3):
+                t0 = time.monotonic()
+                with pytest.raises(LinkTimeoutError):
+                    await link.read(A(0x1000))
+                assert time.monotonic() - t0 < 1.0
+        finally:
+            await link.close()
+
+    with asyncio.Runner(loop_factory=uvloop.new_event_loop) as runner:
+        runner.run(asyncio.wait_for(main(), 10.0))

@@ -219,7 +219,10 @@ class CanopenLink(DriveLink):
         self._node: canopen.RemoteNode | None = None
         self._waiter: asyncio.Future[bytes] | None = None
         self._doorbell: _Doorbell | None = None
-        self._watchdog: asyncio.TimerHandle | None = None
+        self._watchdog: asyncio.Handle | None = None
+        #: When the armed watchdog fires (loop time). Kept here, not read from the handle:
+        #: uvloop's call_at of a time already past returns a plain Handle, without when().
+        self._watchdog_at = 0.0
         self._deadline = 0.0
         self.last_heartbeat: float | None = None
         self.nmt_state: str = "unknown"
@@ -307,9 +310,10 @@ class CanopenLink(DriveLink):
         waiter, loop = self._waiter, self._loop
         if dog is None or waiter is None or waiter.done() or loop is None:
             return
-        if self._deadline <= dog.when():
+        if self._deadline <= self._watchdog_at:
             waiter.set_exception(TimeoutError())
         else:
+            self._watchdog_at = self._deadline
             self._watchdog = loop.call_at(self._deadline, self._on_watchdog)
 
     def _abandon(self) -> None:
@@ -362,9 +366,10 @@ class CanopenLink(DriveLink):
             self._waiter = waiter
             deadline = self._deadline = loop.time() + self.request_timeout
             dog = self._watchdog
-            if dog is None or dog.when() > deadline:
+            if dog is None or self._watchdog_at > deadline:
                 if dog is not None:
                     dog.cancel()
+                self._watchdog_at = deadline
                 self._watchdog = loop.call_at(deadline, self._on_watchdog)
             try:
                 try:
