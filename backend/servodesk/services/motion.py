@@ -1022,12 +1022,15 @@ class MotionService:
         acceleration: int | None = None,
         deceleration: int | None = None,
         timeout: float = 30.0,
+        must_reach: bool = True,
     ) -> int:
         """One absolute profile-position move of a tuning motion; returns the position once
         the drive reports the target reached (statusword bit 10, set-point acknowledge 0).
 
         Raises :class:`DriveStateError` when the motion ended meanwhile (dead-man, stop) or
-        the target is not reached within ``timeout`` seconds.
+        the target is not reached within ``timeout`` seconds; with ``must_reach`` False it
+        returns the position then instead (a drive tuning itself may hunt around the target
+        for a while: the next move must still come).
         """
         axis = self._axis(sid)
         self._still_tuning(axis, motion)
@@ -1065,6 +1068,8 @@ class MotionService:
             if sw & SW_TARGET_REACHED and not sw & SW_SETPOINT_ACK:
                 return await self._read_int(axis.session, POSITION) or 0
             if time.monotonic() > end:
+                if not must_reach:
+                    return await self._read_int(axis.session, POSITION) or 0
                 raise DriveStateError(
                     f"the axis did not reach {target} within {timeout:g} s",
                     hint="check the drive's speed, ramps and torque limit",

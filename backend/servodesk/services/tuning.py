@@ -100,6 +100,8 @@ SPEED_SHARE = 0.8
 #: Time to full speed where servodesk sets the ramps (position units per s² only) [s].
 RAMP_S = 0.1
 #: Pause at each end of the window [s] (the drive sees one move end before the next starts).
+#: The shuttle's longest wait for target reached before the next move [s].
+SHUTTLE_WAIT_S = 3.0
 DWELL_S = 0.25
 #: The step of the step response [rev], at most a quarter of the window.
 STEP_REV = 0.05
@@ -1057,11 +1059,13 @@ class TuningService:
         ends = (run.window[1], run.window[0])
         i = 0
         while True:
-            await self._move(job, run, ends[i % 2])
+            await self._move(job, run, ends[i % 2], must_reach=False)
             i += 1
             await asyncio.sleep(DWELL_S)
 
-    async def _move(self, job: Job, run: _Run, target: int) -> int:
+    async def _move(self, job: Job, run: _Run, target: int, *, must_reach: bool = True) -> int:
+        """One move; ``must_reach`` False (the shuttle): at most SHUTTLE_WAIT_S past its
+        expected end for target reached, then on to the next."""
         assert job.motion is not None
         t0 = time.monotonic()
         pos = await self.motion.tuning_move(
@@ -1071,6 +1075,8 @@ class TuningService:
             velocity=run.velocity,
             acceleration=run.acceleration,
             deceleration=run.acceleration,
+            timeout=30.0 if must_reach else SHUTTLE_WAIT_S,
+            must_reach=must_reach,
         )
         run.axis_time_s += time.monotonic() - t0
         run.excursion = max(run.excursion, abs(pos - run.start))
