@@ -85,6 +85,7 @@ PROFILE_VELOCITY = ObjectAddress(0x6081)
 PROFILE_ACC = ObjectAddress(0x6083)
 PROFILE_DEC = ObjectAddress(0x6084)
 MAX_PROFILE_VELOCITY = ObjectAddress(0x607F)
+FOLLOWING_ERROR = ObjectAddress(0x60F4)
 ENCODER_INCREMENTS = ObjectAddress(0x608F, 1)
 ENCODER_REVOLUTIONS = ObjectAddress(0x608F, 2)
 
@@ -447,6 +448,7 @@ class OwnTuning:
         rest_s: float,
         *,
         settle: bool = False,
+        extra: list[ObjectAddress] | None = None,
     ) -> tuple[Recording, list[tuple[float, float]]]:
         """Moves one after the other, recorded (position, torque command) at the loop rate
         (or a divider that makes the recording fit). Returns the recording and each move's
@@ -464,7 +466,7 @@ class OwnTuning:
         assert rec.spec is not None
         divider = max(1, math.ceil(total * drive.rate_hz / rec.spec.max_depth))
         torque = self._signal(SIG_TORQUE)
-        await rec.configure([POSITION, torque], total, divider)
+        await rec.configure([POSITION, torque, *(extra or [])], total, divider)
         await rec.start()
         t0 = self.io.now()
         spans: list[tuple[float, float]] = []
@@ -656,8 +658,9 @@ class OwnTuning:
     ) -> dict[str, Any]:
         distance, velocity, acc = profile
         start = float(drive.start_counts)
+        fe = [FOLLOWING_ERROR] if await self._has(FOLLOWING_ERROR) else []
         rec, spans = await self._run_moves(
-            drive, [start + distance], velocity, acc, VERIFY_SETTLE_S
+            drive, [start + distance], velocity, acc, VERIFY_SETTLE_S, extra=fe
         )
         back, _ = await self._run_moves(drive, [start], velocity, acc, 0.05, settle=True)
         del back
@@ -665,6 +668,11 @@ class OwnTuning:
         t = rec.t
         t_end = spans[0][1]
         m = move_metrics(t, start + distance, pos, t_end)
+        fe_rms: float | None = None
+        if fe:
+            # The drive's own following error (60F4h) over the commanded profile.
+            during = rec[FOLLOWING_ERROR][(t >= spans[0][0]) & (t <= t_end)]
+            fe_rms = float(np.sqrt(np.mean(during**2))) if len(during) else None
         keep = max(1, len(t) // 800)  # The page draws about 800 points.
         return {
             "t_s": [round(float(x), 6) for x in t[::keep]],
@@ -672,10 +680,15 @@ class OwnTuning:
             "target": distance,
             "unit": "counts",
             "metrics": {
+                # The page's figures (docs/tuning.md): settling to +-100 counts after the end
+                # of the commanded profile, overshoot as a fraction of the move, the drive's
+                # following error RMS during it [counts].
+                "settling_s": m.settling_100_s,
+                "overshoot": m.overshoot_counts / distance,
+                "following_error_rms": fe_rms,
                 "settling_10_s": m.settling_10_s,
                 "settling_100_s": m.settling_100_s,
                 "overshoot_counts": m.overshoot_counts,
-                "following_error_rms_counts": m.fe_rms_counts,
             },
         }
 
@@ -710,6 +723,8 @@ class OwnTuning:
             )
         loop = LoopModel(model, drive.rate_hz, new)
         w = 2.0 * math.pi * frf.f_hz
+        # The identified mechanics (the measured curve of the twin carries no loop delay: its
+        # 606Ch is the plant's velocity sampled after each step, not a differenced encoder).
         g_model = model.response(w)
         jm = model.motor_inertia
         return {

@@ -7,7 +7,7 @@
 import { useEffect, useRef } from 'react';
 import uPlot from 'uplot';
 import type { Bode, StepResponse } from '../../api/tuning';
-import { bodeSeries, stepSeries } from './tuningModel';
+import { bodeSeries, decadeLabel, stepSeries } from './tuningModel';
 
 const FONT = '11px ui-monospace, "DejaVu Sans Mono", monospace';
 const GRID = { stroke: '#e4e7eb', width: 1 };
@@ -81,7 +81,7 @@ function bodeChart(el: HTMLDivElement, width: number, freq: number[], cols: (num
         { label: 'model', stroke: MODEL, width: 1.5, dash: [5, 3], spanGaps: false },
       ],
       axes: [
-        { stroke: '#555', grid: GRID, font: FONT, values: (_u, t) => t.map((v) => (v >= 1000 ? `${v / 1000}k` : `${v}`)) },
+        { stroke: '#555', grid: GRID, font: FONT, values: (_u, t) => t.map((v) => decadeLabel(v)) },
         { stroke: '#555', grid: GRID, font: FONT, size: 60, label: what === 'mag' ? 'dB' : 'deg', labelFont: FONT },
       ],
     },
@@ -101,3 +101,4 @@ export function BodePlot({ bode }: { bode: Bode }) {
     </div>
   );
 }
+

@@ -3,6 +3,7 @@ import type { Bode, ResultGain, StepResponse, TuningInfo } from '../../api/tunin
 import {
   bodeSeries,
   changeText,
+  decadeLabel,
   checkInputs,
   fmtNumber,
   fmtRaw,
@@ -138,5 +139,13 @@ describe('plots', () => {
     expect(s.freq).toEqual([10, 100]);
     expect(s.mag).toEqual([[2, 3], [6, null]]);
     expect(s.phase).toEqual([[-2, -3], [null, null]]);
+  });
+});
+
+describe('decadeLabel', () => {
+  it('labels decades only and never prints null', () => {
+    expect([1, 10, 100, 1000, 10000].map(decadeLabel)).toEqual(['1', '10', '100', '1k', '10k']);
+    expect([20, 300, 5000].map(decadeLabel)).toEqual(['', '', '']);
+    expect(decadeLabel(null)).toBe('');
   });
 });

@@ -227,3 +227,11 @@ function num(v: number | null | undefined): number | null {
 export function isRunning(job: Pick<TuningJob, 'state'> | null | undefined): boolean {
   return job?.state === 'running';
 }
+
+/** A log-frequency tick's label: decades only (1, 10, 100, 1k, 10k), the rest unlabelled. */
+export function decadeLabel(v: number | null): string {
+  if (v === null || !(v > 0)) return '';
+  const e = Math.log10(v);
+  if (Math.abs(e - Math.round(e)) > 1e-9) return '';
+  return v >= 1000 ? `${v / 1000}k` : `${v}`;
+}
