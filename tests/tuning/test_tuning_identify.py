@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ from servodesk.domain.tuning.identify import (
     identify_rigid,
     inertia_from_frf,
     plant_from_identification,
+    resonance_from_record,
 )
 
 RATE = 16000.0
@@ -215,3 +217,25 @@ def test_plant_from_identification_rigid_and_second_mode() -> None:
     p = plant_from_identification(1e-3, res)
     assert p.resonance_hz == 300.0 and p.inertia_ratio == pytest.approx(3.0)
     assert len(p.extra_modes) == 1 and p.extra_modes[0].freq_hz == 900.0
+
+
+def test_resonance_from_record_sees_a_sharp_low_mode_that_welch_smears() -> None:
+    # R = 3, 100 Hz, damping 0.03: 6 Hz wide at half power. The tuner's one-second PRBS
+    # record averaged in 1/8 s segments (8 Hz bins) makes the mode look several times better
+    # damped than it is; the fit over the whole record sees it as it is.
+    jm, jl, zeta = 3.7e-5, 3 * 3.7e-5, 0.03
+    num, den = _two_mass_tf(jm, jl, 100.0, zeta, 0.0)
+    kp = (jm + jl) * TWO_PI * 15.0
+    r, tau, v_m, _, _ = _closed_loop_run(num, den, kp, 1.0, noise=0.05, seed=11)
+    frf = frequency_response(RATE, r, tau, v_m, nperseg=round(RATE / 8))
+    found = find_resonances(frf, jm + jl, min_freq_hz=20.0)
+    assert len(found) == 1 and found[0].anti_freq_hz is not None
+    welch = found[0]
+    assert welch.damping_estimate > 2.0 * zeta  # The smeared estimate this fixes.
+    fit = resonance_from_record(RATE, r, tau, v_m, welch)
+    assert fit is not None
+    fr, z = fit
+    assert fr == pytest.approx(100.0, rel=0.03)
+    assert z == pytest.approx(zeta, rel=0.35)
+    # Without an anti-resonance (not a two-mass peak) there is nothing to fit.
+    assert resonance_from_record(RATE, r, tau, v_m, replace(welch, anti_freq_hz=None)) is None

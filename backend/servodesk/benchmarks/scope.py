@@ -2,8 +2,9 @@
 
 Three processes, as in a deployment: the simulated drives (each on its own bus: one SYNC
 producer per network, CiA 301 §7.2.5), the servodesk server (uvicorn on 127.0.0.1, the real
-application), and this process with the WebSocket clients (the ``websockets`` package, with
-permessage-deflate as a browser negotiates it). For each source (PDO at 1 ms SYNC, the
+application), and this process with the WebSocket clients (the ``websockets`` package,
+offering permessage-deflate as a browser does; the server declines it, cli/serve.py
+``ws_options``, and the JSON says what was negotiated). For each source (PDO at 1 ms SYNC, the
 drive-side recorder at 4 kHz) the scope gets ``--channels`` objects of each of ``--drives``
 drives, ``--clients`` clients read the stream, and the bench reports:
 
@@ -156,8 +157,17 @@ def sim_child(buses: list[BusSpec], interface: str) -> int:
 
 
 def server_child(buses: list[BusSpec], interface: str, max_channels: int, data_dir: str) -> int:
-    """The servodesk application on uvicorn (127.0.0.1, a free port), sessions opened."""
-    return asyncio.run(_serve(buses, interface, max_channels, data_dir))
+    """The servodesk application on uvicorn (127.0.0.1, a free port), sessions opened.
+
+    On the event loop ``servodesk serve`` runs (cli/serve.py: uvloop where installed), so
+    the bench measures the loop users get, not asyncio's own.
+    """
+    try:
+        import uvloop
+    except ImportError:
+        return asyncio.run(_serve(buses, interface, max_channels, data_dir))
+    with asyncio.Runner(loop_factory=uvloop.new_event_loop) as runner:
+        return runner.run(_serve(buses, interface, max_channels, data_dir))
 
 
 async def _serve(buses: list[BusSpec], interface: str, max_channels: int, data_dir: str) -> int:
@@ -184,7 +194,11 @@ async def _serve(buses: list[BusSpec], interface: str, max_channels: int, data_d
     sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
     sock.bind(("127.0.0.1", 0))
-    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
+    from servodesk.cli.serve import ws_options
+
+    # The WebSocket settings ``servodesk serve`` uses (no permessage-deflate, as there).
+    config = uvicorn.Config(app, log_level="warning", lifespan="on", **ws_options())
+    server = uvicorn.Server(config)
     task = asyncio.create_task(server.serve(sockets=[sock]))
     while not server.started:
         if task.done():
@@ -250,23 +264,57 @@ def child(args: list[str]) -> Any:
 
 @dataclass
 class Client:
-    """One WebSocket client reading as fast as it can, tallying what it gets."""
+    """One WebSocket client reading as fast as it can, tallying what it gets.
 
+    The receive loop only stamps each message with its receipt time and keeps it; decoding
+    waits until the phase is over. Five clients share this process's event loop: decoding
+    one client's frame while the next client's frame waits would add this process's own
+    CPU time to the next frame's latency (and a decode backlog would keep growing it).
+    """
+
+    messages: list[tuple[float, bytes]] = field(default_factory=list)
+    last_rx: float = 0.0
+    #: The WebSocket extensions the server accepted ("none" for none).
+    extensions: str = ""
+    ready: asyncio.Event = field(default_factory=asyncio.Event)
+    error: str | None = None
+    # Filled by tally() from the messages.
     frames: int = 0
     samples: int = 0
-    bytes: int = 0
     skipped: int = 0
     flagged: int = 0
     seq_gaps: int = 0
-    last_seq: int = 0
-    last_rx: float = 0.0
-    measuring: bool = False
-    latencies: list[np.ndarray] = field(default_factory=list)
-    ready: asyncio.Event = field(default_factory=asyncio.Event)
-    error: str | None = None
 
-    def snapshot(self) -> tuple[int, int, int]:
-        return self.samples, self.frames, self.bytes
+    def tally(self, w0: float, w1: float) -> tuple[int, int, int, np.ndarray]:
+        """Decode everything received; count it, and return (samples, frames, bytes,
+        latencies [s]) of the frames that arrived within ``[w0, w1)`` (receipt times)."""
+        from servodesk.domain import scope_wire as wire
+
+        in_samples = in_frames = in_bytes = 0
+        latencies: list[np.ndarray] = []
+        last_seq = 0
+        for now, msg in self.messages:
+            f = wire.decode_frame(msg)
+            inside = w0 <= now < w1
+            self.frames += 1
+            if f.seq != last_seq + 1:
+                self.seq_gaps += 1
+            last_seq = f.seq
+            self.skipped = f.skipped
+            if f.skipped_before:
+                self.flagged += 1
+            if inside:
+                in_frames += 1
+                in_bytes += len(msg)
+            if f.kind != wire.KIND_SAMPLES:
+                continue
+            for b in f.blocks:
+                self.samples += b.n
+                if inside and b.n:
+                    in_samples += b.n
+                    latencies.append(now - (f.t_ref + b.offsets()))
+        lat = np.concatenate(latencies) if latencies else np.zeros(0)
+        return in_samples, in_frames, in_bytes, lat
 
 
 async def read_stream(url: str, c: Client, compression: bool) -> None:
@@ -281,26 +329,15 @@ async def read_stream(url: str, c: Client, compression: bool) -> None:
             compression="deflate" if compression else None,
             max_size=None,
         ) as ws:
+            headers = ws.response.headers if ws.response is not None else {}
+            c.extensions = headers.get("Sec-WebSocket-Extensions", "") or "none"
             c.ready.set()
+            keep = c.messages.append
             async for msg in ws:
-                now = time.time()
-                assert isinstance(msg, bytes)
-                f = wire.decode_frame(msg)
-                c.frames += 1
-                c.bytes += len(msg)
+                # Receipt: the message as the application gets it (after the websockets
+                # layer's decompression, as a browser's onmessage), before any decoding.
+                keep((time.time(), msg))  # type: ignore[arg-type]
                 c.last_rx = time.monotonic()
-                if f.seq != c.last_seq + 1:
-                    c.seq_gaps += 1
-                c.last_seq = f.seq
-                c.skipped = f.skipped
-                if f.skipped_before:
-                    c.flagged += 1
-                if f.kind != wire.KIND_SAMPLES:
-                    continue
-                for b in f.blocks:
-                    c.samples += b.n
-                    if c.measuring and b.n:
-                        c.latencies.append(now - (f.t_ref + b.offsets()))
     except Exception as exc:  # Reported in the JSON, not a traceback.
         c.error = f"{type(exc).__name__}: {exc}"
         c.ready.set()
@@ -373,17 +410,13 @@ async def _phase(
 
     st0 = await ok(await http.get("/api/v1/scope"))
     cpu0 = {k: cpu_seconds(p) for k, p in pids.items()}
-    snaps0 = [c.snapshot() for c in tallies]
-    for c in tallies:
-        c.measuring = True
+    t0 = time.time()
     w0 = time.perf_counter()
     await asyncio.sleep(seconds)
     wall = time.perf_counter() - w0
+    t1 = time.time()
     cpu1 = {k: cpu_seconds(p) for k, p in pids.items()}
     st1 = await ok(await http.get("/api/v1/scope"))
-    snaps1 = [c.snapshot() for c in tallies]
-    for c in tallies:
-        c.measuring = False
     cyclic = []
     if source == "pdo":
         for sid in sids:
@@ -412,13 +445,16 @@ async def _phase(
     per_channel = [float(ch["throughput_hz"] or 0.0) for ch in st1["channels"]]
     out_clients: list[dict[str, Any]] = []
     delivered: list[float] = []
-    for c, a, b in zip(tallies, snaps0, snaps1, strict=True):
-        delivered.append(round((b[0] - a[0]) / wall, 1))
+    lats: list[np.ndarray] = []
+    for c in tallies:
+        n_samples, n_frames, n_bytes, lat_c = c.tally(t0, t1)
+        lats.append(lat_c)
+        delivered.append(round(n_samples / wall, 1))
         out_clients.append(
             {
                 "delivered_samples_per_s": delivered[-1],
-                "frames_per_s": round((b[1] - a[1]) / wall, 1),
-                "kbytes_per_s": round((b[2] - a[2]) / wall / 1000, 1),
+                "frames_per_s": round(n_frames / wall, 1),
+                "kbytes_per_s": round(n_bytes / wall / 1000, 1),
                 "received_total": c.samples,
                 "dropped_samples": total - c.samples,
                 "skipped_frames": c.skipped,
@@ -426,10 +462,11 @@ async def _phase(
                 "error": c.error,
             }
         )
-    lat = np.concatenate([x for c in tallies for x in c.latencies]) if tallies else np.zeros(0)
+    lat = np.concatenate(lats) if lats else np.zeros(0)
     n_expected = len(sids) * channels * (1000.0 / SYNC_PERIOD_MS if source == "pdo" else TARGET_HZ)
     result: dict[str, Any] = {
         "source": source,
+        "ws_extensions_negotiated": sorted({c.extensions for c in tallies}),
         "channels": len(chans),
         "target_samples_per_s": len(sids) * channels * TARGET_HZ,
         "source_max_samples_per_s": n_expected,
@@ -537,7 +574,7 @@ async def bench(
             if interface == "udp_multicast"
             else "python-can virtual, one channel per drive; the drives in the server process"
         ),
-        "compression": "permessage-deflate" if compression else "none",
+        "compression_offered": "permessage-deflate" if compression else "none",
         "cpus": os.cpu_count(),
         "load_before": [round(x, 2) for x in os.getloadavg()],
         "phases": {},

@@ -60,9 +60,25 @@ def run(args: argparse.Namespace) -> int:
         # uvloop (a dependency on Linux and macOS) when installed: an SDO round trip costs the
         # event loop a third less than on asyncio's own loop (bench/bench_sdo.py --loop).
         loop="auto",
-        ws="websockets-sansio" if _has_sansio() else "auto",
+        **ws_options(),
     )
     return 0
+
+
+def ws_options() -> dict[str, Any]:
+    """uvicorn's WebSocket settings servodesk runs on (the scope bench uses them too).
+
+    No permessage-deflate: the scope's frames are float64 samples that deflate only ~4:1 at
+    ~0.15 ms of event-loop time per frame and client, and that time lands in front of the next
+    frame. With 4 drives x 8 channels and 5 clients (``servodesk bench scope``) compression
+    roughly doubled the latency from sample to client (p50 14-19 ms -> 9-10 ms without, p99
+    50-72 ms -> 28-50 ms). Everything servodesk streams goes to a browser on the same machine
+    or the machine's own network, where the bytes cost less than the delay.
+    """
+    return {
+        "ws": "websockets-sansio" if _has_sansio() else "auto",
+        "ws_per_message_deflate": False,
+    }
 
 
 def _has_sansio() -> bool:

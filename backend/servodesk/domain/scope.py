@@ -164,7 +164,7 @@ class Ring:
         n = ta.size
         if n == 0:
             return
-        if n > 1 and bool(np.any(ta[1:] < ta[:-1])):
+        if n > 1 and bool((ta[1:] < ta[:-1]).any()):
             raise ValidationError("sample times go backwards inside one block; feed them in order")
         last = self.last_time
         if last is not None and ta[0] < last:

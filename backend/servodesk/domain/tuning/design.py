@@ -478,18 +478,21 @@ def design_gains(
     compute_delay: float = 1.0,
     tolerance: float = 0.03,
     ff_factor: float = FF_FACTOR,
+    robust_plants: Sequence[PlantModel] | None = None,
 ) -> Design:
     """Design filters and gains for ``plant`` (see the module docstring for the rules).
 
     ``response``: "low", "basic", "high" or a -3 dB velocity bandwidth in Hz (any other string
     raises :class:`ValueError`). Raises :class:`ValueError` when no gain meets the margins.
+    ``robust_plants``: the models every margin must hold on (default: :func:`robustness_set`
+    of ``plant`` with ``tolerance``; the first must be ``plant``).
     """
     if isinstance(response, str) and response not in LEVELS:
         raise ValueError(f"response must be one of {sorted(LEVELS)} or a bandwidth in Hz")
     if not isinstance(response, str) and not float(response) > 0.0:
         raise ValueError(f"a requested bandwidth must be positive, not {response}")
     targets = Targets(pm_min, gm_min_db, ms_max_db)
-    plants = robustness_set(plant, tolerance)
+    plants = list(robust_plants) if robust_plants else robustness_set(plant, tolerance)
     ev = Evaluator(plants, rate_hz, compute_delay)
     j = plant.total_inertia
     notes: list[str] = []

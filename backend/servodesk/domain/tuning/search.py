@@ -44,6 +44,11 @@ REF_ACC_SHARE = 0.7
 REF_VMAX_REV_S = 50.0
 REF_HOLD_S = 0.5
 PM_MIN, GM_MIN_DB, MS_MAX_DB = 45.0, 8.0, 6.0
+#: What the tuner asks of every model of its identification set, above the targets: the set
+#: perturbs one parameter at a time, and the true plant is off in several at once (on the
+#: benchmark's plants the worst model of the set was up to 0.3 deg and 0.3 dB kinder than the
+#: truth).
+TUNER_PM_EXTRA_DEG, TUNER_GM_EXTRA_DB = 1.5, 0.5
 
 
 @dataclass(frozen=True, slots=True)
@@ -73,13 +78,18 @@ class ReferenceMove:
 
 
 def reference_move(
-    inertia: float, torque_limit: float, counts_per_rev: float, rate_hz: float
+    inertia: float,
+    torque_limit: float,
+    counts_per_rev: float,
+    rate_hz: float,
+    hold_s: float = REF_HOLD_S,
 ) -> ReferenceMove:
-    """The benchmark's move (module docstring) for an axis of ``inertia``."""
+    """The benchmark's move (module docstring) for an axis of ``inertia``, observed for
+    ``hold_s`` after the profile ends."""
     d = REF_DISTANCE_REV * 2.0 * math.pi
     a_max = REF_ACC_SHARE * torque_limit / inertia
     v_max = REF_VMAX_REV_S * 2.0 * math.pi
-    prof = jerk_limited_profile(d, v_max, a_max, REF_JERK_S, rate_hz, hold_s=REF_HOLD_S)
+    prof = jerk_limited_profile(d, v_max, a_max, REF_JERK_S, rate_hz, hold_s=hold_s)
     t_end = profile_duration(d, v_max, a_max, REF_JERK_S)
     return ReferenceMove(prof.t, prof.p, prof.v, prof.a, t_end, REF_DISTANCE_REV * counts_per_rev)
 
@@ -128,12 +138,14 @@ def candidates_around(g: ServoGains, wide: bool = False) -> list[ServoGains]:
     return out
 
 
-def _margins_ok(plants: Sequence[PlantModel], rate_hz: float, g: ServoGains) -> bool:
+def _margins_ok(
+    plants: Sequence[PlantModel], rate_hz: float, g: ServoGains, pm: float, gm: float
+) -> bool:
     for p in plants:
         loop = LoopModel(p, rate_hz, g)
-        if not loop.velocity_margins().meets(PM_MIN, GM_MIN_DB, MS_MAX_DB):
+        if not loop.velocity_margins().meets(pm, gm, MS_MAX_DB):
             return False
-        if not loop.position_margins().meets(PM_MIN, GM_MIN_DB, MS_MAX_DB):
+        if not loop.position_margins().meets(pm, gm, MS_MAX_DB):
             return False
     return True
 
@@ -147,13 +159,15 @@ def search_gains(
     *,
     check_plants: Sequence[PlantModel] | None = None,
     torque_limit: float | None = None,
+    pm_min: float = PM_MIN,
+    gm_min_db: float = GM_MIN_DB,
 ) -> tuple[ServoGains, MoveMetrics, int] | None:
     """The feasible candidate with the best move on ``sim_model``; None when none is feasible.
 
     Feasible: margins met on every plant of ``check_plants`` (default: ``plant``).
     """
     plants = list(check_plants) if check_plants is not None else [plant]
-    feasible = [g for g in candidates if _margins_ok(plants, rate_hz, g)]
+    feasible = [g for g in candidates if _margins_ok(plants, rate_hz, g, pm_min, gm_min_db)]
     if not feasible:
         return None
     trace = simulate_batch(
@@ -179,7 +193,7 @@ def identification_set(plant: PlantModel) -> list[PlantModel]:
     (the identification's spread over the benchmark's plants, docs/tuning.md), and a shaft
     damping half the estimate (a half-power width over-estimates light damping when the
     frequency resolution is coarse, and a notch tuned on a well-damped mode then leaves too
-    little phase on the real one)."""
+    little phase on the real one), and no viscous damping."""
     out = robustness_set(plant, 0.06)
     out.append(
         PlantModel(
@@ -194,6 +208,11 @@ def identification_set(plant: PlantModel) -> list[PlantModel]:
     )
     if plant.resonance_hz is not None:
         out.append(replace(plant, damping=0.5 * plant.damping))
+    if plant.viscous > 0.0:
+        # The test moves' fit lends smooth Coulomb friction to the viscous term; a viscous
+        # damper adds phase (atan(b / J w), 2-3 deg at the crossover of a light axis) that a
+        # machine without one does not have.
+        out.append(replace(plant, viscous=0.0))
     return out
 
 
@@ -210,7 +229,9 @@ def tune_on_model(
     """The tuner's design: :func:`design_gains` at the response level, then for ``high`` the
     best move among the variations that keep the margins on every plant the identification
     may have been (:func:`identification_set`)."""
-    design: Design = design_gains(plant, rate_hz, mode, tolerance=0.06)
+    check = identification_set(plant)
+    pm, gm = PM_MIN + TUNER_PM_EXTRA_DEG, GM_MIN_DB + TUNER_GM_EXTRA_DB
+    design: Design = design_gains(plant, rate_hz, mode, pm, gm, robust_plants=check)
     move = reference_move(plant.total_inertia, torque_limit, counts_per_rev, rate_hz)
     model = mechanical(
         plant,
@@ -224,7 +245,9 @@ def tune_on_model(
     cands = [design.gains]
     if mode == "high":
         cands += candidates_around(design.gains)
-    found = search_gains(plant, rate_hz, cands, move, model, check_plants=identification_set(plant))
+    found = search_gains(
+        plant, rate_hz, cands, move, model, check_plants=check, pm_min=pm, gm_min_db=gm
+    )
     n_feasible = 0
     if found is not None:
         chosen, metrics, n_feasible = found
