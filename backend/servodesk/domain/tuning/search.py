@@ -49,6 +49,21 @@ PM_MIN, GM_MIN_DB, MS_MAX_DB = 45.0, 8.0, 6.0
 #: benchmark's plants the worst model of the set was up to 0.3 deg and 0.3 dB kinder than the
 #: truth).
 TUNER_PM_EXTRA_DEG, TUNER_GM_EXTRA_DB = 1.5, 0.5
+#: How far the identified inertia may be off: within 4 % on the benchmark's rigid axes and on
+#: compliant ones whose anti-resonance is at 40 Hz or above (docs/tuning.md) ...
+INERTIA_TOL = 0.06
+#: ... and 5-14 % below that (R10-100Hz, R30-200Hz, R30-100Hz: anti-resonance 18-36 Hz), where
+#: the frequency response's rigid-body band below the anti-resonance is a few bins close to
+#: the friction-dominated low end. With 6 % there, R30-100Hz's gains had PM 43 deg / GM 5.9 dB
+#: on the true plant.
+INERTIA_TOL_LOW_ANTI = 0.15
+LOW_ANTI_RESONANCE_HZ = 40.0
+#: How far an identified resonance may be off: the fitted peak was within 0.4 % on every
+#: plant of the benchmark (4x noise included). 2 % would do, and lifts the reachable gain on
+#: 400-800 Hz axes by up to 40 %, but with it the tuner chose narrow notches whose gains hunted
+#: in a friction limit cycle on R1-400Hz, R3-200Hz and stress-loop8k (the identified model's
+#: simulation did not show it): kept at 6 % until the design checks the stuck-load loop.
+RESONANCE_TOL = 0.06
 
 
 @dataclass(frozen=True, slots=True)
@@ -166,39 +181,81 @@ def search_gains(
 
     Feasible: margins met on every plant of ``check_plants`` (default: ``plant``).
     """
+    ranked = rank_gains(
+        plant,
+        rate_hz,
+        candidates,
+        move,
+        sim_model,
+        check_plants=check_plants,
+        torque_limit=torque_limit,
+        pm_min=pm_min,
+        gm_min_db=gm_min_db,
+    )
+    if not ranked.order:
+        return None
+    g, m = ranked.order[0]
+    return g, m, ranked.n_feasible
+
+
+@dataclass(frozen=True, slots=True)
+class Ranking:
+    """The feasible candidates that did not diverge, best move first, and how many were
+    feasible."""
+
+    order: list[tuple[ServoGains, MoveMetrics]]
+    n_feasible: int
+
+
+def rank_gains(
+    plant: PlantModel,
+    rate_hz: float,
+    candidates: Sequence[ServoGains],
+    move: ReferenceMove,
+    sim_model: MechanicalModel,
+    *,
+    check_plants: Sequence[PlantModel] | None = None,
+    torque_limit: float | None = None,
+    pm_min: float = PM_MIN,
+    gm_min_db: float = GM_MIN_DB,
+) -> Ranking:
+    """Every feasible candidate (:func:`search_gains`) ranked by its move on ``sim_model``
+    (settling to +-10 counts, then +-100, then the following error RMS)."""
     plants = list(check_plants) if check_plants is not None else [plant]
     feasible = [g for g in candidates if _margins_ok(plants, rate_hz, g, pm_min, gm_min_db)]
     if not feasible:
-        return None
+        return Ranking([], 0)
     trace = simulate_batch(
         sim_model, feasible, rate_hz, move.p, move.v, move.a, torque_limit=torque_limit
     )
     cpr = sim_model.counts_per_rev
     demand = move.p * cpr / (2.0 * math.pi)
-    best: tuple[tuple[float, float, float], int, MoveMetrics] | None = None
+    scored: list[tuple[tuple[float, float, float], int, MoveMetrics]] = []
     for i in range(len(feasible)):
         if trace.diverged[i]:
             continue
         m = move_metrics(move.t, move.target_counts, trace.position_counts[i], move.t_end, demand)
-        key = m.key()
-        if best is None or key < best[0]:
-            best = (key, i, m)
-    if best is None:
-        return None
-    return feasible[best[1]], best[2], len(feasible)
+        scored.append((m.key(), i, m))
+    scored.sort(key=lambda x: (x[0], x[1]))
+    return Ranking([(feasible[i], m) for _, i, m in scored], len(feasible))
 
 
 def identification_set(plant: PlantModel) -> list[PlantModel]:
-    """The identified plant and what it may really be: inertia and resonance +-6 %, both ways
-    (the identification's spread over the benchmark's plants, docs/tuning.md), and a shaft
-    damping half the estimate (a half-power width over-estimates light damping when the
-    frequency resolution is coarse, and a notch tuned on a well-damped mode then leaves too
-    little phase on the real one), and no viscous damping."""
-    out = robustness_set(plant, 0.06)
+    """The identified plant and what it may really be: inertia +-:data:`INERTIA_TOL` and
+    resonances +-:data:`RESONANCE_TOL` (the identification's spread over the benchmark's
+    plants, docs/tuning.md), a shaft damping half the estimate (a half-power width
+    over-estimates light damping when the frequency resolution is coarse, and a notch tuned on
+    a well-damped mode then leaves too little phase on the real one), and no viscous damping."""
+    f_ar = plant.anti_resonance_hz
+    tol = INERTIA_TOL_LOW_ANTI if f_ar is not None and f_ar < LOW_ANTI_RESONANCE_HZ else INERTIA_TOL
+    out = robustness_set(plant, tol)[:2]
+    if plant.resonances_hz():
+        out.append(plant.scaled(resonance=1.0 - RESONANCE_TOL))
+        out.append(plant.scaled(resonance=1.0 + RESONANCE_TOL))
     out.append(
         PlantModel(
-            plant.motor_inertia * 1.06,
-            plant.load_inertia * 1.06,
+            plant.motor_inertia * (1.0 + tol),
+            plant.load_inertia * (1.0 + tol),
             plant.resonance_hz,
             plant.damping,
             plant.viscous,

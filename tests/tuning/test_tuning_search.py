@@ -1,0 +1,123 @@
+"""The tuner's ranking step: friction that sticks in the batch simulation, the identification
+set, and the ranking itself (domain/tuning/simulate.py, domain/tuning/search.py)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from servodesk.domain.tuning.gains import ServoGains
+from servodesk.domain.tuning.model import PlantModel
+from servodesk.domain.tuning.search import (
+    INERTIA_TOL,
+    INERTIA_TOL_LOW_ANTI,
+    RESONANCE_TOL,
+    identification_set,
+    mechanical,
+    rank_gains,
+    reference_move,
+    search_gains,
+)
+from servodesk.domain.tuning.simulate import friction_step, simulate_batch
+
+RATE = 16000.0
+JM = 3.7e-5
+PEAK = 4.46
+CPR = 1 << 20
+
+#: Gains the tuner once chose for a two-mass axis (R = 1, 400 Hz, 2 % Coulomb friction on the
+#: load): linear margins 47 deg / 9 dB on the exact plant, yet on the drive the axis hunted at
+#: 380 Hz, +-190 counts, because the load sticks at rest.
+HUNTING = ServoGains(
+    kp_pos=315.3,
+    kp_vel=0.12557,
+    ti_vel=0.0023149,
+    vel_ff=1.0,
+    inertia_ff=5.868e-05,
+    notch1_hz=398.57,
+    notch1_width=0.3,
+    notch1_depth=0.0,
+)
+
+
+def test_friction_holds_breaks_away_and_stops_at_zero() -> None:
+    fc, k = 0.1, 1.0
+    w = np.array([0.0, 0.0, 0.0, 0.5, 0.01, -0.01])
+    drive = np.array([0.05, -0.1, 0.3, 0.0, 0.05, 0.2])
+    out = friction_step(w, drive, 0.0, fc, k)
+    assert out[0] == 0.0 and out[1] == 0.0  # At rest, |drive| <= Coulomb: held.
+    assert out[2] == pytest.approx(0.2)  # Breaks away with drive - Fc.
+    assert out[3] == pytest.approx(0.4)  # Moving: decelerated by Fc.
+    assert out[4] == 0.0  # Would cross zero while friction could hold it: stops.
+    # Driven through zero by more than Fc: moves on (friction opposes the velocity the step
+    # started with, as sim/plant.py's RigidMechanics does).
+    assert out[5] == pytest.approx(-0.01 + 0.2 + 0.1)
+    # Without Coulomb friction it is the plain viscous step.
+    plain = friction_step(w, drive, 0.5, 0.0, k)
+    assert plain == pytest.approx(w + drive - 0.5 * w)
+
+
+def _hunting_tail(coulomb: float) -> float:
+    plant = PlantModel(JM, JM, 400.0, 0.03, 0.0, 2000.0)
+    move = reference_move(plant.total_inertia, PEAK, CPR, RATE)
+    model = mechanical(plant, counts_per_rev=CPR, torque_limit=PEAK, coulomb=coulomb)
+    tr = simulate_batch(model, [HUNTING], RATE, move.p, move.v, move.a)
+    err = tr.position_counts[0] - move.target_counts
+    tail = err[move.t > move.t[-1] - 0.3]
+    return float(tail.max() - tail.min())
+
+
+def test_the_batch_simulation_shows_a_friction_limit_cycle() -> None:
+    # The stuck load leaves the motor ringing against the shaft: the simulation hunts as the
+    # drive did, so the ranking sees that these gains never settle. Without friction the same
+    # gains settle to within a few counts.
+    assert _hunting_tail(0.02 * PEAK) > 150.0
+    assert _hunting_tail(0.0) < 5.0
+
+
+def test_identification_set_widens_the_inertia_below_a_low_anti_resonance() -> None:
+    stiff = PlantModel(JM, 3 * JM, 400.0, 0.03, 0.001, 2000.0)  # f_ar = 200 Hz
+    soft = PlantModel(JM, 30 * JM, 100.0, 0.03, 0.001, 2000.0)  # f_ar = 18 Hz
+    for plant, tol in ((stiff, INERTIA_TOL), (soft, INERTIA_TOL_LOW_ANTI)):
+        models = identification_set(plant)
+        assert models[0] == plant
+        inertias = sorted(m.total_inertia / plant.total_inertia for m in models)
+        assert inertias[0] == pytest.approx(1.0 - tol) and inertias[-1] == pytest.approx(1.0 + tol)
+        res = sorted(
+            {
+                m.resonance_hz / 400.0 if plant is stiff else m.resonance_hz / 100.0
+                for m in models
+                if m.resonance_hz
+            }
+        )
+        assert res[0] == pytest.approx(1.0 - RESONANCE_TOL) and res[-1] == pytest.approx(
+            1.0 + RESONANCE_TOL
+        )
+        assert any(m.damping == pytest.approx(0.5 * plant.damping) for m in models)
+        assert any(m.viscous == 0.0 for m in models)
+
+
+def test_ranking_puts_the_hunting_gains_last_and_search_takes_the_first() -> None:
+    plant = PlantModel(JM, JM, 400.0, 0.03, 0.0, 2000.0)
+    move = reference_move(plant.total_inertia, PEAK, CPR, RATE)
+    model = mechanical(plant, counts_per_rev=CPR, torque_limit=PEAK, coulomb=0.02 * PEAK)
+    calm = ServoGains(
+        kp_pos=150.0,
+        kp_vel=0.06,
+        ti_vel=0.008,
+        vel_ff=1.0,
+        inertia_ff=6.0e-05,
+        notch1_hz=400.0,
+        notch1_width=1.0,
+        notch1_depth=0.0,
+    )
+    ranked = rank_gains(plant, RATE, [HUNTING, calm], move, model, pm_min=0.0, gm_min_db=0.0)
+    assert ranked.n_feasible == 2
+    assert [g for g, _ in ranked.order] == [calm, HUNTING]
+    first, metrics = ranked.order[0]
+    assert math.isfinite(metrics.settling_100_s)
+    assert not math.isfinite(ranked.order[1][1].settling_100_s)
+    found = search_gains(plant, RATE, [HUNTING, calm], move, model, pm_min=0.0, gm_min_db=0.0)
+    assert found is not None and found[0] == first and found[2] == 2
