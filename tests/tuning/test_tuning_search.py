@@ -14,6 +14,7 @@ from servodesk.domain.tuning.search import (
     INERTIA_TOL,
     INERTIA_TOL_LOW_ANTI,
     RESONANCE_TOL,
+    alternatives_of,
     identification_set,
     mechanical,
     rank_gains,
@@ -121,3 +122,16 @@ def test_ranking_puts_the_hunting_gains_last_and_search_takes_the_first() -> Non
     assert not math.isfinite(ranked.order[1][1].settling_100_s)
     found = search_gains(plant, RATE, [HUNTING, calm], move, model, pm_min=0.0, gm_min_db=0.0)
     assert found is not None and found[0] == first and found[2] == 2
+
+
+def test_alternatives_differ_in_integral_time_or_position_gain() -> None:
+    base = ServoGains(kp_pos=200.0, kp_vel=0.1, ti_vel=0.01, vel_ff=1.0, inertia_ff=1e-4)
+    near = ServoGains(kp_pos=210.0, kp_vel=0.1, ti_vel=0.011, vel_ff=1.0, inertia_ff=0.9e-4)
+    slow_i = ServoGains(kp_pos=200.0, kp_vel=0.1, ti_vel=0.02, vel_ff=1.0, inertia_ff=1e-4)
+    slow_i2 = ServoGains(kp_pos=205.0, kp_vel=0.09, ti_vel=0.021, vel_ff=1.0, inertia_ff=1e-4)
+    stiff_p = ServoGains(kp_pos=300.0, kp_vel=0.1, ti_vel=0.01, vel_ff=1.0, inertia_ff=1e-4)
+    order = [base, near, slow_i, slow_i2, stiff_p]
+    # Near-copies of the winner or of a picked runner-up are passed over.
+    assert alternatives_of(order) == (slow_i, stiff_p)
+    assert alternatives_of(order, 1) == (slow_i,)
+    assert alternatives_of([base]) == () and alternatives_of([]) == ()

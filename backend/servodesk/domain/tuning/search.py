@@ -78,6 +78,46 @@ class SearchResult:
     candidates: int
     feasible: int
     notes: tuple[str, ...]
+    #: Runners-up worth a try on the drive itself (:func:`alternatives_of`), best first.
+    alternatives: tuple[ServoGains, ...] = ()
+
+    def with_gains(self, gains: ServoGains, rate_hz: float, plant: PlantModel) -> SearchResult:
+        """The same result for other gains (margins and bandwidth on ``plant`` recomputed)."""
+        loop = LoopModel(plant, rate_hz, gains)
+        return replace(
+            self,
+            gains=gains,
+            margins=loop.velocity_margins(),
+            position_margins=loop.position_margins(),
+            bandwidth_hz=loop.velocity_bandwidth_hz(),
+        )
+
+
+#: How many runners-up the tuner tries on the drive (services/tuning_own.py).
+ALTERNATIVES = 2
+
+
+def alternatives_of(order: Sequence[ServoGains], n: int = ALTERNATIVES) -> tuple[ServoGains, ...]:
+    """Up to ``n`` runners-up of a ranking that differ from the winner, and from each other,
+    in what the model is least sure of: the integral time (by more than 20 %) or the
+    position gain (by more than 20 %). Near-copies (another feed-forward factor) would only
+    repeat the winner's move."""
+    if not order:
+        return ()
+    picked = [order[0]]
+
+    def distinct(g: ServoGains, h: ServoGains) -> bool:
+        def off(a: float, b: float) -> bool:
+            return abs(a - b) > 0.2 * max(abs(a), abs(b), 1e-12)
+
+        return off(g.ti_vel, h.ti_vel) or off(g.kp_pos, h.kp_pos)
+
+    for g in order[1:]:
+        if len(picked) > n:
+            break
+        if all(distinct(g, h) for h in picked):
+            picked.append(g)
+    return tuple(picked[1:])
 
 
 @dataclass(frozen=True, slots=True)
@@ -302,12 +342,14 @@ def tune_on_model(
     cands = [design.gains]
     if mode == "high":
         cands += candidates_around(design.gains)
-    found = search_gains(
+    ranked = rank_gains(
         plant, rate_hz, cands, move, model, check_plants=check, pm_min=pm, gm_min_db=gm
     )
-    n_feasible = 0
-    if found is not None:
-        chosen, metrics, n_feasible = found
+    n_feasible = ranked.n_feasible
+    alternatives: tuple[ServoGains, ...] = ()
+    if ranked.order:
+        chosen, metrics = ranked.order[0]
+        alternatives = alternatives_of([g for g, _ in ranked.order])
     else:
         notes.append("no variation kept the margins on the robustness set: the design as is")
         tr = simulate_batch(model, [chosen], rate_hz, move.p, move.v, move.a)
@@ -328,4 +370,5 @@ def tune_on_model(
         candidates=len(cands),
         feasible=n_feasible,
         notes=tuple(notes),
+        alternatives=alternatives,
     )
