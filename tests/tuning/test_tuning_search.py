@@ -19,7 +19,6 @@ from servodesk.domain.tuning.search import (
     mechanical,
     rank_gains,
     reference_move,
-    search_gains,
 )
 from servodesk.domain.tuning.simulate import friction_step, simulate_batch
 
@@ -100,7 +99,7 @@ def test_identification_set_widens_the_inertia_below_a_low_anti_resonance() -> N
         assert any(m.viscous == 0.0 for m in models)
 
 
-def test_ranking_puts_the_hunting_gains_last_and_search_takes_the_first() -> None:
+def test_ranking_puts_the_hunting_gains_last() -> None:
     plant = PlantModel(JM, JM, 400.0, 0.03, 0.0, 2000.0)
     move = reference_move(plant.total_inertia, PEAK, CPR, RATE)
     model = mechanical(plant, counts_per_rev=CPR, torque_limit=PEAK, coulomb=0.02 * PEAK)
@@ -117,11 +116,10 @@ def test_ranking_puts_the_hunting_gains_last_and_search_takes_the_first() -> Non
     ranked = rank_gains(plant, RATE, [HUNTING, calm], move, model, pm_min=0.0, gm_min_db=0.0)
     assert ranked.n_feasible == 2
     assert [g for g, _ in ranked.order] == [calm, HUNTING]
-    first, metrics = ranked.order[0]
-    assert math.isfinite(metrics.settling_100_s)
+    assert math.isfinite(ranked.order[0][1].settling_100_s)
     assert not math.isfinite(ranked.order[1][1].settling_100_s)
-    found = search_gains(plant, RATE, [HUNTING, calm], move, model, pm_min=0.0, gm_min_db=0.0)
-    assert found is not None and found[0] == first and found[2] == 2
+    # The margins alone would have let the hunting gains through (PM >= 45 deg, GM >= 8 dB).
+    assert rank_gains(plant, RATE, [HUNTING], move, model).n_feasible == 1
 
 
 def test_alternatives_differ_in_integral_time_or_position_gain() -> None:

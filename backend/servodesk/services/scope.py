@@ -12,9 +12,10 @@ several sessions and share one time base, the backend's ``time.time()``:
   anchor sample, whose backend time is when servodesk saw the recording start.
 
 Samples go into per-channel buffers (thread-safe: the PDO listener runs on the bus thread);
-every ~30 ms the producer task moves them into the rings, feeds the trigger engine and
-encodes one binary frame (domain/scope_wire.py) that it offers to every WebSocket client.
-Each client has its own queue of 8 frames; when it is full the oldest frame is dropped whole
+every 10 ms (``FRAME_PERIOD_S``) the producer task moves them into the rings, feeds the
+trigger engine and encodes one binary frame (domain/scope_wire.py) that it offers to every
+WebSocket client. Each client has its own queue of a quarter of a second of frames
+(``CLIENT_QUEUE``); when it is full the oldest frame is dropped whole
 and counted, so a slow client never slows the drive, the backend or the other clients (the
 producer never awaits a socket). Nothing is invented: no interpolation, no NaN padding; the
 times are the times the samples were taken or received.

@@ -10,7 +10,7 @@ oracle's objective (anchors-tuning.md §3.4): settling to +-10 counts, then +-10
 following error RMS.
 
 - The tuner calls :func:`tune_on_model` with the plant it identified.
-- The benchmark's oracle calls :func:`search_gains` with the exact plant and a wider grid
+- The benchmark's oracle calls :func:`rank_gains` with the exact plant and a wider grid
   (benchmarks/tuning.py); its candidates are also checked on the exact plant's margins.
 
 The reference move is the benchmark's (anchors-tuning.md §3.2): half a revolution, jerk-limited
@@ -205,39 +205,6 @@ def _margins_ok(
     return True
 
 
-def search_gains(
-    plant: PlantModel,
-    rate_hz: float,
-    candidates: Sequence[ServoGains],
-    move: ReferenceMove,
-    sim_model: MechanicalModel,
-    *,
-    check_plants: Sequence[PlantModel] | None = None,
-    torque_limit: float | None = None,
-    pm_min: float = PM_MIN,
-    gm_min_db: float = GM_MIN_DB,
-) -> tuple[ServoGains, MoveMetrics, int] | None:
-    """The feasible candidate with the best move on ``sim_model``; None when none is feasible.
-
-    Feasible: margins met on every plant of ``check_plants`` (default: ``plant``).
-    """
-    ranked = rank_gains(
-        plant,
-        rate_hz,
-        candidates,
-        move,
-        sim_model,
-        check_plants=check_plants,
-        torque_limit=torque_limit,
-        pm_min=pm_min,
-        gm_min_db=gm_min_db,
-    )
-    if not ranked.order:
-        return None
-    g, m = ranked.order[0]
-    return g, m, ranked.n_feasible
-
-
 @dataclass(frozen=True, slots=True)
 class Ranking:
     """The feasible candidates that did not diverge, best move first, and how many were
@@ -259,8 +226,9 @@ def rank_gains(
     pm_min: float = PM_MIN,
     gm_min_db: float = GM_MIN_DB,
 ) -> Ranking:
-    """Every feasible candidate (:func:`search_gains`) ranked by its move on ``sim_model``
-    (settling to +-10 counts, then +-100, then the following error RMS)."""
+    """Every feasible candidate ranked by its move on ``sim_model`` (settling to +-10 counts,
+    then +-100, then the following error RMS). Feasible: margins met on every plant of
+    ``check_plants`` (default: ``plant``)."""
     plants = list(check_plants) if check_plants is not None else [plant]
     feasible = [g for g in candidates if _margins_ok(plants, rate_hz, g, pm_min, gm_min_db)]
     if not feasible:
