@@ -133,3 +133,6 @@ def test_alternatives_differ_in_integral_time_or_position_gain() -> None:
     assert alternatives_of(order) == (slow_i, stiff_p)
     assert alternatives_of(order, 1) == (slow_i,)
     assert alternatives_of([base]) == () and alternatives_of([]) == ()
+    # A runner-up with a higher velocity gain than the winner is never tried on the axis.
+    faster = ServoGains(kp_pos=200.0, kp_vel=0.12, ti_vel=0.03, vel_ff=1.0, inertia_ff=1e-4)
+    assert alternatives_of([base, faster, slow_i]) == (slow_i,)

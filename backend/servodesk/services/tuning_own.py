@@ -122,6 +122,8 @@ VERIFY_SETTLE_S = 0.25
 #: Axis time a tuning may spend moving (issue 8: at most 5 s); runners-up are tried only
 #: while one more verification move fits.
 AXIS_BUDGET_S = 4.6
+#: Torque share of the move runners-up are compared with (search.py's reference move: 0.7).
+RANK_TORQUE_SHARE = 0.7
 
 
 @dataclass(frozen=True, slots=True)
@@ -680,30 +682,42 @@ class OwnTuning:
         design: SearchResult,
         step: dict[str, Any],
     ) -> tuple[ServoGains, dict[str, Any]]:
-        """The model's runners-up (:func:`~servodesk.domain.tuning.search.alternatives_of`)
-        tried on the axis itself with the verification move; the best measured move wins
-        (settling to +-10 counts, then +-100, then the drive's following error RMS: the
-        model's own order). The identified model is not the machine: its friction and damping
-        decide between integral times and position gains that all meet the margins, and the
-        axis settles that. Each try stays within the axis-time budget of a tuning."""
-        best, best_step = design.gains, step
+        """The model's winner and runners-up (:func:`~servodesk.domain.tuning.search.
+        alternatives_of`) tried on the axis itself with a brisk move (the verification move's
+        distance at :data:`RANK_TORQUE_SHARE` of the torque limit, like the reference move of
+        search.py); the best measured move wins (settling to +-10 counts, then +-100, then the
+        drive's following error RMS: the model's own order). The identified model is not the
+        machine: its friction and damping decide between integral times and position gains
+        that all meet the margins, and the axis settles that. Each try stays within the
+        axis-time budget of a tuning. Returns the gains and their verification move."""
+        if not design.alternatives:
+            return design.gains, step
+        distance, _velocity, acc = profile
+        acc *= RANK_TORQUE_SHARE * 3.0  # The verification move accelerates at a third.
+        velocity = min(0.8 * math.sqrt(acc * distance), 0.95 * drive.max_velocity)
+        brisk = (distance, velocity, acc)
+        best = design.gains
+        best_key = _verify_key(await self._verify_move(drive, brisk))
         last = design.gains
         per_move = None
         for i, g in enumerate(design.alternatives):
-            if per_move is not None and self.axis_time_s + per_move > AXIS_BUDGET_S:
+            if per_move is not None and self.axis_time_s + 2.0 * per_move > AXIS_BUDGET_S:
                 break
             self.progress(0.85 + 0.04 * i, f"trying runner-up {i + 1} on the axis")
             t0 = self.axis_time_s
             await self.write_gains(g)
             last = g
-            tried = await self._verify_move(drive, profile)
+            key = _verify_key(await self._verify_move(drive, brisk))
             await self._check_healthy()
             per_move = self.axis_time_s - t0
-            if _verify_key(tried) < _verify_key(best_step):
-                best, best_step = g, tried
+            if key < best_key:
+                best, best_key = g, key
         if last != best:
             await self.write_gains(best)
-        return best, best_step
+        if best != design.gains:
+            step = await self._verify_move(drive, profile)
+            await self._check_healthy()
+        return best, step
 
     def _verify_profile(self, drive: _Drive, inertia: float) -> tuple[float, float, float]:
         """(distance, velocity, acceleration) of the verification move, the same before and
