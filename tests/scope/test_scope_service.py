@@ -447,7 +447,15 @@ def check_window(
     rt, rv = samples(rig, cid)
     t_ref = cap["t_ref"]
     inside = (rt >= t_ref - pre * window - 1e-6) & (rt <= t_ref + (1 - pre) * window + 1e-6)
-    assert np.array_equal(rv[inside], v)
+    # (Seen failing once in a full-suite run, by one extra leading sample in the capture and
+    # never reproduced since: the message carries what tells the cases apart.)
+    near = np.abs(rt - t_ref + pre * window) < 0.01
+    around = [(float(x - t_ref), float(y)) for x, y in zip(rt[near], rv[near], strict=True)]
+    assert np.array_equal(rv[inside], v), (
+        f"capture {len(v)} samples from {t[0] if len(t) else None} (s from t_ref), ring "
+        f"{int(inside.sum())} inside; ring samples around the start: {around}; "
+        f"capture window {cap['window']}; capture starts {list(zip(t[:3], v[:3], strict=True))}"
+    )
     assert np.allclose(rt[inside] - t_ref, t, atol=1e-6)
     assert len(t) > 0.5 * window / float(np.median(np.diff(rt))), "most of the window"
 
