@@ -69,8 +69,8 @@ MEASURE_HOLD_S = 1.0
 #: Part of the oracle cache's key: raised whenever the oracle's search or the simulation it
 #: ranks with changes, so that a cached result is never one of an older oracle.
 #: 2: the batch simulation sticks under Coulomb friction (domain/tuning/simulate.py).
-ORACLE_VERSION = 3
 #: 3: the model's best candidates are run on the true plant, the best there wins.
+ORACLE_VERSION = 3
 #: How many of the model's best candidates the oracle runs on the true plant.
 ORACLE_TRUE_PLANT_RUNS = 12
 
@@ -198,6 +198,19 @@ def run_move(spec: PlantSpec, gains: ServoGains, move: ReferenceMove, seed: int 
     return pos
 
 
+def observed_move(spec: PlantSpec) -> tuple[ReferenceMove, np.ndarray]:
+    """The reference move as the harness observes it (:data:`MEASURE_HOLD_S` after the
+    profile) and its demand in counts."""
+    move = reference_move(
+        spec.motor_inertia + spec.load_inertia,
+        spec.peak_torque,
+        spec.encoder_counts,
+        float(spec.loop_rate_hz),
+        hold_s=MEASURE_HOLD_S,
+    )
+    return move, move.p * spec.encoder_counts / (2.0 * math.pi)
+
+
 def measure(spec: PlantSpec, gains: ServoGains) -> dict[str, Any]:
     """Move metrics on the true plant, bandwidth and margins on the exact model.
 
@@ -210,14 +223,7 @@ def measure(spec: PlantSpec, gains: ServoGains) -> dict[str, Any]:
     reported as ``noise_floor_counts`` (RMS over the last 0.2 s).
     """
     rate = float(spec.loop_rate_hz)
-    move = reference_move(
-        spec.motor_inertia + spec.load_inertia,
-        spec.peak_torque,
-        spec.encoder_counts,
-        rate,
-        hold_s=MEASURE_HOLD_S,
-    )
-    demand = move.p * spec.encoder_counts / (2.0 * math.pi)
+    move, demand = observed_move(spec)
     pos = run_move(spec, gains, move)
     quiet = run_move(replace(spec, noise_torque=0.0), gains, move)
     finite = bool(np.isfinite(pos).all() and np.isfinite(quiet).all())
@@ -276,10 +282,7 @@ def oracle_gains(spec: PlantSpec) -> ServoGains:
     # there wins. The batch model integrates the shaft by Euler steps and friction sticks at
     # slightly other places, which at +-10 counts picks a different winner than the plant.
     quiet = replace(spec, noise_torque=0.0)
-    observed = reference_move(
-        plant.total_inertia, spec.peak_torque, spec.encoder_counts, rate, hold_s=MEASURE_HOLD_S
-    )
-    demand = observed.p * spec.encoder_counts / (2.0 * math.pi)
+    observed, demand = observed_move(spec)
     best: tuple[tuple[float, float, float], int] | None = None
     for i, (g, _m) in enumerate(ranked[:ORACLE_TRUE_PLANT_RUNS]):
         pos = run_move(quiet, g, observed)

@@ -120,7 +120,7 @@ MOVE_AR_PERIODS = 3.0
 VERIFY_REV = 0.25
 VERIFY_SETTLE_S = 0.25
 #: Axis time a tuning may spend moving (issue 8: at most 5 s); runners-up are tried only
-#: while one more verification move fits.
+#: while one more try and the verification move after it fit.
 AXIS_BUDGET_S = 4.6
 #: Torque share of the move runners-up are compared with (search.py's reference move: 0.7).
 RANK_TORQUE_SHARE = 0.7
@@ -468,8 +468,7 @@ class OwnTuning:
         distance = max(
             abs(b - a) for a, b in zip([float(drive.start_counts), *targets], targets, strict=False)
         )
-        cruise = max(0.0, distance / velocity - velocity / acc)
-        duration = 2.0 * velocity / acc + cruise
+        duration = _move_time(distance, velocity, acc)
         # Room for the axis to arrive late (an untuned loop lags its profile).
         total = len(targets) * (duration + rest_s) + 0.02
         rec = DriveRecorder(self.io, drive.rate_hz)
@@ -696,20 +695,23 @@ class OwnTuning:
         acc *= RANK_TORQUE_SHARE * 3.0  # The verification move accelerates at a third.
         velocity = min(0.8 * math.sqrt(acc * distance), 0.95 * drive.max_velocity)
         brisk = (distance, velocity, acc)
+        # Axis time of one try and of the verification move that follows a change (each is
+        # there and back): the winner's try, one runner-up and that move must fit to start.
+        try_s = 2.0 * _move_time(distance, velocity, acc)
+        verify_s = 2.0 * _move_time(*profile)
+        if self.axis_time_s + 2.0 * try_s + verify_s > AXIS_BUDGET_S:
+            return design.gains, step
         best = design.gains
         best_key = _verify_key(await self._verify_move(drive, brisk))
         last = design.gains
-        per_move = None
         for i, g in enumerate(design.alternatives):
-            if per_move is not None and self.axis_time_s + 2.0 * per_move > AXIS_BUDGET_S:
+            if self.axis_time_s + try_s + verify_s > AXIS_BUDGET_S:
                 break
             self.progress(0.85 + 0.04 * i, f"trying runner-up {i + 1} on the axis")
-            t0 = self.axis_time_s
             await self.write_gains(g)
             last = g
             key = _verify_key(await self._verify_move(drive, brisk))
             await self._check_healthy()
-            per_move = self.axis_time_s - t0
             if key < best_key:
                 best, best_key = g, key
         if last != best:
@@ -843,6 +845,12 @@ class OwnTuning:
             "stored": False,
             "_loop": loop,
         }
+
+
+def _move_time(distance: float, velocity: float, acc: float) -> float:
+    """Duration of one trapezoidal profile move [s] (the drive's profile position, 6081h/6083h)."""
+    cruise = max(0.0, distance / velocity - velocity / acc)
+    return 2.0 * velocity / acc + cruise
 
 
 def _verify_key(step: dict[str, Any]) -> tuple[float, float, float]:

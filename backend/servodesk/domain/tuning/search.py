@@ -261,6 +261,8 @@ def identification_set(plant: PlantModel) -> list[PlantModel]:
     a well-damped mode then leaves too little phase on the real one), and no viscous damping."""
     f_ar = plant.anti_resonance_hz
     tol = INERTIA_TOL_LOW_ANTI if f_ar is not None and f_ar < LOW_ANTI_RESONANCE_HZ else INERTIA_TOL
+    # The nominal model and the lighter one of robustness_set; the resonances get their own
+    # tolerance below.
     out = robustness_set(plant, tol)[:2]
     if plant.resonances_hz():
         out.append(plant.scaled(resonance=1.0 - RESONANCE_TOL))
