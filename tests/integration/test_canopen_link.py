@@ -212,6 +212,26 @@ async def test_nmt_commands_change_the_heartbeat_state(link: CanopenLink) -> Non
         await link.nmt("explode")
 
 
+async def test_a_heartbeat_older_than_the_nmt_command_does_not_undo_it(link: CanopenLink) -> None:
+    # A heartbeat every millisecond: one the drive sent just before a command can be read just
+    # after it. The state servodesk reports after a command (what a cyclic start or a PDO
+    # change decides on) must stay the commanded one, not flip back for a heartbeat period.
+    await link.write(A(0x1017), (1).to_bytes(2, "little"))
+    await asyncio.sleep(0.05)
+    events: list[LinkEvent] = []
+    link.add_event_callback(events.append)
+    flips: list[tuple[int, list[str]]] = []
+    for i in range(100):
+        command, expected = ("start", "operational") if i % 2 == 0 else ("preop", "preop")
+        events.clear()
+        await link.nmt(command)
+        await asyncio.sleep(0.01)
+        states = [str(e.data["state"]) for e in list(events) if e.kind == "nmt"]
+        if states != [expected] or await link.network_state() != expected:
+            flips.append((i, states))
+    assert not flips, flips
+
+
 def test_scan_finds_exactly_the_simulated_nodes(sim: SimulatedBus, channel: str) -> None:
     assert scan(LinkParams(interface="virtual", channel=channel), timeout=0.3) == [5, 6]
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import math
 import os
 import sys
 import threading
@@ -125,6 +126,8 @@ pool = NetworkPool()
 
 #: Longest segmented upload accepted (a DOMAIN could be larger; servodesk does not read those).
 _MAX_SEGMENTED = 1 << 20
+#: Heartbeats read this soon after an NMT command may predate it (see _on_heartbeat).
+HEARTBEAT_STALE_S = 0.05
 
 
 class _Doorbell:
@@ -226,6 +229,8 @@ class CanopenLink(DriveLink):
         self._deadline = 0.0
         self.last_heartbeat: float | None = None
         self.nmt_state: str = "unknown"
+        #: When servodesk last commanded an NMT state (monotonic), see _on_heartbeat.
+        self._nmt_commanded_at = -math.inf
 
     # Hooks -------------------------------------------------------------------------
 
@@ -513,6 +518,7 @@ class CanopenLink(DriveLink):
         # commanded is the best knowledge (a heartbeat, when the drive sends one, corrects it).
         # After a reset the node boots into PRE-OPERATIONAL (CiA 301 §7.3.2.1).
         commanded = {"start": "operational", "stop": "stopped"}.get(command, "preop")
+        self._nmt_commanded_at = time.monotonic()
         if commanded != self.nmt_state:
             self.nmt_state = commanded
             self._emit("nmt", state=commanded)
@@ -528,10 +534,16 @@ class CanopenLink(DriveLink):
     # Bus-thread callbacks ------------------------------------------------------------------
 
     def _on_heartbeat(self, state: int) -> None:
-        self.last_heartbeat = time.monotonic()
+        now = time.monotonic()
+        self.last_heartbeat = now
         name = {0x00: "bootup", 0x04: "stopped", 0x05: "operational", 0x7F: "preop"}.get(
             state & 0x7F, f"0x{state:02X}"
         )
+        # A heartbeat the drive sent just before our NMT command can be read just after it:
+        # it would undo the commanded state until the next heartbeat, and a cyclic start in
+        # that window would believe the node already OPERATIONAL. A boot-up is always news.
+        if name != "bootup" and now - self._nmt_commanded_at < HEARTBEAT_STALE_S:
+            return
         if name != self.nmt_state:
             self.nmt_state = name
             self._emit("nmt", state=name)

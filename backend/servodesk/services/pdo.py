@@ -463,9 +463,10 @@ async def start_cyclic(session: Session, sync_period_ms: float, outputs: bool) -
     # CiA 301 §7.3.2.2.1: PDOs are exchanged only in NMT OPERATIONAL. The node is put back
     # into the state it had when cyclic data is stopped (a restart keeps the first state).
     before = previous.nmt_before if previous is not None else await _nmt_state(session)
-    if await _nmt_state(session) != "operational":
-        await session.link.nmt("start")
-        await asyncio.sleep(NMT_SETTLE_S)
+    # Sent even when the node is believed OPERATIONAL: NMT is unconfirmed and the belief can
+    # be a heartbeat old, while "start" to an OPERATIONAL node changes nothing (CiA 301 §7.3.2.2.1).
+    await session.link.nmt("start")
+    await asyncio.sleep(NMT_SETTLE_S)
     ex = CyclicExchange(session, transport, config, period=period, outputs=outputs, image=image)
     ex.nmt_before = before
     ex.start()
