@@ -72,6 +72,12 @@ def test_resonance_found_and_notched() -> None:
     assert abs(res[0]["anti_freq_hz"] / 200.0 - 1.0) < 0.05  # f_r / sqrt(1 + R)
     j = spec.motor_inertia * (1 + spec.inertia_ratio)
     assert abs(result["identified"]["inertia_kgm2"] / j - 1.0) < 0.05
+    # Friction near the plant file's 2 % of peak torque, viscous near its 0 (a long filter
+    # window once gave most of the Coulomb friction to the viscous term: 0.024 of 0.089 N m).
+    assert result["identified"]["coulomb_nm"] == pytest.approx(0.02 * spec.peak_torque, rel=0.2)
+    # At 50 rad/s (8 rev/s) the viscous term stays under a quarter of the true friction (it
+    # was 0.08 N m there).
+    assert abs(result["identified"]["viscous_nms"]) * 50.0 < 0.25 * 0.02 * spec.peak_torque
     g = _gains(result)
     assert abs(g.notch1_hz / 400.0 - 1.0) < 0.05
     loop = LoopModel(exact_model(spec), float(spec.loop_rate_hz), g)

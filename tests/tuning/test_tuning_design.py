@@ -15,6 +15,7 @@ from servodesk.domain.tuning.metrics import (
     move_metrics,
     profile_duration,
     simulate_move,
+    smoothed_settling,
     step_response,
 )
 from servodesk.domain.tuning.model import LoopModel, PlantModel
@@ -153,6 +154,24 @@ def test_move_metrics_on_hand_made_arrays() -> None:
     assert m3.overshoot_counts == pytest.approx(30.0)
     assert m3.key() == (m3.settling_10_s, m3.settling_100_s, m3.fe_rms_counts)
     assert math.isnan(move_metrics(t, 500.0, pos, 0.03).fe_rms_counts)
+
+
+def test_smoothed_settling_sees_through_jitter_but_not_a_slow_approach() -> None:
+    rate = 16000.0
+    t = np.arange(int(0.5 * rate)) / rate
+    rng = np.random.default_rng(1)
+    jitter = 25.0 * np.sign(rng.standard_normal(len(t)))  # +-25 counts, zero mean
+    # Settles (exponentially, tau 10 ms) from 2000 counts off at t_end = 0.1 s.
+    approach = np.where(t < 0.1, 2000.0, 2000.0 * np.exp(-(t - 0.1) / 0.01))
+    pos = 1000.0 + approach + jitter
+    # The plain figure: the jitter keeps leaving +-10 counts to the end of the record.
+    assert move_metrics(t, 1000.0, pos, 0.1).settling_10_s == math.inf
+    # The 5 ms mean: in the band once the approach is (ln(2000/10) tau = 53 ms), give or take
+    # the window and the residual jitter of the mean.
+    s = smoothed_settling(t, 1000.0, pos, 0.1)
+    assert 0.045 < s < 0.065
+    # A constant offset is not jitter: never settled.
+    assert smoothed_settling(t, 1000.0, pos + 30.0, 0.1) == math.inf
 
 
 def test_linear_move_settles_with_the_design() -> None:

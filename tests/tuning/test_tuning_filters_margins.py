@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -153,6 +154,27 @@ def test_two_mass_response_has_its_anti_resonance_and_resonance() -> None:
     mag = np.abs(plant.response(TWO_PI * f))
     assert f[np.argmin(mag)] == pytest.approx(200.0, rel=0.005)
     assert f[np.argmax(mag * f)] == pytest.approx(400.0, rel=0.01)
+
+
+def test_a_load_damper_turns_the_axis_into_a_motor_on_a_spring() -> None:
+    # The stuck-load models (search.stuck_load_set): with a damper from the load to the frame
+    # the continuous state space still matches the response, and a very large one holds the
+    # load, leaving the motor on its shaft: s / (J_M s^2 + c s + k).
+    free = PlantModel(3.7e-5, 3.7e-4, 300.0, 0.05, 1e-4, None)
+    k, c = free.stiffness, free.shaft_damping
+    w = TWO_PI * np.geomspace(5.0, 5000.0, 40)
+    for bl in (0.0, 0.05, 5.0):
+        plant = replace(free, load_viscous=bl)
+        a, bu, _bw, cc = plant.state_space()
+        ss = np.array([cc @ np.linalg.solve(1j * x * np.eye(len(a)) - a, bu) * 1j * x for x in w])
+        assert np.max(np.abs(ss / plant.response(w) - 1.0)) < 1e-9
+    held = replace(free, load_viscous=1e6).response(w)
+    s = 1j * w
+    assert np.max(np.abs(held / (s / (3.7e-5 * s**2 + (c + 1e-4) * s + k)) - 1.0)) < 1e-3
+    with pytest.raises(ValueError):
+        PlantModel(3.7e-5, 3.7e-4, load_viscous=0.1)  # No shaft: nothing to hold.
+    with pytest.raises(ValueError):
+        replace(free, load_viscous=-1.0)
 
 
 def _gains(plant: PlantModel, fv: float) -> ServoGains:

@@ -4,23 +4,30 @@ set, and the ranking itself (domain/tuning/simulate.py, domain/tuning/search.py)
 from __future__ import annotations
 
 import math
+import pickle
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from servodesk.domain.tuning.gains import ServoGains
-from servodesk.domain.tuning.model import PlantModel
+from servodesk.domain.tuning.model import LoopModel, Mode, PlantModel
 from servodesk.domain.tuning.search import (
     INERTIA_TOL,
     INERTIA_TOL_LOW_ANTI,
     RESONANCE_TOL,
+    STUCK_LOAD_DAMPING,
     alternatives_of,
     identification_set,
     mechanical,
     rank_gains,
     reference_move,
+    stuck_load_set,
+    tune_on_model,
 )
 from servodesk.domain.tuning.simulate import friction_step, simulate_batch
+from servodesk.sim.plant import PlantParams
+from servodesk.sim.replay import ModelMoves, run_move
 
 RATE = 16000.0
 JM = 3.7e-5
@@ -136,3 +143,72 @@ def test_alternatives_differ_in_integral_time_or_position_gain() -> None:
     # A runner-up with a higher velocity gain than the winner is never tried on the axis.
     faster = ServoGains(kp_pos=200.0, kp_vel=0.12, ti_vel=0.03, vel_ff=1.0, inertia_ff=1e-4)
     assert alternatives_of([base, faster, slow_i]) == (slow_i,)
+
+
+def _true_tail(gains: ServoGains) -> float:
+    """Peak-to-peak error over the last 0.3 s of the reference move on the drive's own plant
+    simulation (sim/plant.py: exact two-mass, Coulomb friction sticking on the load)."""
+    params = PlantParams(
+        motor_inertia=JM,
+        load_inertia=JM,
+        viscous=0.0,
+        coulomb=0.02 * PEAK,
+        peak_torque=PEAK,
+        counts_per_rev=CPR,
+        current_loop_hz=2000.0,
+        resonance_hz=400.0,
+        damping=0.03,
+        exact=True,
+    )
+    move = reference_move(2 * JM, PEAK, CPR, RATE)
+    err = run_move(params, gains, RATE, PEAK, move) - move.target_counts
+    tail = err[move.t > move.t[-1] - 0.3]
+    return float(tail.max() - tail.min())
+
+
+def test_stuck_load_models_refuse_the_hunting_gains() -> None:
+    plant = PlantModel(JM, JM, 400.0, 0.03, 0.0, 2000.0)
+    stuck = stuck_load_set(plant)
+    z = math.sqrt(plant.stiffness * plant.load_inertia)
+    assert [m.load_viscous for m in stuck] == pytest.approx([x * z for x in STUCK_LOAD_DAMPING])
+    assert stuck_load_set(PlantModel(JM, JM)) == []  # A rigid axis has no shaft to hold.
+    # The free axis meets the margins with these gains; held by friction it is unstable.
+    assert LoopModel(plant, RATE, HUNTING).velocity_margins().meets(45.0, 8.0)
+    assert not all(LoopModel(p, RATE, HUNTING).is_stable() for p in stuck)
+    move = reference_move(plant.total_inertia, PEAK, CPR, RATE)
+    model = mechanical(plant, counts_per_rev=CPR, torque_limit=PEAK, coulomb=0.02 * PEAK)
+    assert rank_gains(plant, RATE, [HUNTING], move, model, stuck_plants=stuck).n_feasible == 0
+    # And the drive's plant does hunt with them.
+    assert _true_tail(HUNTING) > 150.0
+
+
+def test_the_tuned_axis_does_not_hunt_when_its_load_sticks() -> None:
+    plant = PlantModel(JM, JM, 400.0, 0.03, 0.0, 2000.0)
+    result = tune_on_model(
+        plant, RATE, "high", counts_per_rev=CPR, torque_limit=PEAK, coulomb=0.02 * PEAK
+    )
+    assert all(LoopModel(p, RATE, result.gains).is_stable() for p in stuck_load_set(plant))
+    assert result.gains.notch1_hz == pytest.approx(400.0)
+    assert _true_tail(result.gains) <= 10.0
+
+
+def test_a_finer_simulation_orders_the_variations() -> None:
+    plant = PlantModel(JM, 3 * JM, 800.0, 0.03, 0.0, 2000.0)
+    finer = ModelMoves.of(plant, RATE, counts_per_rev=CPR, torque_limit=PEAK, coulomb=0.09)
+    assert finer is not None
+    result = tune_on_model(
+        plant, RATE, "high", counts_per_rev=CPR, torque_limit=PEAK, coulomb=0.09, rerank=finer
+    )
+    move = reference_move(plant.total_inertia, PEAK, CPR, RATE)
+    # The result's move figures are the finer simulation's, and no variation it ranked
+    # settles sooner than the chosen one.
+    chosen = finer([result.gains], move)[0]
+    assert chosen is not None and chosen == result.metrics
+    others = [m for m in finer(result.alternatives, move) if m is not None]
+    assert all(chosen.key() <= m.key() for m in others)
+    assert any("tick-by-tick" in n for n in result.notes)
+    # The tuning service hands it to a worker process; a model the simulated mechanics cannot
+    # represent (a second resonance) gets none and the batch model's order stands.
+    assert pickle.loads(pickle.dumps(finer)) == finer
+    two = replace(plant, extra_modes=(Mode(900.0, 0.03, 1000.0),))
+    assert ModelMoves.of(two, RATE, counts_per_rev=CPR, torque_limit=PEAK) is None

@@ -55,9 +55,8 @@ from servodesk.domain.tuning.search import (
     rank_gains,
     reference_move,
 )
-from servodesk.sim.plant import Plant, mechanics_for
+from servodesk.sim import replay
 from servodesk.sim.plantfile import PlantSpec, load_plant_file
-from servodesk.sim.servo import ServoLoop
 
 #: The travel window and torque limit the benchmark confirms for every tuning run.
 TRAVEL_WINDOW_REV = 0.5
@@ -171,31 +170,9 @@ async def tune(spec: PlantSpec, mode: str = "high") -> tuple[dict[str, Any], Any
 
 def run_move(spec: PlantSpec, gains: ServoGains, move: ReferenceMove, seed: int = 7) -> np.ndarray:
     """The reference move on the true plant with ``gains``: motor position per tick [counts]."""
-    params = spec.plant_params(seed)
-    plant = Plant(params, mechanics_for(params))
-    rate = float(spec.loop_rate_hz)
-    loop = ServoLoop(gains, rate, spec.encoder_counts, spec.peak_torque)
-    dt = 1.0 / rate
-    pos = np.empty(len(move.p))
-    step = plant.step
-    update = loop.update
-    p, v, a = move.p.tolist(), move.v.tolist(), move.a.tolist()
-    if spec.gravity:
-        # Start where the axis rests under gravity: the loop holds it with its integral.
-        hold = ServoLoop(gains, rate, spec.encoder_counts, spec.peak_torque)
-        for _ in range(int(0.3 * rate)):
-            step(hold.update(0.0, 0.0, 0.0, plant.encoder_counts), dt)
-        loop = hold
-        update = loop.update
-    for k in range(len(p)):
-        enc = plant.encoder_counts
-        pos[k] = enc
-        tau = update(p[k], v[k], a[k], enc)
-        if not math.isfinite(tau):
-            pos[k:] = math.nan
-            break
-        step(tau, dt)
-    return pos
+    return replay.run_move(
+        spec.plant_params(seed), gains, float(spec.loop_rate_hz), spec.peak_torque, move
+    )
 
 
 def observed_move(spec: PlantSpec) -> tuple[ReferenceMove, np.ndarray]:

@@ -101,6 +101,10 @@ class PlantModel:
     two-mass model of docs/tuning.md ("Plant files"): shaft stiffness
     ``k = w_r^2 J_M J_L / (J_M + J_L)``, damper ``c = 2 damping sqrt(k J_M J_L / (J_M + J_L))``,
     viscous friction on the motor. ``current_loop_hz`` None or 0: ideal torque.
+
+    ``load_viscous`` is a damper from the load to the frame (two-mass only): the describing
+    function of Coulomb friction on the load, ``4 F_c / (pi V_L)`` at a load velocity amplitude
+    ``V_L``, used to check a loop against a load that sticks (0: free, large: locked).
     """
 
     motor_inertia: float
@@ -110,6 +114,7 @@ class PlantModel:
     viscous: float = 0.0
     current_loop_hz: float | None = 2000.0
     extra_modes: tuple[Mode, ...] = ()
+    load_viscous: float = 0.0
 
     def __post_init__(self) -> None:
         if not self.motor_inertia > 0.0:
@@ -121,7 +126,9 @@ class PlantModel:
                 raise ValueError(f"resonance must be positive, not {self.resonance_hz}")
             if self.load_inertia <= 0.0:
                 raise ValueError("a two-mass model needs a load inertia")
-        if self.damping < 0.0 or self.viscous < 0.0:
+        if self.load_viscous > 0.0 and self.resonance_hz is None:
+            raise ValueError("a load damper needs a two-mass model")
+        if self.damping < 0.0 or self.viscous < 0.0 or self.load_viscous < 0.0:
             raise ValueError("damping and viscous friction must not be negative")
 
     @property
@@ -174,6 +181,7 @@ class PlantModel:
             viscous=self.viscous,
             current_loop_hz=self.current_loop_hz,
             extra_modes=modes,
+            load_viscous=self.load_viscous * inertia,
         )
 
     def resonances_hz(self) -> list[tuple[float, float]]:
@@ -186,8 +194,9 @@ class PlantModel:
     def response(self, w: npt.ArrayLike) -> ComplexArray:
         """Motor velocity / air-gap torque ``G(jw)`` of the mechanics (no current loop, no delay).
 
-        Rigid: ``1 / (J s + b)``. Two-mass (viscous b on the motor, shaft k and c):
-        ``(J_L s^2 + c s + k) / ((J_M s + b)(J_L s^2 + c s + k) + J_L s (c s + k))``.
+        Rigid: ``1 / (J s + b)``. Two-mass (viscous b on the motor, shaft k and c, load damper
+        b_L): ``(J_L s^2 + (c + b_L) s + k) / ((J_M s + b)(J_L s^2 + (c + b_L) s + k)
+        + (J_L s + b_L)(c s + k))``.
         """
         s = 1j * np.asarray(w, dtype=np.float64)
         b = self.viscous
@@ -197,8 +206,9 @@ class PlantModel:
         else:
             jm, jl = self.motor_inertia, self.load_inertia
             k, c = self.stiffness, self.shaft_damping
-            num = jl * s**2 + c * s + k
-            g = num / ((jm * s + b) * num + jl * s * (c * s + k))
+            bl = self.load_viscous
+            num = jl * s**2 + (c + bl) * s + k
+            g = num / ((jm * s + b) * num + (jl * s + bl) * (c * s + k))
         for m in self.extra_modes:
             wm = TWO_PI * m.freq_hz
             g = g + m.gain * s / (s**2 + 2.0 * m.damping * wm * s + wm**2)
@@ -251,7 +261,7 @@ class PlantModel:
             a[tw, vl] = -1.0
             a[vl, tw] = k / jl
             a[vl, vm] = cd / jl
-            a[vl, vl] = -cd / jl
+            a[vl, vl] = -(cd + self.load_viscous) / jl
             bw[vl] = 1.0 / jl
             nxt = vl + 1
         for m in self.extra_modes:

@@ -9,7 +9,9 @@ set are run through a reference move on a model (simulate.py, all at once) and r
 oracle's objective (anchors-tuning.md §3.4): settling to +-10 counts, then +-100, then the
 following error RMS.
 
-- The tuner calls :func:`tune_on_model` with the plant it identified.
+- The tuner calls :func:`tune_on_model` with the plant it identified, its stuck-load models
+  (:func:`stuck_load_set`) and a finer, tick-by-tick simulation of that plant to order the
+  feasible candidates (``rerank``; the service passes sim/replay.py's ``ModelMoves``).
 - The benchmark's oracle calls :func:`rank_gains` with the exact plant and a wider grid
   (benchmarks/tuning.py); its candidates are also checked on the exact plant's margins.
 
@@ -22,12 +24,18 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from servodesk.domain.tuning.design import Design, design_gains, robustness_set
+from servodesk.domain.tuning.design import (
+    STUCK_GM_MIN_DB,
+    STUCK_PM_MIN,
+    Design,
+    design_gains,
+    robustness_set,
+)
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.metrics import (
     MoveMetrics,
@@ -59,11 +67,14 @@ INERTIA_TOL = 0.06
 INERTIA_TOL_LOW_ANTI = 0.15
 LOW_ANTI_RESONANCE_HZ = 40.0
 #: How far an identified resonance may be off: the fitted peak was within 0.4 % on every
-#: plant of the benchmark (4x noise included). 2 % would do, and lifts the reachable gain on
-#: 400-800 Hz axes by up to 40 %, but with it the tuner chose narrow notches whose gains hunted
-#: in a friction limit cycle on R1-400Hz, R3-200Hz and stress-loop8k (the identified model's
-#: simulation did not show it): kept at 6 % until the design checks the stuck-load loop.
-RESONANCE_TOL = 0.06
+#: plant of the benchmark (4x noise included). 2 % lifts the reachable gain on 400-800 Hz axes
+#: by up to 40 % over 6 %. Alone it let the tuner choose narrow notches whose gains hunted in a
+#: friction limit cycle on R1-400Hz, R3-200Hz and stress-loop8k; the stuck-load models
+#: (:func:`stuck_load_set`) refuse those.
+RESONANCE_TOL = 0.02
+#: Load dampers of the stuck-load models, in units of ``sqrt(k J_L)`` (the load's impedance on
+#: its shaft): from a load that slides with friction to one held fast.
+STUCK_LOAD_DAMPING: tuple[float, ...] = (1.0, 3.0, 10.0, 100.0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -199,7 +210,12 @@ def candidates_around(g: ServoGains, wide: bool = False) -> list[ServoGains]:
 
 
 def _margins_ok(
-    plants: Sequence[PlantModel], rate_hz: float, g: ServoGains, pm: float, gm: float
+    plants: Sequence[PlantModel],
+    rate_hz: float,
+    g: ServoGains,
+    pm: float,
+    gm: float,
+    stuck_plants: Sequence[PlantModel] = (),
 ) -> bool:
     for p in plants:
         loop = LoopModel(p, rate_hz, g)
@@ -207,7 +223,18 @@ def _margins_ok(
             return False
         if not loop.position_margins().meets(pm, gm, MS_MAX_DB):
             return False
+    for p in stuck_plants:
+        loop = LoopModel(p, rate_hz, g)
+        for m in (loop.velocity_margins(), loop.position_margins()):
+            if not m.stable or m.phase_margin_deg < STUCK_PM_MIN:
+                return False
+            if m.gain_margin_db < STUCK_GM_MIN_DB:
+                return False
     return True
+
+
+#: A finer simulation of the identified axis: the move's metrics per gain set (None: diverged).
+Rerank = Callable[[Sequence[ServoGains], "ReferenceMove"], Sequence[MoveMetrics | None]]
 
 
 @dataclass(frozen=True, slots=True)
@@ -227,15 +254,19 @@ def rank_gains(
     sim_model: MechanicalModel,
     *,
     check_plants: Sequence[PlantModel] | None = None,
+    stuck_plants: Sequence[PlantModel] = (),
     torque_limit: float | None = None,
     pm_min: float = PM_MIN,
     gm_min_db: float = GM_MIN_DB,
 ) -> Ranking:
     """Every feasible candidate ranked by its move on ``sim_model`` (settling to +-10 counts,
     then +-100, then the following error RMS). Feasible: margins met on every plant of
-    ``check_plants`` (default: ``plant``)."""
+    ``check_plants`` (default: ``plant``), and stable with the stuck-load margins on every
+    plant of ``stuck_plants``."""
     plants = list(check_plants) if check_plants is not None else [plant]
-    feasible = [g for g in candidates if _margins_ok(plants, rate_hz, g, pm_min, gm_min_db)]
+    feasible = [
+        g for g in candidates if _margins_ok(plants, rate_hz, g, pm_min, gm_min_db, stuck_plants)
+    ]
     if not feasible:
         return Ranking([], 0)
     trace = simulate_batch(
@@ -288,6 +319,15 @@ def identification_set(plant: PlantModel) -> list[PlantModel]:
     return out
 
 
+def stuck_load_set(plant: PlantModel) -> list[PlantModel]:
+    """The axis with its load held by friction to a varying degree (design.py, step 1): load
+    dampers of :data:`STUCK_LOAD_DAMPING` times ``sqrt(k J_L)``; none for a rigid axis."""
+    if plant.resonance_hz is None or plant.load_inertia <= 0.0:
+        return []
+    z = math.sqrt(plant.stiffness * plant.load_inertia)
+    return [replace(plant, load_viscous=x * z) for x in STUCK_LOAD_DAMPING]
+
+
 def tune_on_model(
     plant: PlantModel,
     rate_hz: float,
@@ -297,13 +337,20 @@ def tune_on_model(
     torque_limit: float,
     coulomb: float = 0.0,
     gravity: float = 0.0,
+    rerank: Rerank | None = None,
 ) -> SearchResult:
     """The tuner's design: :func:`design_gains` at the response level, then for ``high`` the
     best move among the variations that keep the margins on every plant the identification
-    may have been (:func:`identification_set`)."""
+    may have been (:func:`identification_set`) and are stable with the load stuck
+    (:func:`stuck_load_set`). ``rerank``: a finer simulation of the identified axis that
+    orders those variations instead of the batch model (sim/replay.py's ``ModelMoves``; the
+    caller supplies it, this module simulates nothing but the batch model)."""
     check = identification_set(plant)
+    stuck = stuck_load_set(plant)
     pm, gm = PM_MIN + TUNER_PM_EXTRA_DEG, GM_MIN_DB + TUNER_GM_EXTRA_DB
-    design: Design = design_gains(plant, rate_hz, mode, pm, gm, robust_plants=check)
+    design: Design = design_gains(
+        plant, rate_hz, mode, pm, gm, robust_plants=check, stuck_plants=stuck
+    )
     move = reference_move(plant.total_inertia, torque_limit, counts_per_rev, rate_hz)
     model = mechanical(
         plant,
@@ -318,13 +365,29 @@ def tune_on_model(
     if mode == "high":
         cands += candidates_around(design.gains)
     ranked = rank_gains(
-        plant, rate_hz, cands, move, model, check_plants=check, pm_min=pm, gm_min_db=gm
+        plant,
+        rate_hz,
+        cands,
+        move,
+        model,
+        check_plants=check,
+        stuck_plants=stuck,
+        pm_min=pm,
+        gm_min_db=gm,
     )
     n_feasible = ranked.n_feasible
     alternatives: tuple[ServoGains, ...] = ()
-    if ranked.order:
-        chosen, metrics = ranked.order[0]
-        alternatives = alternatives_of([g for g, _ in ranked.order])
+    order = ranked.order
+    if rerank is not None and len(order) > 1:
+        finer = rerank([g for g, _ in order], move)
+        order = sorted(
+            ((g, m) for (g, _), m in zip(order, finer, strict=True) if m is not None),
+            key=lambda x: x[1].key(),
+        )
+        notes.append(f"{len(order)} variations ranked on a tick-by-tick simulation of the model")
+    if order:
+        chosen, metrics = order[0]
+        alternatives = alternatives_of([g for g, _ in order])
     else:
         notes.append("no variation kept the margins on the robustness set: the design as is")
         tr = simulate_batch(model, [chosen], rate_hz, move.p, move.v, move.a)
