@@ -303,8 +303,13 @@ class OwnTuning:
                 torque_limit=drive.limit_torque,
                 coulomb=max(est.coulomb, 0.0),
                 gravity=est.gravity,
+                # Ranked without the viscous term: the moves' fit lends it friction and shaft
+                # effects the machine may not have (R10-100Hz: 0.0029 N m s/rad where there is
+                # none), and damping the axis lacks makes sluggish gains look settled. Real
+                # viscous friction only helps whatever gains win (bench median ratio 1.93 ->
+                # 1.60, docs/tuning.md).
                 rerank=ModelMoves.of(
-                    model,
+                    replace(model, viscous=0.0),
                     drive.rate_hz,
                     counts_per_rev=drive.counts_per_rev,
                     torque_limit=drive.limit_torque,
