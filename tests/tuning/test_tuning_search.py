@@ -15,9 +15,11 @@ from servodesk.domain.tuning.model import LoopModel, Mode, PlantModel
 from servodesk.domain.tuning.search import (
     INERTIA_TOL,
     INERTIA_TOL_LOW_ANTI,
+    MOTOR_SPLIT_TOL_LOW_ANTI,
     RESONANCE_TOL,
     STUCK_LOAD_DAMPING,
     alternatives_of,
+    candidates_around,
     identification_set,
     mechanical,
     rank_gains,
@@ -104,6 +106,35 @@ def test_identification_set_widens_the_inertia_below_a_low_anti_resonance() -> N
         )
         assert any(m.damping == pytest.approx(0.5 * plant.damping) for m in models)
         assert any(m.viscous == 0.0 for m in models)
+        # Below a low anti-resonance the motor's share of the inertia is uncertain too: a
+        # member with a lighter motor, the same total and the same (well measured) resonance.
+        split = [
+            m
+            for m in models
+            if m.motor_inertia < 0.99 * plant.motor_inertia
+            and m.total_inertia == pytest.approx(plant.total_inertia)
+        ]
+        if plant is soft:
+            assert len(split) == 1
+            m = split[0]
+            assert m.motor_inertia == pytest.approx(JM * (1.0 - MOTOR_SPLIT_TOL_LOW_ANTI))
+            assert m.total_inertia == pytest.approx(plant.total_inertia)
+            assert m.resonance_hz == plant.resonance_hz
+            assert m.anti_resonance_hz is not None and m.anti_resonance_hz < 18.0
+        else:
+            assert split == []
+
+
+def test_variations_also_try_the_other_notch_depth() -> None:
+    design = ServoGains(
+        kp_pos=100.0, kp_vel=0.1, ti_vel=0.01, inertia_ff=1e-4, notch1_hz=400.0, notch1_width=1.0
+    )
+    depths = {g.notch1_depth for g in candidates_around(design)}
+    assert depths == {0.0, 0.3}  # A full notch, and one that lets the loop damp the mode.
+    assert all(g.notch1_hz == 400.0 and g.notch1_width == 1.0 for g in candidates_around(design))
+    rigid = replace(design, notch1_hz=0.0, notch1_width=0.0)
+    assert {g.notch1_depth for g in candidates_around(rigid)} == {0.0}
+    assert len(candidates_around(design)) == 2 * len(candidates_around(rigid))
 
 
 def test_ranking_puts_the_hunting_gains_last() -> None:
