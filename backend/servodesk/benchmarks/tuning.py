@@ -72,6 +72,8 @@ MEASURE_HOLD_S = 1.0
 ORACLE_VERSION = 3
 #: How many of the model's best candidates the oracle runs on the true plant.
 ORACLE_TRUE_PLANT_RUNS = 12
+#: The torque-noise seed of the measured moves.
+RUN_SEED = 7
 
 
 def default_plants() -> list[tuple[str, PlantSpec]]:
@@ -168,7 +170,9 @@ async def tune(spec: PlantSpec, mode: str = "high") -> tuple[dict[str, Any], Any
 # --------------------------------------------------------------------------- measuring
 
 
-def run_move(spec: PlantSpec, gains: ServoGains, move: ReferenceMove, seed: int = 7) -> np.ndarray:
+def run_move(
+    spec: PlantSpec, gains: ServoGains, move: ReferenceMove, seed: int = RUN_SEED
+) -> np.ndarray:
     """The reference move on the true plant with ``gains``: motor position per tick [counts]."""
     return replay.run_move(
         spec.plant_params(seed), gains, float(spec.loop_rate_hz), spec.peak_torque, move
@@ -258,17 +262,13 @@ def oracle_gains(spec: PlantSpec) -> ServoGains:
     # plant itself (without its torque noise, as measure() judges settling), and the best
     # there wins. The batch model integrates the shaft by Euler steps and friction sticks at
     # slightly other places, which at +-10 counts picks a different winner than the plant.
-    quiet = replace(spec, noise_torque=0.0)
-    observed, demand = observed_move(spec)
-    best: tuple[tuple[float, float, float], int] | None = None
-    for i, (g, _m) in enumerate(ranked[:ORACLE_TRUE_PLANT_RUNS]):
-        pos = run_move(quiet, g, observed)
-        if not np.isfinite(pos).all():
-            continue
-        key = move_metrics(observed.t, observed.target_counts, pos, observed.t_end, demand).key()
-        if best is None or key < best[0]:
-            best = (key, i)
-    return ranked[best[1] if best is not None else 0][0]
+    true_plant = replay.ModelMoves(
+        replace(spec, noise_torque=0.0).plant_params(RUN_SEED), rate, spec.peak_torque
+    )
+    top = [g for g, _m in ranked[:ORACLE_TRUE_PLANT_RUNS]]
+    observed, _demand = observed_move(spec)
+    tried = [(m.key(), i) for i, m in enumerate(true_plant(top, observed)) if m is not None]
+    return top[min(tried)[1]] if tried else top[0]
 
 
 def cached_oracle(spec: PlantSpec, cache: Path | None) -> tuple[ServoGains, bool]:

@@ -717,11 +717,12 @@ class OwnTuning:
         """The model's winner and runners-up (:func:`~servodesk.domain.tuning.search.
         alternatives_of`) tried on the axis itself with a brisk move (the verification move's
         distance at :data:`RANK_TORQUE_SHARE` of the torque limit, like the reference move of
-        search.py); the best measured move wins (settling to +-10 counts, then +-100, then the
-        drive's following error RMS: the model's own order). The identified model is not the
-        machine: its friction and damping decide between integral times and position gains
-        that all meet the margins, and the axis settles that. Each try stays within the
-        axis-time budget of a tuning. Returns the gains and their verification move."""
+        search.py); the best measured move wins (:func:`_verify_key`: settling to +-10 counts of
+        the error's 5 ms mean, then to +-100 counts, then the drive's following error RMS).
+        The identified model is not the machine: its friction and damping decide between
+        integral times and position gains that all meet the margins, and the axis settles that.
+        Each try stays within the axis-time budget of a tuning. Returns the gains and their
+        verification move."""
         if not design.alternatives:
             return design.gains, step
         distance, _velocity, acc = profile

@@ -211,11 +211,9 @@ def smoothed_settling(
     dt = float(np.median(np.diff(tt)))
     n = max(1, round(window_s / dt)) if dt > 0.0 else 1
     c = np.concatenate(([0.0], np.cumsum(err)))
-    mean = np.empty_like(err)
-    k = np.arange(len(err))
-    lo = np.maximum(0, k - n + 1)
-    mean[:] = (c[k + 1] - c[lo]) / (k + 1 - lo)
-    return _settling(tt, mean, band, t_end)
+    k = np.arange(1, len(err) + 1)
+    lo = np.maximum(0, k - n)
+    return _settling(tt, (c[k] - c[lo]) / (k - lo), band, t_end)
 
 
 def move_metrics(
