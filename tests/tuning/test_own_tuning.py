@@ -159,6 +159,23 @@ def test_cancelled_midway_puts_the_gains_back() -> None:
     assert [drive.read(i, s) for i, s in GAINS] == before
 
 
+def test_gains_that_move_the_axis_worse_are_refused_and_the_old_ones_kept() -> None:
+    """A heavy load on a soft shaft (anti-resonance 11 Hz, below what the frequency response
+    measures): the tuner's model is the motor alone, and its gains overshoot far more than the
+    factory ones. The verification move shows it; the tuning fails and the drive keeps its
+    gains and limits."""
+    spec = PlantSpec(inertia_ratio=30.0, resonance_hz=60.0, damping=0.01)
+    drive = build_drive(spec)
+    before = [drive.read(i, s) for i, s in GAINS]
+    limits = [drive.read(0x6072, 0), drive.read(0x6065, 0), drive.read(0x6060, 0)]
+    req = OwnTuningRequest("high", 0.5, 175.0)
+    with pytest.raises(TuningFailed, match=r"worse than the previous ones.*overshot") as err:
+        asyncio.run(OwnTuning(SimIO(drive), req, offload=False).run())
+    assert err.value.hint and "by hand" in err.value.hint
+    assert [drive.read(i, s) for i, s in GAINS] == before
+    assert [drive.read(0x6072, 0), drive.read(0x6065, 0), drive.read(0x6060, 0)] == limits
+
+
 def test_benchmark_row_has_the_issue_keys(tmp_path: Any) -> None:
     row = run_plant("R3-rigid", PlantSpec(inertia_ratio=3.0), "high", str(tmp_path))
     for key in (
