@@ -28,6 +28,7 @@ from servodesk.benchmarks.tuning import (
     observed_move,
     oracle_gains,
     run_plant,
+    summarise,
 )
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.model import LoopModel
@@ -233,3 +234,17 @@ def test_the_oracle_is_the_best_of_its_searches_on_the_true_plant() -> None:
     og = oracle_gains(spec)
     assert measure(spec, og)["settling_10_s"] <= searched.metrics.settling_10_s
     assert measure(spec, og)["settling_10_s"] < 0.0084
+
+
+def test_the_summary_names_the_plants_behind_an_infinite_worst() -> None:
+    rows: list[dict[str, Any]] = [
+        {"plant": "a", "stable": True, "settling_ratio": 1.5},
+        {"plant": "b", "stable": True, "settling_ratio": math.inf},
+        {"plant": "c", "stable": True, "settling_ratio": 0.5},
+        {"plant": "d", "stable": False, "error": "TuningFailed: worse"},
+    ]
+    s = summarise(rows)
+    assert s["settling_ratio"] == {"median": 1.5, "worst": math.inf}
+    assert s["settling_ratio_infinite"] == ["b"]
+    assert s["tuning_failed"] == ["d"]
+    assert s["stable"] == 3

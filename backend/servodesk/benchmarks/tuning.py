@@ -400,6 +400,14 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         ),
         "settling_ratio": stat("settling_ratio", "max"),
         "settling_100_ratio": stat("settling_100_ratio", "max"),
+        # JSON has no infinity, so an infinite worst ratio prints as null: these name the
+        # plants behind it (tuned gains never settled in the observed second, or settled
+        # later than an oracle that was already inside the band when the profile ended), and
+        # the plants whose tuning failed (no ratio at all).
+        "settling_ratio_infinite": [
+            r["plant"] for r in rows if r.get("settling_ratio") == math.inf
+        ],
+        "tuning_failed": [r["plant"] for r in rows if "error" in r],
         "bandwidth_ratio": stat("bandwidth_ratio", "min"),
         "phase_margin_deg": stat("phase_margin_deg", "min"),
         "gain_margin_db": stat("gain_margin_db", "min"),
