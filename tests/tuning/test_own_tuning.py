@@ -34,7 +34,12 @@ from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.model import LoopModel
 from servodesk.domain.tuning.oracle import oracle_search
 from servodesk.errors import DriveStateError, ValidationError
-from servodesk.services.tuning_own import OwnTuning, OwnTuningRequest, TuningFailed
+from servodesk.services.tuning_own import (
+    OwnTuning,
+    OwnTuningRequest,
+    TuningFailed,
+    _refuse_if_worse,
+)
 from servodesk.sim.plantfile import PlantSpec
 from servodesk.sim.replay import ModelMoves
 
@@ -248,3 +253,19 @@ def test_the_summary_names_the_plants_behind_an_infinite_worst() -> None:
     assert s["settling_ratio_infinite"] == ["b"]
     assert s["tuning_failed"] == ["d"]
     assert s["stable"] == 3
+
+
+def test_worse_means_an_overshoot_that_matters() -> None:
+    """The refusal rule on its own: a crawl that ended a few counts past the target is not a
+    worse move than one that crept in without overshoot; a settled move is never refused."""
+
+    def step(settling: float, overshoot: float) -> dict[str, Any]:
+        return {"metrics": {"settling_100_s": settling, "overshoot": overshoot}}
+
+    _refuse_if_worse(step(math.inf, 0.0), step(math.inf, 0.01))
+    _refuse_if_worse(step(math.inf, 0.3), step(math.inf, 0.35))
+    _refuse_if_worse(step(0.02, 0.0), step(0.05, 0.5))
+    with pytest.raises(TuningFailed, match="overshot 71 % of its distance, against 28 %"):
+        _refuse_if_worse(step(math.inf, 0.28), step(math.inf, 0.71))
+    with pytest.raises(TuningFailed, match="did with the previous ones in 20 ms"):
+        _refuse_if_worse(step(0.02, 0.0), step(math.inf, 0.0))
