@@ -12,23 +12,20 @@ from __future__ import annotations
 
 import asyncio
 import math
-from dataclasses import replace
 from typing import Any
 
 import pytest
 
 from servodesk.benchmarks.tuning import (
-    DIVERGED,
     ORACLE_SEARCH_RUNS,
-    RUN_SEED,
     SimIO,
     build_drive,
     exact_model,
     measure,
-    observed_move,
     oracle_gains,
     run_plant,
     summarise,
+    true_plant_metrics,
 )
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.model import LoopModel
@@ -38,10 +35,9 @@ from servodesk.services.tuning_own import (
     OwnTuning,
     OwnTuningRequest,
     TuningFailed,
-    _refuse_if_worse,
+    refuse_if_worse,
 )
 from servodesk.sim.plantfile import PlantSpec
-from servodesk.sim.replay import ModelMoves
 
 GAINS = [(0x2100, 0), (0x2101, 0), (0x2102, 0), (0x2104, 0), (0x2106, 1)]
 
@@ -223,17 +219,11 @@ def test_the_oracle_is_the_best_of_its_searches_on_the_true_plant() -> None:
     no later than either of its searches alone (here the structural search of
     domain/tuning/oracle.py finds 1.8 ms where the grid around the design found 8.4 ms)."""
     spec = PlantSpec(inertia_ratio=3.0, current_loop_hz=1000.0)
-    rate = float(spec.loop_rate_hz)
-    quiet = replace(spec, noise_torque=0.0)  # As the oracle and measure() judge settling.
-    true_plant = ModelMoves(quiet.plant_params(RUN_SEED), rate, spec.peak_torque)
-    move, _ = observed_move(spec)
-
-    def on_true_plant(g: ServoGains) -> Any:
-        m = true_plant([g], move)[0]
-        return m if m is not None else DIVERGED
-
     searched = oracle_search(
-        exact_model(spec), rate, on_true_plant, max_simulations=ORACLE_SEARCH_RUNS
+        exact_model(spec),
+        float(spec.loop_rate_hz),
+        true_plant_metrics(spec),
+        max_simulations=ORACLE_SEARCH_RUNS,
     )
     assert searched.metrics is not None
     og = oracle_gains(spec)
@@ -262,10 +252,10 @@ def test_worse_means_an_overshoot_that_matters() -> None:
     def step(settling: float, overshoot: float) -> dict[str, Any]:
         return {"metrics": {"settling_100_s": settling, "overshoot": overshoot}}
 
-    _refuse_if_worse(step(math.inf, 0.0), step(math.inf, 0.01))
-    _refuse_if_worse(step(math.inf, 0.3), step(math.inf, 0.35))
-    _refuse_if_worse(step(0.02, 0.0), step(0.05, 0.5))
+    refuse_if_worse(step(math.inf, 0.0), step(math.inf, 0.01))
+    refuse_if_worse(step(math.inf, 0.3), step(math.inf, 0.35))
+    refuse_if_worse(step(0.02, 0.0), step(0.05, 0.5))
     with pytest.raises(TuningFailed, match="overshot 71 % of its distance, against 28 %"):
-        _refuse_if_worse(step(math.inf, 0.28), step(math.inf, 0.71))
+        refuse_if_worse(step(math.inf, 0.28), step(math.inf, 0.71))
     with pytest.raises(TuningFailed, match="did with the previous ones in 20 ms"):
-        _refuse_if_worse(step(0.02, 0.0), step(math.inf, 0.0))
+        refuse_if_worse(step(0.02, 0.0), step(math.inf, 0.0))

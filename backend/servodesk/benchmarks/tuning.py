@@ -35,6 +35,7 @@ import os
 import statistics
 import sys
 import time
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
@@ -273,10 +274,7 @@ def oracle_gains(spec: PlantSpec) -> ServoGains:
         replace(spec, noise_torque=0.0).plant_params(RUN_SEED), rate, spec.peak_torque
     )
     observed, _demand = observed_move(spec)
-
-    def on_true_plant(g: ServoGains) -> MoveMetrics:
-        m = true_plant([g], observed)[0]
-        return m if m is not None else DIVERGED
+    on_true_plant = true_plant_metrics(spec)
 
     # A second search of other structure (domain/tuning/oracle.py: notch widths and depths,
     # low-pass corners and integral-time factors from the exact model's margins, then a
@@ -286,11 +284,27 @@ def oracle_gains(spec: PlantSpec) -> ServoGains:
     searched = oracle_search(plant, rate, on_true_plant, max_simulations=ORACLE_SEARCH_RUNS)
     top = [g for g, _m in ranked[:ORACLE_TRUE_PLANT_RUNS]]
     tried = [(m.key(), i) for i, m in enumerate(true_plant(top, observed)) if m is not None]
-    best = top[min(tried)[1]] if tried else top[0]
-    best_key = min(tried)[0] if tried else DIVERGED.key()
+    best_key, best = min(tried, default=(DIVERGED.key(), 0))
     if searched.metrics is not None and searched.metrics.key() < best_key:
         return searched.gains
-    return best
+    return top[best]
+
+
+def true_plant_metrics(spec: PlantSpec) -> Callable[[ServoGains], MoveMetrics]:
+    """The reference move on the true plant without its torque noise (as :func:`measure`
+    judges settling), one gain set at a time: :data:`DIVERGED` when the loop diverged."""
+    moves = replay.ModelMoves(
+        replace(spec, noise_torque=0.0).plant_params(RUN_SEED),
+        float(spec.loop_rate_hz),
+        spec.peak_torque,
+    )
+    observed, _demand = observed_move(spec)
+
+    def run(g: ServoGains) -> MoveMetrics:
+        m = moves([g], observed)[0]
+        return m if m is not None else DIVERGED
+
+    return run
 
 
 def cached_oracle(spec: PlantSpec, cache: Path | None) -> tuple[ServoGains, bool]:

@@ -331,7 +331,7 @@ class OwnTuning:
             chosen, step_after = await self._try_alternatives(drive, profile, design, step_after)
             if chosen != design.gains:
                 design = design.with_gains(chosen, drive.rate_hz, model)
-            _refuse_if_worse(step_before, step_after)
+            refuse_if_worse(step_before, step_after)
         except BaseException:
             await _quietly(self.write_gains(before))
             await _quietly(self._restore_settings(saved))
@@ -883,7 +883,7 @@ WORSE_OVERSHOOT = 1.25
 WORSE_OVERSHOOT_MIN = 0.05
 
 
-def _refuse_if_worse(before: dict[str, Any], after: dict[str, Any]) -> None:
+def refuse_if_worse(before: dict[str, Any], after: dict[str, Any]) -> None:
     """Raise :class:`TuningFailed` when the new gains moved the axis worse than the old ones:
     the verification move did not settle to +-100 counts where it did before, or it settled
     neither time and overshot :data:`WORSE_OVERSHOOT` times as far (and more than
