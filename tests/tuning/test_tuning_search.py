@@ -237,6 +237,18 @@ def test_a_finer_simulation_orders_the_variations() -> None:
     assert chosen is not None and chosen == result.metrics
     others = [m for m in finer(result.alternatives, move) if m is not None]
     assert all(chosen.key() <= m.key() for m in others)
+    # When the drive picks a runner-up, the result reports that runner-up's own move and
+    # margins, not the model winner's.
+    assert result.alternatives, "a two-mass axis has runners-up to try on the drive"
+    runner = result.alternatives[0]
+    picked = result.with_gains(runner, RATE, plant)
+    assert picked.gains == runner and picked.metrics == finer([runner], move)[0]
+    assert picked.metrics != result.metrics
+    own = LoopModel(plant, RATE, runner).velocity_margins()
+    assert picked.margins.phase_margin_deg == pytest.approx(own.phase_margin_deg)
+    assert result.with_gains(result.gains, RATE, plant) is result
+    with pytest.raises(ValueError, match="runners-up"):
+        result.with_gains(replace(runner, kp_vel=2.0 * runner.kp_vel), RATE, plant)
     assert any("tick-by-tick" in n for n in result.notes)
     # The tuning service hands it to a worker process; a model the simulated mechanics cannot
     # represent (a second resonance) gets none and the batch model's order stands.

@@ -93,9 +93,19 @@ class SearchResult:
     notes: tuple[str, ...]
     #: Runners-up worth a try on the drive itself (:func:`alternatives_of`), best first.
     alternatives: tuple[ServoGains, ...] = ()
+    #: The move each runner-up gives on the model, in the order of ``alternatives``.
+    alternative_metrics: tuple[MoveMetrics, ...] = ()
 
     def with_gains(self, gains: ServoGains, rate_hz: float, plant: PlantModel) -> SearchResult:
-        """The same result for other gains (margins and bandwidth on ``plant`` recomputed)."""
+        """The same result for one of its runners-up (the drive chose it): its margins and
+        bandwidth on ``plant``, and its move on the model. Other gains are refused: the result
+        has no move figures for them."""
+        if gains == self.gains:
+            return self
+        try:
+            i = self.alternatives.index(gains)
+        except ValueError:
+            raise ValueError("the gains are not one of this result's runners-up") from None
         loop = LoopModel(plant, rate_hz, gains)
         return replace(
             self,
@@ -103,6 +113,7 @@ class SearchResult:
             margins=loop.velocity_margins(),
             position_margins=loop.position_margins(),
             bandwidth_hz=loop.velocity_bandwidth_hz(),
+            metrics=self.alternative_metrics[i],
         )
 
 
@@ -394,6 +405,7 @@ def tune_on_model(
     )
     n_feasible = ranked.n_feasible
     alternatives: tuple[ServoGains, ...] = ()
+    alternative_metrics: tuple[MoveMetrics, ...] = ()
     order = ranked.order
     if rerank is not None and len(order) > 1:
         finer = rerank([g for g, _ in order], move)
@@ -405,6 +417,8 @@ def tune_on_model(
     if order:
         chosen, metrics = order[0]
         alternatives = alternatives_of([g for g, _ in order])
+        by_gains = {g: m for g, m in reversed(order)}
+        alternative_metrics = tuple(by_gains[g] for g in alternatives)
     else:
         notes.append("no variation kept the margins on the robustness set: the design as is")
         tr = simulate_batch(model, [chosen], rate_hz, move.p, move.v, move.a)
@@ -426,4 +440,5 @@ def tune_on_model(
         feasible=n_feasible,
         notes=tuple(notes),
         alternatives=alternatives,
+        alternative_metrics=alternative_metrics,
     )
