@@ -93,6 +93,39 @@ def test_profile_velocity_reaches_target_with_bit_10() -> None:
     assert not d.statusword & 0x1000
 
 
+def test_profile_velocity_stops_at_the_software_limits_with_bit_11() -> None:
+    # The backstop behind servodesk's own limit monitor: a velocity command toward a software
+    # limit brakes at 6084h so that the axis stops at the limit, not beyond it.
+    d = new_drive()
+    d.write(0x6060, 0, 3)
+    enable(d)
+    start = d.position
+    lo, hi = start - 60_000, start + 100_000
+    d.write(0x607D, 1, lo)
+    d.write(0x607D, 2, hi)
+    d.write(0x60FF, 0, 250_000)
+    highest = start
+    for _ in range(100):  # 1 s: long enough to have crossed the limit three times.
+        d.step(0.01)
+        highest = max(highest, d.position)
+    assert hi - 200 <= highest < hi, highest - hi
+    assert abs(d.velocity) < 1000 and d.statusword & 0x800
+    # Away from the limit it runs again, and it stops at the other one.
+    d.write(0x60FF, 0, -250_000)
+    d.step(0.3)
+    assert d.velocity < -200_000 and not d.statusword & 0x800
+    lowest = d.position
+    for _ in range(100):
+        d.step(0.01)
+        lowest = min(lowest, d.position)
+    assert lo < lowest <= lo + 200, lowest - lo
+    # Limits 0/0 are off (CiA 402-2 §6.5.4): the axis passes where the limit was.
+    d.write(0x607D, 1, 0)
+    d.write(0x607D, 2, 0)
+    d.step(0.4)
+    assert d.position < lo - 20_000
+
+
 def test_profile_torque_follows_the_target_torque() -> None:
     d = new_drive()
     d.write(0x6060, 0, 4)

@@ -127,6 +127,11 @@ K_TARGET_POSITION = 0x607A00
 K_HOME_OFFSET = 0x607C00
 K_SW_LIMIT_MIN = 0x607D01
 K_SW_LIMIT_MAX = 0x607D02
+#: Profile velocity toward a software limit: how long the axis runs on behind a braking demand
+#: (_limit_wall).
+LIMIT_WALL_LAG_S = 0.002
+#: ... and where it stops: this far inside the limit [position units].
+LIMIT_WALL_MARGIN = 50
 K_MAX_PROFILE_VEL = 0x607F00
 K_PROFILE_VEL = 0x608100
 K_PROFILE_ACC = 0x608300
@@ -1448,7 +1453,7 @@ class SimulatedDrive:
         vmax = float(self._c[K_MAX_PROFILE_VEL]) or self._vmax_sim
         vmax = min(vmax, self._vmax_sim)
         self._clipped = abs(tgt) > vmax
-        tgt = max(-vmax, min(vmax, tgt))
+        tgt = self._limit_wall(max(-vmax, min(vmax, tgt)))
         v = self._dv
         rate = (
             self._c[K_PROFILE_ACC]
@@ -1463,6 +1468,32 @@ class SimulatedDrive:
             d = -lim
         self._da = d / self._T
         self._dv = v + d
+
+    def _limit_wall(self, tgt: float) -> float:
+        """Profile velocity toward a software position limit (607Dh): the demand is held
+        under the speed from which the profile deceleration (6084h) stops the axis
+        :data:`LIMIT_WALL_MARGIN` inside the limit, and brought back there if the axis crept
+        past it, as drives that supervise 607Dh in every mode do (CiA 402-2 §6.5.4 leaves the
+        velocity modes to the manufacturer). servodesk's own monitor halts continuous motion
+        before this (services/motion.py); this is the backstop when the monitor's samples
+        come late. Internal limit active (bit 11) while it holds the demand."""
+        lo, hi = self._c[K_SW_LIMIT_MIN], self._c[K_SW_LIMIT_MAX]
+        dec = float(self._c[K_PROFILE_DEC])
+        if (lo == 0 and hi == 0) or tgt == 0.0 or dec <= 0.0:
+            return tgt
+        p = float(self.plant.encoder_counts + self._pos_offset)
+        # Less what the axis covers while its velocity follows the demand (a few cycles of
+        # the velocity loop): the demand stops first, the axis a little behind it.
+        lag = abs(self.plant.velocity_counts) * LIMIT_WALL_LAG_S
+        room = (hi - p if tgt > 0.0 else p - lo) - LIMIT_WALL_MARGIN - lag
+        # The discrete braking curve of _pp_generate: stepping down by dec*T per cycle from
+        # this speed stops within ``room``; negative room (past the stop) gives a speed back.
+        h = 0.5 * dec * self._T
+        vb = math.copysign(-h + math.sqrt(h * h + 2.0 * dec * abs(room)), room)
+        if abs(tgt) <= vb:
+            return tgt
+        self._clipped = True
+        return vb if tgt > 0.0 else -vb
 
     def _csp_generate(self) -> None:
         """Cyclic sync position (CiA 402-2 §6.10): follow 607Ah, moving linearly to each new
