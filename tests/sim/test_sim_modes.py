@@ -105,7 +105,7 @@ def test_profile_velocity_stops_at_the_software_limits_with_bit_11() -> None:
     d.write(0x607D, 2, hi)
     d.write(0x60FF, 0, 250_000)
     highest = start
-    for _ in range(100):  # 1 s: long enough to have crossed the limit three times.
+    for _ in range(100):  # 1 s: without the wall it would end over 100000 past the limit.
         d.step(0.01)
         highest = max(highest, d.position)
     assert hi - 200 <= highest < hi, highest - hi

@@ -270,10 +270,6 @@ def oracle_gains(spec: PlantSpec) -> ServoGains:
     # plant itself (without its torque noise, as measure() judges settling), and the best
     # there wins. The batch model integrates the shaft by Euler steps and friction sticks at
     # slightly other places, which at +-10 counts picks a different winner than the plant.
-    true_plant = replay.ModelMoves(
-        replace(spec, noise_torque=0.0).plant_params(RUN_SEED), rate, spec.peak_torque
-    )
-    observed, _demand = observed_move(spec)
     on_true_plant = true_plant_metrics(spec)
 
     # A second search of other structure (domain/tuning/oracle.py: notch widths and depths,
@@ -283,8 +279,9 @@ def oracle_gains(spec: PlantSpec) -> ServoGains:
     # R10-200Hz: 46 ms against 103 ms): the oracle is the better of the two.
     searched = oracle_search(plant, rate, on_true_plant, max_simulations=ORACLE_SEARCH_RUNS)
     top = [g for g, _m in ranked[:ORACLE_TRUE_PLANT_RUNS]]
-    tried = [(m.key(), i) for i, m in enumerate(true_plant(top, observed)) if m is not None]
-    best_key, best = min(tried, default=(DIVERGED.key(), 0))
+    best_key, best = min(
+        ((on_true_plant(g).key(), i) for i, g in enumerate(top)), default=(DIVERGED.key(), 0)
+    )
     if searched.metrics is not None and searched.metrics.key() < best_key:
         return searched.gains
     return top[best]

@@ -417,8 +417,8 @@ def tune_on_model(
     if order:
         chosen, metrics = order[0]
         alternatives = alternatives_of([g for g, _ in order])
-        by_gains = {g: m for g, m in reversed(order)}
-        alternative_metrics = tuple(by_gains[g] for g in alternatives)
+        metrics_of = dict(order)
+        alternative_metrics = tuple(metrics_of[g] for g in alternatives)
     else:
         notes.append("no variation kept the margins on the robustness set: the design as is")
         tr = simulate_batch(model, [chosen], rate_hz, move.p, move.v, move.a)
