@@ -175,17 +175,43 @@ def test_cancelled_midway_puts_the_gains_back() -> None:
     assert [drive.read(i, s) for i, s in GAINS] == before
 
 
-def test_gains_that_move_the_axis_worse_are_refused_and_the_old_ones_kept() -> None:
-    """A heavy load on a soft shaft (anti-resonance 11 Hz, below what the frequency response
-    measures): the tuner's model is the motor alone, and its gains overshoot far more than the
-    factory ones. The verification move shows it; the tuning fails and the drive keeps its
-    gains and limits."""
+def test_a_heavy_load_behind_a_low_anti_resonance_is_found_and_tuned() -> None:
+    """A heavy load on a soft shaft (60 Hz, load 30 x the motor, damping 0.01): its
+    anti-resonance (10.8 Hz) lies below the 20 Hz where the frequency response starts, which
+    therefore shows the motor alone, 3 % of the axis. The test moves must not be sized for that
+    (they ran into the torque limit and gave nonsense), they must find the whole axis, and the
+    mode's anti-resonance follows from the two inertias. The gains then meet the margins on the
+    real machine and settle it; until the second session of 2026-11-26 they were refused as worse
+    than the factory ones, and before that they left 6 deg of phase margin."""
     spec = PlantSpec(inertia_ratio=30.0, resonance_hz=60.0, damping=0.01)
+    result, drive = _tune(spec)
+    ident = result["identified"]
+    j = spec.motor_inertia * (1 + spec.inertia_ratio)
+    assert abs(ident["inertia_kgm2"] / j - 1.0) < 0.15  # Not the motor's 3 %.
+    res = ident["resonances"]
+    assert res and abs(res[0]["freq_hz"] / 60.0 - 1.0) < 0.03
+    assert abs(res[0]["anti_freq_hz"] / (60.0 / math.sqrt(31.0)) - 1.0) < 0.15
+    g = _gains(result)
+    assert [drive.read(i, s) for i, s in GAINS][1] == pytest.approx(g.kp_vel, rel=1e-6)
+    m = measure(spec, g)
+    assert m["stable"] and m["phase_margin_deg"] >= 45.0 and m["gain_margin_db"] >= 8.0
+    assert m["settling_100_s"] < 1.0  # The best gains there are (the oracle's): 0.54 s.
+    assert result["axis_time_s"] <= 5.0 and result["excursion_rev"] <= 1.0
+
+
+def test_a_compliance_too_low_to_measure_is_refused_and_everything_put_back() -> None:
+    """A load 100 x the motor behind a 3 Hz anti-resonance (a soft belt, a hanging load): the
+    frequency response from 20 Hz shows the motor alone and no resonance, and the test moves
+    fitted about the motor's inertia. Gains designed on that kept 5 deg of phase margin on the
+    real axis, and the verification move did not show it (the motor settles; the load swings).
+    The moves do not fit a rigid body, and that stops the tuning with a plain reason before any
+    new gain reaches the drive; its gains, limits and mode are as they were."""
+    spec = PlantSpec(inertia_ratio=100.0, resonance_hz=30.0, damping=0.01)
     drive = build_drive(spec)
     before = [drive.read(i, s) for i, s in GAINS]
     limits = [drive.read(0x6072, 0), drive.read(0x6065, 0), drive.read(0x6060, 0)]
     req = OwnTuningRequest("high", 0.5, 175.0)
-    with pytest.raises(TuningFailed, match=r"worse than the previous ones.*overshot") as err:
+    with pytest.raises(TuningFailed, match=r"do not fit a rigid axis.*compliance") as err:
         asyncio.run(OwnTuning(SimIO(drive), req, offload=False).run())
     assert err.value.hint and "by hand" in err.value.hint
     assert [drive.read(i, s) for i, s in GAINS] == before

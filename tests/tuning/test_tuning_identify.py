@@ -18,6 +18,7 @@ from servodesk.domain.tuning.identify import (
     inertia_from_frf,
     plant_from_identification,
     resonance_from_record,
+    with_hidden_anti_resonance,
 )
 
 RATE = 16000.0
@@ -217,6 +218,30 @@ def test_plant_from_identification_rigid_and_second_mode() -> None:
     p = plant_from_identification(1e-3, res)
     assert p.resonance_hz == 300.0 and p.inertia_ratio == pytest.approx(3.0)
     assert len(p.extra_modes) == 1 and p.extra_modes[0].freq_hz == 900.0
+
+
+def test_an_anti_resonance_below_the_band_is_placed_from_the_two_inertias() -> None:
+    """A 60 Hz mode with a load 30 x the motor: its anti-resonance (10.8 Hz) lies below the 20 Hz
+    where the frequency response starts, which then shows the motor alone; the test moves show
+    the whole axis. The two-mass relation places the anti-resonance, and the model built from it
+    splits the inertia as the machine does."""
+    jm, j = 3.7e-5, 31 * 3.7e-5
+    res = [Resonance(60.0, None, 15.0, 0.3), Resonance(900.0, None, 10.0, 0.02)]
+    out = with_hidden_anti_resonance(res, jm, j, 20.0)
+    assert out[0].anti_freq_hz == pytest.approx(60.0 / math.sqrt(31.0))
+    assert out[1] == res[1]  # Only the lowest mode: the one the moves' inertia belongs to.
+    p = plant_from_identification(j, out)
+    assert p.motor_inertia == pytest.approx(jm) and p.total_inertia == pytest.approx(j)
+    # Nothing to place: a rigid axis, inertias that agree (the moves' fit runs up to 20 % high
+    # on a compliant axis), or an anti-resonance that would have been inside the band.
+    assert with_hidden_anti_resonance([], jm, j, 20.0) == []
+    assert with_hidden_anti_resonance(res, j, 1.2 * j, 20.0) == res
+    assert with_hidden_anti_resonance(res, jm, 4 * jm, 20.0) == res  # 30 Hz: it was measured
+    known = [Resonance(400.0, 200.0, 20.0, 0.03)]
+    assert with_hidden_anti_resonance(known, jm, j, 20.0) == known
+    # A second mode without a dip of its own is not the one the moves' inertia speaks of.
+    second = [Resonance(60.0, 15.0, 15.0, 0.03), Resonance(900.0, None, 10.0, 0.02)]
+    assert with_hidden_anti_resonance(second, jm, j, 20.0) == second
 
 
 def test_resonance_from_record_sees_a_sharp_low_mode_that_welch_smears() -> None:
