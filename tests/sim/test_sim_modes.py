@@ -5,9 +5,12 @@ from __future__ import annotations
 import pytest
 
 from servodesk.domain.cia402 import State
+from servodesk.domain.profile_loader import ProfileCatalog
 from servodesk.sim.engine import SimAbort
 
 from .support import cw, enable, new_drive, run_until
+
+_CATALOG_LECSN = ProfileCatalog().get("lecsn-t")
 
 REV = 131072
 
@@ -124,6 +127,21 @@ def test_profile_velocity_stops_at_the_software_limits_with_bit_11() -> None:
     d.write(0x607D, 2, 0)
     d.step(0.4)
     assert d.position < lo - 20_000
+
+
+def test_a_lecsn_twin_runs_past_its_software_limits_in_profile_velocity() -> None:
+    # 004 §20.8.3: the LECSN-T's software limit works in profile position only. Its twin must not
+    # be kinder than the drive: in profile velocity it runs on past 607Dh, and only servodesk's
+    # own monitor (services/motion.py) stands between a jog and the end of travel.
+    d = new_drive(_CATALOG_LECSN)
+    d.write(0x6060, 0, 3)
+    enable(d)
+    start = d.position
+    d.write(0x607D, 1, start - 60_000)
+    d.write(0x607D, 2, start + 30_000)
+    d.write(0x60FF, 0, 300_000)
+    d.step(1.0)
+    assert d.position > start + 200_000 and not d.statusword & 0x800
 
 
 def test_profile_torque_follows_the_target_torque() -> None:

@@ -580,6 +580,11 @@ class SimSettings(BaseModel):
     #: Speed [counts/s] that acceleration time constants in ms refer to (e.g. 609Ah of a
     #: drive whose ramps are "ms from 0 to the rated speed"); None: the maximum velocity.
     rated_speed: float | None = None
+    #: The twin supervises its software position limits (607Dh:01/02) in profile velocity
+    #: too, braking to stop at them (sim/engine.py ``_limit_wall``), as servodesk's generic
+    #: drive does; false where the manual confines them to profile position (LECSN-T 004
+    #: §20.8.3, CTMM04x 003 §4-4-5/§4-4-6), so that the twin is no kinder than the drive.
+    software_limits_in_pv: bool = True
     #: Servo loop and plant rate [Hz]: loop_rate_hz / 1000 plant sub-steps per 1 ms control
     #: cycle (docs/tuning.md; 4 kHz keeps five live twins in real time on a laptop).
     loop_rate_hz: int = Field(default=4000, ge=1000, le=32000)

@@ -389,6 +389,7 @@ class SimulatedDrive:
         self._rated = self.plant_params.rated_torque
         self._counts_per_rad = self.plant.counts_per_rad
         self._vmax_sim = float(sim.max_velocity)
+        self._limits_in_pv = sim.software_limits_in_pv
         self.switches = SwitchLayout.from_settings(sim)
         self._homing_max_travel = sim.homing_max_travel_revs * sim.counts_per_rev
         self._i2t_tau = max(sim.i2t_time_constant, 1e-3)
@@ -1476,10 +1477,11 @@ class SimulatedDrive:
         past it, as drives that supervise 607Dh in every mode do (CiA 402-2 §6.5.4 leaves the
         velocity modes to the manufacturer). servodesk's own monitor halts continuous motion
         before this (services/motion.py); this is the backstop when the monitor's samples
-        come late. Internal limit active (bit 11) while it holds the demand."""
+        come late. Internal limit active (bit 11) while it holds the demand. Only where the
+        profile says the drive does this (``simulation.software_limits_in_pv``)."""
         lo, hi = self._c[K_SW_LIMIT_MIN], self._c[K_SW_LIMIT_MAX]
         dec = float(self._c[K_PROFILE_DEC])
-        if (lo == 0 and hi == 0) or tgt == 0.0 or dec <= 0.0:
+        if not self._limits_in_pv or (lo == 0 and hi == 0) or tgt == 0.0 or dec <= 0.0:
             return tgt
         p = float(self.plant.encoder_counts + self._pos_offset)
         # Less what the axis covers while its velocity follows the demand (a few cycles of
