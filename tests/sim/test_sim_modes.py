@@ -10,7 +10,8 @@ from servodesk.sim.engine import SimAbort
 
 from .support import cw, enable, new_drive, run_until
 
-_CATALOG_LECSN = ProfileCatalog().get("lecsn-t")
+_CATALOG = ProfileCatalog()
+_CATALOG_LECSN = _CATALOG.get("lecsn-t")
 
 REV = 131072
 
@@ -127,6 +128,34 @@ def test_profile_velocity_stops_at_the_software_limits_with_bit_11() -> None:
     d.write(0x607D, 2, 0)
     d.step(0.4)
     assert d.position < lo - 20_000
+
+
+def test_profile_ramps_in_family_units_become_accelerations() -> None:
+    # The CTMM04x writes 6083h/6084h into PMC842SR rate registers (003 §5-3-1): the ramp is
+    # Fclk / 8 / register, 32.768 MHz / 8 / 100 = 40960 pulses/s² for the default 100. The
+    # LECSN-T's are time constants from 0 to the rated speed in ms (004 §20.9.3.10(7)). Both were
+    # once read as counts/s²: a jog on the CTMM04x twin took 80 s to reach 8000 pulses/s.
+    d = new_drive(_CATALOG.get("ctmm04x"))
+    d.write(0x6060, 0, 3)
+    d.write(0x60FF, 0, 0)
+    enable(d)
+    d.write(0x60FF, 0, 8000)
+    d.step(0.1)
+    assert 0.4 * 8000 < d.velocity < 0.6 * 8000  # 4096 pulses/s after 0.1 s.
+    d.step(0.2)
+    assert d.velocity == pytest.approx(8000, rel=0.01)
+
+    d = new_drive(_CATALOG.get("lecsn-t"))
+    rated = _CATALOG.get("lecsn-t").simulation.rated_speed
+    assert rated
+    d.write(0x6060, 0, 3)
+    d.write(0x6083, 0, 2000)  # 2 s from 0 to the rated speed (3000 r/min).
+    enable(d)
+    d.write(0x60FF, 0, 400_000)
+    d.step(0.05)
+    assert 0.9 * 0.05 * rated / 2.0 < d.velocity < 1.1 * 0.05 * rated / 2.0
+    d.step(0.15)
+    assert d.velocity == pytest.approx(400_000, rel=0.01)
 
 
 def test_a_lecsn_twin_runs_past_its_software_limits_in_profile_velocity() -> None:

@@ -359,6 +359,12 @@ class SimulatedDrive:
         self._rate_fclk = (
             float(rr["fclk_hz"]) if isinstance(rr, dict) and rr.get("homing") is not None else 0.0
         )
+        # The same registers drive the profile ramps (6083h, 6084h) where the quirk names them.
+        ramps = rr if isinstance(rr, dict) and rr.get("fclk_hz") else {}
+        self._ramp_fclk = float(ramps.get("fclk_hz", 0.0))
+        self._rate_ramps = frozenset(
+            coerce_int(ramps[key]) for key in ("accel", "decel") if ramps.get(key) is not None
+        )
         self._homing_no_enable = frozenset(
             coerce_int(m) for m in profile.quirk("homing_without_enable", None) or ()
         )
@@ -974,8 +980,23 @@ class SimulatedDrive:
             v = values.get(k)
             c[k] = v if isinstance(v, int) else fallback
         for k in (K_PROFILE_ACC, K_PROFILE_DEC, K_QS_DEC):
-            if c[k] <= 0:
-                c[k] = _NO_RAMP  # 0 (not valid in CiA 402; "no ramp" in some families).
+            c[k] = self._ramp_counts(k, c[k])
+
+    def _ramp_counts(self, k: int, raw: int) -> int:
+        """A ramp object (6083h, 6084h, 6085h) in counts/s², as the control cycle reads it:
+        a PMC842SR rate register (CTMM04x 003 §5-3-1: Fclk / 8 / register), a time constant
+        from 0 to the rated speed (LECSN-T 004 §20.9.3.10(7), unit ms), or counts/s² as is.
+        0 is "no ramp" (not valid in CiA 402, but so in some families)."""
+        if raw <= 0:
+            return _NO_RAMP
+        if (k >> 8) in self._rate_ramps:
+            return max(1, round(self._ramp_fclk / 8.0 / raw))
+        spec = self._specs.get(k)
+        if spec is not None and spec.unit == "ms":
+            sim = self.sim_settings
+            rated = sim.rated_speed or sim.max_velocity
+            return max(1, round(rated / (raw * 0.001)))
+        return raw
 
     def _statusword(self) -> int:
         st = self._state
