@@ -11,7 +11,6 @@ from servodesk.sim.engine import SimAbort
 from .support import cw, enable, new_drive, run_until
 
 _CATALOG = ProfileCatalog()
-_CATALOG_LECSN = _CATALOG.get("lecsn-t")
 
 REV = 131072
 
@@ -162,7 +161,7 @@ def test_a_lecsn_twin_runs_past_its_software_limits_in_profile_velocity() -> Non
     # 004 §20.8.3: the LECSN-T's software limit works in profile position only. Its twin must not
     # be kinder than the drive: in profile velocity it runs on past 607Dh, and only servodesk's
     # own monitor (services/motion.py) stands between a jog and the end of travel.
-    d = new_drive(_CATALOG_LECSN)
+    d = new_drive(_CATALOG.get("lecsn-t"))
     d.write(0x6060, 0, 3)
     enable(d)
     start = d.position

@@ -290,13 +290,13 @@ class OwnTuning:
             compliant = any(r.anti_freq_hz for r in first)
             inertia = j_frf if compliant and frf_band_ok else est.inertia
             est = replace(est, inertia=inertia)
-            found = self._resonances(frf, inertia, drive)
-            hidden = with_hidden_anti_resonance(first, j_frf, inertia, 2.0 * CHIRP_F0_HZ)
-            if hidden != first:
+            found = with_hidden_anti_resonance(first, j_frf, inertia, 2.0 * CHIRP_F0_HZ)
+            if found != first:
                 # The frequency response saw the motor alone: the mode's anti-resonance lies
                 # below its band, and the moves' inertia places it (identify.py).
-                log.debug("anti-resonance below the band measured: %s", hidden)
-                found = hidden
+                log.debug("anti-resonance below the band measured: %s", found)
+            else:
+                found = self._resonances(frf, inertia, drive)
             resonances = self._sharpen(found)
             # The verification move is sized for the inertia the moves confirmed: the frequency
             # response alone can see the motor without its load (below a low anti-resonance),

@@ -356,14 +356,11 @@ class SimulatedDrive:
         # Quirk ramp_rate_registers (003 §5-3-1): 609Ah is a PMC842SR rate register, not
         # counts/s²; with multiplier 1 the ramp is Fclk/8 / register [pulses/s²].
         rr = profile.quirk("ramp_rate_registers")
-        self._rate_fclk = (
-            float(rr["fclk_hz"]) if isinstance(rr, dict) and rr.get("homing") is not None else 0.0
-        )
-        # The same registers drive the profile ramps (6083h, 6084h) where the quirk names them.
-        ramps = rr if isinstance(rr, dict) and rr.get("fclk_hz") else {}
-        self._ramp_fclk = float(ramps.get("fclk_hz", 0.0))
-        self._rate_ramps = frozenset(
-            coerce_int(ramps[key]) for key in ("accel", "decel") if ramps.get(key) is not None
+        # The objects it names (6083h, 6084h, 609Ah) are rate registers.
+        regs = rr if isinstance(rr, dict) and rr.get("fclk_hz") else {}
+        self._rate_fclk = float(regs.get("fclk_hz", 0.0))
+        self._rate_registers = frozenset(
+            coerce_int(regs[key]) for key in ("accel", "decel", "homing") if regs.get(key)
         )
         self._homing_no_enable = frozenset(
             coerce_int(m) for m in profile.quirk("homing_without_enable", None) or ()
@@ -980,22 +977,19 @@ class SimulatedDrive:
             v = values.get(k)
             c[k] = v if isinstance(v, int) else fallback
         for k in (K_PROFILE_ACC, K_PROFILE_DEC, K_QS_DEC):
-            c[k] = self._ramp_counts(k, c[k])
+            # 0 is "no ramp" (not valid in CiA 402, but so in some families).
+            c[k] = max(1, round(self._acceleration(k, c[k]))) if c[k] > 0 else _NO_RAMP
 
-    def _ramp_counts(self, k: int, raw: int) -> int:
-        """A ramp object (6083h, 6084h, 6085h) in counts/s², as the control cycle reads it:
-        a PMC842SR rate register (CTMM04x 003 §5-3-1: Fclk / 8 / register), a time constant
-        from 0 to the rated speed (LECSN-T 004 §20.9.3.10(7), unit ms), or counts/s² as is.
-        0 is "no ramp" (not valid in CiA 402, but so in some families)."""
-        if raw <= 0:
-            return _NO_RAMP
-        if (k >> 8) in self._rate_ramps:
-            return max(1, round(self._ramp_fclk / 8.0 / raw))
+    def _acceleration(self, k: int, raw: float) -> float:
+        """A ramp object (6083h, 6084h, 6085h, 609Ah; ``raw`` > 0) in counts/s²: a PMC842SR
+        rate register (CTMM04x 003 §5-3-1: Fclk / 8 / register), a time constant from 0 to
+        the rated speed (LECSN-T 004 §20.9.3.10(7), unit ms), or counts/s² as it is."""
+        if (k >> 8) in self._rate_registers:
+            return self._rate_fclk / 8.0 / raw
         spec = self._specs.get(k)
         if spec is not None and spec.unit == "ms":
             sim = self.sim_settings
-            rated = sim.rated_speed or sim.max_velocity
-            return max(1, round(rated / (raw * 0.001)))
+            return (sim.rated_speed or sim.max_velocity) / (raw * 0.001)
         return raw
 
     def _statusword(self) -> int:
@@ -1357,17 +1351,7 @@ class SimulatedDrive:
     def _homing_acceleration(self) -> float:
         """609Ah in counts/s², from a rate register or an acceleration time constant."""
         acc = float(self._c[K_HOMING_ACC])
-        if self._rate_fclk and acc > 0:
-            return self._rate_fclk / 8.0 / acc
-        spec = self._specs.get(K_HOMING_ACC)
-        if spec is not None and spec.unit == "ms":
-            # 004 §20.9.3.10(7): time constant from 0 to the rated speed; 0: no ramp.
-            if acc <= 0:
-                return 0.0
-            sim = self.sim_settings
-            rated = sim.rated_speed or sim.max_velocity
-            return rated / (acc * 0.001)
-        return acc
+        return self._acceleration(K_HOMING_ACC, acc) if acc > 0 else acc
 
     def _homing_step(self) -> None:
         """One control cycle of a running homing procedure (or its interruption)."""
