@@ -190,12 +190,31 @@ def test_a_heavy_load_behind_a_low_anti_resonance_is_found_and_tuned() -> None:
     assert abs(ident["inertia_kgm2"] / j - 1.0) < 0.15  # Not the motor's 3 %.
     res = ident["resonances"]
     assert res and abs(res[0]["freq_hz"] / 60.0 - 1.0) < 0.03
-    assert abs(res[0]["anti_freq_hz"] / (60.0 / math.sqrt(31.0)) - 1.0) < 0.15
+    assert abs(res[0]["anti_freq_hz"] / (60.0 / math.sqrt(31.0)) - 1.0) < 0.05
     g = _gains(result)
     assert drive.read(0x2101, 0) == pytest.approx(g.kp_vel, rel=1e-6)
     m = measure(spec, g)
     assert m["stable"] and m["phase_margin_deg"] >= 45.0 and m["gain_margin_db"] >= 8.0
     assert m["settling_100_s"] < 1.0  # The best gains there are (the oracle's): 0.54 s.
+    assert result["axis_time_s"] <= 5.0 and result["excursion_rev"] <= 1.0
+
+
+def test_a_load_100x_on_a_lightly_damped_60hz_shaft_is_left_stable() -> None:
+    """A load 100 x the motor on a 60 Hz shaft of damping 0.01 (anti-resonance 6 Hz). Until the
+    sixth session of 2026-11-26 the fit of the PRBS record gave the shaft damping 0.10: the loop
+    feeds its own torque noise back into the torque it commands, which biased the fit. The gains
+    designed for that well-damped mode left the real one growing at 0.84 1/s (PM 22 deg on the
+    true plant), too slowly for the verification move to see, and the tuning reported success.
+    With the injected signal as the instrument the damping comes out light (on the safe side)
+    and the axis is left stable with the margins."""
+    spec = PlantSpec(inertia_ratio=100.0, resonance_hz=60.0, damping=0.01)
+    result, _ = _tune(spec)
+    res = result["identified"]["resonances"]
+    assert res and abs(res[0]["freq_hz"] / 60.0 - 1.0) < 0.03
+    assert res[0]["damping"] < 0.02  # Not the 0.10 the loop's noise made of it.
+    assert abs(res[0]["anti_freq_hz"] / (60.0 / math.sqrt(101.0)) - 1.0) < 0.05
+    m = measure(spec, _gains(result))
+    assert m["stable"] and m["phase_margin_deg"] >= 45.0 and m["gain_margin_db"] >= 8.0
     assert result["axis_time_s"] <= 5.0 and result["excursion_rev"] <= 1.0
 
 

@@ -60,6 +60,7 @@ from servodesk.domain.tuning.identify import (
     frequency_response,
     identify_rigid,
     inertia_from_frf,
+    model_damping,
     plant_from_identification,
     resonance_from_record,
     with_hidden_anti_resonance,
@@ -881,7 +882,13 @@ class OwnTuning:
                 "viscous_nms": est.viscous,
                 "gravity_nm": est.gravity,
                 "resonances": [
-                    {"freq_hz": r.freq_hz, "anti_freq_hz": r.anti_freq_hz, "peak_db": r.peak_db}
+                    {
+                        "freq_hz": r.freq_hz,
+                        "anti_freq_hz": r.anti_freq_hz,
+                        "peak_db": r.peak_db,
+                        # The damping the design used (plant_from_identification's rule).
+                        "damping": model_damping(r.damping_estimate),
+                    }
                     for r in resonances
                 ],
             },

@@ -133,7 +133,13 @@ export interface Identified {
   coulomb_nm: number | null;
   viscous_nms: number | null;
   gravity_nm: number | null;
-  resonances: { freq_hz: number; anti_freq_hz: number | null; peak_db: number | null }[];
+  resonances: {
+    freq_hz: number;
+    anti_freq_hz: number | null;
+    peak_db: number | null;
+    /** The damping ratio the design used (dimensionless); absent from older results. */
+    damping?: number;
+  }[];
 }
 
 export interface TuningResult {

@@ -454,6 +454,7 @@ export function TuningPage({ sid }: PageProps) {
                             {withUnit(r.freq_hz, 'Hz')}
                             {r.anti_freq_hz !== null ? ` (anti-resonance ${withUnit(r.anti_freq_hz, 'Hz')})` : ''}
                             {r.peak_db !== null ? `, ${withUnit(r.peak_db, 'dB')}` : ''}
+                            {r.damping !== undefined ? `, damping ${r.damping.toFixed(4)}` : ''}
                           </td>
                         </tr>
                       ))}

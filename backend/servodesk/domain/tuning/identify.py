@@ -669,7 +669,7 @@ def plant_from_identification(
             jm,
             inertia - jm,
             main.freq_hz,
-            _plausible(main.damping_estimate, default_damping),
+            model_damping(main.damping_estimate, default_damping),
             viscous,
             current_loop_hz,
         )
@@ -678,7 +678,7 @@ def plant_from_identification(
     for r in resonances:
         if r is main:
             continue
-        zeta = _plausible(r.damping_estimate, default_damping)
+        zeta = model_damping(r.damping_estimate, default_damping)
         wr = TWO_PI * r.freq_hz
         j_here = jm_base if main is not None and r.freq_hz > main.freq_hz else inertia
         # At resonance the mode term is real and the baseline 1/(j J w) imaginary.
@@ -699,7 +699,9 @@ def plant_from_identification(
     return base
 
 
-def _plausible(zeta: float, default: float) -> float:
+def model_damping(zeta: float, default: float = 0.03) -> float:
+    """The damping a model is given for the estimate ``zeta``: ``default`` when there is none
+    or it is above 0.3, at least :data:`ZETA_FLOOR`."""
     # Below 0.002 the estimate says "very sharp", which the floor keeps on the cautious side;
     # an estimate above 0.3 or none at all says nothing, and the default stands in.
     if not math.isfinite(zeta) or zeta > 0.3:
