@@ -67,6 +67,8 @@ def test_od_by_address_and_pnu(capsys: pytest.CaptureFixture[str]) -> None:
         (["profiles", "--import", "missing.eds"], "no such file"),
         (["profile", "hiwin-e", "--export", "pdf"], "invalid choice"),
         (["nosuchcommand"], "invalid choice"),
+        (["bench", "tuning", "--seeds", "1,x"], "not a comma-separated list of integers"),
+        (["bench", "tuning", "--seeds", "2,2"], "distinct seeds"),
     ],
 )
 def test_bad_input_exits_2_with_a_message_not_a_traceback(argv: list[str], message: str) -> None:

@@ -25,6 +25,7 @@ from servodesk.benchmarks.tuning import (
     oracle_gains,
     run_plant,
     summarise,
+    summarise_seeds,
     true_plant_metrics,
 )
 from servodesk.domain.tuning.gains import ServoGains
@@ -288,6 +289,30 @@ def test_the_summary_names_the_plants_behind_an_infinite_worst() -> None:
     assert s["settling_ratio_infinite"] == ["b"]
     assert s["tuning_failed"] == ["d"]
     assert s["stable"] == 3
+
+
+def test_the_summary_over_noise_seeds_takes_each_seeds_median() -> None:
+    """`bench tuning --seeds`: one summary per seed of the tuned twins' torque noise, and the
+    median of those medians, so that one lucky or unlucky noise does not decide a change."""
+    ratios = {1: [1.0, 2.0, 9.0], 2: [1.5, 3.0, 4.0], 3: [0.5, 2.5, math.inf]}
+    rows: list[dict[str, Any]] = [
+        {
+            "plant": p,
+            "seed": k,
+            "stable": True,
+            "settling_ratio": r,
+            "settling_100_ratio": 1.0,
+            "phase_margin_deg": 50.0,
+            "gain_margin_db": 9.0,
+        }
+        for k, rs in ratios.items()
+        for p, r in zip("abc", rs, strict=True)
+    ]
+    s = summarise_seeds(rows)
+    assert s["seeds"] == [1, 2, 3] and s["tunings"] == 9 and s["margins_met"] == 9
+    assert [s["per_seed"][str(k)]["settling_ratio"]["median"] for k in (1, 2, 3)] == [2, 3, 2.5]
+    assert s["settling_ratio_median"] == 2.5
+    assert s["per_seed"]["3"]["settling_ratio_infinite"] == ["c"]
 
 
 def test_worse_means_an_overshoot_that_matters() -> None:

@@ -43,6 +43,14 @@ def register(sub: Any) -> None:
         default=str(Path.home() / ".cache" / "servodesk" / "oracle"),
         help="where oracle results are cached per plant hash ('' for none)",
     )
+    t.add_argument(
+        "--seeds",
+        type=_seed_list,
+        default=[1],
+        metavar="LIST",
+        help="comma-separated torque-noise seeds of the tuned twin (default 1); each plant is "
+        "tuned once per seed, and the JSON adds a summary per seed",
+    )
     t.add_argument("--json", action="store_true", help="print the results as JSON")
     t.set_defaults(func=_run_tuning)
     p.set_defaults(func=lambda args: _usage(p))
@@ -68,6 +76,21 @@ def add_scope_arguments(p: argparse.ArgumentParser) -> None:
         "--no-compression", action="store_true", help="clients do not offer permessage-deflate"
     )
     p.add_argument("--json", action="store_true", help="print the results as JSON")
+
+
+def _seed_list(text: str) -> list[int]:
+    """``1,2,3``: distinct non-negative integers, at most 16 of them."""
+    try:
+        seeds = [int(x) for x in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a comma-separated list of integers, e.g. 1,2,3,4"
+        ) from None
+    if not seeds or min(seeds) < 0 or len(set(seeds)) != len(seeds) or len(seeds) > 16:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: give 1 to 16 distinct seeds >= 0, e.g. 1,2,3,4"
+        )
+    return seeds
 
 
 def _usage(p: argparse.ArgumentParser) -> int:
