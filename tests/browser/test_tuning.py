@@ -121,3 +121,63 @@ def test_ctmm04x_says_there_is_nothing_to_tune(page: Page) -> None:
     # No inputs, no start: there is nothing to run.
     expect(page.get_by_test_id("tuning-start")).to_have_count(0)
     expect(page.get_by_test_id("tuning-inputs")).to_have_count(0)
+
+
+GENERIC = "cia402-generic-1"
+
+
+@pytest.fixture
+def generic_page(page: Page) -> Iterator[Page]:
+    page.goto(f"/#/tuning/{GENERIC}")
+    expect(page.get_by_test_id("tuning-page")).to_have_attribute("data-kind", "gains")
+    try:
+        yield page
+    finally:
+        cid = client_id(page)
+        headers = {"X-Servodesk-Client": cid, "Content-Type": "application/json"}
+        page.request.post(f"/api/v1/sessions/{GENERIC}/tuning/stop", data="{}", headers=headers)
+        page.request.post(
+            f"/api/v1/sessions/{GENERIC}/state", data='{"command":"disable"}', headers=headers
+        )
+        page.request.post(
+            f"/api/v1/sessions/{GENERIC}/control", data='{"action":"release"}', headers=headers
+        )
+
+
+def test_own_tuning_from_the_page_shows_what_it_found_then_undo(generic_page: Page) -> None:
+    """servodesk's own tuning on the generic twin, from the page: the identified inertia and
+    friction with their units, the margins, the measured Bode plot (magnitude and phase), the
+    step responses before and after, the gains old -> new; Undo puts the drive's gains back."""
+    page = generic_page
+    expect(page.get_by_test_id("tuning-kind-text")).to_contain_text("servodesk")
+    before = [g["raw"] for g in tuning_info(page, GENERIC)["gains"]]
+    page.get_by_test_id("control-take").click()
+    expect(page.get_by_test_id("control-owner")).to_have_attribute("data-you", "true")
+    page.get_by_test_id("servo-on").click()
+    expect(page.get_by_test_id("servo-on")).to_be_disabled(timeout=10_000)
+    page.get_by_test_id("tuning-travel").fill("0.25")
+    page.get_by_test_id("tuning-mode-basic").check()
+    page.get_by_test_id("tuning-confirm").check()
+    page.get_by_test_id("tuning-start").click()
+    expect(page.get_by_test_id("heartbeat-indicator")).to_be_visible()
+    expect(page.get_by_test_id("tuning-progress")).to_have_attribute(
+        "aria-valuenow", "100", timeout=180_000
+    )
+    expect(page.get_by_test_id("tuning-job")).to_have_attribute("data-state", "done")
+
+    status = page.get_by_test_id("tuning-result-status")
+    expect(status).to_have_attribute("data-status", "done")
+    identified = page.get_by_test_id("tuning-identified")
+    expect(identified).to_contain_text("kg m²")
+    expect(identified).to_contain_text("Coulomb friction")
+    expect(page.get_by_test_id("tuning-margins")).to_contain_text("Phase margin")
+    expect(page.get_by_test_id("tuning-bode").locator("canvas")).to_have_count(2)
+    expect(page.get_by_test_id("tuning-step-plot").locator("canvas")).to_have_count(1)
+    expect(page.get_by_test_id("tuning-gains").get_by_test_id("gain-kp_vel")).to_contain_text("→")
+    tuned = [g["raw"] for g in tuning_info(page, GENERIC)["gains"]]
+    assert tuned != before
+
+    page.get_by_test_id("tuning-undo-before").click()
+    page.get_by_test_id("tuning-confirm-dialog-confirm").click()
+    expect(status).to_contain_text("Undone")
+    assert [g["raw"] for g in tuning_info(page, GENERIC)["gains"]] == before
