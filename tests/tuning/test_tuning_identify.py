@@ -292,6 +292,8 @@ def test_the_record_fit_sees_a_light_low_mode_through_the_loops_own_noise() -> N
     assert clean.freq_hz == pytest.approx(fr, rel=0.002)
     assert clean.damping == pytest.approx(zeta, rel=0.03)
     assert clean.anti_freq_hz == pytest.approx(fr / math.sqrt(31.0), rel=0.01)
+    assert clean.motor_inertia == pytest.approx(jm, rel=0.01)
+    assert clean.total_inertia == pytest.approx(jm + jl, rel=0.02)
     for seed in (0, 1, 2):
         r, tau, v_m, _, _ = _closed_loop_run(
             num, den, kp, 1.0, noise=0.0, seed=seed, torque_noise=0.005
@@ -301,3 +303,5 @@ def test_the_record_fit_sees_a_light_low_mode_through_the_loops_own_noise() -> N
         assert fit.freq_hz == pytest.approx(fr, rel=0.02)
         assert 0.7 * zeta < fit.damping < 1.5 * zeta
         assert fit.anti_freq_hz == pytest.approx(fr / math.sqrt(31.0), rel=0.03)
+        # The whole axis, where the response's few rigid-body bins are too close to 0 Hz.
+        assert fit.total_inertia == pytest.approx(jm + jl, rel=0.06)

@@ -14,7 +14,6 @@ from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.model import LoopModel, Mode, PlantModel
 from servodesk.domain.tuning.search import (
     INERTIA_TOL,
-    INERTIA_TOL_LOW_ANTI,
     MOTOR_SPLIT_TOL_LOW_ANTI,
     RESONANCE_TOL,
     STUCK_LOAD_DAMPING,
@@ -86,10 +85,10 @@ def test_the_batch_simulation_shows_a_friction_limit_cycle() -> None:
     assert _hunting_tail(0.0) < 5.0
 
 
-def test_identification_set_widens_the_inertia_below_a_low_anti_resonance() -> None:
+def test_identification_set_adds_a_lighter_motor_below_a_low_anti_resonance() -> None:
     stiff = PlantModel(JM, 3 * JM, 400.0, 0.03, 0.001, 2000.0)  # f_ar = 200 Hz
     soft = PlantModel(JM, 30 * JM, 100.0, 0.03, 0.001, 2000.0)  # f_ar = 18 Hz
-    for plant, tol in ((stiff, INERTIA_TOL), (soft, INERTIA_TOL_LOW_ANTI)):
+    for plant, tol in ((stiff, INERTIA_TOL), (soft, INERTIA_TOL)):
         models = identification_set(plant)
         assert models[0] == plant
         inertias = sorted(m.total_inertia / plant.total_inertia for m in models)

@@ -67,7 +67,7 @@ from servodesk.domain.tuning.identify import (
 )
 from servodesk.domain.tuning.metrics import move_metrics, smoothed_settling
 from servodesk.domain.tuning.model import LoopModel, PlantModel
-from servodesk.domain.tuning.search import SearchResult, tune_on_model
+from servodesk.domain.tuning.search import LOW_ANTI_RESONANCE_HZ, SearchResult, tune_on_model
 from servodesk.errors import DriveStateError, ServodeskError, ValidationError
 from servodesk.services.session import Session
 from servodesk.services.tuning_io import DriveRecorder, Recording, SessionIO, TuningIO, read_float
@@ -298,7 +298,21 @@ class OwnTuning:
                 log.debug("anti-resonance below the band measured: %s", found)
             else:
                 found = self._resonances(frf, inertia, drive)
-            resonances = self._sharpen(found)
+            resonances, j_record = self._sharpen(found)
+            low = _lowest_anti(resonances)
+            if (
+                j_record is not None
+                and low is not None
+                and low < LOW_ANTI_RESONANCE_HZ
+                and 0.5 < j_record / inertia < 2.0
+            ):
+                # Below a low anti-resonance neither the moves (which must smooth over the
+                # swinging load) nor the response's few rigid-body bins place the inertia well
+                # (R30-100Hz +14 %, R30-200Hz +10 %); the record fit's J_M (f_r / f_ar)^2 does,
+                # within 3 % on the benchmark's plants (docs/tuning.md).
+                log.debug("inertia from the record fit: %.4g (was %.4g)", j_record, inertia)
+                inertia = j_record
+                est = replace(est, inertia=inertia)
             # The verification move is sized for the inertia the moves confirmed: the frequency
             # response alone can see the motor without its load (below a low anti-resonance),
             # and a move sized for that runs into the torque limit.
@@ -598,16 +612,19 @@ class OwnTuning:
             f_min_hz=CHIRP_F0_HZ,
         )
 
-    def _sharpen(self, resonances: list[Resonance]) -> list[Resonance]:
+    def _sharpen(self, resonances: list[Resonance]) -> tuple[list[Resonance], float | None]:
         """Each two-mass resonance refined from the whole record
         (:func:`resonance_from_record`): its damping and anti-resonance always (the Welch
         estimate smears a sharp mode wide, and puts a low anti-resonance where a few coarse
         bins fall: R30-100Hz's 18 Hz at 20-21 Hz, which split the inertia 45 % wrong), its
         frequency when the two estimates differ by more than 3 % (a noise bump moved the
-        Welch peak)."""
+        Welch peak). Also returns the total inertia of the lowest mode's fit (None without
+        one)."""
         if self._frf_record is None:
-            return resonances
+            return resonances, None
         out = []
+        total: float | None = None
+        lowest = min(resonances, key=lambda r: r.freq_hz) if resonances else None
         for r in resonances:
             fit = resonance_from_record(*self._frf_record, r)
             if fit is None:
@@ -618,7 +635,9 @@ class OwnTuning:
             if anti is not None and anti >= fr:
                 anti = r.anti_freq_hz
             out.append(replace(r, freq_hz=fr, anti_freq_hz=anti, damping_estimate=fit.damping))
-        return out
+            if r is lowest:
+                total = fit.total_inertia
+        return out, total
 
     def _resonances(self, frf: Frf, inertia: float, drive: _Drive) -> list[Resonance]:
         """Resonances up to an eighth of the loop rate (plant files allow no higher), and

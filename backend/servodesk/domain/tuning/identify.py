@@ -431,6 +431,16 @@ class RecordFit:
     damping: float
     #: None when the fitted numerator has no anti-resonance below the resonance.
     anti_freq_hz: float | None
+    #: The inertia the response shows above the anti-resonance (kg m^2): the motor's, from
+    #: the numerator's leading coefficient ``1 / J_M``.
+    motor_inertia: float | None = None
+
+    @property
+    def total_inertia(self) -> float | None:
+        """Motor and load, ``J_M (f_r / f_ar)^2`` (the two-mass relation)."""
+        if self.motor_inertia is None or self.anti_freq_hz is None:
+            return None
+        return self.motor_inertia * (self.freq_hz / self.anti_freq_hz) ** 2
 
 
 #: The lightest damping a model is given (an estimate below it is raised to it).
@@ -510,7 +520,8 @@ def resonance_from_record(
     v_k = np.fft.rfft(v)[idx]
     if not np.abs(r_k).any() or not np.abs(v_k).any():
         return None
-    v_k = v_k / np.max(np.abs(v_k))
+    v_scale = float(np.max(np.abs(v_k)))
+    v_k = v_k / v_scale
     r_c = np.conj(r_k)
     weight = 1.0 / np.sqrt(np.add.reduceat(np.abs(r_k) ** 2, starts))
     powers = np.stack([s**i for i in range(3)], axis=1)
@@ -560,7 +571,8 @@ def resonance_from_record(
     anti = math.sqrt(b[0] / b[2]) / TWO_PI if b[2] > 0.0 and b[0] > 0.0 else None
     if anti is not None and not 0.05 * fr < anti < fr:
         anti = None
-    return RecordFit(fr, zeta, anti)
+    jm = 1.0 / (b[2] * v_scale) if b[2] > 0.0 else None
+    return RecordFit(fr, zeta, anti, jm)
 
 
 def _refine_peak(f: FloatArray, y: FloatArray, i: int) -> float:
