@@ -188,7 +188,9 @@ def test_a_heavy_load_behind_a_low_anti_resonance_is_found_and_tuned() -> None:
     result, drive = _tune(spec)
     ident = result["identified"]
     j = spec.motor_inertia * (1 + spec.inertia_ratio)
-    assert abs(ident["inertia_kgm2"] / j - 1.0) < 0.15  # Not the motor's 3 %.
+    # Not the motor's 3 %; and since the sixth session of 2026-11-26 from the record fit, not
+    # the moves (+12 %).
+    assert abs(ident["inertia_kgm2"] / j - 1.0) < 0.05
     res = ident["resonances"]
     assert res and abs(res[0]["freq_hz"] / 60.0 - 1.0) < 0.03
     assert abs(res[0]["anti_freq_hz"] / (60.0 / math.sqrt(31.0)) - 1.0) < 0.05
@@ -214,6 +216,8 @@ def test_a_load_100x_on_a_lightly_damped_60hz_shaft_is_left_stable() -> None:
     assert res and abs(res[0]["freq_hz"] / 60.0 - 1.0) < 0.03
     assert res[0]["damping"] < 0.02  # Not the 0.10 the loop's noise made of it.
     assert abs(res[0]["anti_freq_hz"] / (60.0 / math.sqrt(101.0)) - 1.0) < 0.05
+    j = spec.motor_inertia * (1 + spec.inertia_ratio)
+    assert abs(result["identified"]["inertia_kgm2"] / j - 1.0) < 0.1
     m = measure(spec, _gains(result))
     assert m["stable"] and m["phase_margin_deg"] >= 45.0 and m["gain_margin_db"] >= 8.0
     assert result["axis_time_s"] <= 5.0 and result["excursion_rev"] <= 1.0
