@@ -19,6 +19,7 @@ pytestmark = pytest.mark.browser
 
 LECSN = "lecsn-t-5"
 CTMM = "ctmm04x-4"
+GENERIC = "cia402-generic-1"
 PB_DEFAULTS = [700, 150, 370, 823, 337]
 
 
@@ -35,22 +36,26 @@ def tuning_info(page: Page, sid: str) -> dict[str, Any]:
     return body
 
 
-@pytest.fixture
-def lecsn_page(page: Page) -> Iterator[Page]:
-    page.goto(f"/#/tuning/{LECSN}")
-    expect(page.get_by_test_id("tuning-page")).to_have_attribute("data-kind", "builtin")
+def tuning_page(page: Page, sid: str, kind: str) -> Iterator[Page]:
+    """The Tuning page of ``sid``; afterwards the drive is left as other tests expect it: no
+    tuning, servo off, nobody holding control."""
+    page.goto(f"/#/tuning/{sid}")
+    expect(page.get_by_test_id("tuning-page")).to_have_attribute("data-kind", kind)
     try:
         yield page
     finally:
-        cid = client_id(page)
-        headers = {"X-Servodesk-Client": cid, "Content-Type": "application/json"}
-        page.request.post(f"/api/v1/sessions/{LECSN}/tuning/stop", data="{}", headers=headers)
-        page.request.post(
-            f"/api/v1/sessions/{LECSN}/state", data='{"command":"disable"}', headers=headers
-        )
-        page.request.post(
-            f"/api/v1/sessions/{LECSN}/control", data='{"action":"release"}', headers=headers
-        )
+        headers = {"X-Servodesk-Client": client_id(page), "Content-Type": "application/json"}
+        for path, body in (
+            ("tuning/stop", "{}"),
+            ("state", '{"command":"disable"}'),
+            ("control", '{"action":"release"}'),
+        ):
+            page.request.post(f"/api/v1/sessions/{sid}/{path}", data=body, headers=headers)
+
+
+@pytest.fixture
+def lecsn_page(page: Page) -> Iterator[Page]:
+    yield from tuning_page(page, LECSN, "builtin")
 
 
 def test_lecsn_one_touch_tuning_from_the_page_then_undo(lecsn_page: Page) -> None:
@@ -123,25 +128,9 @@ def test_ctmm04x_says_there_is_nothing_to_tune(page: Page) -> None:
     expect(page.get_by_test_id("tuning-inputs")).to_have_count(0)
 
 
-GENERIC = "cia402-generic-1"
-
-
 @pytest.fixture
 def generic_page(page: Page) -> Iterator[Page]:
-    page.goto(f"/#/tuning/{GENERIC}")
-    expect(page.get_by_test_id("tuning-page")).to_have_attribute("data-kind", "gains")
-    try:
-        yield page
-    finally:
-        cid = client_id(page)
-        headers = {"X-Servodesk-Client": cid, "Content-Type": "application/json"}
-        page.request.post(f"/api/v1/sessions/{GENERIC}/tuning/stop", data="{}", headers=headers)
-        page.request.post(
-            f"/api/v1/sessions/{GENERIC}/state", data='{"command":"disable"}', headers=headers
-        )
-        page.request.post(
-            f"/api/v1/sessions/{GENERIC}/control", data='{"action":"release"}', headers=headers
-        )
+    yield from tuning_page(page, GENERIC, "gains")
 
 
 def test_own_tuning_from_the_page_shows_what_it_found_then_undo(generic_page: Page) -> None:
