@@ -304,6 +304,7 @@ class OwnTuning:
                 j_record is not None
                 and low is not None
                 and low < LOW_ANTI_RESONANCE_HZ
+                # A fit that lands far from both other estimates fitted something else.
                 and 0.5 < j_record / inertia < 2.0
             ):
                 # Below a low anti-resonance neither the moves (which must smooth over the

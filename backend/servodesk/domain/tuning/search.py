@@ -317,17 +317,16 @@ def identification_set(plant: PlantModel) -> list[PlantModel]:
     phase on the real one; 0.75 x measured no faster over four noise seeds), and no viscous
     damping."""
     f_ar = plant.anti_resonance_hz
-    tol = INERTIA_TOL
     # The nominal model and the lighter one of robustness_set; the resonances get their own
     # tolerance below.
-    out = robustness_set(plant, tol)[:2]
+    out = robustness_set(plant, INERTIA_TOL)[:2]
     if plant.resonances_hz():
         out.append(plant.scaled(resonance=1.0 - RESONANCE_TOL))
         out.append(plant.scaled(resonance=1.0 + RESONANCE_TOL))
     out.append(
         PlantModel(
-            plant.motor_inertia * (1.0 + tol),
-            plant.load_inertia * (1.0 + tol),
+            plant.motor_inertia * (1.0 + INERTIA_TOL),
+            plant.load_inertia * (1.0 + INERTIA_TOL),
             plant.resonance_hz,
             plant.damping,
             plant.viscous,
