@@ -182,9 +182,16 @@ async def test_backend_shutdown_stops_homing(channel, tmp_path) -> None:  # type
                 operation(app).control.heartbeat("A", SID)
                 await asyncio.sleep(0.05)
                 assert (await c.get(f"/api/v1/sessions/{SID}/motion")).json()["kind"] == "homing"
+            t_shutdown = time.time()
         t_end = time.time()
         stops = [d for d in spy.controlwords(NODE, t_home) if is_stop(d.value)]
         assert stops, "shutdown sent no halt/quick stop"
-        assert stops[0].time <= t_end and stops[0].time - t_home < 0.2
+        # The halt is the first thing shutdown does once tuning jobs have ended (app.py: the
+        # motion router's lifespan is the second innermost), before the scope and the viewer
+        # stop and the sessions close: 0.5 ms after shutdown begins here. The bound is timed
+        # from the start of shutdown, not from the homing start, so that a stall of a loaded
+        # CI machine before it (0.5 s once, 2026-11-26) does not count.
+        assert stops[0].time <= t_end
+        assert stops[0].time - t_shutdown < 0.3, stops[0].time - t_shutdown
     finally:
         spy.close()

@@ -96,14 +96,17 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(sessions.router, prefix="/api/v1")
     app.include_router(backups.router, prefix="/api/v1")
     app.include_router(ws_router, prefix="/api/v1")
-    app.include_router(motion.router, prefix="/api/v1")  # Also stops motion at shutdown.
     app.include_router(operation.router, prefix="/api/v1")
     app.include_router(viewer.router, prefix="/api/v1")  # Starts and stops the 3D viewer.
     app.include_router(pdo.router, prefix="/api/v1")
     app.include_router(scope.router, prefix="/api/v1")  # Stops the scope at shutdown.
     app.include_router(scope_ws_router, prefix="/api/v1")
-    # Included after motion: its lifespan is nested inside, so running tuning jobs stop (and
-    # put the gains back) before the motion router halts the axes at shutdown.
+    # The routers' lifespans nest in the order they are included, and the last one included
+    # ends first at shutdown. Motion comes just before tuning: running tuning jobs stop (and
+    # put the gains back) first, then the motion router halts the axes, and only then do the
+    # scope and the 3D viewer stop (their shutdown waits on threads and sockets; an axis must
+    # not keep moving meanwhile).
+    app.include_router(motion.router, prefix="/api/v1")  # Also stops motion at shutdown.
     app.include_router(tuning.router, prefix="/api/v1")
 
     swagger = WEB_DIST / "vendor" / "swagger-ui"
