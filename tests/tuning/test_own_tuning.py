@@ -224,15 +224,14 @@ def test_a_load_100x_on_a_lightly_damped_60hz_shaft_is_left_stable() -> None:
 
 
 def test_an_anti_resonance_just_below_the_band_is_found_by_the_record_fit() -> None:
-    """A load 10 x the motor on a 60 Hz shaft (damping 0.01): the anti-resonance (18.1 Hz)
-    lies just below the 20 Hz where the frequency response starts, which shows a peak without a
-    dip. The test moves, sized for a rigid axis, accelerate against the shaft and fit 35 % of
-    the inertia, which would put the anti-resonance at 33 Hz, inside the band, so the hidden
-    anti-resonance rule cannot place it. Until 2026-11-26 the gains were then designed for the
-    wrong axis and refused as worse than the factory ones (overshoot 35 % against 9 %). The
+    """A load 10 x the motor on a 60 Hz shaft (damping 0.01): the anti-resonance (18.1 Hz) lies just
+    below the 20 Hz where the frequency response starts, which shows a peak without a dip. The test
+    moves fit 35 % of the inertia, which would put the anti-resonance at 33 Hz, inside the band, so
+    the hidden anti-resonance rule cannot place it. Until 2026-11-26 the gains were then designed
+    for the wrong axis and refused as worse than the factory ones (overshoot 35 % against 9 %). The
     record fit, started at the band's edge, finds the anti-resonance and the whole inertia; the
-    gains meet the margins on the real axis and settle it faster than the factory gains
-    (0.70 s to +-100 counts on the true plant)."""
+    gains meet the margins on the real axis and settle it faster than the factory gains (0.70 s to
+    +-100 counts on the true plant)."""
     spec = PlantSpec(inertia_ratio=10.0, resonance_hz=60.0, damping=0.01)
     result, _ = _tune(spec)
     ident = result["identified"]

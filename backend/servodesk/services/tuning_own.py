@@ -314,8 +314,8 @@ class OwnTuning:
                 and low < LOW_ANTI_RESONANCE_HZ
                 # A fit that lands far from both other estimates fitted something else; one
                 # that found the anti-resonance below the band agreed with the response's
-                # motor inertia instead (_anti_below_band), and there the moves, sized for a
-                # rigid axis, saw part of the load only.
+                # motor inertia instead (_anti_below_band), and there the moves saw part of
+                # the load only.
                 and (below_band or 0.5 < j_record / inertia < 2.0)
             ):
                 # Below a low anti-resonance neither the moves (which must smooth over the
@@ -658,17 +658,16 @@ class OwnTuning:
         shows a peak without a dip and the test moves did not place one
         (:func:`with_hidden_anti_resonance`); (resonances, True when it was placed).
 
-        A two-mass mode whose anti-resonance lies just below the band measured: a load 10 x
-        the motor on a 60 Hz shaft has it at 18 Hz. The moves, sized for a rigid axis
-        (nothing told them of a soft one), accelerate against the shaft and see 35 % of the
-        inertia, which puts the anti-resonance at 33 Hz, inside the band, so the rule above
-        does not apply. The record fit is started with the anti-resonance at the band's lower
-        edge, and both it and the motor's inertia are free parameters of the fit: on that
-        axis it returns 17.9-18.1 Hz and the total inertia within 6 % (docs/tuning.md). It is
-        taken only when the fitted anti-resonance lies below the band or within a bin of its
-        edge (:data:`BELOW_BAND_EDGE`; further inside, the dip would have shown) and the fitted
-        motor inertia agrees with the response's (:data:`BELOW_BAND_MOTOR_TOL`): otherwise
-        the peak is not such a mode."""
+        A two-mass mode whose anti-resonance lies just below the band measured: a load 10 x the
+        motor on a 60 Hz shaft has it at 18 Hz. The moves, sized for an anti-resonance at the band's
+        edge (:func:`_lowest_anti`), fit 35 % of the inertia there, which puts the anti-resonance at
+        33 Hz, inside the band, so the rule above does not apply. The record fit is started with the
+        anti-resonance at the band's lower edge, and both it and the motor's inertia are free
+        parameters of the fit: on that axis it returns 17.9-18.1 Hz and the total inertia within 6 %
+        (docs/tuning.md). It is taken only when the fitted anti-resonance lies below the band or
+        within a bin of its edge (:data:`BELOW_BAND_EDGE`; further inside, the dip would have shown)
+        and the fitted motor inertia agrees with the response's (:data:`BELOW_BAND_MOTOR_TOL`):
+        otherwise the peak is not such a mode."""
         if self._frf_record is None or not resonances:
             return resonances, False
         i = min(range(len(resonances)), key=lambda k: resonances[k].freq_hz)
