@@ -55,6 +55,7 @@ from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.identify import (
     Frf,
     InertiaEstimate,
+    RecordFit,
     Resonance,
     find_resonances,
     frequency_response,
@@ -290,7 +291,11 @@ class OwnTuning:
             first = self._resonances(frf, j_rough, drive)
             j_frf, frf_band_ok = self._inertia_corrected(frf, drive, first, j_rough)
             self.progress(0.3, "inertia and friction (test moves)")
-            est = await self._identify(drive, j_frf, first)
+            # An anti-resonance below the band leaves the moves little inertial torque to fit:
+            # the record fit's whole-axis inertia stands in when theirs comes out negative.
+            early = self._anti_below_band(first, j_frf)[1]
+            fallback = early.total_inertia if early is not None else None
+            est = await self._identify(drive, j_frf, first, fallback)
             # A compliant axis: the inertia of the frequency response's rigid-body band, with
             # the two-mass shape divided out, is the better estimate (the test moves' fit must
             # smooth over the shaft oscillation); a rigid axis: the moves' fit (friction and
@@ -305,7 +310,8 @@ class OwnTuning:
                 log.debug("anti-resonance below the band measured: %s", found)
             else:
                 found = self._resonances(frf, inertia, drive)
-            found, below_band = self._anti_below_band(found, j_frf)
+            found, below_fit = self._anti_below_band(found, j_frf)
+            below_band = below_fit is not None
             resonances, j_record = self._sharpen(found)
             low = _lowest_anti(resonances)
             if (
@@ -653,10 +659,10 @@ class OwnTuning:
 
     def _anti_below_band(
         self, resonances: list[Resonance], j_frf: float
-    ) -> tuple[list[Resonance], bool]:
+    ) -> tuple[list[Resonance], RecordFit | None]:
         """The lowest resonance with its anti-resonance from the record fit when the response
         shows a peak without a dip and the test moves did not place one
-        (:func:`with_hidden_anti_resonance`); (resonances, True when it was placed).
+        (:func:`with_hidden_anti_resonance`); (resonances, the fit when it placed one).
 
         A two-mass mode whose anti-resonance lies just below the band measured: a load 10 x the
         motor on a 60 Hz shaft has it at 18 Hz. The moves, sized for an anti-resonance at the band's
@@ -669,12 +675,12 @@ class OwnTuning:
         and the fitted motor inertia agrees with the response's (:data:`BELOW_BAND_MOTOR_TOL`):
         otherwise the peak is not such a mode."""
         if self._frf_record is None or not resonances:
-            return resonances, False
+            return resonances, None
         i = min(range(len(resonances)), key=lambda k: resonances[k].freq_hz)
         r = resonances[i]
         band_low = 2.0 * CHIRP_F0_HZ
         if r.anti_freq_hz is not None:
-            return resonances, False
+            return resonances, None
         fit = resonance_from_record(*self._frf_record, replace(r, anti_freq_hz=band_low))
         if (
             fit is None
@@ -683,11 +689,11 @@ class OwnTuning:
             or not fit.anti_freq_hz < BELOW_BAND_EDGE * band_low
             or abs(fit.motor_inertia / j_frf - 1.0) > BELOW_BAND_MOTOR_TOL
         ):
-            return resonances, False
+            return resonances, None
         log.debug("anti-resonance below the band from the record fit: %s", fit)
         out = list(resonances)
         out[i] = replace(r, freq_hz=fit.freq_hz, anti_freq_hz=fit.anti_freq_hz)
-        return out, True
+        return out, fit
 
     def _resonances(self, frf: Frf, inertia: float, drive: _Drive) -> list[Resonance]:
         """Resonances up to an eighth of the loop rate (plant files allow no higher), and
@@ -744,8 +750,14 @@ class OwnTuning:
         return velocity, acc
 
     async def _identify(
-        self, drive: _Drive, j_frf: float, resonances: list[Resonance]
+        self,
+        drive: _Drive,
+        j_frf: float,
+        resonances: list[Resonance],
+        fallback_inertia: float | None = None,
     ) -> InertiaEstimate:
+        """Inertia and friction from test moves. ``fallback_inertia``: the record fit's, taken
+        when the moves' fit gives a negative inertia (their friction is still used)."""
         distance = min(0.2 * drive.counts_per_rev, 0.4 * drive.window_counts)
         inertia = j_frf
         est: InertiaEstimate | None = None
@@ -772,7 +784,14 @@ class OwnTuning:
                 raise TuningFailed(f"the test moves give no inertia: {exc}") from exc
             log.debug("identification pass: sized for J=%.4g, got %s", inertia, est)
             if not est.inertia > 0.0:
-                raise TuningFailed("the test moves give a negative inertia")
+                if fallback_inertia is None:
+                    raise TuningFailed("the test moves give a negative inertia")
+                # A load 6 x the motor on a 60 Hz shaft: the moves, sized for an anti-resonance
+                # at the band's edge, accelerate so gently that their inertial torque (0.015
+                # N m) is a sixth of the friction, and the fit gives -9.6e-5 kg m^2.
+                log.debug("negative inertia from the moves; the record fit's %g", fallback_inertia)
+                est = replace(est, inertia=fallback_inertia)
+                break
             if 0.7 <= est.inertia / inertia <= 1.4:
                 break
             # The moves were sized for another inertia: once more, unless the anti-resonance
