@@ -196,6 +196,20 @@ def test_files_that_cannot_be_read(tmp_path: Path) -> None:
         load_plant_file(bad)
 
 
+def test_the_harsh_plants_shipped_in_bench_load_as_their_names_say() -> None:
+    """bench/plants/soft-<ratio>x-<resonance>hz-d<damping>.toml (docs/tuning.md): each file
+    loads and is the heavy, soft axis its name promises, with an anti-resonance below 25 Hz."""
+    files = sorted((Path(__file__).parents[2] / "bench" / "plants").glob("*.toml"))
+    assert len(files) == 7
+    for f in files:
+        ratio, fr, damping = f.stem.removeprefix("soft-").split("-")
+        spec = load_plant_file(f)
+        assert spec.inertia_ratio == float(ratio.removesuffix("x"))
+        assert spec.resonance_hz == float(fr.removesuffix("hz"))
+        assert spec.damping == float(damping.removeprefix("d"))
+        assert spec.resonance_hz / math.sqrt(1.0 + spec.inertia_ratio) < 25.0
+
+
 def test_the_hash_follows_the_values_not_the_spelling() -> None:
     a = parse_plant_toml("[load]\ninertia_ratio = 3\n[loop]\nrate_hz = 8000")
     b = parse_plant_toml("[loop]\nrate_hz = 8000\n\n[load]\ninertia_ratio = 3.0  # three\n")
