@@ -117,6 +117,9 @@ Mode = Literal["low", "basic", "high"]
 CHIRP_F0_HZ = 10.0
 CHIRP_S = 1.0
 CHIRP_SHARE = 0.12
+#: The lowest frequency the response is read at, twice the chirp's start: where the search for
+#: resonances and dips and the rigid-body band begin.
+BAND_LOW_HZ = 2.0 * CHIRP_F0_HZ
 #: The frequency response is measured travelling this far (or 90 % of the window).
 FRF_TRAVEL_REV = 0.45
 #: Identification moves: inertial torque as a share of the tuning torque limit.
@@ -287,7 +290,7 @@ class OwnTuning:
             await self._set_safety(drive)
             self.progress(0.05, "frequency response (PRBS torque while travelling)")
             frf = await self._measure_frf(drive)
-            j_rough = self._inertia_from_frf(frf, drive, (2.0 * CHIRP_F0_HZ, 8.0 * CHIRP_F0_HZ))
+            j_rough = self._inertia_from_frf(frf, drive, (BAND_LOW_HZ, 4.0 * BAND_LOW_HZ))
             first = self._resonances(frf, j_rough, drive)
             j_frf, frf_band_ok = self._inertia_corrected(frf, drive, first, j_rough)
             self.progress(0.3, "inertia and friction (test moves)")
@@ -303,7 +306,7 @@ class OwnTuning:
             compliant = any(r.anti_freq_hz for r in first)
             inertia = j_frf if compliant and frf_band_ok else est.inertia
             est = replace(est, inertia=inertia)
-            found = with_hidden_anti_resonance(first, j_frf, inertia, 2.0 * CHIRP_F0_HZ)
+            found = with_hidden_anti_resonance(first, j_frf, inertia, BAND_LOW_HZ)
             if found != first:
                 # The frequency response saw the motor alone: the mode's anti-resonance lies
                 # below its band, and the moves' inertia places it (identify.py).
@@ -678,15 +681,14 @@ class OwnTuning:
             return resonances, None
         i = min(range(len(resonances)), key=lambda k: resonances[k].freq_hz)
         r = resonances[i]
-        band_low = 2.0 * CHIRP_F0_HZ
         if r.anti_freq_hz is not None:
             return resonances, None
-        fit = resonance_from_record(*self._frf_record, replace(r, anti_freq_hz=band_low))
+        fit = resonance_from_record(*self._frf_record, replace(r, anti_freq_hz=BAND_LOW_HZ))
         if (
             fit is None
             or fit.anti_freq_hz is None
             or fit.motor_inertia is None
-            or not fit.anti_freq_hz < BELOW_BAND_EDGE * band_low
+            or not fit.anti_freq_hz < BELOW_BAND_EDGE * BAND_LOW_HZ
             or abs(fit.motor_inertia / j_frf - 1.0) > BELOW_BAND_MOTOR_TOL
         ):
             return resonances, None
@@ -702,7 +704,7 @@ class OwnTuning:
         top = drive.rate_hz / 8.0
         if drive.current_loop_hz:
             top = min(top, 2.0 * drive.current_loop_hz)
-        return find_resonances(frf, inertia, min_freq_hz=2.0 * CHIRP_F0_HZ, max_freq_hz=top)
+        return find_resonances(frf, inertia, min_freq_hz=BAND_LOW_HZ, max_freq_hz=top)
 
     def _inertia_from_frf(self, frf: Frf, drive: _Drive, band: tuple[float, float]) -> float:
         try:
@@ -721,7 +723,7 @@ class OwnTuning:
         enough: at least 15 Hz above the lowest frequency measured)."""
         anti = [r.anti_freq_hz for r in resonances if r.anti_freq_hz]
         top = min(0.7 * min(anti), 400.0) if anti else min(400.0, 0.05 * drive.rate_hz)
-        lo = 2.0 * CHIRP_F0_HZ
+        lo = BAND_LOW_HZ
         if top < lo + 15.0:
             return rough, False
         try:
@@ -810,7 +812,7 @@ class OwnTuning:
             raise TuningFailed(
                 f"the test moves do not fit a rigid axis (the fit leaves "
                 f"{100.0 * est.residual_rms / spread:.0f} % of the torque unexplained), and the "
-                f"frequency response from {2.0 * CHIRP_F0_HZ:.0f} Hz shows no resonance: the axis "
+                f"frequency response from {BAND_LOW_HZ:.0f} Hz shows no resonance: the axis "
                 f"has a compliance too low to measure (a soft belt, a very heavy or hanging "
                 f"load), and gains designed for what can be seen would not be safe",
                 hint="tune this axis by hand, starting from low gains",
@@ -1054,7 +1056,7 @@ def _lowest_anti(resonances: list[Resonance]) -> float | None:
     if not resonances:
         return None
     if min(resonances, key=lambda r: r.freq_hz).anti_freq_hz is None:
-        return 2.0 * CHIRP_F0_HZ
+        return BAND_LOW_HZ
     return min(r.anti_freq_hz for r in resonances if r.anti_freq_hz)
 
 
