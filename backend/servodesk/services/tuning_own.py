@@ -296,7 +296,7 @@ class OwnTuning:
             self.progress(0.3, "inertia and friction (test moves)")
             # An anti-resonance below the band leaves the moves little inertial torque to fit:
             # the record fit's whole-axis inertia stands in when theirs comes out negative.
-            early = self._anti_below_band(first, j_frf)[1]
+            early = (await self._anti_below_band(first, j_frf))[1]
             fallback = early.total_inertia if early is not None else None
             est = await self._identify(drive, j_frf, first, fallback)
             # A compliant axis: the inertia of the frequency response's rigid-body band, with
@@ -313,9 +313,9 @@ class OwnTuning:
                 log.debug("anti-resonance below the band measured: %s", found)
             else:
                 found = self._resonances(frf, inertia, drive)
-            found, below_fit = self._anti_below_band(found, j_frf)
+            found, below_fit = await self._anti_below_band(found, j_frf)
             below_band = below_fit is not None
-            resonances, j_record = self._sharpen(found)
+            resonances, j_record = await self._sharpen(found)
             low = _lowest_anti(resonances)
             if (
                 j_record is not None
@@ -633,7 +633,7 @@ class OwnTuning:
             f_min_hz=CHIRP_F0_HZ,
         )
 
-    def _sharpen(self, resonances: list[Resonance]) -> tuple[list[Resonance], float | None]:
+    async def _sharpen(self, resonances: list[Resonance]) -> tuple[list[Resonance], float | None]:
         """Each two-mass resonance refined from the whole record
         (:func:`resonance_from_record`): its damping and anti-resonance always (the Welch
         estimate smears a sharp mode wide, and puts a low anti-resonance where a few coarse
@@ -647,7 +647,7 @@ class OwnTuning:
         total: float | None = None
         lowest = min(resonances, key=lambda r: r.freq_hz) if resonances else None
         for r in resonances:
-            fit = resonance_from_record(*self._frf_record, r)
+            fit = await self._record_fit(r)
             if fit is None:
                 out.append(r)
                 continue
@@ -660,7 +660,7 @@ class OwnTuning:
                 total = fit.total_inertia
         return out, total
 
-    def _anti_below_band(
+    async def _anti_below_band(
         self, resonances: list[Resonance], j_frf: float
     ) -> tuple[list[Resonance], RecordFit | None]:
         """The lowest resonance with its anti-resonance from the record fit when the response
@@ -683,7 +683,7 @@ class OwnTuning:
         r = resonances[i]
         if r.anti_freq_hz is not None:
             return resonances, None
-        fit = resonance_from_record(*self._frf_record, replace(r, anti_freq_hz=BAND_LOW_HZ))
+        fit = await self._record_fit(replace(r, anti_freq_hz=BAND_LOW_HZ))
         if (
             fit is None
             or fit.anti_freq_hz is None
@@ -696,6 +696,16 @@ class OwnTuning:
         out = list(resonances)
         out[i] = replace(r, freq_hz=fit.freq_hz, anti_freq_hz=fit.anti_freq_hz)
         return out, fit
+
+    async def _record_fit(self, resonance: Resonance) -> RecordFit | None:
+        """:func:`resonance_from_record` on the frequency response's record, in the design's
+        worker process when offloading: one fit is 20-40 ms of arithmetic, a tuning runs up to
+        four, and the event loop carries the operator's heartbeats meanwhile."""
+        assert self._frf_record is not None
+        job = functools.partial(resonance_from_record, *self._frf_record, resonance)
+        if not self._offload:
+            return job()
+        return await asyncio.get_running_loop().run_in_executor(_design_pool(), job)
 
     def _resonances(self, frf: Frf, inertia: float, drive: _Drive) -> list[Resonance]:
         """Resonances up to an eighth of the loop rate (plant files allow no higher), and
