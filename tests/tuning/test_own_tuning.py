@@ -366,3 +366,27 @@ def test_worse_means_an_overshoot_that_matters() -> None:
         refuse_if_worse(step(math.inf, 0.28), step(math.inf, 0.71))
     with pytest.raises(TuningFailed, match="did with the previous ones in 20 ms"):
         refuse_if_worse(step(0.02, 0.0), step(math.inf, 0.0))
+
+
+def test_the_axis_time_counts_the_way_back() -> None:
+    """The axis time a tuning reports (and holds to its 5 s budget) counts every move's whole
+    profile. The way back of each verification move and of each try on the axis starts where
+    the way there ended; counted from the tuning's start it looked like no move at all, and
+    only its acceleration and deceleration were counted (until 2026-11-27)."""
+    spec = PlantSpec(inertia_ratio=3.0)
+    tuning = OwnTuning(SimIO(build_drive(spec)), OwnTuningRequest("high", 0.5, 175.0))
+
+    async def there_and_back() -> tuple[float, float, float]:
+        drive = await tuning._learn()
+        saved = await tuning._save_settings()
+        await tuning._set_safety(drive)
+        profile = tuning._verify_profile(drive, spec.motor_inertia * (1 + spec.inertia_ratio))
+        await tuning._verify_move(drive, profile)
+        await tuning._restore_settings(saved)
+        return profile
+
+    distance, velocity, acc = asyncio.run(there_and_back())
+    # A trapezoid: 2 v / a accelerating and braking, the rest of the distance at v.
+    one_way = 2.0 * velocity / acc + (distance / velocity - velocity / acc)
+    assert velocity / acc < distance / velocity  # It does cruise (the old count differed).
+    assert tuning.axis_time_s == pytest.approx(2.0 * one_way, rel=1e-9)

@@ -528,15 +528,17 @@ class OwnTuning:
         *,
         settle: bool = False,
         extra: list[ObjectAddress] | None = None,
+        origin: float | None = None,
     ) -> tuple[Recording, list[tuple[float, float]]]:
         """Moves one after the other, recorded (position, torque command) at the loop rate
         (or a divider that makes the recording fit). Returns the recording and each move's
         (start, end of its commanded profile) in recording time. ``settle``: each move waits
         for target reached (verification); otherwise the next starts ``rest_s`` after the
-        profile's end, wherever the axis is (identification needs motion, not arrival)."""
-        distance = max(
-            abs(b - a) for a, b in zip([float(drive.start_counts), *targets], targets, strict=False)
-        )
+        profile's end, wherever the axis is (identification needs motion, not arrival).
+        ``origin``: where the first move starts (default: where the tuning started); the
+        moves' durations, and so the recording's length and the axis time, follow from it."""
+        first = float(drive.start_counts) if origin is None else origin
+        distance = max(abs(b - a) for a, b in zip([first, *targets], targets, strict=False))
         duration = _move_time(distance, velocity, acc)
         # Room for the axis to arrive late (an untuned loop lags its profile).
         total = len(targets) * (duration + rest_s) + 0.02
@@ -904,7 +906,11 @@ class OwnTuning:
         rec, spans = await self._run_moves(
             drive, [start + distance], velocity, acc, VERIFY_SETTLE_S, extra=fe
         )
-        back, _ = await self._run_moves(drive, [start], velocity, acc, 0.05, settle=True)
+        # The way back counts its whole profile: from the start it would look like no move
+        # at all, and the axis time came out 10-20 % short (until 2026-11-27).
+        back, _ = await self._run_moves(
+            drive, [start], velocity, acc, 0.05, settle=True, origin=start + distance
+        )
         del back
         pos = rec[POSITION]
         t = rec.t
