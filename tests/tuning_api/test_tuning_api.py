@@ -336,7 +336,7 @@ def test_own_tuning_runs_on_the_generic_twin(channel, tmp_path) -> None:  # type
             assert r.status_code == 202, r.text
             end = wait_job(client, sid, 180.0)
             beats.stop()
-        assert end["state"] == "done", end
+        assert end["state"] == "done", {k: end[k] for k in end if k not in ("result",)}
         res = client.get(f"/api/v1/sessions/{sid}/tuning/result").json()
         assert res["kind"] == "gains" and res["status"] == "done"
         true_j = drive.plant_params.inertia
