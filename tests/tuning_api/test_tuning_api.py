@@ -327,7 +327,9 @@ def test_own_tuning_runs_on_the_generic_twin(channel, tmp_path) -> None:  # type
     meet PM >= 45 deg / GM >= 8 dB, new gains on the drive, and an "after" move that settles
     where the untuned axis did not."""
     sid = "cia402-generic-1"
-    with operation_app(channel, tmp_path) as (client, sim):
+    # Not a dead-man test: 5 s, so that a stall of the loaded CI machine (2 s seen) cannot
+    # stop a tuning that runs for about 20 s.
+    with operation_app(channel, tmp_path, deadman_ms=5000) as (client, sim):
         drive = sim.drives[0]
         take_and_enable(client, sid, "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
@@ -355,7 +357,10 @@ def test_own_tuning_runs_on_the_generic_twin(channel, tmp_path) -> None:  # type
 
 
 def test_a_closed_socket_or_a_fault_stops_the_tuning(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
-    with operation_app(channel, tmp_path, "lecsn-t") as (client, sim):
+    # The closed socket must stop the tuning, not the dead-man: CI once saw the heartbeats
+    # stall for 2 s on a loaded machine and the dead-man (1 s) come first. 5 s leaves the
+    # socket's close the only way out.
+    with operation_app(channel, tmp_path, "lecsn-t", deadman_ms=5000) as (client, sim):
         drive = sim.drives[0]
         take_and_enable(client, SID, "A")
         # The page is closed (its socket goes): the axis stops, the tuning ends.
