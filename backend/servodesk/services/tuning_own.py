@@ -904,7 +904,7 @@ class OwnTuning:
         start = float(drive.start_counts)
         fe = [FOLLOWING_ERROR] if await self._has(FOLLOWING_ERROR) else []
         keys = []
-        for target in (start + distance, start):
+        for origin, target in ((start, start + distance), (start + distance, start)):
             # The way back waits for arrival too: the next try starts from rest.
             rec, spans = await self._run_moves(
                 drive,
@@ -914,16 +914,19 @@ class OwnTuning:
                 VERIFY_SETTLE_S,
                 settle=target == start,
                 extra=fe,
-                origin=start + distance - (target - start),
+                origin=origin,
             )
             t, pos = rec.t, rec[POSITION]
             t_end = spans[0][1]
             m = move_metrics(t, target, pos, t_end)
-            fe_rms = math.inf
-            if fe:
-                during = rec[FOLLOWING_ERROR][(t >= spans[0][0]) & (t <= t_end)]
-                fe_rms = float(np.sqrt(np.mean(during**2))) if len(during) else math.inf
-            keys.append((smoothed_settling(t, target, pos, t_end), m.settling_100_s, fe_rms))
+            fe_rms = _following_error_rms(rec, spans[0]) if fe else None
+            keys.append(
+                (
+                    smoothed_settling(t, target, pos, t_end),
+                    m.settling_100_s,
+                    math.inf if fe_rms is None else fe_rms,
+                )
+            )
         a, b = keys
         return ((a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0, (a[2] + b[2]) / 2.0)
 
@@ -955,11 +958,7 @@ class OwnTuning:
         t = rec.t
         t_end = spans[0][1]
         m = move_metrics(t, start + distance, pos, t_end)
-        fe_rms: float | None = None
-        if fe:
-            # The drive's own following error (60F4h) over the commanded profile.
-            during = rec[FOLLOWING_ERROR][(t >= spans[0][0]) & (t <= t_end)]
-            fe_rms = float(np.sqrt(np.mean(during**2))) if len(during) else None
+        fe_rms = _following_error_rms(rec, spans[0]) if fe else None
         keep = max(1, len(t) // 800)  # The page draws about 800 points.
         return {
             "t_s": [round(float(x), 6) for x in t[::keep]],
@@ -1119,6 +1118,14 @@ def _move_time(distance: float, velocity: float, acc: float) -> float:
     """Duration of one trapezoidal profile move [s] (the drive's profile position, 6081h/6083h)."""
     cruise = max(0.0, distance / velocity - velocity / acc)
     return 2.0 * velocity / acc + cruise
+
+
+def _following_error_rms(rec: Recording, span: tuple[float, float]) -> float | None:
+    """The drive's own following error (60F4h) RMS over a move's commanded profile [counts];
+    None when the recording holds no sample of it."""
+    t = rec.t
+    during = rec[FOLLOWING_ERROR][(t >= span[0]) & (t <= span[1])]
+    return float(np.sqrt(np.mean(during**2))) if len(during) else None
 
 
 def json_safe(x: Any) -> Any:
