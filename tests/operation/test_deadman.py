@@ -155,3 +155,45 @@ def _receive(ws: Any, kind: str, limit: int = 200) -> dict[str, Any]:
         if msg.get("type") == kind:
             return msg
     raise AssertionError(f"no {kind} message")
+
+
+def test_a_stall_of_the_backend_is_not_a_lost_client(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """The backend's event loop held for 0.6 s (a garbage collection, a starved CPU): the
+    client's heartbeats of that time wait unread in its socket, and the jog goes on. The
+    dead-man then still stops the axis when the heartbeats really stop, and a client that goes
+    silent during a stall is stopped once the stall and a short grace have passed."""
+    with operation_app(channel, tmp_path, deadman_ms=DEADMAN_MS) as (client, sim):
+        drive = sim.drives[0]
+        take_and_enable(client, SID, "A")
+        with client.websocket_connect("/api/v1/ws?client=A") as ws:
+            beats = Heartbeats(ws, SID, period=0.05)
+            _jog(client)
+            assert wait_until(lambda: abs(drive.velocity) > 150_000, 1.0)
+            client.portal.call(time.sleep, 0.6)  # Blocks the backend's event loop.
+            time.sleep(0.3)
+            st = client.get(f"/api/v1/sessions/{SID}/motion").json()
+            assert st["active"] and abs(drive.velocity) > 150_000, st
+            # The heartbeats stop for real: the dead-man still works.
+            last = beats.stop()
+            stopped_at = wait_until(lambda: abs(drive.velocity) <= STANDSTILL, 2.0)
+            assert stopped_at is not None
+            assert (stopped_at - last) * 1000.0 <= DEADMAN_MS + 250
+            st = client.get(f"/api/v1/sessions/{SID}/motion").json()
+            assert st["state"] == "deadman" and "heartbeat" in st["message"], st
+        # Silent during a stall: stopped after the stall and the grace, not never.
+        assert client.post(
+            f"/api/v1/sessions/{SID}/alarms/reset", json={}, headers=headers("A")
+        ).status_code in (200, 409)
+        take_and_enable(client, SID, "A")
+        with client.websocket_connect("/api/v1/ws?client=A") as ws:
+            beats = Heartbeats(ws, SID, period=0.05)
+            _jog(client)
+            assert wait_until(lambda: abs(drive.velocity) > 150_000, 1.0)
+            last = beats.stop()
+            client.portal.call(time.sleep, 0.4)
+            stopped_at = wait_until(lambda: abs(drive.velocity) <= STANDSTILL, 2.0)
+            assert stopped_at is not None
+            # 0.4 s stall + 0.1 s grace + braking (the 250 ms dead-man ran out in the stall).
+            assert (stopped_at - last) * 1000.0 <= 400 + 100 + 250 + 100
+            st = client.get(f"/api/v1/sessions/{SID}/motion").json()
+            assert st["state"] == "deadman" and "heartbeat" in st["message"], st

@@ -110,6 +110,12 @@ SW_SETPOINT_ACK = 1 << 12
 PP, PV, TQ, HM, CSP, CSV, CST = 1, 3, 4, 6, 8, 9, 10
 INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
 CYCLIC_MODES = {"csp": CSP, "csv": CSV, "cst": CST}
+#: The dead-man's watchdog woke this much later than it asked to: the backend itself stalled
+#: (a garbage collection, a starved CPU on a busy laptop), not the client.
+STALL_S = 0.05
+#: After such a stall, the heartbeats the client sent meanwhile still wait unread in its
+#: socket; they get this long to be read before the silence counts against the client.
+STALL_GRACE_S = 0.1
 #: Standstill when |velocity| is within 606Fh; this when the drive has no 606Fh (inc/s).
 DEFAULT_STANDSTILL = 1000
 #: Continuous motion (jog, profile velocity) near a software position limit: the monitor
@@ -1207,20 +1213,37 @@ class MotionService:
         self.hub.publish(msg, session=axis.sid)
 
     async def _watchdog(self, axis: _Axis, motion: Motion) -> None:
-        """Fires within a few ms of the dead-man deadline (no bus traffic until then)."""
+        """Fires within a few ms of the dead-man deadline (no bus traffic until then).
+
+        A stall of the backend is not a lost client: when the watchdog itself wakes more than
+        :data:`STALL_S` late, the event loop was held, and the client's heartbeats of that time
+        wait unread in its socket. The deadline then moves to :data:`STALL_GRACE_S` after the
+        stall (a second, in-process stall tripped the dead-man of a test whose heartbeats never
+        stopped). A client that really went silent is stopped that much later, and only after
+        such a stall."""
         limit = self.deadman_s
+        grace_until = 0.0
         while motion.active:
             hb = self.control.last_heartbeat(motion.owner, axis.sid)
             last = max(hb or 0.0, motion.started)
             now = time.monotonic()
-            due = last + limit
+            due = max(last + limit, grace_until)
             if now >= due:
                 ms = round((now - last) * 1000)
                 await self._lost_operator(
                     axis, motion, f"no heartbeat from client {motion.owner!r} for {ms} ms", last
                 )
                 return
-            await asyncio.sleep(min(self.watchdog_period, due - now))
+            nap = min(self.watchdog_period, due - now)
+            await asyncio.sleep(nap)
+            woke = time.monotonic()
+            if woke - (now + nap) > STALL_S:
+                log.warning(
+                    "the backend stalled for %.0f ms; heartbeats get %.0f ms to arrive",
+                    (woke - now) * 1000.0,
+                    STALL_GRACE_S * 1000.0,
+                )
+                grace_until = woke + STALL_GRACE_S
 
     async def _monitor(self, axis: _Axis, motion: Motion) -> None:
         """Ends a move at its target, a homing run at its end, and any motion when the drive
