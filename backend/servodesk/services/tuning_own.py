@@ -68,7 +68,7 @@ from servodesk.domain.tuning.identify import (
 )
 from servodesk.domain.tuning.metrics import move_metrics, smoothed_settling
 from servodesk.domain.tuning.model import LoopModel, PlantModel
-from servodesk.domain.tuning.search import LOW_ANTI_RESONANCE_HZ, SearchResult, tune_on_model
+from servodesk.domain.tuning.search import SearchResult, tune_on_model
 from servodesk.errors import DriveStateError, ServodeskError, ValidationError
 from servodesk.services.session import Session
 from servodesk.services.tuning_io import DriveRecorder, Recording, SessionIO, TuningIO, read_float
@@ -151,6 +151,16 @@ VERIFY_SETTLE_S = 0.25
 #: Axis time a tuning may spend moving (issue 8: at most 5 s); runners-up are tried only
 #: while one more try and the verification move after it fit.
 AXIS_BUDGET_S = 4.6
+#: Below this anti-resonance the tuning takes the record fit's whole-axis inertia,
+#: J_M (f_r / f_ar)^2 (``RecordFit.total_inertia``): the response's rigid-body band, from 20 Hz
+#: to 0.7 x the anti-resonance, then holds three or fewer of its 7.8 Hz bins. At 50 Hz
+#: (R3-100Hz) its two bins gave the inertia 12-27 % low on three of four noise seeds, at 60 Hz
+#: (R10-200Hz) three bins 3-5 % low; the record fit is within 1.5 % on both. With four bins
+#: (R1-100Hz, R30-400Hz: 71-72 Hz) the band is within 4 % and the record fit within 3 %, and
+#: the fit's inertia settled R1-100Hz slower on every seed (1.5 -> 2.1 x the oracle); on the
+#: 800 Hz axes the fit is 5-9 % high. Until the second session of 2026-11-27 this was 40 Hz
+#: (``LOW_ANTI_RESONANCE_HZ``).
+RECORD_INERTIA_BELOW_HZ = 65.0
 #: Torque share of the move runners-up are compared with (search.py's reference move: 0.7).
 RANK_TORQUE_SHARE = 0.7
 
@@ -320,7 +330,7 @@ class OwnTuning:
             if (
                 j_record is not None
                 and low is not None
-                and low < LOW_ANTI_RESONANCE_HZ
+                and low < RECORD_INERTIA_BELOW_HZ
                 # A fit that lands far from both other estimates fitted something else; one
                 # that found the anti-resonance below the band agreed with the response's
                 # motor inertia instead (_anti_below_band), and there the moves saw part of
@@ -329,8 +339,9 @@ class OwnTuning:
             ):
                 # Below a low anti-resonance neither the moves (which must smooth over the
                 # swinging load) nor the response's few rigid-body bins place the inertia well
-                # (R30-100Hz +14 %, R30-200Hz +10 %); the record fit's J_M (f_r / f_ar)^2 does,
-                # within 3 % on the benchmark's plants (docs/tuning.md).
+                # (R30-100Hz +14 %, R30-200Hz +10 %, R3-100Hz -27 %); the record fit's
+                # J_M (f_r / f_ar)^2 does, within 3 % on the benchmark's plants
+                # (docs/tuning.md).
                 log.debug("inertia from the record fit: %.4g (was %.4g)", j_record, inertia)
                 inertia = j_record
                 est = replace(est, inertia=inertia)
@@ -616,7 +627,13 @@ class OwnTuning:
         await self._move(drive, drive.start_counts, velocity * 2.0, acc)
         await self.io.sleep(distance / (2.0 * velocity) + 0.05)
         await self._wait_reached(1.0)
-        self.axis_time_s += CHIRP_S + 0.1 + distance / (2.0 * velocity)
+        # Both ways in full, ramps included: the way there lasts CHIRP_S + 0.17 s (at an
+        # uncapped speed), the way back at twice the speed with the same acceleration (until
+        # the second session of 2026-11-27: CHIRP_S + 0.1 s and a way back without ramps,
+        # 0.11 s short).
+        self.axis_time_s += _move_time(distance, velocity, acc) + _move_time(
+            distance, 2.0 * velocity, acc
+        )
         self.excursion = (
             min(self.excursion[0], 0.0),
             max(self.excursion[1], distance / drive.counts_per_rev),

@@ -289,7 +289,11 @@ class SimulatedDrive:
         plant_substeps: int | None = None,
         gains: ControllerGains | None = None,
         loop_rate_hz: int | None = None,
+        max_velocity: float | None = None,
     ) -> None:
+        """``max_velocity``: the machine's top speed [counts/s], which caps every profile
+        (default: the profile's simulation setting, in revolutions per second at the plant's
+        encoder)."""
         self.profile = profile
         self.node_id = node_id
         self._lock = threading.RLock()
@@ -374,6 +378,10 @@ class SimulatedDrive:
         if self.plant_params.counts_per_rev != sim.counts_per_rev:
             # A plant file's encoder: keep the travel, speeds and switches in revolutions.
             sim = _rescaled(sim, self.plant_params.counts_per_rev)
+        if max_velocity is not None:
+            if not max_velocity > 0.0:
+                raise ValueError(f"max_velocity {max_velocity}: must be positive (counts/s)")
+            sim = sim.model_copy(update={"max_velocity": float(max_velocity)})
         #: The simulation settings in effect (the profile's, rescaled to the plant's encoder).
         self.sim_settings = sim
         self.plant = Plant(self.plant_params)
