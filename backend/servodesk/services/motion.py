@@ -1218,9 +1218,9 @@ class MotionService:
         A stall of the backend is not a lost client: when the watchdog itself wakes more than
         :data:`STALL_S` late, the event loop was held, and the client's heartbeats of that time
         wait unread in its socket. The deadline then moves to :data:`STALL_GRACE_S` after the
-        stall (a second, in-process stall tripped the dead-man of a test whose heartbeats never
-        stopped). A client that really went silent is stopped that much later, and only after
-        such a stall."""
+        stall (before, a 1-2 s stall of the test process on a busy machine tripped the dead-man
+        of tests whose heartbeats never stopped). A client that really went silent is stopped
+        that much later, and only after such a stall."""
         limit = self.deadman_s
         grace_until = 0.0
         while motion.active:
