@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import asyncio
 import math
+from collections.abc import Awaitable, Callable
 from typing import Any
 
 import pytest
@@ -397,6 +398,30 @@ class _DemandWatch:
         return float(self.cycles * self.sim.CONTROL_PERIOD)
 
 
+_WATCHED_AXIS = PlantSpec(inertia_ratio=3.0)
+
+
+def _watched(
+    step: Callable[[OwnTuning, Any], Awaitable[Any]],
+) -> tuple[OwnTuning, _DemandWatch, Any]:
+    """One step of the tuning on a twin of :data:`_WATCHED_AXIS`, after its safety settings,
+    with the drive's demand watched during the step; (tuning, watch, what the step returned)."""
+    sim = build_drive(_WATCHED_AXIS)
+    tuning = OwnTuning(SimIO(sim), OwnTuningRequest("high", 0.5, 175.0))
+    watch = _DemandWatch(sim)
+
+    async def run() -> Any:
+        drive = await tuning._learn()
+        saved = await tuning._save_settings()
+        await tuning._set_safety(drive)
+        sim.on_cycle(watch)
+        out = await step(tuning, drive)
+        await tuning._restore_settings(saved)
+        return out
+
+    return tuning, watch, asyncio.run(run())
+
+
 def test_the_axis_time_counts_the_way_back() -> None:
     """The axis time a tuning reports (and holds to its 5 s budget) counts every move's whole
     profile. The way back of each verification move and of each try on the axis starts where
@@ -404,22 +429,14 @@ def test_the_axis_time_counts_the_way_back() -> None:
     only its acceleration and deceleration were counted (until 2026-11-27). The figure is the
     time the drive's demand moves: until the second session of 2026-11-27 the benchmark's twin
     ran at most 7.6 rev/s where its 607Fh allowed 50, and this move took 83 ms, not 73."""
-    spec = PlantSpec(inertia_ratio=3.0)
-    sim = build_drive(spec)
-    tuning = OwnTuning(SimIO(sim), OwnTuningRequest("high", 0.5, 175.0))
-    watch = _DemandWatch(sim)
+    j = _WATCHED_AXIS.motor_inertia * (1 + _WATCHED_AXIS.inertia_ratio)
 
-    async def there_and_back() -> tuple[float, float, float]:
-        drive = await tuning._learn()
-        saved = await tuning._save_settings()
-        await tuning._set_safety(drive)
-        profile = tuning._verify_profile(drive, spec.motor_inertia * (1 + spec.inertia_ratio))
-        sim.on_cycle(watch)
+    async def there_and_back(tuning: OwnTuning, drive: Any) -> tuple[float, float, float]:
+        profile = tuning._verify_profile(drive, j)
         await tuning._verify_move(drive, profile)
-        await tuning._restore_settings(saved)
         return profile
 
-    distance, velocity, acc = asyncio.run(there_and_back())
+    tuning, watch, (distance, velocity, acc) = _watched(there_and_back)
     # A trapezoid: 2 v / a accelerating and braking, the rest of the distance at v.
     one_way = 2.0 * velocity / acc + (distance / velocity - velocity / acc)
     assert velocity / acc < distance / velocity  # It does cruise (the old count differed).
@@ -433,20 +450,7 @@ def test_the_axis_time_counts_the_frequency_responses_moves_in_full() -> None:
     tuning). The axis time it reports is the time the drive's own position demand moves:
     until the second session of 2026-11-27 it counted the way there and the way back without
     their ramps (0.11 s short on this axis)."""
-    spec = PlantSpec(inertia_ratio=3.0)
-    sim = build_drive(spec)
-    tuning = OwnTuning(SimIO(sim), OwnTuningRequest("high", 0.5, 175.0))
-    watch = _DemandWatch(sim)
-
-    async def frequency_response() -> None:
-        drive = await tuning._learn()
-        saved = await tuning._save_settings()
-        await tuning._set_safety(drive)
-        sim.on_cycle(watch)
-        await tuning._measure_frf(drive)
-        await tuning._restore_settings(saved)
-
-    asyncio.run(frequency_response())
+    tuning, watch, _ = _watched(lambda tuning, drive: tuning._measure_frf(drive))
     assert watch.seconds > 1.0  # It did travel, there and back.
     # Measured: 1.785 s reported, 1.782 s sampled; the old count was 1.675 s.
     assert tuning.axis_time_s == pytest.approx(watch.seconds, abs=0.005)
