@@ -257,6 +257,17 @@ def test_bus_with_a_plant_serves_its_loop_rate_over_sdo(channel: str) -> None:
         assert drive.sim_settings.max_velocity == pytest.approx(1_000_000 * 8)
         node = net.add_node(9)
         assert int.from_bytes(node.sdo.upload(0x2108, 0), "little") == 8000
+        assert int.from_bytes(node.sdo.upload(0x608F, 1), "little") == 1 << 20
+
+        # So do the objects counted in increments: 607Fh is 7.6 rev/s as on the profile's
+        # 2^17-count twin, not 0.95 rev/s; 607Dh's +-2^31 ("no limit") stays in its type.
+        def read(index: int, sub: int = 0, signed: bool = False) -> int:
+            return int.from_bytes(node.sdo.upload(index, sub), "little", signed=signed)
+
+        assert read(0x607F) == 8 * 1_000_000 and read(0x6081) == 8 * 200_000
+        assert read(0x6083) == read(0x6084) == 8 * 1_000_000 and read(0x6065) == 8 * 20_000
+        assert read(0x607D, 1, signed=True) == -(1 << 31)
+        assert read(0x607D, 2, signed=True) == (1 << 31) - 1
     finally:
         net.disconnect()
         bus.stop()

@@ -376,8 +376,12 @@ class SimulatedDrive:
         sim = profile.simulation
         self.plant_params = plant_params or PlantParams.from_settings(sim)
         if self.plant_params.counts_per_rev != sim.counts_per_rev:
-            # A plant file's encoder: keep the travel, speeds and switches in revolutions.
+            # A plant file's encoder: keep the travel, speeds and switches in revolutions,
+            # and so the objects' defaults in increments (607Fh, 6081h, 6065h, ...).
+            f = self.plant_params.counts_per_rev / sim.counts_per_rev
             sim = _rescaled(sim, self.plant_params.counts_per_rev)
+            self._defaults.update(_rescaled_defaults(self._specs, self._defaults, f))
+            self._values = dict(self._defaults)
         if max_velocity is not None:
             if not max_velocity > 0.0:
                 raise ValueError(f"max_velocity {max_velocity}: must be positive (counts/s)")
@@ -1955,6 +1959,31 @@ def _rescaled(sim: SimSettings, counts_per_rev: int) -> SimSettings:
             "rated_speed": None if sim.rated_speed is None else sim.rated_speed * f,
         }
     )
+
+
+#: Raw units counted in encoder increments: their defaults follow the encoder's resolution.
+_INCREMENT_UNITS = frozenset({"inc", "inc/s", "inc/s²", "inc/s^2"})
+
+
+def _rescaled_defaults(
+    specs: dict[int, ObjectSpec], defaults: dict[int, Value | None], f: float
+) -> dict[int, Value]:
+    """The defaults of the objects counted in increments (``raw_unit`` inc, inc/s, inc/s²)
+    times ``f``, the ratio of a plant file's encoder to the profile's: the profile's 607Fh of
+    1,000,000 inc/s is 7.6 rev/s at its 2^17 counts and would be 0.95 rev/s at 2^20. Integers
+    are rounded and kept inside their type (607Dh's +-2^31 stays the "no limit" it was)."""
+    out: dict[int, Value] = {}
+    for k, spec in specs.items():
+        d = defaults.get(k)
+        if spec.raw_unit not in _INCREMENT_UNITS or isinstance(d, (bytes, str)) or d is None:
+            continue
+        v = d * f
+        rng = spec.data_type.range
+        if rng is not None:
+            out[k] = min(max(round(v), rng[0]), rng[1])
+        elif spec.data_type.is_real:
+            out[k] = float(v)
+    return out
 
 
 def _is_mapping(index: int) -> bool:
