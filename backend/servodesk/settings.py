@@ -22,6 +22,9 @@ class Settings(BaseSettings):
     sim_channel: str = "servodesk-sim"
     #: Comma-separated profile ids to simulate; empty: one drive per shipped profile.
     sim_profiles: str = ""
+    #: A TOML plant file (docs/tuning.md, "Plant files") the simulated drives run on in place
+    #: of their profiles' simulation sections; None: the profiles' own.
+    sim_plant: Path | None = None
     #: Extra profile directories, searched before the shipped profiles (os.pathsep list).
     profile_dirs: str = ""
     #: Where backups, the audit log and the store live.

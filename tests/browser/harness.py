@@ -16,7 +16,7 @@ import tempfile
 import time
 import urllib.error
 import urllib.request
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
@@ -60,19 +60,27 @@ def _get(url: str, timeout: float = 2.0) -> tuple[int, str]:
 
 
 @contextlib.contextmanager
-def running_server(timeout: float = 40.0) -> Iterator[str]:
-    """Start ``servodesk serve --sim`` on a free port, wait for /api/v1/health, yield its URL."""
+def running_server(
+    timeout: float = 40.0, args: Sequence[str] = (), env: Mapping[str, str] | None = None
+) -> Iterator[str]:
+    """Start ``servodesk serve --sim`` (plus ``args``, with ``env`` added to the environment)
+    on a free port, wait for /api/v1/health, yield its URL."""
     port = free_port()
     base = f"http://127.0.0.1:{port}"
     log = tempfile.NamedTemporaryFile(  # noqa: SIM115 - kept open for the process's lifetime
         prefix="servodesk-serve-", suffix=".log", delete=False
     )
-    cmd = [sys.executable, "-m", "servodesk", "serve", "--sim", "--port", str(port)]
+    cmd = [sys.executable, "-m", "servodesk", "serve", "--sim", "--port", str(port), *args]
     # A data directory of its own: never the user's ~/.servodesk (backups, audit log).
     data_dir = tempfile.mkdtemp(prefix="servodesk-browser-")
     # The 3D view page needs the viewer: give it a free port of its own.
-    env = {**os.environ, "SERVODESK_DATA_DIR": data_dir, "SERVODESK_VIEWER_PORT": str(free_port())}
-    proc = subprocess.Popen(cmd, cwd=REPO, stdout=log, stderr=subprocess.STDOUT, env=env)
+    environ = {
+        **os.environ,
+        "SERVODESK_DATA_DIR": data_dir,
+        "SERVODESK_VIEWER_PORT": str(free_port()),
+        **(env or {}),
+    }
+    proc = subprocess.Popen(cmd, cwd=REPO, stdout=log, stderr=subprocess.STDOUT, env=environ)
 
     def log_tail() -> str:
         log.flush()

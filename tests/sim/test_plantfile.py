@@ -243,6 +243,21 @@ def test_cli_refuses_a_bad_plant_file_with_exit_2(
     assert "cannot read" in capsys.readouterr().err
 
 
+def test_serve_refuses_a_bad_plant_file_or_one_without_sim_with_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Refused before anything starts: no server, no port taken.
+    bad = tmp_path / "axis.toml"
+    bad.write_text("[noise]\ntorque = -1\n", encoding="utf-8")
+    assert main(["serve", "--sim", "--plant", str(bad), "--port", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "plant file axis.toml: [noise] torque = -1" in err and "Traceback" not in err
+    good = tmp_path / "good.toml"
+    good.write_text("", encoding="utf-8")
+    assert main(["serve", "--plant", str(good)]) == 2
+    assert "--plant needs --sim" in capsys.readouterr().err
+
+
 def test_bus_with_a_plant_serves_its_loop_rate_over_sdo(channel: str) -> None:
     spec = parse_plant_toml("[compliance]\nresonance_hz = 300\n[loop]\nrate_hz = 8000")
     bus = SimulatedBus.start(drives=[("cia402-generic", 9)], channel=channel, plant=spec)

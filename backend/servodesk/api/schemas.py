@@ -166,6 +166,21 @@ class SessionCreate(BusParams):
     profile: str | None = Field(default=None, description="Profile id; null detects it from 1018h")
 
 
+class EncoderOut(BaseModel):
+    counts_per_rev: float = Field(
+        description="Encoder counts per motor revolution that the session's engineering units "
+        "(deg, rpm) of objects counted in increments are for"
+    )
+    source: Literal["608Fh", "profile"] = Field(
+        description="608Fh: the drive's position encoder resolution (CiA 402-2 §6.9.4); "
+        "profile: the profile's own (the drive has no 608Fh or reports 0)"
+    )
+    rescaled: bool = Field(
+        description="The drive's encoder differs from the profile's: the session's scales differ "
+        "from GET /profiles/{id}; GET /sessions/{sid}/profile has the session's"
+    )
+
+
 class SessionInfo(BaseModel):
     id: str
     node_id: int
@@ -186,6 +201,7 @@ class SessionInfo(BaseModel):
         description="Objects written through servodesk since the last store (they differ from "
         "the drive's non-volatile copy)"
     )
+    encoder: EncoderOut
 
 
 class ObjectValueOut(BaseModel):

@@ -13,6 +13,13 @@ from servodesk.settings import Settings
 def register(sub: Any) -> None:
     p = sub.add_parser("serve", help="run the backend and the browser UI")
     p.add_argument("--sim", action="store_true", help="start one simulated drive per family")
+    p.add_argument(
+        "--plant",
+        default=None,
+        metavar="FILE",
+        help="with --sim: the simulated drives run the axis of this TOML plant file "
+        "(docs/tuning.md, Plant files)",
+    )
     p.add_argument("--host", default=None, help="address to bind (default 127.0.0.1)")
     p.add_argument("--port", type=int, default=None, help="port (default 8000)")
     p.add_argument("--token", default=None, help="token required when binding beyond loopback")
@@ -28,6 +35,24 @@ def run(args: argparse.Namespace) -> int:
     overrides: dict[str, Any] = {}
     if args.sim:
         overrides["sim"] = True
+    if args.plant:
+        from servodesk.errors import ServodeskError
+        from servodesk.sim.plantfile import load_plant_file
+
+        if not args.sim:
+            print(
+                "servodesk: error: --plant needs --sim (it describes simulated drives)",
+                file=sys.stderr,
+            )
+            return 2
+        try:
+            load_plant_file(args.plant)  # Refuse a bad file here, before anything starts.
+        except ServodeskError as exc:
+            print(f"servodesk: error: {exc.message}", file=sys.stderr)
+            if exc.hint:
+                print(f"  hint: {exc.hint}", file=sys.stderr)
+            return 2
+        overrides["sim_plant"] = args.plant
     if args.host:
         overrides["host"] = args.host
     if args.port is not None:

@@ -17,6 +17,7 @@ import yaml
 
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType
+from servodesk.domain.encoder_units import INCREMENT_UNITS
 from servodesk.domain.profile import DeviceProfile, resolve_value
 from servodesk.errors import NotFoundError, ProfileError, ServodeskError
 
@@ -124,6 +125,7 @@ def check_profile(p: DeviceProfile) -> list[str]:
                 problems.append(f"{spec.address} {spec.name}: group {spec.group!r} not in groups")
     problems.extend(_check_pdo_rules(p))
     problems.extend(_check_tuning(p))
+    problems.extend(_check_increment_scales(p))
     for m in p.modes:
         if not -128 <= m <= 127:
             problems.append(f"mode {m} does not fit 6060h (INTEGER8)")
@@ -131,6 +133,35 @@ def check_profile(p: DeviceProfile) -> list[str]:
         if not -128 <= h <= 127:
             problems.append(f"homing method {h} does not fit 6098h (INTEGER8)")
     return problems
+
+
+#: Engineering units of a rotary axis, in (raw unit, unit) -> the unit per revolution: an
+#: increment object's scale is this over the encoder's counts per revolution.
+_PER_REV: dict[tuple[str, str], float] = {
+    ("inc", "deg"): 360.0,
+    ("inc", "rev"): 1.0,
+    ("inc/s", "rpm"): 60.0,
+    ("inc/s²", "rpm/s"): 60.0,
+    ("inc/s^2", "rpm/s"): 60.0,
+}
+
+
+def _check_increment_scales(p: DeviceProfile) -> list[str]:
+    """Objects counted in increments with an angular unit have their scale for the encoder
+    of ``simulation.counts_per_rev``: a session rescales them from there to the encoder the
+    drive reports in 608Fh (domain/encoder_units.py), which is only right if they agree."""
+    out: list[str] = []
+    cpr = p.simulation.counts_per_rev
+    for spec in p.variables.values():
+        if spec.raw_unit not in INCREMENT_UNITS or spec.unit is None:
+            continue
+        per_rev = _PER_REV.get((spec.raw_unit, spec.unit))
+        if per_rev is not None and not math.isclose(spec.scale * cpr, per_rev, rel_tol=1e-9):
+            out.append(
+                f"{spec.address} {spec.name}: scale {spec.scale:g} {spec.unit} per "
+                f"{spec.raw_unit} is not {per_rev:g} / simulation.counts_per_rev ({cpr})"
+            )
+    return out
 
 
 #: Test signal generator sub-index -> (data type, writable) (docs/tuning.md).

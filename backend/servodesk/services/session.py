@@ -19,6 +19,12 @@ from typing import TYPE_CHECKING, Any
 from servodesk.domain import cia402
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, Value, codec
+from servodesk.domain.encoder_units import (
+    ENCODER_INCREMENTS,
+    ENCODER_REVOLUTIONS,
+    counts_per_rev_from,
+    rescaled,
+)
 from servodesk.domain.profile import DeviceProfile, ErrorEntry
 from servodesk.domain.values import ObjectValue, describe, encode_write
 from servodesk.errors import (
@@ -159,6 +165,13 @@ class Session:
         self.min_poll_hz = 0.0
         #: The cyclic process data exchange while it runs (services/pdo.py, cyclic.py).
         self.cyclic: CyclicExchange | None = None
+        #: The encoder the increment scales are for (domain/encoder_units.py): the drive's
+        #: 608Fh once ``start`` has read it, else the profile's simulation setting.
+        self.counts_per_rev = float(profile.simulation.counts_per_rev)
+        self.counts_per_rev_source = "profile"
+        #: True when ``profile`` is the catalog's profile with rescaled increment units; the
+        #: frontend then loads GET /sessions/{sid}/profile instead of GET /profiles/{id}.
+        self.units_rescaled = False
 
     # Lifecycle ----------------------------------------------------------------------------
 
@@ -166,6 +179,7 @@ class Session:
         self._loop = asyncio.get_running_loop()
         self.link.add_event_callback(self._on_link_event)
         self._heartbeat_ms = await self._heartbeat_period()
+        await self._adopt_encoder()
         with contextlib.suppress(ServodeskError):
             self.last_state = await self.drive_state()
         self._poll_task = asyncio.create_task(self._poll(), name=f"poll {self.id}")
@@ -195,6 +209,42 @@ class Session:
             return int.from_bytes((await self.link.read(HEARTBEAT_TIME))[:2], "little")
         except ServodeskError:
             return 0
+
+    async def _adopt_encoder(self) -> None:
+        """Rescale the profile's increment units to the drive's encoder (608Fh).
+
+        The profile's deg and rpm scales are written for its own encoder; a drive on another
+        motor (or a twin on a plant file) reports its resolution in 608Fh, CiA 402-2 §6.9.4,
+        and the session then shows that axis's degrees. A drive that does not answer, or
+        answers 0 (smartris: "not usable", 001 Table 3-2), keeps the profile's scales.
+        """
+        if self.profile.spec(ENCODER_INCREMENTS) is None:
+            return
+        try:
+            inc = int.from_bytes((await self.link.read(ENCODER_INCREMENTS))[:4], "little")
+            revs = 1
+            if self.profile.spec(ENCODER_REVOLUTIONS) is not None:
+                revs = int.from_bytes((await self.link.read(ENCODER_REVOLUTIONS))[:4], "little")
+        except LinkError:
+            raise
+        except ServodeskError as exc:
+            log.info("%s: 608Fh not read (%s); the profile's scales stay", self.id, exc)
+            return
+        cpr = counts_per_rev_from(inc, revs)
+        if cpr is None:
+            return
+        self.counts_per_rev_source = "608Fh"
+        if cpr != self.counts_per_rev:
+            log.info(
+                "%s: encoder %g counts/rev (608Fh), profile %s assumes %d: rescaling",
+                self.id,
+                cpr,
+                self.profile.id,
+                self.profile.simulation.counts_per_rev,
+            )
+            self.profile = rescaled(self.profile, cpr)
+            self.counts_per_rev = cpr
+            self.units_rescaled = True
 
     def _check_heartbeat(self) -> None:
         # CiA 301 §7.2.8.3.2.2: a consumer expects each heartbeat within its period; allow
@@ -246,6 +296,11 @@ class Session:
             "state": self.last_state.state if self.last_state else cia402.State.UNKNOWN.value,
             "nmt_state": self.last_state.nmt_state if self.last_state else "unknown",
             "dirty": [str(a) for a in sorted(self.dirty)],
+            "encoder": {
+                "counts_per_rev": self.counts_per_rev,
+                "source": self.counts_per_rev_source,
+                "rescaled": self.units_rescaled,
+            },
         }
 
     # Objects -----------------------------------------------------------------------------

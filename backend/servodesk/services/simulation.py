@@ -32,14 +32,17 @@ async def start_simulation(
     settings: Settings, catalog: ProfileCatalog, manager: SessionManager
 ) -> Any:
     from servodesk.sim.bus import SimulatedBus
+    from servodesk.sim.plantfile import load_plant_file
 
     drives = simulated_drives(catalog, settings.sim_profiles)
+    plant = load_plant_file(settings.sim_plant) if settings.sim_plant is not None else None
     sim = await asyncio.to_thread(
         SimulatedBus.start,
         drives=drives,
         interface=settings.sim_interface,
         channel=settings.sim_channel,
         catalog=catalog,
+        plant=plant,
     )
     for pid, node in drives:
         params = LinkParams(

@@ -73,6 +73,7 @@ from dataclasses import dataclass
 
 from servodesk.domain.cia402 import STATE_BITS, State, device_transition
 from servodesk.domain.datatypes import Value, codec, coerce_int
+from servodesk.domain.encoder_units import INCREMENT_UNITS
 from servodesk.domain.homing import resolve_method
 from servodesk.domain.profile import DeviceProfile, ErrorEntry, ObjectSpec, SimSettings
 from servodesk.domain.sdo_abort import ABORT_CODES
@@ -1961,10 +1962,6 @@ def _rescaled(sim: SimSettings, counts_per_rev: int) -> SimSettings:
     )
 
 
-#: Raw units counted in encoder increments: their defaults follow the encoder's resolution.
-_INCREMENT_UNITS = frozenset({"inc", "inc/s", "inc/s²", "inc/s^2"})
-
-
 def _rescaled_defaults(
     specs: dict[int, ObjectSpec], defaults: dict[int, Value | None], f: float
 ) -> dict[int, Value]:
@@ -1975,7 +1972,7 @@ def _rescaled_defaults(
     out: dict[int, Value] = {}
     for k, spec in specs.items():
         d = defaults.get(k)
-        if spec.raw_unit not in _INCREMENT_UNITS or isinstance(d, (bytes, str)) or d is None:
+        if spec.raw_unit not in INCREMENT_UNITS or isinstance(d, (bytes, str)) or d is None:
             continue
         v = d * f
         rng = spec.data_type.range

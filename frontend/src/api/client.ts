@@ -141,6 +141,9 @@ export const api = {
   writeObject: (sid: string, addr: string, body: ObjectWrite) =>
     request<ObjectValue>(`Write ${addr}`, 'PUT', `/sessions/${seg(sid)}/objects/${seg(addr)}`, body),
   profile: (id: string) => request<ProfileDetail>(`Load profile ${id}`, 'GET', `/profiles/${seg(id)}`),
+  /** The session's profile: the family's with its increment units for the drive's encoder. */
+  sessionProfile: (sid: string) =>
+    request<ProfileDetail>(`Load the profile of session ${sid}`, 'GET', `/sessions/${seg(sid)}/profile`),
   /** The device description (EDS/DCF/ESI) as a download URL (GET, so a plain link works). */
   profileExportUrl: (id: string, format: DeviceDescriptionFormat) =>
     `${API_BASE}/profiles/${seg(id)}/export?format=${format}`,

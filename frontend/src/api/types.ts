@@ -130,6 +130,18 @@ export interface SessionInfo {
    * the drive's non-volatile copy. Optional so an older server without it still type-checks.
    */
   dirty?: string[];
+  /**
+   * The encoder the session's engineering units are for. `rescaled`: the drive's 608Fh differs
+   * from the profile's encoder, so the session's scales (GET /sessions/{sid}/profile) differ
+   * from the family's (GET /profiles/{id}). Optional for an older server.
+   */
+  encoder?: SessionEncoder;
+}
+
+export interface SessionEncoder {
+  counts_per_rev: number;
+  source: '608Fh' | 'profile';
+  rescaled: boolean;
 }
 
 export type ObjectScalar = number | string | boolean;

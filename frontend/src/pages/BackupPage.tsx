@@ -20,13 +20,13 @@ import '../components/backup/backup.css';
 import { FailureBox } from '../components/FailureBox';
 import { driveKeyOf, sameDrive, serialText } from '../lib/backupHistory';
 import { type Failure, failureOf } from '../lib/codes';
-import { useProfile, useSessionInfo } from '../state/profileCache';
+import { useSessionInfo, useSessionProfile } from '../state/profileCache';
 import type { PageProps } from './registry';
 
 export function BackupPage({ sid }: PageProps) {
   const { info, error: infoError } = useSessionInfo(sid);
   const profileId = info?.profile_id ?? null;
-  const { profile } = useProfile(profileId);
+  const { profile } = useSessionProfile(info);
   const errors = useMemo(() => profile?.error_list ?? [], [profile]);
   const groups = profile?.groups ?? [];
 

@@ -35,7 +35,7 @@ import {
 import type { NumberMode } from '../lib/format';
 import { rangeText } from '../lib/validate';
 import { decText, engineeringText, enumText, hexText, isObjectValue } from '../lib/values';
-import { useProfile, useSessionInfo } from '../state/profileCache';
+import { useSessionInfo, useSessionProfile } from '../state/profileCache';
 import './dataPages.css';
 import type { PageProps } from './registry';
 
@@ -58,7 +58,7 @@ let renderedMarked = false;
 
 export function ObjectDictionaryPage({ sid }: PageProps) {
   const { info } = useSessionInfo(sid);
-  const { profile, error: profileError } = useProfile(info?.profile_id ?? null);
+  const { profile, error: profileError } = useSessionProfile(info);
   if (profileError) return <FailureBox f={failureOf(profileError, 'Load the profile')} />;
   if (!info || !profile) return <div className="muted">Loading the profile…</div>;
   return <Dictionary sid={sid} profile={profile} dirtyList={info.dirty ?? []} />;

@@ -33,7 +33,7 @@ import {
 import type { NumberMode } from '../lib/format';
 import { rangeText } from '../lib/validate';
 import { decText, engineeringText, enumText, hasEngineering, hexText, isObjectValue } from '../lib/values';
-import { useProfile, useSessionInfo } from '../state/profileCache';
+import { useSessionInfo, useSessionProfile } from '../state/profileCache';
 import { watchProgress } from '../ws/progress';
 import './dataPages.css';
 import type { PageProps } from './registry';
@@ -68,7 +68,7 @@ function procedureText(profile: ProfileDetail, quirk: string, index: number, val
 
 export function ParametersPage({ sid }: PageProps) {
   const { info, refresh } = useSessionInfo(sid);
-  const { profile, error: profileError } = useProfile(info?.profile_id ?? null);
+  const { profile, error: profileError } = useSessionProfile(info);
 
   const params = useMemo(() => (profile ? profile.object_list.filter(isParameter) : []), [profile]);
   const groups = useMemo(() => (profile ? groupObjects(profile, params) : []), [profile, params]);

@@ -55,7 +55,7 @@ import '../components/pdo/pdo.css';
 import { FailureBox } from '../components/FailureBox';
 import { type Failure, failureOf } from '../lib/codes';
 import { Observable } from '../state/observable';
-import { useProfile, useSessionInfo } from '../state/profileCache';
+import { useSessionInfo, useSessionProfile } from '../state/profileCache';
 import type { PageProps } from './registry';
 import './dataPages.css';
 
@@ -106,7 +106,7 @@ function dirName(kind: PdoKind, d: PdoDirection): string {
 
 export function PdoPage({ sid }: PageProps) {
   const { info } = useSessionInfo(sid);
-  const { profile } = useProfile(info?.profile_id ?? null);
+  const { profile } = useSessionProfile(info);
   const errors = useMemo(() => profile?.error_list ?? [], [profile]);
   const rawUnits = useMemo(() => {
     const m = new Map<string, string>();

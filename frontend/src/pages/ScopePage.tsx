@@ -36,7 +36,7 @@ import '../components/scope/scope.css';
 import { type Failure, failureOf } from '../lib/codes';
 import { isIntegerType } from '../lib/format';
 import { Observable, useObservable } from '../state/observable';
-import { loadProfile } from '../state/profileCache';
+import { loadSessionProfile } from '../state/profileCache';
 import { sessions } from '../state/store';
 import type { PageProps } from './registry';
 
@@ -203,7 +203,7 @@ export function ScopePage({ sid }: PageProps) {
     for (const s of usedSessions) {
       const info = sessionList.find((x) => x.id === s);
       if (!info || profiles.has(s)) continue;
-      loadProfile(info.profile_id).then(
+      loadSessionProfile(info).then(
         (p) => setProfiles((m) => (m.has(s) ? m : new Map(m).set(s, p))),
         () => {},
       );

@@ -2,8 +2,13 @@
  * Profiles with their full object list (GET /profiles/{id}), loaded once per profile and
  * shared by the Parameters and Object dictionary pages (lecsn-t's answer is ~1.3 MB), and the
  * open session's SessionInfo kept fresh for the dirty markers.
+ *
+ * A page of a session asks for the session's profile (`useSessionProfile`): the family's,
+ * unless the drive's encoder (608Fh) differs from the one the profile's deg and rpm scales are
+ * written for; then the session's own copy with those scales rescaled (GET
+ * /sessions/{sid}/profile), so that 6064h shows the axis's own degrees.
  */
-import { useCallback, useEffect, useState } from 'react';
+import { useCallback, useEffect, useRef, useState } from 'react';
 import { api } from '../api/client';
 import type { ProfileDetail, SessionInfo } from '../api/types';
 import { useObservable } from './observable';
@@ -18,6 +23,25 @@ export function loadProfile(id: string): Promise<ProfileDetail> {
     cache.set(id, p);
     // A failed load is not cached: the next page visit tries again.
     p.catch(() => cache.delete(id));
+  }
+  return p;
+}
+
+/** The cache key of a session's profile: its family's id, or its own when rescaled. */
+export function sessionProfileKey(info: SessionInfo): string {
+  const enc = info.encoder;
+  return enc?.rescaled ? `session:${info.id}:${enc.counts_per_rev}` : info.profile_id;
+}
+
+/** The profile the pages of session `info` show (see the module note). */
+export function loadSessionProfile(info: SessionInfo): Promise<ProfileDetail> {
+  const key = sessionProfileKey(info);
+  if (key === info.profile_id) return loadProfile(key);
+  let p = cache.get(key);
+  if (!p) {
+    p = api.sessionProfile(info.id);
+    cache.set(key, p);
+    p.catch(() => cache.delete(key));
   }
   return p;
 }
@@ -41,6 +65,29 @@ export function useProfile(id: string | null): ProfileLoad {
       live = false;
     };
   }, [id]);
+  return state;
+}
+
+/** `useProfile` for a session: its family's profile, or its own when its units are rescaled. */
+export function useSessionProfile(info: SessionInfo | null): ProfileLoad {
+  const key = info ? sessionProfileKey(info) : null;
+  const [state, setState] = useState<ProfileLoad>({ profile: null, error: null });
+  // `info` changes with every push (dirty markers); the load follows the key alone.
+  const latest = useRef(info);
+  latest.current = info;
+  useEffect(() => {
+    const current = latest.current;
+    if (!key || !current) return;
+    let live = true;
+    setState({ profile: null, error: null });
+    loadSessionProfile(current).then(
+      (profile) => live && setState({ profile, error: null }),
+      (error: unknown) => live && setState({ profile: null, error }),
+    );
+    return () => {
+      live = false;
+    };
+  }, [key]);
   return state;
 }
 

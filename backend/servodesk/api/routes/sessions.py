@@ -8,12 +8,14 @@ from fastapi import APIRouter, Response
 
 from servodesk.api.control_deps import CloseControl, StateControl, WriteControl
 from servodesk.api.deps import StateDep
+from servodesk.api.routes.system import profile_detail
 from servodesk.api.schemas import (
     ERROR_RESPONSES,
     DriveStateOut,
     ErrorOut,
     MessageOut,
     ObjectValueOut,
+    ProfileDetail,
     ReadFailure,
     ReadRequest,
     ReadResults,
@@ -68,6 +70,13 @@ async def open_session(body: SessionCreate, state: StateDep) -> SessionInfo:
 @router.get("/sessions/{sid}", operation_id="get_session")
 async def get_session(sid: str, state: StateDep) -> SessionInfo:
     return SessionInfo.model_validate(state.manager.get(sid).info())
+
+
+@router.get("/sessions/{sid}/profile", operation_id="get_session_profile")
+async def get_session_profile(sid: str, state: StateDep) -> ProfileDetail:
+    """The session's profile: GET /profiles/{id} with the increment units rescaled to the
+    drive's encoder when 608Fh reports another than the profile's (``encoder.rescaled``)."""
+    return profile_detail(state.manager.get(sid).profile)
 
 
 @router.delete("/sessions/{sid}", status_code=204, operation_id="close_session")

@@ -153,7 +153,11 @@ async def import_profile(
 
 @router.get("/profiles/{profile_id}", operation_id="get_profile")
 async def get_profile(profile_id: str, state: StateDep) -> ProfileDetail:
-    p = state.catalog.get(profile_id)
+    return profile_detail(state.catalog.get(profile_id))
+
+
+def profile_detail(p: DeviceProfile) -> ProfileDetail:
+    """A profile with all its objects, errors and quirks (GET /profiles/{id})."""
     return ProfileDetail(
         **summary(p).model_dump(),
         groups=[GroupInfo(**g.model_dump()) for g in p.groups],

@@ -1,0 +1,63 @@
+"""Degrees and rpm on a drive whose encoder is not the profile's (608Fh).
+
+``servodesk serve --sim --plant FILE`` runs the generic twin on a plant file's 2^20-count
+encoder; the profile's scales are written for 2^17. The engineer types a raw value on the
+Parameters page and the preview must say what it means on this axis: 2^20 counts are one
+revolution, 360 deg (the profile's scales would say 2880 deg).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from playwright.sync_api import Browser, Page, expect
+
+from tests.browser.harness import HarnessError, running_server
+
+pytestmark = pytest.mark.browser
+
+SID = "cia402-generic-1"
+ADDR = "0x6065:00"  # Following error window, inc -> deg.
+
+
+@pytest.fixture(scope="module")
+def plant_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    plant = Path(tmp_path_factory.mktemp("plant")) / "axis.toml"
+    plant.write_text("[motor]\nencoder_counts = 1048576\n", encoding="utf-8")
+    try:
+        with running_server(
+            args=["--plant", str(plant)], env={"SERVODESK_SIM_PROFILES": "cia402-generic"}
+        ) as base:
+            yield base
+    except HarnessError as e:
+        pytest.fail(str(e), pytrace=False)
+
+
+@pytest.fixture
+def plant_page(browser: Browser, plant_url: str) -> Iterator[Page]:
+    context = browser.new_context(base_url=plant_url, viewport={"width": 1440, "height": 960})
+    context.set_default_timeout(10_000)
+    pg = context.new_page()
+    errors: list[str] = []
+    pg.on("pageerror", lambda exc: errors.append(str(exc)))
+    yield pg
+    context.close()
+    assert not errors, f"uncaught errors in the page: {errors}"
+
+
+def test_a_raw_value_is_previewed_in_the_axis_own_degrees(plant_page: Page) -> None:
+    page = plant_page
+    page.goto(f"/#/parameters/{SID}")
+    expect(page.get_by_test_id("params-groups")).to_be_visible(timeout=15_000)
+    page.get_by_test_id("group-tab-position").click()
+    row = page.get_by_test_id(f"param-row-{ADDR}")
+    expect(row.get_by_test_id("param-value")).not_to_have_text("…")
+    row.get_by_test_id(f"edit-{ADDR}").click()
+    editor = page.get_by_test_id(f"param-edit-{ADDR}")
+    editor.get_by_test_id("value-input").fill("1048576")
+    expect(editor.get_by_test_id("value-preview")).to_contain_text("= 360 deg")
+    editor.get_by_test_id("value-write").click()
+    expect(editor.get_by_test_id("readback-value")).to_have_text("1048576")
+    expect(editor.get_by_test_id("readback")).to_contain_text("= 360 deg")
