@@ -7,6 +7,7 @@ file has 2^20 (as a real drive on another motor may). Over real CANopen SDO the 
 
 from __future__ import annotations
 
+import json
 from collections.abc import AsyncIterator
 from pathlib import Path
 
@@ -15,6 +16,7 @@ import pytest
 import pytest_asyncio
 
 from servodesk.api.app import create_app
+from servodesk.domain.paramset import checksum
 from servodesk.domain.profile_loader import ProfileCatalog, check_profile
 from servodesk.settings import Settings
 from servodesk.sim.bus import SimulatedBus
@@ -97,6 +99,54 @@ async def test_a_2_20_count_drive_shows_the_same_rpm_as_the_profiles_own(
     finally:
         bus.stop()
         plain.stop()
+
+
+async def test_a_backup_keeps_the_drive_encoder_for_its_engineering_values(
+    api: httpx.AsyncClient, channel: str
+) -> None:
+    plant = parse_plant_toml("[motor]\nencoder_counts = 1048576\n")
+    bus = SimulatedBus.start(drives=[(GENERIC, 5)], channel=channel, plant=plant)
+    try:
+        sid = (await _open(api, channel, 5))["id"]
+        made = await api.post(f"/api/v1/sessions/{sid}/backups", json={"label": "plant"})
+        assert made.status_code == 201, made.text
+        bid = made.json()["id"]
+        csv_text = (await api.get(f"/api/v1/backups/{bid}/download?format=csv")).text
+        row = next(r for r in csv_text.splitlines() if r.startswith("0x607F:00,"))
+        # raw 8,000,000 inc/s at 2^20 counts is 457.8 rpm (the profile's scale says 3662).
+        assert row.split(",")[4] == "8000000"
+        assert float(row.split(",")[7]) == pytest.approx(8_000_000 * 60 / 1048576)
+
+        # The file says which encoder; uploaded again it gives the same figures.
+        doc = (await api.get(f"/api/v1/backups/{bid}/download?format=json")).content
+        assert json.loads(doc)["encoder"] == {"counts_per_rev": 1048576.0}
+        up = await api.post("/api/v1/backups/upload?filename=plant.json", content=doc)
+        assert up.status_code == 201, up.text
+        csv2 = (await api.get(f"/api/v1/backups/{up.json()['id']}/download?format=csv")).text
+        assert next(r for r in csv2.splitlines() if r.startswith("0x607F:00,")) == row
+
+        # A change is compared in the axis's own units.
+        w = await api.put(
+            f"/api/v1/sessions/{sid}/objects/0x6081",
+            json={"value": 1_048_576},
+            headers={"X-Servodesk-Client": "encoder-test"},
+        )
+        assert w.status_code == 200, w.text
+        cmp = await api.post(
+            "/api/v1/compare",
+            json={"a": {"kind": "drive", "session": sid}, "b": {"kind": "backup", "id": bid}},
+        )
+        diff = cmp.json()["differences"]
+        assert [d["address"] for d in diff] == ["0x6081:00"]
+        assert diff[0]["a_engineering"] == pytest.approx(60.0)  # one revolution per second
+        # A bad encoder entry in an uploaded file is refused, naming it.
+        bad = json.loads(doc)
+        bad["encoder"] = {"counts_per_rev": -5}
+        bad["checksum"] = checksum(bad)
+        r = await api.post("/api/v1/backups/upload?filename=bad.json", content=json.dumps(bad))
+        assert r.status_code == 400 and "encoder.counts_per_rev" in r.json()["message"]
+    finally:
+        bus.stop()
 
 
 def test_the_profile_check_holds_increment_scales_to_the_profiles_encoder() -> None:

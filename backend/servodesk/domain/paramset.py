@@ -131,6 +131,9 @@ class ParameterSet:
     drive_key: str = ""
     unreadable: tuple[Unreadable, ...] = ()
     tool: str = "servodesk"
+    #: The drive's encoder (608Fh) when it is not the profile's: the engineering values of the
+    #: objects counted in increments are for it (domain/encoder_units.py). None: the profile's.
+    counts_per_rev: float | None = None
 
     def by_address(self) -> dict[ObjectAddress, Entry]:
         return {e.address: e for e in self.entries}
@@ -234,6 +237,9 @@ def to_document(ps: ParameterSet, tool: str) -> dict[str, Any]:
         "identity": dict(ps.identity),
         "firmware": ps.firmware,
         "bus": dict(ps.bus),
+        # Written only when the drive's encoder is not the profile's, so that a set of any other
+        # drive reads (and checksums) as before.
+        **({"encoder": {"counts_per_rev": ps.counts_per_rev}} if ps.counts_per_rev else {}),
         "entries": [
             {
                 "address": str(e.address),
@@ -360,7 +366,14 @@ def _from_document(doc: dict[str, Any]) -> ParameterSet:
         )
         for u in doc.get("unreadable", [])
     )
+    encoder = doc.get("encoder") or {}
+    cpr = encoder.get("counts_per_rev") if isinstance(encoder, dict) else None
+    if cpr is not None and (
+        isinstance(cpr, bool) or not isinstance(cpr, int | float) or not 0 < cpr < 2**32
+    ):
+        raise ValueError(f"encoder.counts_per_rev {cpr!r} is not a positive number of counts")
     return ParameterSet(
+        counts_per_rev=float(cpr) if cpr is not None else None,
         profile_id=_str(profile["id"], "profile.id"),
         profile_version=str(profile.get("version", "")),
         time=_str(doc["time"], "time"),

@@ -25,6 +25,7 @@ from servodesk import __version__
 from servodesk.domain import paramset
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import Value, codec
+from servodesk.domain.encoder_units import rescaled
 from servodesk.domain.paramset import Entry, ParameterSet, Unreadable
 from servodesk.domain.profile import DeviceProfile
 from servodesk.domain.profile_loader import ProfileCatalog
@@ -174,7 +175,19 @@ class BackupService:
             drive_key=drive_key(session),
             unreadable=tuple(unreadable),
             tool=TOOL,
+            counts_per_rev=session.counts_per_rev if session.units_rescaled else None,
         )
+
+    def units_profile(self, ps: ParameterSet) -> DeviceProfile | None:
+        """The profile whose scales give the set's engineering values: the catalog's, rescaled
+        to the set's encoder when the drive's was not the profile's (None: unknown profile)."""
+        if ps.profile_id not in self.catalog.ids():
+            return None
+        profile = self.catalog.get(ps.profile_id)
+        cpr = ps.counts_per_rev
+        if cpr and cpr != profile.simulation.counts_per_rev:
+            return rescaled(profile, cpr)
+        return profile
 
     async def backup(
         self, session: Session, label: str = "", note: str = "", source: str = "drive"
@@ -351,7 +364,7 @@ class BackupService:
         )
 
     def _csv(self, ps: ParameterSet) -> bytes:
-        profile = self.catalog.get(ps.profile_id) if ps.profile_id in self.catalog.ids() else None
+        profile = self.units_profile(ps)
         out = io.StringIO()
         w = csv.writer(out, lineterminator="\n")
         w.writerow(
@@ -398,8 +411,8 @@ class BackupService:
         include_same: bool = False,
     ) -> dict[str, Any]:
         """A Comparison (docs/api.md) of two labelled sets."""
-        pid = b[1].profile_id if b[1].profile_id in self.catalog.ids() else a[1].profile_id
-        profile = self.catalog.get(pid) if pid in self.catalog.ids() else None
+        # The profile of b (the drive, or the later set), else a's; its scales for b's encoder.
+        profile = self.units_profile(b[1]) or self.units_profile(a[1])
         diffs, same = paramset.compare(
             a[1].entries, b[1].entries, profile, include_same=include_same
         )
