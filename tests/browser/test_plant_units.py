@@ -61,3 +61,11 @@ def test_a_raw_value_is_previewed_in_the_axis_own_degrees(plant_page: Page) -> N
     editor.get_by_test_id("value-write").click()
     expect(editor.get_by_test_id("readback-value")).to_have_text("1048576")
     expect(editor.get_by_test_id("readback")).to_contain_text("= 360 deg")
+
+
+def test_the_overview_says_which_encoder_the_units_are_for(plant_page: Page) -> None:
+    plant_page.goto(f"/#/overview/{SID}")
+    enc = plant_page.get_by_test_id("identity-encoder")
+    expect(enc).to_contain_text("1048576 counts/rev")
+    expect(enc).to_contain_text("(608Fh)")
+    expect(enc).to_contain_text("not the profile’s encoder")
