@@ -225,9 +225,9 @@ class Session:
             revs = 1
             if self.profile.spec(ENCODER_REVOLUTIONS) is not None:
                 revs = int.from_bytes((await self.link.read(ENCODER_REVOLUTIONS))[:4], "little")
-        except LinkError:
-            raise
         except ServodeskError as exc:
+            # Not fatal, as for 1017h: a drive that does not give it keeps the profile's units
+            # (a bus that is really gone shows in the first state poll).
             log.info("%s: 608Fh not read (%s); the profile's scales stay", self.id, exc)
             return
         cpr = counts_per_rev_from(inc, revs)

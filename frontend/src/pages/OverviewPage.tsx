@@ -93,13 +93,13 @@ function IdentityCard({ session }: { session: SessionInfo }) {
               {session.profile_name} <span className="mono muted">({session.profile_id})</span>
             </td>
           </tr>
-          {session.encoder && (
+          {session.encoder?.source === '608Fh' && (
             <tr>
               <th>Encoder</th>
               <td data-testid="identity-encoder">
                 <span className="mono">{session.encoder.counts_per_rev}</span> counts/rev{' '}
                 <span className="muted">
-                  {session.encoder.source === '608Fh' ? '(608Fh)' : '(the profile’s; the drive does not report 608Fh)'}
+                  (608Fh)
                   {session.encoder.rescaled ? ' · not the profile’s encoder: deg and rpm are converted for this one' : ''}
                 </span>
               </td>
