@@ -96,6 +96,27 @@ async def test_a_2_20_count_drive_shows_the_same_rpm_as_the_profiles_own(
         # reads 360 deg, whatever the encoder.
         st = (await api.get(f"/api/v1/sessions/{sid}/state")).json()
         assert st["position_eng"] == pytest.approx(st["position"] * 360 / 1048576)
+
+        # A backup of the 2^20 drive restored onto the 2^17 one: the raw counts would mean
+        # 8 x the speeds and windows there, and the preflight says so before anything is written.
+        made = await api.post(f"/api/v1/sessions/{sid}/backups", json={})
+        assert made.status_code == 201, made.text
+        pf = await api.post(
+            f"/api/v1/sessions/{other['id']}/restore/preflight", json={"backup": made.json()["id"]}
+        )
+        warns = [w for w in pf.json()["warnings"] if "counts/rev" in w]
+        assert len(warns) == 1 and "1048576 counts/rev, this drive has 131072" in warns[0]
+        assert "mean 8 x" in warns[0]
+        # And the other way round; a backup of its own drive has no such warning.
+        back = (await api.post(f"/api/v1/sessions/{other['id']}/backups", json={})).json()
+        pf2 = await api.post(
+            f"/api/v1/sessions/{sid}/restore/preflight", json={"backup": back["id"]}
+        )
+        assert any("mean 0.125 x" in w for w in pf2.json()["warnings"])
+        own = await api.post(
+            f"/api/v1/sessions/{other['id']}/restore/preflight", json={"backup": back["id"]}
+        )
+        assert not any("counts/rev" in w for w in own.json()["warnings"])
     finally:
         bus.stop()
         plain.stop()

@@ -23,6 +23,7 @@ from typing import Any
 
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, codec
+from servodesk.domain.encoder_units import INCREMENT_UNITS
 from servodesk.domain.profile import DeviceProfile, ObjectSpec
 from servodesk.domain.values import check_value
 from servodesk.errors import ServodeskError, ValidationError
@@ -625,6 +626,10 @@ class DriveFacts:
     nmt: str
     #: Current raw values of the objects the set touches (None: could not be read).
     current: Mapping[ObjectAddress, bytes | None]
+    #: The drive's encoder (608Fh, else the profile's) and the one the profile's scales are
+    #: for [counts/rev]; None: not known (no check).
+    counts_per_rev: float | None = None
+    profile_counts_per_rev: float | None = None
 
 
 def state_allows(allowed: Iterable[str], state: str | None, nmt: str) -> bool | None:
@@ -673,6 +678,8 @@ def preflight(ps: ParameterSet, drive: DriveFacts, *, map_names: bool = False) -
     else:
         entries = [(e, e.address, None) for e in ps.entries]
         _identity_checks(ps, drive, problems, warnings, map_names)
+    if ps.profile_id == profile.id:
+        warnings.extend(_encoder_warning(ps, drive))
     if ps.firmware and drive.firmware and ps.firmware != drive.firmware:
         warnings.append(
             f"firmware differs: backup {ps.firmware}, drive {drive.firmware}; "
@@ -752,6 +759,29 @@ def preflight(ps: ParameterSet, drive: DriveFacts, *, map_names: bool = False) -
             )
         items.append(base)
     return Preflight(not problems, problems, warnings, items, mapping)
+
+
+def _encoder_warning(ps: ParameterSet, drive: DriveFacts) -> list[str]:
+    """A set read on another encoder than the drive's: its raw counts mean other angles and
+    speeds here (a set without ``counts_per_rev`` was read on the profile's encoder)."""
+    here, base = drive.counts_per_rev, drive.profile_counts_per_rev
+    backup = ps.counts_per_rev or base
+    if here is None or backup is None or math.isclose(backup, here, rel_tol=1e-9):
+        return []
+    counted = sum(
+        1
+        for e in ps.entries
+        if (spec := drive.profile.spec(e.address)) is not None and spec.raw_unit in INCREMENT_UNITS
+    )
+
+    def n(x: float) -> str:
+        return f"{x:.0f}" if x == round(x) else f"{x:.6g}"
+
+    return [
+        f"the backup was read on an encoder of {n(backup)} counts/rev, this drive has {n(here)} "
+        f"(608Fh): its {counted} values counted in increments (positions, speeds, windows) are "
+        f"written as raw counts and mean {backup / here:.3g} x those angles and speeds here"
+    ]
 
 
 def _identity_checks(

@@ -121,6 +121,8 @@ class RestoreService:
             state=state,
             nmt=nmt,
             current=current,
+            counts_per_rev=session.counts_per_rev,
+            profile_counts_per_rev=session.profile_counts_per_rev,
         )
 
     def _targets(self, session: Session, ps: ParameterSet, map_names: bool) -> list[ObjectAddress]:

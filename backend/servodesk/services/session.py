@@ -168,6 +168,8 @@ class Session:
         #: The encoder the increment scales are for (domain/encoder_units.py): the drive's
         #: 608Fh once ``start`` has read it, else the profile's simulation setting.
         self.counts_per_rev = float(profile.simulation.counts_per_rev)
+        #: The encoder the catalog profile's scales are for (``counts_per_rev`` before 608Fh).
+        self.profile_counts_per_rev = self.counts_per_rev
         self.counts_per_rev_source = "profile"
         #: True when ``profile`` is the catalog's profile with rescaled increment units; the
         #: frontend then loads GET /sessions/{sid}/profile instead of GET /profiles/{id}.
