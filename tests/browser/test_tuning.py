@@ -70,6 +70,8 @@ def test_lecsn_one_touch_tuning_from_the_page_then_undo(lecsn_page: Page) -> Non
     expect(page.get_by_test_id("control-owner")).to_have_attribute("data-you", "true")
     page.get_by_test_id("servo-on").click()
     expect(page.get_by_test_id("servo-on")).to_be_disabled(timeout=10_000)  # Enabled now.
+    # The drive tunes itself: no machine's move to give.
+    expect(page.get_by_test_id("tuning-move-torque")).to_have_count(0)
     # Safety inputs: the window is shown in position units too.
     page.get_by_test_id("tuning-travel").fill("0.25")
     expect(page.get_by_test_id("tuning-window-units")).to_contain_text("±16384")
@@ -146,6 +148,12 @@ def test_own_tuning_from_the_page_shows_what_it_found_then_undo(generic_page: Pa
     expect(page.get_by_test_id("servo-on")).to_be_disabled(timeout=10_000)
     page.get_by_test_id("tuning-travel").fill("0.25")
     page.get_by_test_id("tuning-mode-basic").check()
+    # The machine's move torque is optional; a bad one is named and blocks the start.
+    move = page.get_by_test_id("tuning-move-torque")
+    move.fill("lots")
+    expect(page.get_by_test_id("tuning-inputs")).to_contain_text("or leave it empty")
+    expect(page.get_by_test_id("tuning-confirm")).to_be_disabled()
+    move.fill("300")
     page.get_by_test_id("tuning-confirm").check()
     page.get_by_test_id("tuning-start").click()
     expect(page.get_by_test_id("heartbeat-indicator")).to_be_visible()
@@ -153,6 +161,7 @@ def test_own_tuning_from_the_page_shows_what_it_found_then_undo(generic_page: Pa
         "aria-valuenow", "100", timeout=180_000
     )
     expect(page.get_by_test_id("tuning-job")).to_have_attribute("data-state", "done")
+    assert tuning_info(page, GENERIC)["job"]["move_torque_pct"] == 300.0
 
     status = page.get_by_test_id("tuning-result-status")
     expect(status).to_have_attribute("data-status", "done")

@@ -36,12 +36,12 @@ def start(
     mode: str = "basic",
     travel: float = 0.25,
     torque: float = 100.0,
+    move_torque: float | None = None,
 ) -> Any:
-    return client.post(
-        f"/api/v1/sessions/{sid}/tuning/start",
-        json={"mode": mode, "travel_window_rev": travel, "torque_limit_pct": torque},
-        headers=headers(who),
-    )
+    body: dict[str, Any] = {"mode": mode, "travel_window_rev": travel, "torque_limit_pct": torque}
+    if move_torque is not None:
+        body["move_torque_pct"] = move_torque
+    return client.post(f"/api/v1/sessions/{sid}/tuning/start", json=body, headers=headers(who))
 
 
 def job(client: TestClient, sid: str) -> dict[str, Any]:

@@ -59,6 +59,8 @@ def test_bad_input_exits_2_and_moves_nothing(
     assert "outside 0 .. 100" in capsys.readouterr().err
     assert main(["tune", *lecsn, "--travel", "0.2", "--torque-limit", "500"]) == 2
     assert "--torque-limit 500" in capsys.readouterr().err
+    assert main(["tune", *lecsn, "--travel", "0.2", "--move-torque", "0"]) == 2
+    assert "--move-torque 0 is outside" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exc:
         main(["tune", *lecsn, "--travel", "0.2", "--mode", "fast"])
     assert exc.value.code == 2

@@ -128,6 +128,10 @@ def test_refusals_move_nothing(channel, tmp_path) -> None:  # type: ignore[no-un
             fits = re.search(r"at most ([0-9.]+) rev fits", body["hint"])
             assert fits and 0.19 <= float(fits.group(1)) <= 0.2, body["hint"]
             assert drive.read(P11600, 0) == 0 and abs(drive.position - before) < 50
+            # The machine's move torque is for servodesk's own tuning: the LECSN tunes itself.
+            r = start(client, "lecsn-t-2", "A", travel=0.1, move_torque=300.0)
+            assert r.status_code == 400 and r.json()["field"] == "move_torque_pct", r.text
+            assert drive.read(P11600, 0) == 0
             # A second client is refused, naming the one that holds control.
             with client.websocket_connect("/api/v1/ws?client=B"):
                 r = start(client, "lecsn-t-2", "B", travel=0.1)
@@ -143,6 +147,18 @@ def test_refusals_move_nothing(channel, tmp_path) -> None:  # type: ignore[no-un
                 {"mode": "basic", "travel_window_rev": 0, "torque_limit_pct": 50},
                 {"mode": "basic", "travel_window_rev": 0.1, "torque_limit_pct": 500},
                 {"mode": "basic", "travel_window_rev": 0.1, "torque_limit_pct": 50, "x": 1},
+                {
+                    "mode": "basic",
+                    "travel_window_rev": 0.1,
+                    "torque_limit_pct": 50,
+                    "move_torque_pct": 0,
+                },
+                {
+                    "mode": "basic",
+                    "travel_window_rev": 0.1,
+                    "torque_limit_pct": 50,
+                    "move_torque_pct": 2000,
+                },
             ):
                 r = client.post("/api/v1/sessions/lecsn-t-2/tuning/start", json=body_in, headers=A)
                 assert r.status_code == 422, (body_in, r.text)
@@ -334,8 +350,11 @@ def test_own_tuning_runs_on_the_generic_twin(channel, tmp_path) -> None:  # type
         take_and_enable(client, sid, "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
             beats = Heartbeats(ws, sid)
-            r = start(client, sid, "A", travel=0.25, mode="basic")
+            # Ranked for the machine's own moves at 300 % of the rated torque; the tuning's
+            # own moves stay within its 100 % limit (the peak torque below).
+            r = start(client, sid, "A", travel=0.25, mode="basic", move_torque=300.0)
             assert r.status_code == 202, r.text
+            assert r.json()["move_torque_pct"] == 300.0
             end = wait_job(client, sid, 180.0)
             beats.stop()
         assert end["state"] == "done", {k: end[k] for k in end if k not in ("result",)}
@@ -352,6 +371,7 @@ def test_own_tuning_runs_on_the_generic_twin(channel, tmp_path) -> None:  # type
         after = res["step"]["after"]["metrics"]
         assert after["settling_100_s"] is not None and after["settling_100_s"] < 0.1
         assert res["excursion_rev"] <= 0.5 + 1e-6  # Within +-0.25 rev of the start.
+        assert res["peak_torque_pct"] <= 100.0 + 0.5  # The run's limit, not the move's 300 %.
         m = client.get(f"/api/v1/sessions/{sid}/motion").json()
         assert not m["active"] and m["kind"] == "tuning"
 

@@ -179,7 +179,11 @@ async def tune(spec: PlantSpec, mode: str = "high", seed: int = 1) -> tuple[dict
 
     drive = build_drive(spec, seed)
     io = SimIO(drive)
-    req = OwnTuningRequest(mode, TRAVEL_WINDOW_REV, TORQUE_LIMIT_PCT)  # type: ignore[arg-type]
+    # The tuner is told the machine's move as a user would tell it: the peak torque its moves
+    # use (the plant's, whose 70 % the reference move accelerates with). Not the inertia: the
+    # move's acceleration in rev/s² would hand it the plant's J.
+    move_pct = 100.0 * spec.peak_torque / spec.rated_torque
+    req = OwnTuningRequest(mode, TRAVEL_WINDOW_REV, TORQUE_LIMIT_PCT, move_pct)  # type: ignore[arg-type]
     result = await OwnTuning(io, req, offload=False).run()
     return result, drive
 
@@ -532,6 +536,8 @@ def run(args: argparse.Namespace) -> int:
         "mode": args.mode,
         "travel_window_rev": TRAVEL_WINDOW_REV,
         "torque_limit_pct_rated": TORQUE_LIMIT_PCT,
+        # What the tuner is told of the machine's move (OwnTuningRequest.move_torque_pct).
+        "move_torque": "the plant's peak torque (the reference move accelerates at 70 % of it)",
         "jobs": jobs,
         "wall_s": round(wall, 1),
         "cpu_count": os.cpu_count(),

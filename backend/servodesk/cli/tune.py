@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import math
 import sys
 from typing import Any
 
@@ -53,6 +54,14 @@ def register(sub: Any) -> None:
         default=100.0,
         metavar="PCT",
         help="torque limit during the run, %% of rated (default 100)",
+    )
+    p.add_argument(
+        "--move-torque",
+        type=float,
+        default=None,
+        metavar="PCT",
+        help="servodesk's own tuning: the peak torque of the machine's own moves, %% of rated; "
+        "the gains are ranked for a move accelerating at 70 %% of it (default: the torque limit)",
     )
     p.add_argument("--enable", action="store_true", help="servo on before tuning, off after")
     p.add_argument(
@@ -90,6 +99,13 @@ def _check_args(args: argparse.Namespace) -> None:
     if not 0 < args.torque_limit <= 300:
         raise ValidationError(
             f"--torque-limit {args.torque_limit:g} is outside 0 .. 300 %", field="torque_limit"
+        )
+    mt = args.move_torque
+    if mt is not None and not (0 < mt <= 1000 and math.isfinite(mt)):
+        raise ValidationError(
+            f"--move-torque {mt:g} is outside 0 .. 1000 % of the rated torque",
+            field="move_torque",
+            hint="the peak torque your machine's moves use, e.g. 300",
         )
 
 
@@ -130,6 +146,7 @@ async def _tune(ctx: _Context, args: argparse.Namespace) -> dict[str, Any]:
                 mode=args.mode,
                 travel_window_rev=args.travel,
                 torque_limit_pct=args.torque_limit,
+                move_torque_pct=args.move_torque,
             )
             job = await _follow(service, sid, quiet=args.json)
         except asyncio.CancelledError:

@@ -93,6 +93,9 @@ BUILTIN_LABELS = {
 DEFAULTS: dict[str, Any] = {"mode": "basic", "travel_window_rev": 0.5, "torque_limit_pct": 100.0}
 MAX_TRAVEL_REV = 100.0
 MAX_TORQUE_PCT = 300.0
+#: The peak torque of the machine's moves the own tuning ranks its gains for (% of rated): only
+#: arithmetic on the model, never a limit of the drive, so it may exceed MAX_TORQUE_PCT.
+MAX_MOVE_TORQUE_PCT = 1000.0
 #: Speed of the back-and-forth motion of a builtin tuning [rev/s].
 TUNING_SPEED_RPS = 10.0
 #: Share of the drive's max profile velocity (607Fh) the tuning uses at most.
@@ -380,6 +383,8 @@ class Job:
     owner: str
     travel_window_rev: float
     torque_limit_pct: float
+    #: The peak torque of the machine's moves (own tuning only; None: the tuning's limit).
+    move_torque_pct: float | None = None
     state: str = "running"
     progress: float = 0.0
     step: str = "starting"
@@ -410,6 +415,7 @@ class Job:
             "error": self.error,
             "travel_window_rev": self.travel_window_rev,
             "torque_limit_pct": self.torque_limit_pct,
+            "move_torque_pct": self.move_torque_pct,
         }
 
 
@@ -515,6 +521,7 @@ class TuningService:
             "limits": {
                 "travel_window_rev": {"min": 0.0, "max": MAX_TRAVEL_REV},
                 "torque_limit_pct": {"min": 0.0, "max": MAX_TORQUE_PCT},
+                "move_torque_pct": {"min": 0.0, "max": MAX_MOVE_TORQUE_PCT},
             },
             "position": position,
             "torque_limit": torque,
@@ -590,8 +597,13 @@ class TuningService:
         mode: str,
         travel_window_rev: float,
         torque_limit_pct: float,
+        move_torque_pct: float | None = None,
     ) -> dict[str, Any]:
         """Check the preconditions, begin the tuning motion and run the job in the background.
+
+        ``move_torque_pct``: the peak torque of the machine's own moves, which servodesk's own
+        tuning ranks its gains for (the reference move accelerates at 70 % of it); None: the
+        tuning's torque limit. The drive's built-in tuning has no use for it (400).
 
         Refused before anything moves: kind ``none`` (400 naming ``kind``), a bad input (400
         naming it), a drive that is not enabled (409), a window beyond the software position
@@ -618,6 +630,22 @@ class TuningService:
                 f"torque_limit_pct {torque_limit_pct:g} is outside 0 .. {MAX_TORQUE_PCT:g} %",
                 field="torque_limit_pct",
             )
+        if move_torque_pct is not None:
+            if not (0 < move_torque_pct <= MAX_MOVE_TORQUE_PCT) or not math.isfinite(
+                move_torque_pct
+            ):
+                raise ValidationError(
+                    f"move_torque_pct {move_torque_pct:g} is outside 0 .. "
+                    f"{MAX_MOVE_TORQUE_PCT:g} %",
+                    field="move_torque_pct",
+                )
+            if kind != "gains":
+                raise ValidationError(
+                    f"{p.name} tunes itself (its built-in one-touch tuning): move_torque_pct "
+                    "is for servodesk's own tuning",
+                    field="move_torque_pct",
+                    hint="leave move_torque_pct out",
+                )
         running = self._jobs.get(sid)
         if running is not None and running.state == "running":
             raise ConflictError(
@@ -632,6 +660,7 @@ class TuningService:
             owner=client,
             travel_window_rev=travel_window_rev,
             torque_limit_pct=torque_limit_pct,
+            move_torque_pct=move_torque_pct,
         )
         run = _Run(session=session, refs=gain_refs(p, kind))
         if kind == "builtin":
@@ -1240,6 +1269,7 @@ class TuningService:
             mode=job.mode,  # type: ignore[arg-type]
             travel_window_rev=job.travel_window_rev,
             torque_limit_pct=job.torque_limit_pct,
+            move_torque_pct=job.move_torque_pct,
         )
 
         def progress(fraction: float, step: str) -> None:

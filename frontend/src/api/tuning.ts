@@ -40,6 +40,8 @@ export interface TuningJob {
   error: TuningError | null;
   travel_window_rev: number;
   torque_limit_pct: number;
+  /** The peak torque of the machine's moves the gains were ranked for (null: the limit). */
+  move_torque_pct?: number | null;
 }
 
 export interface GainRow {
@@ -67,7 +69,12 @@ export interface TuningInfo {
   gains: GainRow[];
   loop_rate_hz: number | null;
   defaults: { mode: TuningMode; travel_window_rev: number; torque_limit_pct: number };
-  limits: { travel_window_rev: { min: number; max: number }; torque_limit_pct: { min: number; max: number } };
+  limits: {
+    travel_window_rev: { min: number; max: number };
+    torque_limit_pct: { min: number; max: number };
+    /** Optional for an older server. */
+    move_torque_pct?: { min: number; max: number };
+  };
   position: {
     actual: number | null;
     raw_unit: string | null;
@@ -166,6 +173,8 @@ export interface StartRequest {
   mode: TuningMode;
   travel_window_rev: number;
   torque_limit_pct: number;
+  /** servodesk's own tuning: the peak torque of the machine's own moves [% of rated]. */
+  move_torque_pct?: number | null;
 }
 
 export interface UndoResult {

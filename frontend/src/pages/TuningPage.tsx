@@ -96,7 +96,7 @@ export function TuningPage({ sid }: PageProps) {
         setInfo(i);
         setInfoFailure(null);
         setJob(i.job);
-        setInputs((prev) => prev ?? { mode: i.defaults.mode, travel: String(i.defaults.travel_window_rev), torque: String(i.defaults.torque_limit_pct) });
+        setInputs((prev) => prev ?? { mode: i.defaults.mode, travel: String(i.defaults.travel_window_rev), torque: String(i.defaults.torque_limit_pct), moveTorque: '' });
         if (i.result_available) tuningApi.result(sid).then(setResult, () => undefined);
       },
       (e: unknown) => setInfoFailure(failureOf(e, 'Read the tuning')),
@@ -185,7 +185,8 @@ export function TuningPage({ sid }: PageProps) {
     setBusy('start');
     beginHeartbeat(sid); // Before the request: the dead-man counts from its arrival.
     try {
-      const j = await tuningApi.start(sid, { mode: inputs.mode, travel_window_rev: check.travelRev, torque_limit_pct: check.torquePct });
+      const body = { mode: inputs.mode, travel_window_rev: check.travelRev, torque_limit_pct: check.torquePct };
+      const j = await tuningApi.start(sid, info?.kind === 'gains' && check.moveTorquePct !== null ? { ...body, move_torque_pct: check.moveTorquePct } : body);
       setJob(j);
       setResult(null);
       setConfirmed(false); // The next run is confirmed again.
@@ -334,6 +335,25 @@ export function TuningPage({ sid }: PageProps) {
                     </span>
                     {check?.torque && <span className="inline-error">{check.torque}</span>}
                   </label>
+                  {info.kind === 'gains' && (
+                    <label className="op-field">
+                      Machine's move: peak torque [% of rated]
+                      <input
+                        type="text"
+                        inputMode="decimal"
+                        value={inputs.moveTorque ?? ''}
+                        placeholder="= torque limit"
+                        disabled={running}
+                        onChange={(e) => set('moveTorque', e.target.value)}
+                        data-testid="tuning-move-torque"
+                      />
+                      <span className="small">
+                        optional: the torque your machine's own moves accelerate with; the gains are chosen for a 0.5 rev
+                        move at 70 % of it (only computed, the axis never gets more than the torque limit)
+                      </span>
+                      {check?.moveTorque && <span className="inline-error">{check.moveTorque}</span>}
+                    </label>
+                  )}
                 </div>
                 <div className="tuning-modes" role="radiogroup" aria-label="Response mode">
                   {info.modes.map((m: TuningMode) => (

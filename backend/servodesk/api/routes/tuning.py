@@ -19,7 +19,12 @@ from pydantic import BaseModel, ConfigDict, Field
 from servodesk.api.control_deps import ClientId, MotionControl, WriteControl, operation
 from servodesk.api.deps import AppState
 from servodesk.api.schemas import ERROR_RESPONSES
-from servodesk.services.tuning import MAX_TORQUE_PCT, MAX_TRAVEL_REV, TuningService
+from servodesk.services.tuning import (
+    MAX_MOVE_TORQUE_PCT,
+    MAX_TORQUE_PCT,
+    MAX_TRAVEL_REV,
+    TuningService,
+)
 
 
 def _recorder_busy(app: Any) -> Any:
@@ -76,6 +81,15 @@ class StartRequest(BaseModel):
         allow_inf_nan=False,
         description="torque limit during the run [% of rated], written to 6072h",
     )
+    move_torque_pct: float | None = Field(
+        default=None,
+        gt=0,
+        le=MAX_MOVE_TORQUE_PCT,
+        allow_inf_nan=False,
+        description="servodesk's own tuning: the peak torque of the machine's own moves "
+        "[% of rated]; the gains are ranked on a 0.5 rev jerk-limited move accelerating at 70 % "
+        "of it. Null: the torque limit of the run",
+    )
 
 
 class UndoRequest(BaseModel):
@@ -108,6 +122,7 @@ async def tuning_start(
         mode=body.mode,
         travel_window_rev=body.travel_window_rev,
         torque_limit_pct=body.torque_limit_pct,
+        move_torque_pct=body.move_torque_pct,
     )
 
 

@@ -68,6 +68,20 @@ describe('safety inputs', () => {
     expect(junk.torque).toContain('%');
   });
 
+  it("takes the machine's move torque as optional", () => {
+    const base = { mode: 'high' as const, travel: '0.5', torque: '100' };
+    const none = checkInputs({ ...base, moveTorque: ' ' }, INFO);
+    expect(none.ok).toBe(true);
+    expect(none.moveTorquePct).toBeNull();
+    const given = checkInputs({ ...base, moveTorque: '351,2' }, INFO);
+    expect(given.ok).toBe(true);
+    expect(given.moveTorquePct).toBeCloseTo(351.2);
+    const bad = checkInputs({ ...base, moveTorque: '1200' }, INFO);
+    expect(bad.ok).toBe(false);
+    expect(bad.moveTorque).toContain('at most 1000');
+    expect(checkInputs({ ...base, moveTorque: 'lots' }, INFO).moveTorque).toContain('leave it empty');
+  });
+
   it('refuses a window beyond the software limits and says what fits', () => {
     const limited = { ...INFO, position: { ...INFO.position, actual: 0, min: -13107, max: 13107 } };
     const c = checkInputs({ mode: 'low', travel: '0.5', torque: '50' }, limited);

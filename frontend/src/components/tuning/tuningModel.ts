@@ -10,6 +10,8 @@ export interface Inputs {
   /** As typed: text, so a half-typed number is not lost. */
   travel: string;
   torque: string;
+  /** The peak torque of the machine's moves [% of rated]; empty: the torque limit. */
+  moveTorque?: string;
 }
 
 export interface InputCheck {
@@ -20,6 +22,9 @@ export interface InputCheck {
   ok: boolean;
   travelRev: number | null;
   torquePct: number | null;
+  moveTorque: string | null;
+  /** null: not given (the server takes the torque limit). */
+  moveTorquePct: number | null;
 }
 
 /** A decimal number from the user's text ("0,5" too); null when it is not one. */
@@ -51,7 +56,7 @@ export function largestWindow(actual: number, unitsPerRev: number, min: number |
 }
 
 export function checkInputs(inputs: Inputs, info: Pick<TuningInfo, 'limits' | 'position'>): InputCheck {
-  const out: InputCheck = { travel: null, torque: null, window: null, ok: false, travelRev: null, torquePct: null };
+  const out: InputCheck = { travel: null, torque: null, window: null, ok: false, travelRev: null, torquePct: null, moveTorque: null, moveTorquePct: null };
   const travel = parseDecimal(inputs.travel);
   const tl = info.limits.travel_window_rev;
   if (travel === null) out.travel = 'enter the travel window in revolutions, e.g. 0.5';
@@ -62,6 +67,14 @@ export function checkInputs(inputs: Inputs, info: Pick<TuningInfo, 'limits' | 'p
   if (torque === null) out.torque = 'enter the torque limit in % of the rated torque, e.g. 100';
   else if (torque <= ql.min || torque > ql.max) out.torque = `the torque limit must be more than ${ql.min} and at most ${ql.max} %`;
   else out.torquePct = torque;
+  const mtText = (inputs.moveTorque ?? '').trim();
+  if (mtText) {
+    const mt = parseDecimal(mtText);
+    const ml = info.limits.move_torque_pct ?? { min: 0, max: 1000 };
+    if (mt === null) out.moveTorque = "enter the peak torque of the machine's moves in % of rated, e.g. 300, or leave it empty";
+    else if (mt <= ml.min || mt > ml.max) out.moveTorque = `the move torque must be more than ${ml.min} and at most ${ml.max} %`;
+    else out.moveTorquePct = mt;
+  }
   const pos = info.position;
   if (out.travelRev !== null && pos.actual !== null) {
     const w = windowInUnits(out.travelRev, pos.units_per_rev, pos.actual);
@@ -72,7 +85,7 @@ export function checkInputs(inputs: Inputs, info: Pick<TuningInfo, 'limits' | 'p
       out.window = `the window ${w.lo} .. ${w.hi} does not fit the software position limits ${lo ?? '−∞'} .. ${hi ?? '+∞'}; at most ${Math.floor(fits * 1000) / 1000} rev fits here`;
     }
   }
-  out.ok = out.travel === null && out.torque === null && out.window === null;
+  out.ok = out.travel === null && out.torque === null && out.moveTorque === null && out.window === null;
   return out;
 }
 
