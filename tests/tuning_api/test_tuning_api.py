@@ -372,6 +372,7 @@ def test_own_tuning_runs_on_the_generic_twin(channel, tmp_path) -> None:  # type
         assert after["settling_100_s"] is not None and after["settling_100_s"] < 0.1
         assert res["excursion_rev"] <= 0.5 + 1e-6  # Within +-0.25 rev of the start.
         assert res["peak_torque_pct"] <= 100.0 + 0.5  # The run's limit, not the move's 300 %.
+        assert any("70 % of 300 % of the rated torque" in n for n in res["notes"]), res["notes"]
         m = client.get(f"/api/v1/sessions/{sid}/motion").json()
         assert not m["active"] and m["kind"] == "tuning"
 

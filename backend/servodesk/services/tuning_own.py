@@ -1086,7 +1086,17 @@ class OwnTuning:
                 "crossover_hz": design.margins.crossover_hz,
                 "bandwidth_hz": design.bandwidth_hz,
             },
-            "notes": list(design.notes),
+            "notes": [
+                *design.notes,
+                f"gains ranked for a 0.5 rev move accelerating at 70 % of "
+                f"{100.0 * drive.move_torque / drive.rated_torque:.0f} % of the rated torque "
+                + (
+                    "(the machine's move torque given)"
+                    if self.request.move_torque_pct is not None
+                    else "(the tuning's torque limit: give the machine's move torque to tune "
+                    "for its moves)"
+                ),
+            ],
             "gains": gains,
             "step": {"before": step_before, "after": step_after},
             "axis_time_s": self.axis_time_s,
