@@ -51,24 +51,7 @@ export interface ProfileLoad {
   error: unknown;
 }
 
-export function useProfile(id: string | null): ProfileLoad {
-  const [state, setState] = useState<ProfileLoad>({ profile: null, error: null });
-  useEffect(() => {
-    if (!id) return;
-    let live = true;
-    setState({ profile: null, error: null });
-    loadProfile(id).then(
-      (profile) => live && setState({ profile, error: null }),
-      (error: unknown) => live && setState({ profile: null, error }),
-    );
-    return () => {
-      live = false;
-    };
-  }, [id]);
-  return state;
-}
-
-/** `useProfile` for a session: its family's profile, or its own when its units are rescaled. */
+/** The profile for the pages of a session: its family's, or its own when its units are rescaled. */
 export function useSessionProfile(info: SessionInfo | null): ProfileLoad {
   const key = info ? sessionProfileKey(info) : null;
   const [state, setState] = useState<ProfileLoad>({ profile: null, error: null });
