@@ -43,10 +43,10 @@ def browser(playwright_instance: Playwright) -> Iterator[Browser]:
     b.close()
 
 
-@pytest.fixture
-def page(browser: Browser, server_url: str) -> Iterator[Page]:
-    """A fresh page on the UI; fails the test if the page throws an uncaught error."""
-    context = browser.new_context(base_url=server_url, viewport={"width": 1440, "height": 960})
+def fresh_page(browser: Browser, base_url: str) -> Iterator[Page]:
+    """A fresh page on the UI at ``base_url``; fails the test if the page throws an uncaught
+    error (a fixture's body: yield from it)."""
+    context = browser.new_context(base_url=base_url, viewport={"width": 1440, "height": 960})
     context.set_default_timeout(10_000)
     pg = context.new_page()
     errors: list[str] = []
@@ -54,3 +54,9 @@ def page(browser: Browser, server_url: str) -> Iterator[Page]:
     yield pg
     context.close()
     assert not errors, f"uncaught errors in the page: {errors}"
+
+
+@pytest.fixture
+def page(browser: Browser, server_url: str) -> Iterator[Page]:
+    """A fresh page on the UI; fails the test if the page throws an uncaught error."""
+    yield from fresh_page(browser, server_url)

@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import Browser, Page, expect
 
+from tests.browser.conftest import fresh_page
 from tests.browser.harness import HarnessError, running_server
 
 pytestmark = pytest.mark.browser
@@ -37,14 +38,7 @@ def plant_url(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 
 @pytest.fixture
 def plant_page(browser: Browser, plant_url: str) -> Iterator[Page]:
-    context = browser.new_context(base_url=plant_url, viewport={"width": 1440, "height": 960})
-    context.set_default_timeout(10_000)
-    pg = context.new_page()
-    errors: list[str] = []
-    pg.on("pageerror", lambda exc: errors.append(str(exc)))
-    yield pg
-    context.close()
-    assert not errors, f"uncaught errors in the page: {errors}"
+    yield from fresh_page(browser, plant_url)
 
 
 def test_a_raw_value_is_previewed_in_the_axis_own_degrees(plant_page: Page) -> None:
