@@ -171,9 +171,6 @@ class Session:
         #: The encoder the catalog profile's scales are for (``counts_per_rev`` before 608Fh).
         self.profile_counts_per_rev = self.counts_per_rev
         self.counts_per_rev_source = "profile"
-        #: True when ``profile`` is the catalog's profile with rescaled increment units; the
-        #: frontend then loads GET /sessions/{sid}/profile instead of GET /profiles/{id}.
-        self.units_rescaled = False
 
     # Lifecycle ----------------------------------------------------------------------------
 
@@ -212,6 +209,12 @@ class Session:
         except ServodeskError:
             return 0
 
+    @property
+    def units_rescaled(self) -> bool:
+        """``profile`` is the catalog's with its increment units rescaled to the drive's
+        encoder; the frontend then loads GET /sessions/{sid}/profile, not GET /profiles/{id}."""
+        return self.counts_per_rev != self.profile_counts_per_rev
+
     async def _adopt_encoder(self) -> None:
         """Rescale the profile's increment units to the drive's encoder (608Fh).
 
@@ -220,19 +223,16 @@ class Session:
         and the session then shows that axis's degrees. A drive that does not answer, or
         answers 0 (smartris: "not usable", 001 Table 3-2), keeps the profile's scales.
         """
-        if self.profile.spec(ENCODER_INCREMENTS) is None:
-            return
         try:
-            inc = int.from_bytes((await self.link.read(ENCODER_INCREMENTS))[:4], "little")
-            revs = 1
-            if self.profile.spec(ENCODER_REVOLUTIONS) is not None:
-                revs = int.from_bytes((await self.link.read(ENCODER_REVOLUTIONS))[:4], "little")
+            # None: the profile has no such object (no 608Fh:02 means 1 revolution).
+            inc = await self._read_int(ENCODER_INCREMENTS, DataType.UNSIGNED32)
+            revs = await self._read_int(ENCODER_REVOLUTIONS, DataType.UNSIGNED32)
         except ServodeskError as exc:
             # Not fatal, as for 1017h: a drive that does not give it keeps the profile's units
             # (a bus that is really gone shows in the first state poll).
             log.info("%s: 608Fh not read (%s); the profile's scales stay", self.id, exc)
             return
-        cpr = counts_per_rev_from(inc, revs)
+        cpr = counts_per_rev_from(inc, 1 if revs is None else revs) if inc is not None else None
         if cpr is None:
             return
         self.counts_per_rev_source = "608Fh"
@@ -246,7 +246,6 @@ class Session:
             )
             self.profile = rescaled(self.profile, cpr)
             self.counts_per_rev = cpr
-            self.units_rescaled = True
 
     def _check_heartbeat(self) -> None:
         # CiA 301 §7.2.8.3.2.2: a consumer expects each heartbeat within its period; allow
