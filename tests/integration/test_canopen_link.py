@@ -342,3 +342,20 @@ def test_time_outs_on_uvloop_even_when_the_timer_is_re_armed_late(
 
     with asyncio.Runner(loop_factory=uvloop.new_event_loop) as runner:
         runner.run(asyncio.wait_for(main(), 10.0))
+
+
+async def test_an_answer_behind_a_stale_one_is_not_lost(link: CanopenLink) -> None:
+    # A request cancelled on the bus (a motion's monitor, ended by a dead-man stop) still gets
+    # its answer, which arrives as the next request's first one. When both answers reach the
+    # loop together, the second used to be dropped and the request waited out its time-out
+    # (0.5 s before the halt at shutdown, CI 2026-11-27).
+    cancelled = asyncio.create_task(link.read(A(0x1018, 1)))
+    await asyncio.sleep(0)  # On the bus.
+    cancelled.cancel()
+    await asyncio.gather(cancelled, return_exceptions=True)
+    t0 = time.monotonic()
+    nxt = asyncio.create_task(link.read(A(0x1000)))
+    await asyncio.sleep(0)  # On the bus too.
+    time.sleep(0.05)  # noqa: ASYNC251 -- holds the loop: both answers wait in the doorbell.
+    assert await nxt == bytes.fromhex("92010200")
+    assert time.monotonic() - t0 < 0.2  # The link's time-out is 0.3 s.

@@ -221,6 +221,9 @@ class CanopenLink(DriveLink):
         self._network: canopen.Network | None = None
         self._node: canopen.RemoteNode | None = None
         self._waiter: asyncio.Future[bytes] | None = None
+        #: Answers that arrived while the waiter already held one the request has not yet
+        #: looked at (a stale answer ahead of the real one, both in one doorbell ring).
+        self._unread: deque[bytes] = deque()
         self._doorbell: _Doorbell | None = None
         self._watchdog: asyncio.Handle | None = None
         #: When the armed watchdog fires (loop time). Kept here, not read from the handle:
@@ -299,9 +302,14 @@ class CanopenLink(DriveLink):
 
     def _deliver(self, frame: bytes) -> None:
         waiter = self._waiter
-        if waiter is not None and not waiter.done():
+        if waiter is None:
+            return  # No request in flight: a late answer to one that timed out, dropped.
+        if not waiter.done():
             waiter.set_result(frame)
-        # Otherwise a late answer to a request that already timed out: dropped.
+        else:
+            # The waiter holds an answer _transact has not looked at yet; if that one is
+            # stale, this may be the real one, so it is kept for the request, not dropped.
+            self._unread.append(frame)
 
     def _on_watchdog(self) -> None:
         """The response time-out: one timer per link, moved only when it fires too early.
@@ -394,6 +402,9 @@ class CanopenLink(DriveLink):
                     log.debug(
                         "node %d: dropped a stale SDO answer %s", self.params.node_id, answer.hex()
                     )
+                    if self._unread:
+                        answer = self._unread.popleft()
+                        continue
                     waiter = loop.create_future()
                     self._waiter = waiter
                     answer = await waiter
@@ -417,6 +428,7 @@ class CanopenLink(DriveLink):
                 ) from None
             finally:
                 self._waiter = None
+                self._unread.clear()
         raise AssertionError("unreachable")
 
     async def _aread(self, address: ObjectAddress) -> bytes:
