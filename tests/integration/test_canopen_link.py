@@ -359,3 +359,17 @@ async def test_an_answer_behind_a_stale_one_is_not_lost(link: CanopenLink) -> No
     time.sleep(0.05)  # noqa: ASYNC251 -- holds the loop: both answers wait in the doorbell.
     assert await nxt == bytes.fromhex("92010200")
     assert time.monotonic() - t0 < 0.2  # The link's time-out is 0.3 s.
+
+
+async def test_a_stale_read_answer_is_not_taken_for_a_write_of_the_same_object(
+    link: CanopenLink, sim: SimulatedBus
+) -> None:
+    cancelled = asyncio.create_task(link.read(A(0x6081)))
+    await asyncio.sleep(0)
+    cancelled.cancel()
+    await asyncio.gather(cancelled, return_exceptions=True)
+    write = asyncio.create_task(link.write(A(0x6081), (123456).to_bytes(4, "little")))
+    await asyncio.sleep(0)
+    time.sleep(0.05)  # noqa: ASYNC251 -- holds the loop: both answers wait in the doorbell.
+    await write  # Not "unexpected answer": the read's answer is dropped, the write's taken.
+    assert sim.drives[0].read(0x6081, 0) == 123456

@@ -372,7 +372,10 @@ class CanopenLink(DriveLink):
         if network is None or loop is None:
             raise LinkError("the CANopen link is not open")
         cob_id = 0x600 + self.params.node_id
-        initiate = request[0] & 0xE0 in (0x20, 0x40)  # ccs 1 / 2: initiate download / upload
+        ccs = request[0] & 0xE0
+        initiate = ccs in (0x20, 0x40)  # ccs 1 / 2: initiate download / upload
+        # Their answers: scs 3 (download) or 2 (upload), or an abort (CiA 301 §7.2.4.3).
+        answer_scs = (0x60 if ccs == 0x20 else 0x40, 0x80)
         # CiA 301 leaves retries to the client; like canopen, send once more on silence.
         for attempt in range(2):
             waiter: asyncio.Future[bytes] = loop.create_future()
@@ -396,9 +399,14 @@ class CanopenLink(DriveLink):
                     ) from exc
                 answer = await waiter
                 # An initiate request's answer (and any abort) echoes the multiplexor
-                # (CiA 301 §7.2.4.3). One for another object is the late answer to a request
+                # (CiA 301 §7.2.4.3). One for another object, or of another kind (an upload's
+                # answer to a download of the same object), is the late answer to a request
                 # that already timed out or was cancelled: drop it and keep waiting.
-                while initiate and answer[1:4] != request[1:4] and len(answer) >= 4:
+                while (
+                    initiate
+                    and len(answer) >= 4
+                    and (answer[1:4] != request[1:4] or answer[0] & 0xE0 not in answer_scs)
+                ):
                     log.debug(
                         "node %d: dropped a stale SDO answer %s", self.params.node_id, answer.hex()
                     )
