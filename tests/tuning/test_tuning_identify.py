@@ -91,6 +91,22 @@ def test_identify_rigid_from_velocity_and_rate(
         identify_rigid(RATE, tau)
 
 
+def test_identify_rigid_with_an_instrument(
+    rigid_run: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    # The motion itself, unquantised, instruments the fit as a drive's position demand does
+    # (correlated with the motion, not with the encoder's quantisation): the same estimates.
+    t, tau, enc, vel = rigid_run
+    exact = np.concatenate([[0.0], np.cumsum(vel[:-1]) / RATE])
+    est = identify_rigid(t, tau, position_rad=enc, instrument_rad=exact)
+    assert est.inertia == pytest.approx(4.07e-4, rel=0.01)
+    assert est.viscous == pytest.approx(2e-3, rel=0.02)
+    assert est.coulomb == pytest.approx(0.09, rel=0.01)
+    assert est.gravity == pytest.approx(0.3, rel=0.01)
+    with pytest.raises(ValueError, match="instrument must be sampled with the torque"):
+        identify_rigid(t, tau, position_rad=enc, instrument_rad=exact[:-1])
+
+
 def test_identify_rigid_without_the_sign_exclusion_is_worse(
     rigid_run: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ) -> None:

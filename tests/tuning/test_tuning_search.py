@@ -10,9 +10,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from servodesk.domain.tuning.design import FF_FACTOR
 from servodesk.domain.tuning.gains import ServoGains
+from servodesk.domain.tuning.metrics import MoveMetrics
 from servodesk.domain.tuning.model import LoopModel, Mode, PlantModel
 from servodesk.domain.tuning.search import (
+    FF_VARIATIONS,
     INERTIA_TOL,
     MOTOR_SPLIT_TOL_LOW_ANTI,
     RESONANCE_TOL,
@@ -28,7 +31,7 @@ from servodesk.domain.tuning.search import (
 )
 from servodesk.domain.tuning.simulate import friction_step, simulate_batch
 from servodesk.sim.plant import PlantParams
-from servodesk.sim.replay import ModelMoves, run_move
+from servodesk.sim.replay import ModelMoves, WorstOf, run_move
 
 RATE = 16000.0
 JM = 3.7e-5
@@ -254,3 +257,46 @@ def test_a_finer_simulation_orders_the_variations() -> None:
     assert pickle.loads(pickle.dumps(finer)) == finer
     two = replace(plant, extra_modes=(Mode(900.0, 0.03, 1000.0),))
     assert ModelMoves.of(two, RATE, counts_per_rev=CPR, torque_limit=PEAK) is None
+
+
+def test_a_rigid_axis_is_ranked_on_its_worst_inertia_with_feed_forwards_near_it() -> None:
+    # services/tuning_own.py ranks a rigid axis whose inertia the position demand instrumented
+    # so: the identified inertia and 0.5 % either way, and feed-forwards up to the inertia.
+    plant = PlantModel(4 * JM, 0.0, None, 0.03, 0.0, 2000.0)
+
+    def moves(scale: float) -> ModelMoves:
+        m = ModelMoves.of(
+            replace(plant, motor_inertia=plant.motor_inertia * scale),
+            RATE,
+            counts_per_rev=CPR,
+            torque_limit=PEAK,
+            coulomb=0.09,
+        )
+        assert m is not None
+        return m
+
+    worst = WorstOf((moves(0.995), moves(1.0), moves(1.005)))
+    assert pickle.loads(pickle.dumps(worst)) == worst  # It, too, goes to a worker process.
+    ff = (*FF_VARIATIONS, *(f / FF_FACTOR for f in (0.96, 0.98, 0.99, 1.0)))
+    result = tune_on_model(
+        plant,
+        RATE,
+        "high",
+        counts_per_rev=CPR,
+        torque_limit=PEAK,
+        coulomb=0.09,
+        rerank=worst,
+        ff_factors=ff,
+    )
+    assert result.candidates == 1 + len(candidates_around(result.gains, ff_factors=ff))
+    assert len(candidates_around(result.gains, ff_factors=ff)) == 3 * len(
+        candidates_around(result.gains)
+    )
+    move = reference_move(plant.total_inertia, PEAK, CPR, RATE)
+    # The chosen gains' figures are their worst over the three axes, and none of the
+    # runners-up is better by that measure.
+    per_axis = [m([result.gains], move)[0] for m in worst.members]
+    assert all(x is not None for x in per_axis)
+    assert result.metrics == max((x for x in per_axis if x is not None), key=MoveMetrics.key)
+    runners = worst(result.alternatives, move)
+    assert all(result.metrics.key() <= m.key() for m in runners if m is not None)

@@ -123,3 +123,30 @@ class ModelMoves:
                 continue
             out.append(move_metrics(move.t, move.target_counts, pos, move.t_end, demand))
         return out
+
+
+@dataclass(frozen=True, slots=True)
+class WorstOf:
+    """Candidate gains run on several simulated axes; each candidate's metrics are those of
+    the axis it settles worst on (:meth:`MoveMetrics.key`), None if it diverges on any.
+
+    The tuning of a rigid axis ranks on the identified axis and on it with the inertia
+    :data:`~servodesk.services.tuning_own.RIGID_INERTIA_TOLERANCE` lighter and heavier: with
+    an inertia feed-forward near the inertia, settling to +-10 counts is a knife edge (the
+    oracle's gains settle 7-33 x slower with their feed-forward 2 % off, docs/tuning.md), and
+    gains that are fast only on the nominal axis would stake the result on the inertia being
+    known better than it is."""
+
+    members: tuple[ModelMoves, ...]
+
+    def __call__(
+        self, gains: Sequence[ServoGains], move: ReferenceMove
+    ) -> list[MoveMetrics | None]:
+        runs = [m(gains, move) for m in self.members]
+        out: list[MoveMetrics | None] = []
+        for per_axis in zip(*runs, strict=True):
+            if any(m is None for m in per_axis):
+                out.append(None)
+            else:
+                out.append(max((m for m in per_axis if m is not None), key=MoveMetrics.key))
+        return out

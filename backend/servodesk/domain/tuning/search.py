@@ -206,12 +206,19 @@ def mechanical(
     )
 
 
-def candidates_around(g: ServoGains, wide: bool = False) -> list[ServoGains]:
-    """Variations of a design: velocity gain, integral time, position gain, inertia FF."""
+#: Inertia feed-forward variations, as factors of the design's (0.85 of the inertia).
+FF_VARIATIONS = (0.95, 1.0)
+
+
+def candidates_around(
+    g: ServoGains, wide: bool = False, ff_factors: Sequence[float] = FF_VARIATIONS
+) -> list[ServoGains]:
+    """Variations of a design: velocity gain, integral time, position gain, inertia FF
+    (``ff_factors`` times the design's)."""
     kv = (1.0, 0.85, 0.7, 0.55) if not wide else (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4)
     ti = (0.5, 1.0, 2.0, 4.0) if not wide else (0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 3.0, 5.0)
     kp = (0.6, 1.0, 1.5) if not wide else (0.4, 0.6, 0.8, 1.0, 1.3, 1.7, 2.2)
-    ff = (0.95, 1.0) if not wide else (0.9, 0.95, 1.0, 1.03)
+    ff = tuple(ff_factors) if not wide else (0.9, 0.95, 1.0, 1.03)
     bases = [g]
     if not wide and g.notch1_hz > 0.0:
         # The notch's depth too: a full notch leaves the resonance to its own damping, one of
@@ -372,13 +379,15 @@ def tune_on_model(
     coulomb: float = 0.0,
     gravity: float = 0.0,
     rerank: Rerank | None = None,
+    ff_factors: Sequence[float] = FF_VARIATIONS,
 ) -> SearchResult:
     """The tuner's design: :func:`design_gains` at the response level, then for ``high`` the
     best move among the variations that keep the margins on every plant the identification
     may have been (:func:`identification_set`) and are stable with the load stuck
     (:func:`stuck_load_set`). ``rerank``: a finer simulation of the identified axis that
     orders those variations instead of the batch model (sim/replay.py's ``ModelMoves``; the
-    caller supplies it, this module simulates nothing but the batch model)."""
+    caller supplies it, this module simulates nothing but the batch model). ``ff_factors``:
+    the inertia feed-forward's variations, as factors of the design's."""
     check = identification_set(plant)
     stuck = stuck_load_set(plant)
     pm, gm = PM_MIN + TUNER_PM_EXTRA_DEG, GM_MIN_DB + TUNER_GM_EXTRA_DB
@@ -398,7 +407,7 @@ def tune_on_model(
     chosen = design.gains
     cands = [design.gains]
     if mode == "high":
-        cands += candidates_around(design.gains)
+        cands += candidates_around(design.gains, ff_factors=ff_factors)
     ranked = rank_gains(
         plant,
         rate_hz,
@@ -423,6 +432,11 @@ def tune_on_model(
         notes.append(f"{len(order)} variations ranked on a tick-by-tick simulation of the model")
     if order:
         chosen, metrics = order[0]
+        if chosen.inertia_ff != design.gains.inertia_ff and plant.total_inertia > 0.0:
+            notes.append(
+                f"the ranking chose an inertia feed-forward of "
+                f"{chosen.inertia_ff / plant.total_inertia:.2f} x J"
+            )
         alternatives = alternatives_of([g for g, _ in order])
         metrics_of = dict(order)
         alternative_metrics = tuple(metrics_of[g] for g in alternatives)
