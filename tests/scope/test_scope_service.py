@@ -21,7 +21,7 @@ import itertools
 import os
 import socket
 import time
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -70,6 +70,16 @@ class Rig:
         return f"ws://127.0.0.1:{self.port}/api/v1/scope/ws"
 
 
+class _Server(uvicorn.Server):
+    """uvicorn without its signal handlers: in the test process they replaced SIGINT's for
+    the rig's lifetime and, restored in another order than pytest-asyncio's loops set them,
+    could leave a dead server's handler behind for later tests (test_cli_tune's Ctrl-C)."""
+
+    @contextlib.contextmanager
+    def capture_signals(self) -> Iterator[None]:
+        yield
+
+
 @contextlib.asynccontextmanager
 async def serve(settings: Settings, *, sndbuf: int | None = None) -> AsyncIterator[Rig]:
     """The application on a real uvicorn server on 127.0.0.1 (a free port).
@@ -85,7 +95,7 @@ async def serve(settings: Settings, *, sndbuf: int | None = None) -> AsyncIterat
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, sndbuf)
     sock.bind(("127.0.0.1", 0))
     port = sock.getsockname()[1]
-    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
+    server = _Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
     task = asyncio.create_task(server.serve(sockets=[sock]))
     while not server.started:
         if task.done():
