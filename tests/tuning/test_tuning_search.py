@@ -15,10 +15,10 @@ from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.metrics import MoveMetrics
 from servodesk.domain.tuning.model import LoopModel, Mode, PlantModel
 from servodesk.domain.tuning.search import (
-    FF_VARIATIONS,
     INERTIA_TOL,
     MOTOR_SPLIT_TOL_LOW_ANTI,
     RESONANCE_TOL,
+    RIGID_VARIATIONS,
     STUCK_LOAD_DAMPING,
     alternatives_of,
     candidates_around,
@@ -277,7 +277,6 @@ def test_a_rigid_axis_is_ranked_on_its_worst_inertia_with_feed_forwards_near_it(
 
     worst = WorstOf((moves(0.995), moves(1.0), moves(1.005)))
     assert pickle.loads(pickle.dumps(worst)) == worst  # It, too, goes to a worker process.
-    ff = (*FF_VARIATIONS, *(f / FF_FACTOR for f in (0.96, 0.98, 0.99, 1.0)))
     result = tune_on_model(
         plant,
         RATE,
@@ -286,12 +285,16 @@ def test_a_rigid_axis_is_ranked_on_its_worst_inertia_with_feed_forwards_near_it(
         torque_limit=PEAK,
         coulomb=0.09,
         rerank=worst,
-        ff_factors=ff,
+        variations=RIGID_VARIATIONS,
     )
-    assert result.candidates == 1 + len(candidates_around(result.gains, ff_factors=ff))
-    assert len(candidates_around(result.gains, ff_factors=ff)) == 3 * len(
-        candidates_around(result.gains)
-    )
+    assert result.candidates == 1 + 3 * 5 * 5 * 6
+    # Feed-forwards up to the inertia are among them (the design's is 0.85 J), and on this
+    # axis, whose model is exact, the ranking takes one of those near the inertia.
+    j = plant.total_inertia
+    base = replace(result.gains, inertia_ff=FF_FACTOR * j)
+    ffs = {round(g.inertia_ff / j, 4) for g in candidates_around(base, variations=RIGID_VARIATIONS)}
+    assert ffs == {0.8075, 0.85, 0.96, 0.98, 0.99, 1.0}
+    assert result.gains.inertia_ff / j >= 0.96
     move = reference_move(plant.total_inertia, PEAK, CPR, RATE)
     # The chosen gains' figures are their worst over the three axes, and none of the
     # runners-up is better by that measure.

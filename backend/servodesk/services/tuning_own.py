@@ -51,7 +51,6 @@ from servodesk.domain.address import ObjectAddress
 from servodesk.domain.cia402 import State, decode_state
 from servodesk.domain.datatypes import Value
 from servodesk.domain.profile import TuningSpec
-from servodesk.domain.tuning.design import FF_FACTOR
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.identify import (
     Frf,
@@ -70,8 +69,9 @@ from servodesk.domain.tuning.identify import (
 from servodesk.domain.tuning.metrics import move_metrics, smoothed_settling
 from servodesk.domain.tuning.model import LoopModel, PlantModel
 from servodesk.domain.tuning.search import (
-    FF_VARIATIONS,
     LOW_ANTI_RESONANCE_HZ,
+    RIGID_VARIATIONS,
+    VARIATIONS,
     SearchResult,
     tune_on_model,
 )
@@ -174,11 +174,6 @@ RANK_TORQUE_SHARE = 0.7
 #: instrumented fit was within 0.6 % on the benchmark's seven rigid axes (the plain fit
 #: -1.5 % to +1.7 %).
 RIGID_INERTIA_TOLERANCE = 0.005
-#: Its inertia feed-forward is also tried at these fractions of the inertia (the design's
-#: 0.85 and 0.81 stay candidates). Nearer the inertia a rigid axis stops closer to the
-#: target when its profile ends (R10-rigid: 61 counts of lag at 0.85 J, 30 at 1.0 J), which
-#: the oracle's gains rest on; it pays only with the inertia known to well under 2 %.
-RIGID_FEED_FORWARD = (0.96, 0.98, 0.99, 1.0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -419,13 +414,25 @@ class OwnTuning:
 
             nominal = moves(1.0)
             rerank: ModelMoves | WorstOf | None = nominal
-            ff_factors: tuple[float, ...] = FF_VARIATIONS
+            variations = VARIATIONS
             rigid_model = nominal is not None and await self._instrumented(first)
             if rigid_model:
+                # Its variations reach feed-forwards near the inertia: a rigid axis then
+                # stops closer to the target when its profile ends (R10-rigid: 61 counts
+                # of lag at 0.85 J, 30 at 1.0 J), which the oracle's gains rest on; that
+                # pays only with the inertia known to well under 2 %.
                 tol = RIGID_INERTIA_TOLERANCE
                 members = (moves(1.0 - tol), nominal, moves(1.0 + tol))
                 rerank = WorstOf(tuple(m for m in members if m is not None))
-                ff_factors = (*FF_VARIATIONS, *(f / FF_FACTOR for f in RIGID_FEED_FORWARD))
+                variations = replace(VARIATIONS, ff=RIGID_VARIATIONS.ff)
+                if self.request.move_torque_pct is not None:
+                    # The whole rigid grid only for the machine's own move: gains ranked at
+                    # the hardest move stayed as fast on gentler ones (100-351 % of rated,
+                    # 0.25 and 0.5 rev, six rigid axes), while those ranked at the tuning's
+                    # limit settled many times slower on harder moves (R3-rigid 0.9 -> 19-27
+                    # ms), and the rigid grid's more so (R1-rigid 57 ms even on its own
+                    # move, docs/tuning.md).
+                    variations = RIGID_VARIATIONS
             job = functools.partial(
                 tune_on_model,
                 model,
@@ -436,7 +443,7 @@ class OwnTuning:
                 coulomb=friction,
                 gravity=est.gravity,
                 rerank=rerank,
-                ff_factors=ff_factors,
+                variations=variations,
             )
             if self._offload:
                 # Its own process: the search is seconds of Python arithmetic that, in a

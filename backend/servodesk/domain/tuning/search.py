@@ -30,6 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from servodesk.domain.tuning.design import (
+    FF_FACTOR,
     STUCK_GM_MIN_DB,
     STUCK_PM_MIN,
     Design,
@@ -206,19 +207,45 @@ def mechanical(
     )
 
 
-#: Inertia feed-forward variations, as factors of the design's (0.85 of the inertia).
-FF_VARIATIONS = (0.95, 1.0)
+@dataclass(frozen=True, slots=True)
+class Variations:
+    """The grid of :func:`candidates_around`, as factors of the design's gains: velocity gain,
+    integral time, position gain (relative to the velocity gain's change) and inertia
+    feed-forward (the design's is 0.85 of the inertia)."""
+
+    kv: tuple[float, ...] = (1.0, 0.85, 0.7, 0.55)
+    ti: tuple[float, ...] = (0.5, 1.0, 2.0, 4.0)
+    kp: tuple[float, ...] = (0.6, 1.0, 1.5)
+    ff: tuple[float, ...] = (0.95, 1.0)
+
+
+#: The variations of every design.
+VARIATIONS = Variations()
+#: A rigid axis whose model is the axis to within its friction, tuned for the machine's own
+#: move (services/tuning_own.py: the inertia instrumented by the position demand, ranked on
+#: it +-0.5 %, the move torque given): longer integral times,
+#: higher position gains and feed-forwards up to the inertia (0.96-1.0 J), the structure of
+#: the oracle's rigid-axis gains. Offline on seed 1's identified models, the pick on the
+#: true plant: R3-rigid 1.40 -> 1.07 x the oracle, R10-rigid 1.58 -> 1.23, stress-friction5
+#: 1.31 -> 0.94, stress-gravity10 1.10 -> 0.84 (docs/tuning.md).
+RIGID_VARIATIONS = Variations(
+    kv=(1.0, 0.9, 0.8),
+    ti=(0.5, 1.0, 2.0, 4.0, 7.0),
+    kp=(0.6, 1.0, 1.3, 1.6, 2.0),
+    ff=(0.95, 1.0, *(f / FF_FACTOR for f in (0.96, 0.98, 0.99, 1.0))),
+)
 
 
 def candidates_around(
-    g: ServoGains, wide: bool = False, ff_factors: Sequence[float] = FF_VARIATIONS
+    g: ServoGains, wide: bool = False, variations: Variations = VARIATIONS
 ) -> list[ServoGains]:
     """Variations of a design: velocity gain, integral time, position gain, inertia FF
-    (``ff_factors`` times the design's)."""
-    kv = (1.0, 0.85, 0.7, 0.55) if not wide else (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4)
-    ti = (0.5, 1.0, 2.0, 4.0) if not wide else (0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 3.0, 5.0)
-    kp = (0.6, 1.0, 1.5) if not wide else (0.4, 0.6, 0.8, 1.0, 1.3, 1.7, 2.2)
-    ff = tuple(ff_factors) if not wide else (0.9, 0.95, 1.0, 1.03)
+    (``variations``; ``wide``: the oracle's wider grid)."""
+    v = variations
+    kv = v.kv if not wide else (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4)
+    ti = v.ti if not wide else (0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 3.0, 5.0)
+    kp = v.kp if not wide else (0.4, 0.6, 0.8, 1.0, 1.3, 1.7, 2.2)
+    ff = v.ff if not wide else (0.9, 0.95, 1.0, 1.03)
     bases = [g]
     if not wide and g.notch1_hz > 0.0:
         # The notch's depth too: a full notch leaves the resonance to its own damping, one of
@@ -379,15 +406,15 @@ def tune_on_model(
     coulomb: float = 0.0,
     gravity: float = 0.0,
     rerank: Rerank | None = None,
-    ff_factors: Sequence[float] = FF_VARIATIONS,
+    variations: Variations = VARIATIONS,
 ) -> SearchResult:
     """The tuner's design: :func:`design_gains` at the response level, then for ``high`` the
     best move among the variations that keep the margins on every plant the identification
     may have been (:func:`identification_set`) and are stable with the load stuck
     (:func:`stuck_load_set`). ``rerank``: a finer simulation of the identified axis that
     orders those variations instead of the batch model (sim/replay.py's ``ModelMoves``; the
-    caller supplies it, this module simulates nothing but the batch model). ``ff_factors``:
-    the inertia feed-forward's variations, as factors of the design's."""
+    caller supplies it, this module simulates nothing but the batch model). ``variations``:
+    the grid of :func:`candidates_around`."""
     check = identification_set(plant)
     stuck = stuck_load_set(plant)
     pm, gm = PM_MIN + TUNER_PM_EXTRA_DEG, GM_MIN_DB + TUNER_GM_EXTRA_DB
@@ -407,7 +434,7 @@ def tune_on_model(
     chosen = design.gains
     cands = [design.gains]
     if mode == "high":
-        cands += candidates_around(design.gains, ff_factors=ff_factors)
+        cands += candidates_around(design.gains, variations=variations)
     ranked = rank_gains(
         plant,
         rate_hz,
