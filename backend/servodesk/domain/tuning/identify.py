@@ -105,10 +105,10 @@ def identify_rigid(
     the torque answers the same quantised position the acceleration is taken from, so the
     regressor's noise is correlated with the torque and a plain least squares is biased
     (R1-rigid +1.7 %, R30-rigid -1.5 % with the encoder's counts; anchors-tuning.md §2.2 on
-    closed-loop identification). The demand's acceleration and speed (through a Savitzky-Golay
-    filter ``instrument_window_s`` long: the profile generator's speed is a staircase between
-    its cycles) are correlated with the motion and not with that noise: they instrument the
-    inertia and viscous columns (instrumental variables, ``(Z^T X) c = Z^T y``).
+    closed-loop identification). The demand's acceleration (through a Savitzky-Golay filter
+    ``instrument_window_s`` long: the profile generator's speed is a staircase between its
+    cycles) is correlated with the motion and not with that noise: it instruments the inertia
+    column, the other columns their own (instrumental variables, ``(Z^T X) c = Z^T y``).
     """
     dt = _sample_period(t)
     tau = np.asarray(torque, dtype=np.float64)
@@ -160,7 +160,7 @@ def identify_rigid(
         z = np.asarray(instrument_rad, dtype=np.float64)
         if z.shape != tau.shape:
             raise ValueError("the instrument must be sampled with the torque")
-        zwin = max(polyorder + 2, round(instrument_window_s / dt)) | 1
+        zwin = max(polyorder + 2, round(instrument_window_s / dt)) | 1  # Odd, as savgol asks.
         zsg = {"window_length": zwin, "polyorder": polyorder, "mode": "interp"}
         # The speed, sign(w) and 1 are their own instruments: the speed's noise is the
         # acceleration's integrated, and an instrumented speed traded the Coulomb friction

@@ -223,9 +223,9 @@ class Variations:
 VARIATIONS = Variations()
 #: A rigid axis whose model is the axis to within its friction, tuned for the machine's own
 #: move (services/tuning_own.py: the inertia instrumented by the position demand, ranked on
-#: it +-0.5 %, the move torque given): longer integral times,
-#: higher position gains and feed-forwards up to the inertia (0.96-1.0 J), the structure of
-#: the oracle's rigid-axis gains. Offline on seed 1's identified models, the pick on the
+#: it +-0.5 %, the move torque given): longer integral times, higher position gains and
+#: feed-forwards up to the inertia (0.96-1.0 J), the structure of the oracle's rigid-axis
+#: gains. Offline on seed 1's identified models, the pick on the
 #: true plant: R3-rigid 1.40 -> 1.07 x the oracle, R10-rigid 1.58 -> 1.23, stress-friction5
 #: 1.31 -> 0.94, stress-gravity10 1.10 -> 0.84 (docs/tuning.md).
 RIGID_VARIATIONS = Variations(
