@@ -92,18 +92,24 @@ def _check_args(args: argparse.Namespace) -> None:
             field="travel",
             hint="e.g. --travel 0.5 (half a revolution around the present position)",
         )
-    if not 0 < args.travel <= 100:
+    # The service's own bounds, checked here so that a bad argument exits 2 before the bus
+    # is opened.
+    from servodesk.services.tuning import MAX_MOVE_TORQUE_PCT, MAX_TORQUE_PCT, MAX_TRAVEL_REV
+
+    if not 0 < args.travel <= MAX_TRAVEL_REV:
         raise ValidationError(
-            f"--travel {args.travel:g} is outside 0 .. 100 revolutions", field="travel"
+            f"--travel {args.travel:g} is outside 0 .. {MAX_TRAVEL_REV:g} revolutions",
+            field="travel",
         )
-    if not 0 < args.torque_limit <= 300:
+    if not 0 < args.torque_limit <= MAX_TORQUE_PCT:
         raise ValidationError(
-            f"--torque-limit {args.torque_limit:g} is outside 0 .. 300 %", field="torque_limit"
+            f"--torque-limit {args.torque_limit:g} is outside 0 .. {MAX_TORQUE_PCT:g} %",
+            field="torque_limit",
         )
     mt = args.move_torque
-    if mt is not None and not (0 < mt <= 1000 and math.isfinite(mt)):
+    if mt is not None and not (0 < mt <= MAX_MOVE_TORQUE_PCT and math.isfinite(mt)):
         raise ValidationError(
-            f"--move-torque {mt:g} is outside 0 .. 1000 % of the rated torque",
+            f"--move-torque {mt:g} is outside 0 .. {MAX_MOVE_TORQUE_PCT:g} % of the rated torque",
             field="move_torque",
             hint="the peak torque your machine's moves use, e.g. 300",
         )

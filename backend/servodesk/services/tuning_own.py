@@ -326,7 +326,12 @@ class OwnTuning:
             # the record fit's whole-axis inertia stands in when theirs comes out negative.
             early = (await self._anti_below_band(first, j_frf))[1]
             fallback = early.total_inertia if early is not None else None
-            est, cruise_rad_s = await self._identify(drive, j_frf, first, fallback)
+            # A rigid axis's moves are also recorded with the drive's position demand, which
+            # instruments their fit, and its ranking then trusts the model (below).
+            instrumented = await self._instrumented(first)
+            est, cruise_rad_s = await self._identify(
+                drive, j_frf, first, fallback, instrumented=instrumented
+            )
             # A compliant axis: the inertia of the frequency response's rigid-body band, with
             # the two-mass shape divided out, is the better estimate (the test moves' fit must
             # smooth over the shaft oscillation); a rigid axis: the moves' fit (friction and
@@ -415,7 +420,7 @@ class OwnTuning:
             nominal = moves(1.0)
             rerank: ModelMoves | WorstOf | None = nominal
             variations = VARIATIONS
-            rigid_model = nominal is not None and await self._instrumented(first)
+            rigid_model = nominal is not None and instrumented
             if rigid_model:
                 # Its variations reach feed-forwards near the inertia: a rigid axis then
                 # stops closer to the target when its profile ends (R10-rigid: 61 counts
@@ -869,16 +874,20 @@ class OwnTuning:
         j_frf: float,
         resonances: list[Resonance],
         fallback_inertia: float | None = None,
+        *,
+        instrumented: bool = False,
     ) -> tuple[InertiaEstimate, float]:
         """Inertia and friction from test moves, and the moves' cruise speed [rad/s].
         ``fallback_inertia``: the record fit's, taken when the moves' fit gives a negative
-        inertia (their friction is still used)."""
+        inertia (their friction is still used). ``instrumented``: record the following error
+        with the moves and instrument the fit with the position demand
+        (:meth:`_instrumented`)."""
         distance = min(0.2 * drive.counts_per_rev, 0.4 * drive.window_counts)
         inertia = j_frf
         est: InertiaEstimate | None = None
         f_ar = _lowest_anti(resonances)
         window_s = max(0.0005, 4.0 / f_ar) if f_ar is not None else 0.0005
-        demand = await self._instrumented(resonances)
+        demand = instrumented
         for _attempt in range(2):
             velocity, acc = self._move_profile(drive, inertia, resonances, distance)
             rec, _spans = await self._run_moves(
