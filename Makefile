@@ -75,6 +75,7 @@ bench: setup
 	$(PY) bench/bench_sdo.py --json
 	$(PY) bench/bench_sim.py --json
 	$(PY) bench/bench_pdo.py --json
+	$(PY) bench/bench_tuning_design.py --json
 	$(VENV)/bin/servodesk bench scope --json
 
 openapi: $(VENV)/.synced

@@ -230,3 +230,35 @@ def test_low_pass_far_below_crossover_is_flagged_not_trusted() -> None:
     assert m.left_crossings > 0
     assert m.stable is False
     assert not m.meets()
+
+
+def test_plant_response_cache_gives_the_solved_response_read_only(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A design search checks every candidate's margins on the same plants and grids: the
+    plant's response is kept, and must be exactly what solving it again gives, per plant (two
+    axes on the same grid are two entries: a shared one would check the margins of the wrong
+    axis) and per grid."""
+    from servodesk.domain.tuning import model as loop_model
+
+    monkeypatch.setattr(loop_model, "_responses", {})
+    light, heavy = PlantModel(1.5e-4), PlantModel(1.6e-4)  # Rigid: the same grid.
+    soft = PlantModel(3.7e-5, 1.1e-4, 400.0, 0.03)
+    axes = (light, heavy, soft)
+    gains = ServoGains(kp_pos=200.0, kp_vel=0.3, ti_vel=0.004, notch1_hz=400.0, notch1_width=0.5)
+    assert np.array_equal(LoopModel(light, RATE, gains).grid, LoopModel(heavy, RATE, gains).grid)
+    first = {p: LoopModel(p, RATE, gains).position_plant_response() for p in axes}
+    again = {p: LoopModel(p, RATE, gains).position_plant_response() for p in axes}
+    kept = {p: LoopModel(p, RATE, gains).velocity_margins() for p in axes}
+    other = LoopModel(soft, RATE, replace(gains, notch1_hz=300.0))
+    other_kept = other.position_plant_response()
+    monkeypatch.setattr(loop_model, "RESPONSE_CACHE_SIZE", 0)
+    solved = {p: LoopModel(p, RATE, gains).position_plant_response() for p in axes}
+    for p in axes:
+        assert again[p] is first[p]
+        np.testing.assert_array_equal(first[p], solved[p])
+        assert kept[p] == LoopModel(p, RATE, gains).velocity_margins()
+        with pytest.raises(ValueError):
+            first[p][0] = 0.0
+    assert not np.array_equal(first[light], first[heavy])
+    np.testing.assert_array_equal(other_kept, other.position_plant_response())

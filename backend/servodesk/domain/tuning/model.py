@@ -560,8 +560,34 @@ def discretise(plant: PlantModel, rate_hz: float, compute_delay: float) -> Discr
     return DiscretePlant(ad, b_now, b_prev, bw_d, c, m, True)
 
 
+#: Entries :func:`plant_position_response` keeps (0: none). A design search checks the margins
+#: of every candidate on the same few plants, on frequency grids that depend on the plant and
+#: the notches only (:attr:`LoopModel.grid`), and the solve below was about 60 % of a margin
+#: check (bench/bench_tuning_design.py).
+RESPONSE_CACHE_SIZE = 64
+_responses: dict[tuple[int, float, bytes], tuple[DiscretePlant, ComplexArray]] = {}
+
+
 def plant_position_response(dp: DiscretePlant, w: FloatArray, rate_hz: float) -> ComplexArray:
-    """Encoder angle / torque command (after the filters) at ``z = e^(j w T)``."""
+    """Encoder angle / torque command (after the filters) at ``z = e^(j w T)``.
+
+    Recent results are kept (:data:`RESPONSE_CACHE_SIZE`) and returned read-only."""
+    w = np.asarray(w, dtype=np.float64)
+    key = (id(dp), rate_hz, w.tobytes())
+    hit = _responses.get(key)
+    # The entry holds the plant itself, so its id cannot have been reused by another.
+    if hit is not None and hit[0] is dp:
+        return hit[1]
+    out = _solve_response(dp, w, rate_hz)
+    if RESPONSE_CACHE_SIZE > 0:
+        if len(_responses) >= RESPONSE_CACHE_SIZE:
+            _responses.clear()
+        out.setflags(write=False)
+        _responses[key] = (dp, out)
+    return out
+
+
+def _solve_response(dp: DiscretePlant, w: FloatArray, rate_hz: float) -> ComplexArray:
     z = np.exp(1j * w / rate_hz)
     n = dp.ad.shape[0]
     mat = z[:, None, None] * np.eye(n)[None] - dp.ad[None]
