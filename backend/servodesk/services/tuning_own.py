@@ -887,7 +887,6 @@ class OwnTuning:
         est: InertiaEstimate | None = None
         f_ar = _lowest_anti(resonances)
         window_s = max(0.0005, 4.0 / f_ar) if f_ar is not None else 0.0005
-        demand = instrumented
         for _attempt in range(2):
             velocity, acc = self._move_profile(drive, inertia, resonances, distance)
             rec, _spans = await self._run_moves(
@@ -896,7 +895,7 @@ class OwnTuning:
                 velocity,
                 acc,
                 0.01,
-                extra=[FOLLOWING_ERROR] if demand else None,
+                extra=[FOLLOWING_ERROR] if instrumented else None,
             )
             rad = 2.0 * math.pi / drive.counts_per_rev
             # The recorded torque command is the one reaching the current loop on that tick
@@ -913,7 +912,9 @@ class OwnTuning:
                     position_rad=rec[POSITION] * rad,
                     window_s=window_s,
                     # 60F4h: the demand minus the position (CiA 402-2 §6.9.2).
-                    instrument_rad=(rec[POSITION] + rec[FOLLOWING_ERROR]) * rad if demand else None,
+                    instrument_rad=(
+                        (rec[POSITION] + rec[FOLLOWING_ERROR]) * rad if instrumented else None
+                    ),
                 )
             except ValueError as exc:
                 raise TuningFailed(f"the test moves give no inertia: {exc}") from exc

@@ -235,17 +235,22 @@ RIGID_VARIATIONS = Variations(
     ff=(0.95, 1.0, *(f / FF_FACTOR for f in (0.96, 0.98, 0.99, 1.0))),
 )
 
+#: The oracle's wider grid (benchmarks/tuning.py), around its design on the exact plant.
+WIDE_VARIATIONS = Variations(
+    kv=(1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4),
+    ti=(0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 3.0, 5.0),
+    kp=(0.4, 0.6, 0.8, 1.0, 1.3, 1.7, 2.2),
+    ff=(0.9, 0.95, 1.0, 1.03),
+)
+
 
 def candidates_around(
     g: ServoGains, wide: bool = False, variations: Variations = VARIATIONS
 ) -> list[ServoGains]:
     """Variations of a design: velocity gain, integral time, position gain, inertia FF
-    (``variations``; ``wide``: the oracle's wider grid)."""
-    v = variations
-    kv = v.kv if not wide else (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4)
-    ti = v.ti if not wide else (0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 3.0, 5.0)
-    kp = v.kp if not wide else (0.4, 0.6, 0.8, 1.0, 1.3, 1.7, 2.2)
-    ff = v.ff if not wide else (0.9, 0.95, 1.0, 1.03)
+    (``variations``; ``wide``: the oracle's :data:`WIDE_VARIATIONS` instead, without the other
+    notch depth)."""
+    v = WIDE_VARIATIONS if wide else variations
     bases = [g]
     if not wide and g.notch1_hz > 0.0:
         # The notch's depth too: a full notch leaves the resonance to its own damping, one of
@@ -254,7 +259,7 @@ def candidates_around(
         bases.append(replace(g, notch1_depth=other, notch2_depth=other if g.notch2_hz else 0.0))
     out = []
     for base in bases:
-        for a, b, c, d in itertools.product(kv, ti, kp, ff):
+        for a, b, c, d in itertools.product(v.kv, v.ti, v.kp, v.ff):
             out.append(
                 replace(
                     base,
