@@ -12,12 +12,15 @@ from scipy import signal
 from servodesk.domain.tuning.identify import (
     Frf,
     Resonance,
+    demand_spans,
     find_resonances,
     frequency_response,
     identify_rigid,
     inertia_from_frf,
+    inertia_from_moves,
     plant_from_identification,
     resonance_from_record,
+    travel_load_torque,
     with_hidden_anti_resonance,
 )
 
@@ -321,3 +324,127 @@ def test_the_record_fit_sees_a_light_low_mode_through_the_loops_own_noise() -> N
         assert fit.anti_freq_hz == pytest.approx(fr / math.sqrt(31.0), rel=0.03)
         # The whole axis, where the response's few rigid-body bins are too close to 0 Hz.
         assert fit.total_inertia == pytest.approx(jm + jl, rel=0.06)
+
+
+def _travel_run(j: float, tc: float, g: float, seed: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """A travel under a speed PI loop with a +-0.3 N m random binary torque added (the
+    frequency response's test signal), torque noise and a speed set-point that ramps from 10
+    to 30 rad/s: J dw/dt = tau - Tc sign(w) - g. Returns the torque command, the speed and the
+    inertial share J dw / T the ramp leaves in the mean torque."""
+    rng = np.random.default_rng(seed)
+    n = round(RATE)
+    h = 1.0 / RATE
+    kv, ki = 0.05, 0.05 * 2.0 * math.pi * 20.0 * h
+    test = 0.3 * rng.choice([-1.0, 1.0], n)
+    w = 10.0
+    integ = tc + g
+    tau = np.empty(n)
+    vel = np.empty(n)
+    for k in range(n):
+        e = 10.0 + 20.0 * k / n - w
+        integ += ki * e
+        u = kv * e + integ + test[k]
+        tau[k] = u
+        vel[k] = w
+        w += h * (u + rng.normal(0.0, 0.02) - tc * math.copysign(1.0, w) - g) / j
+    return tau, vel, j * (vel[-80:].mean() - vel[:80].mean()) / (n * h)
+
+
+def test_travel_load_torque_is_friction_and_gravity_under_a_test_signal() -> None:
+    tau, vel, inertial = _travel_run(j=4.0e-4, tc=0.09, g=0.05, seed=3)
+    load = travel_load_torque(RATE, tau, vel, 4.0e-4)
+    assert load == pytest.approx(0.09 + 0.05, rel=0.005)
+    # The speed ramp's inertial share is what the subtraction removes: without it the mean
+    # torque is several percent off.
+    assert abs(inertial) > 0.03 * 0.14
+    assert abs(travel_load_torque(RATE, tau, vel, 0.0) / 0.14 - 1.0) > 0.03
+    # The same travel mirrored (torque and speed negated): the load torque is too.
+    back = travel_load_torque(RATE, -tau, -vel, 4.0e-4)
+    assert back == pytest.approx(-(0.09 + 0.05), rel=0.005)
+
+
+def test_travel_load_torque_refuses_what_it_cannot_use() -> None:
+    with pytest.raises(ValueError, match="sampled together"):
+        travel_load_torque(RATE, np.zeros(1000), np.zeros(999), 1e-4)
+    with pytest.raises(ValueError, match="at least"):
+        travel_load_torque(RATE, np.zeros(100), np.zeros(100), 1e-4)
+
+
+def _two_mass_moves(
+    jm: float, jl: float, f_r: float, tc: float, move_s: float, rest_s: float, seed: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Moves of 0.2 rev there and back, twice, on a motor and a load coupled by a shaft
+    resonating at ``f_r``, under a collocated PD loop at 30 Hz with the demand's acceleration
+    as feed-forward; Coulomb friction ``tc`` at the load (smoothed over 0.01 rad/s), torque
+    noise. Semi-implicit Euler at 8 substeps of the 16 kHz loop. Returns the recorded torque,
+    the motor angle and the demand."""
+    rng = np.random.default_rng(seed)
+    j = jm + jl
+    k = jm * jl / j * (TWO_PI * f_r) ** 2
+    c = 2.0 * 0.02 * math.sqrt(k * jm * jl / j)
+    wc = TWO_PI * 30.0
+    kp, kd = j * wc**2, 1.4 * j * wc
+    # A smooth (cosine) acceleration profile of move_s per move.
+    dist = 0.2 * TWO_PI
+    n_move, n_rest = round(move_s * RATE), round(rest_s * RATE)
+    s = np.arange(n_move) / n_move
+    acc = dist * TWO_PI / move_s**2 * np.sin(TWO_PI * s)
+    demand_a = np.concatenate(
+        [np.zeros(n_rest), acc, np.zeros(n_rest), -acc] * 2 + [np.zeros(n_rest)]
+    )
+    demand_v = np.cumsum(demand_a) / RATE
+    demand = np.cumsum(demand_v) / RATE
+    sub = 8
+    h = 1.0 / (RATE * sub)
+    xm = wm = xl = wl = 0.0
+    n = len(demand)
+    tau = np.empty(n)
+    pos = np.empty(n)
+    for i in range(n):
+        pos[i] = xm
+        u = kp * (demand[i] - xm) + kd * (demand_v[i] - wm) + j * demand_a[i]
+        tau[i] = u
+        u += rng.normal(0.0, 0.005)
+        for _ in range(sub):
+            shaft = k * (xm - xl) + c * (wm - wl)
+            wm += h * (u - shaft) / jm
+            wl += h * (shaft - tc * math.tanh(wl / 0.01)) / jl
+            xm += h * wm
+            xl += h * wl
+    return tau, pos, demand
+
+
+def test_inertia_from_moves_sees_the_whole_compliant_axis() -> None:
+    jm, jl = 3.7e-5, 10 * 3.7e-5
+    tau, pos, demand = _two_mass_moves(jm, jl, 400.0, 0.09, 0.04, 0.1, seed=5)
+    spans = demand_spans(demand)
+    assert len(spans) == 4
+    there = [(a, b) for a, b in spans if demand[b] > demand[a]]
+    back = [(a, b) for a, b in spans if demand[b] < demand[a]]
+    for moves, load in ((there, 0.09), (back, -0.09)):
+        est = inertia_from_moves(RATE, tau, pos, moves, load)
+        assert est.inertia == pytest.approx(jm + jl, rel=0.01)
+        assert est.spread < 0.01
+        assert est.inertial_share > 0.6
+    # The friction is part of the double integral: taken as none, the inertia is far off.
+    assert inertia_from_moves(RATE, tau, pos, there, 0.0).inertia > 1.1 * (jm + jl)
+
+
+def test_gentle_moves_against_friction_say_their_inertia_is_uncertain() -> None:
+    # Four times slower: a sixteenth of the inertial torque against the same friction.
+    jm, jl = 3.7e-5, 10 * 3.7e-5
+    tau, pos, demand = _two_mass_moves(jm, jl, 400.0, 0.09, 0.16, 0.1, seed=5)
+    there = [(a, b) for a, b in demand_spans(demand) if demand[b] > demand[a]]
+    assert inertia_from_moves(RATE, tau, pos, there, 0.09).inertial_share < 0.6
+
+
+def test_inertia_from_moves_refuses_what_it_cannot_use() -> None:
+    with pytest.raises(ValueError, match="sampled together"):
+        inertia_from_moves(RATE, np.zeros(100), np.zeros(99), [(10, 50)], 0.1)
+    with pytest.raises(ValueError, match="not inside"):
+        inertia_from_moves(RATE, np.zeros(100), np.zeros(100), [(10, 200)], 0.1)
+    with pytest.raises(ValueError, match="does not move"):
+        inertia_from_moves(RATE, np.ones(100), np.zeros(100), [(10, 50)], 0.1)
+    with pytest.raises(ValueError, match="no moves"):
+        inertia_from_moves(RATE, np.ones(100), np.zeros(100), [], 0.1)
+    assert demand_spans(np.zeros(50)) == []

@@ -181,6 +181,128 @@ def identify_rigid(
     )
 
 
+def travel_load_torque(
+    t: npt.ArrayLike | float,
+    torque: npt.ArrayLike,
+    velocity: npt.ArrayLike,
+    inertia: float,
+    *,
+    end_s: float = 0.005,
+) -> float:
+    """The mean load torque of a travel at constant speed [N m]: friction and gravity.
+
+    Over any stretch of record ``J (w_end - w_start) = integral (tau - load) dt``, so the load
+    torque is the mean torque less the inertial share ``J dw / T``. No derivative is taken, a
+    zero-mean test signal added to the torque (the frequency response's PRBS) and the torque
+    noise average out, and what the test signal leaves in the speed is in ``dw``. ``w_start``
+    and ``w_end`` are the mean speeds [rad/s] over the first and last ``end_s`` seconds (the
+    speed ripples with the test signal). Positive when the load pulls against a positive
+    speed: ``Tc sign(w) + b w + g`` of :class:`InertiaEstimate`."""
+    dt = _sample_period(t)
+    tau = np.asarray(torque, dtype=np.float64)
+    w = np.asarray(velocity, dtype=np.float64)
+    if tau.shape != w.shape:
+        raise ValueError("torque and velocity must be sampled together")
+    m = max(1, round(end_s / dt))
+    if len(tau) < 4 * m:
+        raise ValueError(f"need at least {4 * m} samples, got {len(tau)}")
+    dw = float(np.mean(w[-m:]) - np.mean(w[:m]))
+    # The two end means sit half a window inside the record: the span between them.
+    span = (len(tau) - m) * dt
+    return float(np.mean(tau[m // 2 : len(tau) - (m - m // 2)])) - inertia * dw / span
+
+
+@dataclass(frozen=True, slots=True)
+class MovesInertia:
+    """The inertia of each move (:func:`inertia_from_moves`) and how far to trust them.
+
+    ``inertial_share``: the smallest share, over the moves, of the torque's double integral
+    that is inertial rather than friction (near 1: the moves accelerate hard against little
+    friction; near 0: the inertia is the small difference of two large numbers)."""
+
+    per_move: tuple[float, ...]
+    inertial_share: float
+
+    @property
+    def inertia(self) -> float:
+        return float(np.mean(self.per_move))
+
+    @property
+    def spread(self) -> float:
+        """The moves' standard deviation relative to their mean."""
+        return float(np.std(self.per_move) / abs(np.mean(self.per_move)))
+
+
+def demand_spans(demand: npt.ArrayLike, *, min_gap: int = 32) -> list[tuple[int, int]]:
+    """The sample ranges ``[a, b]`` over which a recorded position demand moves: from the
+    sample before its first change to the sample of its last (runs closer than ``min_gap``
+    samples are one move: a profile generator may hold its demand for a cycle). A change
+    below a billionth of the demand's range is rounding, not motion."""
+    z = np.asarray(demand, dtype=np.float64)
+    if len(z) < 2:
+        return []
+    tol = 1e-9 * float(np.max(z) - np.min(z))
+    idx = np.nonzero(np.abs(np.diff(z)) > tol)[0]
+    if len(idx) == 0:
+        return []
+    breaks = np.nonzero(np.diff(idx) > min_gap)[0]
+    starts = [int(idx[0]), *(int(idx[i + 1]) for i in breaks)]
+    ends = [*(int(idx[i]) + 1 for i in breaks), int(idx[-1]) + 1]
+    return list(zip(starts, ends, strict=True))
+
+
+def inertia_from_moves(
+    t: npt.ArrayLike | float,
+    torque: npt.ArrayLike,
+    position_rad: npt.ArrayLike,
+    spans: Sequence[tuple[int, int]],
+    load_torque: float,
+    *,
+    speed_window_s: float = 0.003,
+) -> MovesInertia:
+    """The inertia of a whole axis, motor and load, from each move's double integral.
+
+    Over ``[a, b]`` the momentum of motor and load grows by the integral of the torque less the
+    load torque; integrated once more, ``J (x(b) - x(a) - w(a) (b - a)) = integral_a^b
+    integral_a^t (tau - F) ds dt`` for the motor angle ``x``, as long as the shaft's twist is
+    the same at both ends and the load moves with the motor when the move starts. Nothing is
+    differentiated: the shaft's oscillation during the move, which a fit of ``tau = J alpha``
+    must smooth over (identify_rigid's window), does not enter, and the torque noise is
+    integrated. ``w(a)``: the slope of the angle over the ``speed_window_s`` before ``a``
+    (an axis that has not come to rest, or creeps back, starts with that momentum).
+
+    ``spans``: sample ranges of moves in one direction (:func:`demand_spans`); ``load_torque``
+    [N m]: the friction and gravity against that direction, e.g. a travel's
+    (:func:`travel_load_torque`), signed like it."""
+    dt = _sample_period(t)
+    tau = np.asarray(torque, dtype=np.float64)
+    x = np.asarray(position_rad, dtype=np.float64)
+    if tau.shape != x.shape:
+        raise ValueError("torque and position must be sampled together")
+    m = max(2, round(speed_window_s / dt))
+    per_move: list[float] = []
+    shares: list[float] = []
+    for a, b in spans:
+        if not 0 <= a < b < len(tau) or b - a < 4:
+            raise ValueError(f"move span {a}..{b} is not inside the record of {len(tau)}")
+        span = (b - a) * dt
+        # Torque sample k holds over [t_k, t_k + dt]: its double integral to b weighs it by
+        # the time left after its midpoint.
+        weight = (span - (np.arange(b - a) + 0.5) * dt) * dt
+        whole = float(np.dot(tau[a:b], weight))
+        inertial = whole - load_torque * float(np.sum(weight))
+        lo = max(0, a - m)
+        w0 = float(np.polyfit((np.arange(lo, a) - a) * dt, x[lo:a], 1)[0]) if a - lo >= 2 else 0.0
+        travel = x[b] - x[a] - w0 * span
+        if travel == 0.0 or whole == 0.0:
+            raise ValueError(f"move span {a}..{b} does not move")
+        per_move.append(inertial / travel)
+        shares.append(inertial / whole)
+    if not per_move:
+        raise ValueError("no moves to integrate")
+    return MovesInertia(tuple(per_move), min(shares))
+
+
 # ----------------------------------------------------------------------------------------------
 # Frequency response
 
