@@ -160,11 +160,19 @@ def oracle_search(
     pos_ratios: Sequence[float] = (1.5, 2.0, 3.0, 4.0, 6.0),
     ff_factors: Sequence[float] = (0.7, 0.85, 1.0),
     max_simulations: int = 80,
+    check_plants: Sequence[PlantModel] = (),
+    stuck_plants: Sequence[PlantModel] = (),
+    collect: list[tuple[ServoGains, MoveMetrics]] | None = None,
 ) -> OracleResult:
-    """Best gains for ``plant`` with full knowledge of it (see the module docstring)."""
+    """Best gains for ``plant`` with full knowledge of it (see the module docstring).
+
+    The tuner runs the same search on the plant it identified: ``check_plants`` then replace
+    ``plant`` as the set every candidate's margins must hold on (search.identification_set),
+    ``stuck_plants`` the set it must be stable on (search.stuck_load_set), and ``collect``
+    receives every candidate the callback ran, with its metrics."""
     t0 = time.perf_counter()
     targets = Targets(pm_min, gm_min_db, ms_max_db)
-    ev = Evaluator([plant], rate_hz, compute_delay)
+    ev = Evaluator(list(check_plants) or [plant], rate_hz, compute_delay, stuck_plants=stuck_plants)
     j = plant.total_inertia
 
     # Stage 1: filter configurations, then alpha for the best of them.
@@ -257,6 +265,8 @@ def oracle_search(
                     ms_max_db,
                     compute_delay=compute_delay,
                     tolerance=tol,
+                    robust_plants=list(check_plants) or None,
+                    stuck_plants=stuck_plants,
                 ).gains
             )
 
@@ -291,6 +301,8 @@ def oracle_search(
                 return bad
             m = simulate(g)
             n_sim += 1
+            if collect is not None:
+                collect.append((g, m))
             k = tuple(x if math.isfinite(x) else math.inf for x in m.key())
             kk = (k[0], k[1], k[2])
             seen[key] = kk
@@ -301,6 +313,8 @@ def oracle_search(
         for g in seeds[:max_simulations]:
             m = simulate(g)
             n_sim += 1
+            if collect is not None:
+                collect.append((g, m))
             if best_m is None or _key(m) < _key(best_m):
                 best_g, best_m = g, m
         # Structures: one run each at the highest gain.
