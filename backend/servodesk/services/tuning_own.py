@@ -945,7 +945,8 @@ class OwnTuning:
         ``fallback_inertia``: the record fit's, taken when the moves' fit gives a negative
         inertia (their friction is still used). ``instrumented``: record the following error
         with the moves and instrument the fit with the position demand
-        (:meth:`_instrumented`)."""
+        (:meth:`_instrumented`). A compliant axis's moves record it too, kept for their double
+        integral (:meth:`_moves_inertia`), and rest :data:`COMPLIANT_MOVES_REST_S` apart."""
         distance = min(0.2 * drive.counts_per_rev, 0.4 * drive.window_counts)
         inertia = j_frf
         est: InertiaEstimate | None = None
@@ -953,7 +954,7 @@ class OwnTuning:
         window_s = max(0.0005, 4.0 / f_ar) if f_ar is not None else 0.0005
         # A compliant axis's moves record the demand too, for their double integral
         # (_moves_inertia), and rest until the load has stopped swinging.
-        demand = instrumented or (bool(resonances) and await self._has(FOLLOWING_ERROR))
+        with_demand = instrumented or (bool(resonances) and await self._has(FOLLOWING_ERROR))
         rest_s = COMPLIANT_MOVES_REST_S if resonances else 0.01
         for _attempt in range(2):
             velocity, acc = self._move_profile(drive, inertia, resonances, distance)
@@ -963,7 +964,7 @@ class OwnTuning:
                 velocity,
                 acc,
                 rest_s,
-                extra=[FOLLOWING_ERROR] if demand else None,
+                extra=[FOLLOWING_ERROR] if with_demand else None,
             )
             rad = 2.0 * math.pi / drive.counts_per_rev
             # The recorded torque command is the one reaching the current loop on that tick
@@ -973,7 +974,7 @@ class OwnTuning:
             if drive.current_loop_hz:
                 alpha = 1.0 - math.exp(-2.0 * math.pi * drive.current_loop_hz / rec.rate_hz)
                 torque = lfilter([alpha], [1.0, alpha - 1.0], torque)
-            if demand and resonances:
+            if with_demand and resonances:
                 # 60F4h: the demand minus the position (CiA 402-2 §6.9.2).
                 self._moves_record = (
                     rec.rate_hz,

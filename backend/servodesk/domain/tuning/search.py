@@ -253,7 +253,7 @@ WIDE_VARIATIONS = Variations(
 #: own 0.7 left out. So low a feed-forward overshoots by some 3 % of the move and leaves the
 #: last counts to the integral against friction, a knife edge at +-10 counts: on R30-400Hz the
 #: model, its inertia 0.2 % off, settled such gains in 81 ms, the axis never (seed 3); with
-#: 0.85 and 1.0 J the pick settled in 116 ms on both (docs/tuning.md).
+#: 0.85 and 1.0 J the pick settled in 116 ms in the model and on the axis (docs/tuning.md).
 STRUCTURE_FF_FACTORS = (0.85, 1.0)
 
 
