@@ -181,6 +181,17 @@ def identify_rigid(
     )
 
 
+def _torque_and(
+    t: npt.ArrayLike | float, torque: npt.ArrayLike, other: npt.ArrayLike, name: str
+) -> tuple[float, FloatArray, FloatArray]:
+    """The sample period, the torque and a signal recorded with it, as float arrays."""
+    tau = np.asarray(torque, dtype=np.float64)
+    x = np.asarray(other, dtype=np.float64)
+    if tau.shape != x.shape:
+        raise ValueError(f"torque and {name} must be sampled together")
+    return _sample_period(t), tau, x
+
+
 def travel_load_torque(
     t: npt.ArrayLike | float,
     torque: npt.ArrayLike,
@@ -198,11 +209,7 @@ def travel_load_torque(
     and ``w_end`` are the mean speeds [rad/s] over the first and last ``end_s`` seconds (the
     speed ripples with the test signal). Positive when the load pulls against a positive
     speed: ``Tc sign(w) + b w + g`` of :class:`InertiaEstimate`."""
-    dt = _sample_period(t)
-    tau = np.asarray(torque, dtype=np.float64)
-    w = np.asarray(velocity, dtype=np.float64)
-    if tau.shape != w.shape:
-        raise ValueError("torque and velocity must be sampled together")
+    dt, tau, w = _torque_and(t, torque, velocity, "velocity")
     m = max(1, round(end_s / dt))
     if len(tau) < 4 * m:
         raise ValueError(f"need at least {4 * m} samples, got {len(tau)}")
@@ -274,11 +281,7 @@ def inertia_from_moves(
     ``spans``: sample ranges of moves in one direction (:func:`demand_spans`); ``load_torque``
     [N m]: the friction and gravity against that direction, e.g. a travel's
     (:func:`travel_load_torque`), signed like it."""
-    dt = _sample_period(t)
-    tau = np.asarray(torque, dtype=np.float64)
-    x = np.asarray(position_rad, dtype=np.float64)
-    if tau.shape != x.shape:
-        raise ValueError("torque and position must be sampled together")
+    dt, tau, x = _torque_and(t, torque, position_rad, "position")
     m = max(2, round(speed_window_s / dt))
     per_move: list[float] = []
     shares: list[float] = []
