@@ -371,13 +371,20 @@ def test_travel_load_torque_refuses_what_it_cannot_use() -> None:
 
 
 def _two_mass_moves(
-    jm: float, jl: float, f_r: float, tc: float, move_s: float, rest_s: float, seed: int
+    jm: float,
+    jl: float,
+    f_r: float,
+    tc: float,
+    move_s: float,
+    rest_s: float,
+    seed: int,
+    viscous: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Moves of 0.2 rev there and back, twice, on a motor and a load coupled by a shaft
     resonating at ``f_r``, under a collocated PD loop at 30 Hz with the demand's acceleration
-    as feed-forward; Coulomb friction ``tc`` at the load (smoothed over 0.01 rad/s), torque
-    noise. Semi-implicit Euler at 8 substeps of the 16 kHz loop. Returns the recorded torque,
-    the motor angle and the demand."""
+    as feed-forward; Coulomb friction ``tc`` at the load (smoothed over 0.01 rad/s) and
+    ``viscous`` friction there, torque noise. Semi-implicit Euler at 8 substeps of the 16 kHz
+    loop. Returns the recorded torque, the motor angle and the demand."""
     rng = np.random.default_rng(seed)
     j = jm + jl
     k = jm * jl / j * (TWO_PI * f_r) ** 2
@@ -408,7 +415,7 @@ def _two_mass_moves(
         for _ in range(sub):
             shaft = k * (xm - xl) + c * (wm - wl)
             wm += h * (u - shaft) / jm
-            wl += h * (shaft - tc * math.tanh(wl / 0.01)) / jl
+            wl += h * (shaft - tc * math.tanh(wl / 0.01) - viscous * wl) / jl
             xm += h * wm
             xl += h * wl
     return tau, pos, demand
@@ -428,6 +435,24 @@ def test_inertia_from_moves_sees_the_whole_compliant_axis() -> None:
         assert est.inertial_share > 0.6
     # The friction is part of the double integral: taken as none, the inertia is far off.
     assert inertia_from_moves(RATE, tau, pos, there, 0.0).inertia > 1.1 * (jm + jl)
+
+
+def test_viscous_friction_is_fitted_with_the_inertia() -> None:
+    # 0.002 N m s/rad at the load: 0.05 N m more at the moves' top speed than at rest, which
+    # the plain double integral books as inertia.
+    jm, jl = 3.7e-5, 10 * 3.7e-5
+    tau, pos, demand = _two_mass_moves(jm, jl, 400.0, 0.09, 0.04, 0.1, seed=5, viscous=0.002)
+    there = [(a, b) for a, b in demand_spans(demand) if demand[b] > demand[a]]
+    # The load torque as a travel at 2.5 rad/s measures it.
+    est = inertia_from_moves(RATE, tau, pos, there, 0.09 + 0.002 * 2.5, load_speed=2.5)
+    assert est.inertia > 1.05 * (jm + jl)
+    assert est.with_viscous == pytest.approx(jm + jl, rel=0.02)
+    assert est.viscous == pytest.approx(0.002, rel=0.2)
+    # Without it the two agree, and the fit finds little viscous friction.
+    tau, pos, demand = _two_mass_moves(jm, jl, 400.0, 0.09, 0.04, 0.1, seed=5)
+    est = inertia_from_moves(RATE, tau, pos, there, 0.09, load_speed=2.5)
+    assert est.with_viscous == pytest.approx(est.inertia, rel=0.03)
+    assert abs(est.viscous) < 0.0005
 
 
 def test_gentle_moves_against_friction_say_their_inertia_is_uncertain() -> None:

@@ -225,10 +225,16 @@ class MovesInertia:
 
     ``inertial_share``: the smallest share, over the moves, of the torque's double integral
     that is inertial rather than friction (near 1: the moves accelerate hard against little
-    friction; near 0: the inertia is the small difference of two large numbers)."""
+    friction; near 0: the inertia is the small difference of two large numbers).
+    ``with_viscous``: the inertia fitted together with a viscous friction ``viscous`` [N m s/rad]
+    on top of the load torque, over every end point from :data:`VISCOUS_FIT_FROM` of each move
+    on (the friction then changes with the speed along the move; the moves' ends alone cannot
+    tell it from inertia, as every move has the same profile)."""
 
     per_move: tuple[float, ...]
     inertial_share: float
+    with_viscous: float
+    viscous: float
 
     @property
     def inertia(self) -> float:
@@ -238,6 +244,11 @@ class MovesInertia:
     def spread(self) -> float:
         """The moves' standard deviation relative to their mean."""
         return float(np.std(self.per_move) / abs(np.mean(self.per_move)))
+
+
+#: The joint fit of inertia and viscous friction (:class:`MovesInertia`) takes each move's end
+#: points from this share of it on: near the start the angle has hardly moved.
+VISCOUS_FIT_FROM = 0.3
 
 
 def demand_spans(demand: npt.ArrayLike, *, min_gap: int = 32) -> list[tuple[int, int]]:
@@ -265,6 +276,7 @@ def inertia_from_moves(
     spans: Sequence[tuple[int, int]],
     load_torque: float,
     *,
+    load_speed: float = 0.0,
     speed_window_s: float = 0.003,
 ) -> MovesInertia:
     """The inertia of a whole axis, motor and load, from each move's double integral.
@@ -279,12 +291,17 @@ def inertia_from_moves(
     (an axis that has not come to rest, or creeps back, starts with that momentum).
 
     ``spans``: sample ranges of moves in one direction (:func:`demand_spans`); ``load_torque``
-    [N m]: the friction and gravity against that direction, e.g. a travel's
-    (:func:`travel_load_torque`), signed like it."""
+    [N m]: the friction and gravity against that direction at the speed ``load_speed``
+    [rad/s], e.g. a travel's (:func:`travel_load_torque`), signed like it. A viscous friction
+    ``b`` makes the load torque ``load_torque + b (w - load_speed)`` along a move, and the
+    per-move values come out high by its share; ``with_viscous`` fits it (the double integral
+    of ``w - load_speed`` is the single integral of the angle travelled, again no derivative)."""
     dt, tau, x = _torque_and(t, torque, position_rad, "position")
     m = max(2, round(speed_window_s / dt))
     per_move: list[float] = []
     shares: list[float] = []
+    rows_y: list[FloatArray] = []
+    rows_x: list[FloatArray] = []
     for a, b in spans:
         if not 0 <= a < b < len(tau) or b - a < 4:
             raise ValueError(f"move span {a}..{b} is not inside the record of {len(tau)}")
@@ -301,9 +318,25 @@ def inertia_from_moves(
             raise ValueError(f"move span {a}..{b} does not move")
         per_move.append(inertial / travel)
         shares.append(inertial / whole)
+        # The same to every end point t of the move: sum_k f_k (t - t_k - dt/2) dt by running
+        # sums, against the angle travelled and the integral of the angle beyond load_speed.
+        n = b - a
+        tk = np.arange(n) * dt
+        ends = tk + dt
+        f = tau[a:b] - load_torque
+        y = ends * np.cumsum(f) * dt - np.cumsum(f * (tk + 0.5 * dt)) * dt
+        angle = x[a + 1 : b + 1] - x[a] - w0 * ends
+        beyond = np.cumsum(x[a:b] - x[a] - load_speed * tk) * dt
+        keep = np.arange(n) >= VISCOUS_FIT_FROM * n
+        rows_y.append(y[keep])
+        rows_x.append(np.column_stack([angle[keep], beyond[keep]]))
     if not per_move:
         raise ValueError("no moves to integrate")
-    return MovesInertia(tuple(per_move), min(shares))
+    a_mat = np.vstack(rows_x)
+    scale = np.maximum(np.max(np.abs(a_mat), axis=0), 1e-300)
+    coef, *_ = np.linalg.lstsq(a_mat / scale, np.concatenate(rows_y), rcond=None)
+    j_b, visc = (float(c) for c in coef / scale)
+    return MovesInertia(tuple(per_move), min(shares), j_b, visc)
 
 
 # ----------------------------------------------------------------------------------------------
