@@ -986,24 +986,19 @@ class OwnTuning:
             if drive.current_loop_hz:
                 alpha = 1.0 - math.exp(-2.0 * math.pi * drive.current_loop_hz / rec.rate_hz)
                 torque = lfilter([alpha], [1.0, alpha - 1.0], torque)
-            if with_demand and resonances:
-                # 60F4h: the demand minus the position (CiA 402-2 §6.9.2).
-                self._moves_record = (
-                    rec.rate_hz,
-                    torque,
-                    rec[POSITION] * rad,
-                    (rec[POSITION] + rec[FOLLOWING_ERROR]) * rad,
-                )
+            position = rec[POSITION] * rad
+            # 60F4h: the demand minus the position (CiA 402-2 §6.9.2); summed in counts, as
+            # radians their sum would change by rounding at rest (demand_spans).
+            demand = (rec[POSITION] + rec[FOLLOWING_ERROR]) * rad if with_demand else None
+            if demand is not None and resonances:
+                self._moves_record = (rec.rate_hz, torque, position, demand)
             try:
                 est = identify_rigid(
                     rec.rate_hz,
                     torque,
-                    position_rad=rec[POSITION] * rad,
+                    position_rad=position,
                     window_s=window_s,
-                    # 60F4h: the demand minus the position (CiA 402-2 §6.9.2).
-                    instrument_rad=(
-                        (rec[POSITION] + rec[FOLLOWING_ERROR]) * rad if instrumented else None
-                    ),
+                    instrument_rad=demand if instrumented else None,
                 )
             except ValueError as exc:
                 raise TuningFailed(f"the test moves give no inertia: {exc}") from exc
@@ -1043,10 +1038,7 @@ class OwnTuning:
         if window_s > FRICTION_WINDOW_S:
             with contextlib.suppress(ValueError):
                 fr = identify_rigid(
-                    rec.rate_hz,
-                    torque,
-                    position_rad=rec[POSITION] * rad,
-                    window_s=FRICTION_WINDOW_S,
+                    rec.rate_hz, torque, position_rad=position, window_s=FRICTION_WINDOW_S
                 )
                 log.debug("friction with a %g s window: %s", FRICTION_WINDOW_S, fr)
                 est = replace(est, viscous=fr.viscous, coulomb=fr.coulomb, gravity=fr.gravity)
