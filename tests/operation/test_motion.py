@@ -194,3 +194,35 @@ def test_cyclic_runs_where_the_family_has_it_and_is_refused_elsewhere(channel, t
             assert wait_until(lambda: abs(hiwin.velocity) > 50_000, 1.0)
             assert wait_motion(client, HIWIN)["state"] == "done"
             beats.stop()
+
+
+def test_a_backend_stall_stretches_the_cyclic_waveform_instead_of_skipping_it(
+    channel, tmp_path, caplog
+) -> None:  # type: ignore[no-untyped-def]
+    # A loaded laptop can stall the backend for longer than the waveform lasts. Read off the
+    # clock, the generator skipped what the stall covered and stepped the set-point to where
+    # the clock said it should be (here: the whole negative half, straight back to the start).
+    with operation_app(channel, tmp_path, "hiwin-e") as (client, sim):
+        hiwin = sim.drives[0]
+        take_and_enable(client, "hiwin-e-1", "A")
+        with client.websocket_connect("/api/v1/ws?client=A") as ws:
+            beats = Heartbeats(ws, "hiwin-e-1")
+            start = hiwin.position
+            seen: list[int] = []
+            hiwin.on_cycle(lambda: seen.append(hiwin.position - start))
+            body = {
+                "mode": "csp",
+                "waveform": "sine",
+                "amplitude": 20000,
+                "frequency": 2,
+                "duration": 0.5,
+            }
+            _post(client, "hiwin-e-1", "motion/cyclic", body)
+            assert wait_until(lambda: bool(seen) and seen[-1] > 5000, 1.0)
+            client.portal.call(time.sleep, 0.6)  # Blocks the backend's event loop.
+            done = wait_motion(client, "hiwin-e-1")
+            assert done["state"] == "done", done
+            assert min(seen) < -15_000  # The negative half was run after the stall.
+            assert any("set-point stream stalled" in r.getMessage() for r in caplog.records)
+            assert wait_until(lambda: abs(hiwin.position - start) < 500, 1.0)
+            beats.stop()

@@ -33,7 +33,9 @@ Choices where CiA 402 leaves room (documented once):
   writes the set-point by SDO every ``cyclic_period`` seconds; the drive interpolates between
   them. Before csp starts, 607Ah is set to the actual position (HIWIN 000 quirk
   ``csp_align_target_before_enable``: otherwise the axis jumps). ``duration`` is rounded up to
-  whole periods of the waveform so the set-point ends where it started.
+  whole periods of the waveform so the set-point ends where it started. The waveform's time is
+  counted in set-points: a stall of the backend stretches it (the drive holds the last
+  set-point) rather than skipping part of it, which would step the set-point.
 - Limits 607Dh min = max = 0 switch the position limits off (CiA 402-2 §6.5.4); 607Fh = 0 is
   read as "no extra limit", as the simulated drive does. Objects a family lists in the quirk
   ``objects_not_usable`` are not read.
@@ -955,14 +957,28 @@ class MotionService:
                 # write_raw: by SDO, or into the RPDO output image when cyclic data carries
                 # the set-point (services/cyclic.py).
                 write = s.write_raw
-                t0 = time.monotonic()
+                period = self.cyclic_period
+                due = time.monotonic()
                 k = 0
                 try:
                     while motion.active:
                         k += 1
-                        t_next = t0 + k * self.cyclic_period
-                        await asyncio.sleep(max(0.0, t_next - time.monotonic()))
-                        t = time.monotonic() - t0
+                        due += period
+                        late = time.monotonic() - due
+                        if late > period:
+                            # The backend stalled: the waveform is stretched by the stall (the
+                            # drive holds the last set-point) instead of skipping ahead, so the
+                            # set-point never steps by more than one period's change.
+                            log.warning(
+                                "the %s set-point stream stalled for %.0f ms; the waveform "
+                                "resumes where it stopped",
+                                mode_name,
+                                late * 1000,
+                            )
+                            due += late
+                        await asyncio.sleep(max(0.0, due - time.monotonic()))
+                        # The waveform's time is counted in periods, not read off the clock.
+                        t = k * period
                         if t >= run_s:
                             break
                         value = round(base + amplitude * wave(t))
