@@ -27,6 +27,7 @@ from servodesk.benchmarks.tuning import (
     oracle_gains,
     run_move,
     run_plant,
+    settling_ratio,
     summarise,
     summarise_seeds,
     true_plant_metrics,
@@ -370,6 +371,19 @@ def test_the_summary_names_the_plants_behind_an_infinite_worst() -> None:
     assert s["settling_ratio_infinite"] == ["b"]
     assert s["tuning_failed"] == ["d"]
     assert s["stable"] == 3
+
+
+def test_settling_within_one_loop_period_counts_as_one_period() -> None:
+    """A tuning 24 us (0.4 loop period) after an oracle that is inside the band when the
+    profile ends is as settled as the drive can tell: 1.0, not infinite. Longer settling keeps
+    its plain ratio, and an axis that never settles stays infinite."""
+    tick = 1.0 / 16000.0
+    assert settling_ratio(2.4e-5, 0.0, tick) == 1.0
+    assert settling_ratio(0.0, 0.0, tick) == 1.0
+    assert settling_ratio(1.25e-4, 0.0, tick) == 2.0
+    assert settling_ratio(0.03, 0.015, tick) == 2.0
+    assert settling_ratio(math.inf, 0.0, tick) == math.inf
+    assert math.isnan(settling_ratio(math.inf, math.inf, tick))
 
 
 def test_the_summary_over_noise_seeds_takes_each_seeds_median() -> None:
