@@ -271,6 +271,34 @@ def quiet_move(spec: PlantSpec, gains: ServoGains) -> MoveMetrics | None:
     return move_metrics(move.t, move.target_counts, quiet, move.t_end, demand)
 
 
+#: The plant a little off what the gains were built for: Coulomb friction -+1 %, load inertia
+#: -+2 % (fields of PlantSpec and their factors). A diagnostic: the oracle's +-10 count settling
+#: can rest on friction known to the percent (R30-400Hz: 53 ms on the true plant, never with
+#: the friction 1 % higher or lower; docs/tuning.md).
+PERTURBATIONS: tuple[tuple[str, float], ...] = (
+    ("coulomb", 0.99),
+    ("coulomb", 1.01),
+    ("inertia_ratio", 0.98),
+    ("inertia_ratio", 1.02),
+)
+
+
+def perturbed_settling(spec: PlantSpec, gains: ServoGains) -> float:
+    """The slowest +-10 count settling of ``gains`` on the true plant and on each of
+    :data:`PERTURBATIONS` of it (noise off, the true plant's reference move); inf when one
+    did not settle or diverged."""
+    move, demand = observed_move(spec)
+    worst = 0.0
+    for change in ({}, *({name: getattr(spec, name) * f} for name, f in PERTURBATIONS)):
+        x = run_move(replace(spec, noise_torque=0.0, **change), gains, move)
+        if not np.isfinite(x).all():
+            return math.inf
+        worst = max(
+            worst, move_metrics(move.t, move.target_counts, x, move.t_end, demand).settling_10_s
+        )
+    return worst
+
+
 def oracle_gains(spec: PlantSpec) -> ServoGains:
     """The best gains with exact plant knowledge (module docstring, step 3)."""
     rate = float(spec.loop_rate_hz)
@@ -413,6 +441,12 @@ def run_plant(
         settled = oi.settling_10_s if oi is not None else math.inf
         row["oracle_at_tuner_inertia_settling_10_s"] = settled
         row["settling_ratio_at_tuner_inertia"] = settling_ratio(row["settling_10_s"], settled, tick)
+        # A second diagnostic: both gain sets' slowest settling on the plant a little off what
+        # they were built for (PERTURBATIONS), and the ratio of the two.
+        ours_off, oracle_off = perturbed_settling(spec, gains), perturbed_settling(spec, og)
+        row["settling_10_perturbed_s"] = ours_off
+        row["oracle_settling_10_perturbed_s"] = oracle_off
+        row["settling_ratio_perturbed"] = settling_ratio(ours_off, oracle_off, tick)
     return row
 
 
@@ -459,6 +493,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "settling_ratio": stat("settling_ratio", "max"),
         "settling_100_ratio": stat("settling_100_ratio", "max"),
         "settling_ratio_at_tuner_inertia": stat("settling_ratio_at_tuner_inertia", "max"),
+        "settling_ratio_perturbed": stat("settling_ratio_perturbed", "max"),
         # JSON has no infinity, so an infinite worst ratio prints as null: these name the
         # plants behind it (tuned gains never settled in the observed second while the oracle
         # did), and the plants whose tuning failed (no ratio at all).
@@ -495,6 +530,7 @@ def summarise_seeds(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "settling_ratio_median": median_of("settling_ratio"),
         "settling_100_ratio_median": median_of("settling_100_ratio"),
         "settling_ratio_at_tuner_inertia_median": median_of("settling_ratio_at_tuner_inertia"),
+        "settling_ratio_perturbed_median": median_of("settling_ratio_perturbed"),
         "margins_met": sum(v["margins_met"] for v in per.values()),
         "tunings": len(rows),
         "per_seed": per,
