@@ -17,6 +17,8 @@ from tests.operation.support import (
 GENERIC = "cia402-generic-1"
 HIWIN = "hiwin-e-2"
 A = headers("A")
+#: One period of a +-20000 count sine at 2 Hz in cyclic synchronous position.
+SINE_CSP = {"mode": "csp", "waveform": "sine", "amplitude": 20000, "frequency": 2, "duration": 0.5}
 
 
 def _post(client, sid: str, path: str, body: dict) -> dict:  # type: ignore[no-untyped-def, type-arg]
@@ -153,13 +155,7 @@ def test_cyclic_runs_where_the_family_has_it_and_is_refused_elsewhere(channel, t
         take_and_enable(client, HIWIN, "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
             beats = Heartbeats(ws, GENERIC)
-            body = {
-                "mode": "csp",
-                "waveform": "sine",
-                "amplitude": 20000,
-                "frequency": 2,
-                "duration": 0.5,
-            }
+            body = SINE_CSP
             r = client.post(f"/api/v1/sessions/{GENERIC}/motion/cyclic", json=body, headers=A)
             assert r.status_code == 400
             msg = r.json()["message"]
@@ -210,14 +206,7 @@ def test_a_backend_stall_stretches_the_cyclic_waveform_instead_of_skipping_it(
             start = hiwin.position
             seen: list[int] = []
             hiwin.on_cycle(lambda: seen.append(hiwin.position - start))
-            body = {
-                "mode": "csp",
-                "waveform": "sine",
-                "amplitude": 20000,
-                "frequency": 2,
-                "duration": 0.5,
-            }
-            _post(client, "hiwin-e-1", "motion/cyclic", body)
+            _post(client, "hiwin-e-1", "motion/cyclic", SINE_CSP)
             assert wait_until(lambda: bool(seen) and seen[-1] > 5000, 1.0)
             client.portal.call(time.sleep, 0.6)  # Blocks the backend's event loop.
             done = wait_motion(client, "hiwin-e-1")
