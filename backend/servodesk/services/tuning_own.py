@@ -196,8 +196,9 @@ RANK_TORQUE_SHARE = 0.7
 #: gain, then a coordinate search; search.tune_on_model ``structure_runs``) on the model of a
 #: compliant axis, ranked with the variations. Where the moves' double integral gave the
 #: inertia (about 0.3 % off): benchmark over seeds 1-4, median of the seeds 1.59 -> 1.37 x the
-#: oracle (R3-400Hz and R3-800Hz 2.9-4.2 -> 0.8-2.7). On every compliant axis since the eighth
-#: session of 2026-11-27, with its feed-forwards at 0.85 and 1.0 J only: 1.29 -> 1.21 (the
+#: oracle (R3-400Hz and R3-800Hz 2.9-4.2 -> 0.8-2.7). On every compliant axis whose
+#: anti-resonance the frequency response shows since the eighth session of 2026-11-27, with
+#: its feed-forwards at 0.85 and 1.0 J only: 1.29 -> 1.21 (the
 #: 100-200 Hz axes, inertia from the frequency response or the record fit, 1-4 % off; R3-200Hz
 #: 1.4-1.6 -> 0.8-1.5). The sixth session measured it there with the oracle's 0.7 J among the
 #: feed-forwards, whose overshoot the model misjudges: worse (geometric mean 2.01 -> 2.22).
@@ -502,7 +503,7 @@ class OwnTuning:
                 variations=variations,
                 # The oracle's structures too, where a resonance gives them something to
                 # shape (a rigid axis's structures changed nothing, docs/tuning.md), unless
-                # the frequency response did not show its anti-resonance (below).
+                # the frequency response did not show its anti-resonance (``unseen``).
                 structure_runs=STRUCTURE_RUNS if resonances and not unseen else 0,
             )
             if self._offload:
