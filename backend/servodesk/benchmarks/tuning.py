@@ -261,11 +261,14 @@ def measure(spec: PlantSpec, gains: ServoGains) -> dict[str, Any]:
     }
 
 
-def quiet_move(spec: PlantSpec, gains: ServoGains) -> MoveMetrics | None:
+def quiet_move(
+    spec: PlantSpec, gains: ServoGains, plant: PlantSpec | None = None
+) -> MoveMetrics | None:
     """The reference move on the true plant without its torque noise, where :func:`measure`
-    judges settling: its metrics, None when the loop diverged."""
+    judges settling: its metrics, None when the loop diverged. ``plant``: run ``spec``'s move
+    on this plant instead (:func:`perturbed_settling`)."""
     move, demand = observed_move(spec)
-    quiet = run_move(replace(spec, noise_torque=0.0), gains, move)
+    quiet = run_move(replace(plant if plant is not None else spec, noise_torque=0.0), gains, move)
     if not np.isfinite(quiet).all():
         return None
     return move_metrics(move.t, move.target_counts, quiet, move.t_end, demand)
@@ -287,15 +290,12 @@ def perturbed_settling(spec: PlantSpec, gains: ServoGains) -> float:
     """The slowest +-10 count settling of ``gains`` on the true plant and on each of
     :data:`PERTURBATIONS` of it (noise off, the true plant's reference move); inf when one
     did not settle or diverged."""
-    move, demand = observed_move(spec)
     worst = 0.0
     for change in ({}, *({name: getattr(spec, name) * f} for name, f in PERTURBATIONS)):
-        x = run_move(replace(spec, noise_torque=0.0, **change), gains, move)
-        if not np.isfinite(x).all():
+        m = quiet_move(spec, gains, replace(spec, **change))
+        if m is None:
             return math.inf
-        worst = max(
-            worst, move_metrics(move.t, move.target_counts, x, move.t_end, demand).settling_10_s
-        )
+        worst = max(worst, m.settling_10_s)
     return worst
 
 

@@ -196,11 +196,11 @@ RANK_TORQUE_SHARE = 0.7
 #: gain, then a coordinate search; search.tune_on_model ``structure_runs``) on the model of a
 #: compliant axis, ranked with the variations. Where the moves' double integral gave the
 #: inertia (about 0.3 % off): benchmark over seeds 1-4, median of the seeds 1.59 -> 1.37 x the
-#: oracle (R3-400Hz and R3-800Hz 2.9-4.2 -> 0.8-2.7). On every compliant axis whose
-#: anti-resonance the frequency response shows since the eighth session of 2026-11-27, with
-#: its feed-forwards at 0.85 and 1.0 J only: 1.29 -> 1.21 (the
-#: 100-200 Hz axes, inertia from the frequency response or the record fit, 1-4 % off; R3-200Hz
-#: 1.4-1.6 -> 0.8-1.5). The sixth session measured it there with the oracle's 0.7 J among the
+#: oracle (R3-400Hz and R3-800Hz 2.9-4.2 -> 0.8-2.7). Since the eighth session of 2026-11-27
+#: on every compliant axis whose anti-resonance the frequency response shows, with its
+#: feed-forwards at 0.85 and 1.0 J only: 1.29 -> 1.21 (the 100-200 Hz axes, inertia from the
+#: frequency response or the record fit, 1-4 % off; R3-200Hz 1.4-1.6 -> 0.8-1.5). The sixth
+#: session measured it there with the oracle's 0.7 J among the
 #: feed-forwards, whose overshoot the model misjudges: worse (geometric mean 2.01 -> 2.22).
 STRUCTURE_RUNS = 100
 #: A rigid axis whose inertia the drive's position demand instrumented (identify_rigid) is
@@ -428,11 +428,6 @@ class OwnTuning:
                 current_loop_hz=drive.current_loop_hz,
             )
             self.progress(0.65, "designing gains and filters")
-            # An anti-resonance below the band measured was placed by the moves' inertia or
-            # the record fit, its damping too: the structure search's pick, as sharp as that
-            # model allows, overshot on the axis (a load 10 x the motor on a 60 Hz shaft,
-            # damping 0.01: 11 % where the factory gains overshot 6 %, and refused).
-            unseen = hidden or below_band
             # The ranking's model has Coulomb friction only (its viscous term is dropped,
             # below). The moves measured c + b v at their one cruise speed, and from one speed
             # the fit cannot tell c from b: it lent up to half of the Coulomb friction to b
@@ -490,6 +485,11 @@ class OwnTuning:
                     # ms), and the rigid grid's more so (R1-rigid 57 ms even on its own
                     # move, docs/tuning.md).
                     variations = RIGID_VARIATIONS
+            # An anti-resonance below the band measured was placed by the moves' inertia or
+            # the record fit, its damping too: the structure search's pick, as sharp as that
+            # model allows, overshot on the axis (a load 10 x the motor on a 60 Hz shaft,
+            # damping 0.01: 11 % where the factory gains overshot 6 %, and refused).
+            unseen = hidden or below_band
             job = functools.partial(
                 tune_on_model,
                 model,

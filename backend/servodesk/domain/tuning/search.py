@@ -12,10 +12,10 @@ following error RMS.
 - The tuner calls :func:`tune_on_model` with the plant it identified, its stuck-load models
   (:func:`stuck_load_set`) and a finer, tick-by-tick simulation of that plant to order the
   feasible candidates (``rerank``; the service passes sim/replay.py's ``ModelMoves``). Where
-  the tuner trusts its model that far (a compliant axis whose inertia the moves' double
-  integral gave), the oracle's structure search (oracle.py) runs on the identified plant too,
-  with the tuner's margins, and its candidates are ranked with the variations
-  (``structure_runs``).
+  the caller asks for it (``structure_runs``; the service: a compliant axis whose
+  anti-resonance the frequency response shows), the oracle's structure search (oracle.py)
+  runs on the identified plant too, with the tuner's margins, and its candidates are ranked
+  with the variations.
 - The benchmark's oracle calls :func:`rank_gains` with the exact plant and a wider grid
   (benchmarks/tuning.py); its candidates are also checked on the exact plant's margins.
 
