@@ -75,6 +75,8 @@ def test_lecsn_one_touch_tuning_from_the_page_then_undo(lecsn_page: Page) -> Non
     # Safety inputs: the window is shown in position units too.
     page.get_by_test_id("tuning-travel").fill("0.25")
     expect(page.get_by_test_id("tuning-window-units")).to_contain_text("±16384")
+    # The drive's own levels, without servodesk's promises about a resonance.
+    expect(page.get_by_role("radiogroup", name="Response mode")).not_to_contain_text("resonance")
     page.get_by_test_id("tuning-mode-basic").check()
     expect(start).to_be_disabled()
     page.get_by_test_id("tuning-confirm").check()
@@ -147,6 +149,9 @@ def test_own_tuning_from_the_page_shows_what_it_found_then_undo(generic_page: Pa
     page.get_by_test_id("servo-on").click()
     expect(page.get_by_test_id("servo-on")).to_be_disabled(timeout=10_000)
     page.get_by_test_id("tuning-travel").fill("0.25")
+    # Each level says how far the resonance it measured may move (docs/tuning.md).
+    modes = page.get_by_role("radiogroup", name="Response mode")
+    expect(modes).to_contain_text("within 0.75 % of a measured resonance, stable within 2 %")
     page.get_by_test_id("tuning-mode-basic").check()
     # The machine's move torque is optional; a bad one is named and blocks the start.
     move = page.get_by_test_id("tuning-move-torque")

@@ -144,6 +144,23 @@ def test_resonance_found_and_notched() -> None:
     loop = LoopModel(exact_model(spec), float(spec.loop_rate_hz), g)
     assert loop.is_stable()
     assert loop.velocity_margins().meets(45.0, 8.0, 6.5)
+    # High response holds the margins within the peak's own accuracy, and stays stable further.
+    assert (
+        "margins held with the resonances up to 0.75 % off, stable with them 2 % off"
+        in (result["notes"])
+    )
+
+
+def test_basic_response_keeps_the_margins_with_the_resonance_2_percent_off() -> None:
+    # For a machine whose resonance moves with its load: basic does not lean on the peak.
+    spec = PlantSpec(inertia_ratio=3.0, resonance_hz=400.0)
+    result, _drive = _tune(spec, "basic")
+    assert "margins held with the resonances up to 2 % off" in result["notes"]
+    g = _gains(result)
+    for s in (0.98, 1.0, 1.02):
+        loop = LoopModel(exact_model(spec).scaled(resonance=s), float(spec.loop_rate_hz), g)
+        assert loop.velocity_margins().meets(45.0, 8.0, 6.5)
+        assert loop.position_margins().meets(45.0, 8.0, 6.5)
 
 
 def test_response_levels_are_ordered() -> None:
@@ -257,6 +274,9 @@ def test_a_heavy_load_behind_a_low_anti_resonance_is_found_and_tuned() -> None:
     spec = PlantSpec(inertia_ratio=30.0, resonance_hz=60.0, damping=0.01)
     result, drive = _tuned_soft_axis(spec, inertia_tol=0.05, settling_100_max=1.0)
     assert drive.read(0x2101, 0) == pytest.approx(_gains(result).kp_vel, rel=1e-6)
+    # The record fit placed this mode (2.6 % off on one noise seed): high response does not
+    # lean on it.
+    assert "margins held with the resonances up to 2 % off" in result["notes"]
 
 
 def test_a_load_100x_on_a_lightly_damped_60hz_shaft_is_left_stable() -> None:

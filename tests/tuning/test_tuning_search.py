@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from servodesk.domain.tuning.design import FF_FACTOR
+from servodesk.domain.tuning.design import FF_FACTOR, STUCK_GM_MIN_DB, STUCK_PM_MIN
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.metrics import MoveMetrics
 from servodesk.domain.tuning.model import LoopModel, Mode, PlantModel
@@ -19,7 +19,9 @@ from servodesk.domain.tuning.search import (
     INERTIA_TOL,
     MOTOR_SPLIT_TOL_LOW_ANTI,
     PM_MIN,
+    RESONANCE_DRIFT,
     RESONANCE_TOL,
+    RESONANCE_TOL_PEAK,
     RIGID_VARIATIONS,
     STRUCTURE_FF_FACTORS,
     STUCK_LOAD_DAMPING,
@@ -28,6 +30,7 @@ from servodesk.domain.tuning.search import (
     VARIATIONS,
     alternatives_of,
     candidates_around,
+    drift_set,
     identification_set,
     mechanical,
     rank_gains,
@@ -335,3 +338,47 @@ def test_a_rigid_axis_is_ranked_on_its_worst_inertia_with_feed_forwards_near_it(
     assert result.metrics == max((x for x in per_axis if x is not None), key=MoveMetrics.key)
     runners = worst(result.alternatives, move)
     assert all(result.metrics.key() <= m.key() for m in runners if m is not None)
+
+
+def test_high_response_trusts_a_measured_resonance_and_stays_stable_off_it() -> None:
+    # A load 30 x the motor behind an 800 Hz shaft: above the resonance the loop sees the
+    # motor alone, 31 x its low-frequency gain, and only a notch right on the resonance lets
+    # the velocity gain up. Held +-2 % off, the notch capped it at 0.6 x what the oracle uses.
+    plant = PlantModel(JM, 30 * JM, 800.0, 0.03, 0.0, 2000.0)
+    finer = ModelMoves.of(plant, RATE, counts_per_rev=CPR, torque_limit=PEAK, coulomb=0.09)
+    assert finer is not None
+    kw = {"counts_per_rev": CPR, "torque_limit": PEAK, "coulomb": 0.09, "rerank": finer}
+    wide = tune_on_model(plant, RATE, "high", **kw)
+    tight = tune_on_model(plant, RATE, "high", resonance_tol=RESONANCE_TOL_PEAK, **kw)
+    assert tight.gains.kp_vel > 1.3 * wide.gains.kp_vel
+    assert tight.metrics.key() < wide.metrics.key()
+    # The user is told which promise the gains keep.
+    assert "margins held with the resonances up to 2 % off" in wide.notes
+    assert (
+        f"margins held with the resonances up to {100 * RESONANCE_TOL_PEAK:g} % off, "
+        f"stable with them {100 * RESONANCE_DRIFT:g} % off"
+    ) in tight.notes
+    # Full margins within the tight tolerance ...
+    for model in identification_set(plant, RESONANCE_TOL_PEAK):
+        for m in (
+            LoopModel(model, RATE, tight.gains).velocity_margins(),
+            LoopModel(model, RATE, tight.gains).position_margins(),
+        ):
+            assert m.phase_margin_deg >= PM_MIN + TUNER_PM_EXTRA_DEG - 1e-6
+            assert m.gain_margin_db >= GM_MIN_DB + TUNER_GM_EXTRA_DB - 1e-6
+    # ... and still stable with the resonance drifted further, where the full margins are gone.
+    drifted = drift_set(plant, RESONANCE_TOL_PEAK)
+    assert [d.resonance_hz for d in drifted] == pytest.approx(
+        [800.0 * (1 - RESONANCE_DRIFT), 800.0 * (1 + RESONANCE_DRIFT)]
+    )
+    lowest_gm = math.inf
+    for model in drifted:
+        loop = LoopModel(model, RATE, tight.gains)
+        for m in (loop.velocity_margins(), loop.position_margins()):
+            assert m.stable
+            assert m.phase_margin_deg >= STUCK_PM_MIN and m.gain_margin_db >= STUCK_GM_MIN_DB
+            lowest_gm = min(lowest_gm, m.gain_margin_db)
+    assert lowest_gm < GM_MIN_DB
+    # Where the margins already hold 2 % off, nothing more is asked.
+    assert drift_set(plant, RESONANCE_TOL) == []
+    assert drift_set(PlantModel(4 * JM, 0.0, None, 0.03, 0.0, 2000.0), RESONANCE_TOL_PEAK) == []

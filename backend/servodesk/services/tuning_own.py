@@ -73,6 +73,8 @@ from servodesk.domain.tuning.metrics import move_metrics, smoothed_settling
 from servodesk.domain.tuning.model import LoopModel, PlantModel
 from servodesk.domain.tuning.search import (
     LOW_ANTI_RESONANCE_HZ,
+    RESONANCE_TOL,
+    RESONANCE_TOL_PEAK,
     RIGID_VARIATIONS,
     VARIATIONS,
     SearchResult,
@@ -395,6 +397,8 @@ class OwnTuning:
             found, below_fit = await self._anti_below_band(found, j_frf)
             below_band = below_fit is not None
             resonances, j_record = await self._sharpen(found)
+            # The record fit moved a peak: the two estimates disagreed by more than 3 %.
+            refitted = [r.freq_hz for r in resonances] != [r.freq_hz for r in found]
             low = _lowest_anti(resonances)
             if (
                 j_record is not None
@@ -505,6 +509,13 @@ class OwnTuning:
                 # shape (a rigid axis's structures changed nothing, docs/tuning.md), unless
                 # the frequency response did not show its anti-resonance (``unseen``).
                 structure_runs=STRUCTURE_RUNS if resonances and not unseen else 0,
+                # High response trusts a resonance where the response's own peak put it
+                # (search.RESONANCE_TOL_PEAK); one the record fit placed, it does not.
+                resonance_tol=(
+                    RESONANCE_TOL_PEAK
+                    if self.request.mode == "high" and not (unseen or refitted)
+                    else RESONANCE_TOL
+                ),
             )
             if self._offload:
                 # Its own process: the search is seconds of Python arithmetic that, in a

@@ -25,7 +25,7 @@ import { beginHeartbeat, heartbeatRunning, me, operationLive, setControl, startA
 import '../components/operation/operation.css';
 import { GainTable } from '../components/tuning/GainTable';
 import { BodePlot, StepPlot } from '../components/tuning/TuningPlots';
-import { type Inputs, MODE_TEXT, checkInputs, fmtNumber, gainLines, isRunning, jobLabel, kindTitle, presentLines, windowInUnits, withUnit } from '../components/tuning/tuningModel';
+import { type Inputs, checkInputs, fmtNumber, gainLines, isRunning, jobLabel, kindTitle, modeText, presentLines, windowInUnits, withUnit } from '../components/tuning/tuningModel';
 import '../components/tuning/tuning.css';
 import { type Failure, failureOf } from '../lib/codes';
 import { notify, notifyError } from '../state/notify';
@@ -359,7 +359,7 @@ export function TuningPage({ sid }: PageProps) {
                   {info.modes.map((m: TuningMode) => (
                     <label key={m} className="op-check">
                       <input type="radio" name="tuning-mode" checked={inputs.mode === m} disabled={running} onChange={() => set('mode', m)} data-testid={`tuning-mode-${m}`} />
-                      {MODE_TEXT[m]}
+                      {modeText(info.kind, m)}
                     </label>
                   ))}
                 </div>

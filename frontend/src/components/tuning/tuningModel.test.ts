@@ -10,6 +10,7 @@ import {
   gainLines,
   jobLabel,
   largestWindow,
+  modeText,
   parseDecimal,
   stepSeries,
   windowInUnits,
@@ -161,5 +162,14 @@ describe('decadeLabel', () => {
     expect([1, 10, 100, 1000, 10000].map(decadeLabel)).toEqual(['1', '10', '100', '1k', '10k']);
     expect([20, 300, 5000].map(decadeLabel)).toEqual(['', '', '']);
     expect(decadeLabel(null)).toBe('');
+  });
+});
+
+describe('modeText', () => {
+  it("states what servodesk's own tuning promises about a moving resonance, and nothing for the drive's own", () => {
+    expect(modeText('gains', 'high')).toContain('within 0.75 % of a measured resonance, stable within 2 %');
+    expect(modeText('gains', 'basic')).toContain('resonance 2 % off');
+    expect(modeText('builtin', 'high')).toBe('High response: the stiffest gains the drive accepts (high mode)');
+    expect(modeText('gains', 'low')).toBe(modeText('builtin', 'low'));
   });
 });
