@@ -15,6 +15,7 @@ from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.metrics import MoveMetrics
 from servodesk.domain.tuning.model import LoopModel, Mode, PlantModel
 from servodesk.domain.tuning.search import (
+    ALTERNATIVE_SETTLING_FACTOR,
     GM_MIN_DB,
     INERTIA_TOL,
     MOTOR_SPLIT_TOL_LOW_ANTI,
@@ -37,6 +38,7 @@ from servodesk.domain.tuning.search import (
     reference_move,
     stuck_load_set,
     tune_on_model,
+    worth_trying,
 )
 from servodesk.domain.tuning.simulate import friction_step, simulate_batch
 from servodesk.sim.plant import PlantParams
@@ -185,6 +187,23 @@ def test_alternatives_differ_in_integral_time_or_position_gain() -> None:
     # A runner-up with a higher velocity gain than the winner is never tried on the axis.
     faster = ServoGains(kp_pos=200.0, kp_vel=0.12, ti_vel=0.03, vel_ff=1.0, inertia_ff=1e-4)
     assert alternatives_of([base, faster, slow_i]) == (slow_i,)
+
+
+def test_only_runners_up_the_model_cannot_tell_from_the_winner_go_to_the_axis() -> None:
+    # The tries on the axis measure one move through the drive's torque noise: they may decide
+    # between gains the model puts close together, not overrule a clear prediction.
+    def settling(ms: float) -> MoveMetrics:
+        return MoveMetrics(ms / 1e3, ms / 1e3, 0.0, 100.0, 200.0)
+
+    g = [ServoGains(kp_pos=200.0 + k, kp_vel=0.1, ti_vel=0.01, vel_ff=1.0) for k in range(4)]
+    order = [(g[0], settling(9.4)), (g[1], settling(14.0)), (g[2], settling(28.6))]
+    assert ALTERNATIVE_SETTLING_FACTOR == 1.5
+    assert worth_trying(order) == [g[0], g[1]]  # 14.0 <= 1.5 x 9.4 < 28.6
+    assert worth_trying(order, factor=4.0) == [g[0], g[1], g[2]]
+    # A winner that never settles on the model leaves the axis to decide among all.
+    never = [(g[0], settling(math.inf)), (g[3], settling(math.inf))]
+    assert worth_trying(never) == [g[0], g[3]]
+    assert worth_trying([]) == []
 
 
 def _true_tail(gains: ServoGains) -> float:
@@ -352,6 +371,10 @@ def test_high_response_trusts_a_measured_resonance_and_stays_stable_off_it() -> 
     tight = tune_on_model(plant, RATE, "high", resonance_tol=RESONANCE_TOL_PEAK, **kw)
     assert tight.gains.kp_vel > 1.3 * wide.gains.kp_vel
     assert tight.metrics.key() < wide.metrics.key()
+    # The runners-up for the axis are those the model puts near the winner (worth_trying).
+    for r in (wide, tight):
+        limit = ALTERNATIVE_SETTLING_FACTOR * r.metrics.settling_10_s
+        assert all(m.settling_10_s <= limit for m in r.alternative_metrics)
     # The user is told which promise the gains keep.
     assert "margins held with the resonances up to 2 % off" in wide.notes
     assert (

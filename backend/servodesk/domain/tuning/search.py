@@ -116,7 +116,8 @@ class SearchResult:
     candidates: int
     feasible: int
     notes: tuple[str, ...]
-    #: Runners-up worth a try on the drive itself (:func:`alternatives_of`), best first.
+    #: Runners-up worth a try on the drive itself (:func:`worth_trying`, :func:`alternatives_of`),
+    #: best first.
     alternatives: tuple[ServoGains, ...] = ()
     #: The move each runner-up gives on the model, in the order of ``alternatives``.
     alternative_metrics: tuple[MoveMetrics, ...] = ()
@@ -144,6 +145,27 @@ class SearchResult:
 
 #: How many runners-up the tuner tries on the drive (services/tuning_own.py).
 ALTERNATIVES = 2
+#: A runner-up is tried on the drive only if the model expects it to settle to +-10 counts
+#: within this factor of the winner's time (:func:`worth_trying`). The tries measure one move
+#: there and back through the drive's torque noise, and until the ninth session of 2026-11-27
+#: any runner-up could win them: on R3-400Hz seed 2 and stress-noise4x seeds 3-4 the model
+#: put the winner at 9.4-9.7 ms and the runner-up at 28.6-28.9 ms, the true plant agreed
+#: (9.7-17.9 against 28.8-29.3 ms), and the tries took the runner-up (docs/tuning.md).
+ALTERNATIVE_SETTLING_FACTOR = 1.5
+
+
+def worth_trying(
+    order: Sequence[tuple[ServoGains, MoveMetrics]],
+    factor: float = ALTERNATIVE_SETTLING_FACTOR,
+) -> list[ServoGains]:
+    """The gains of a ranking (best first) whose move on the model settles to +-10 counts
+    within ``factor`` of the winner's: the ones the model cannot tell from the winner, which
+    the axis may decide between. The winner itself comes first; where it never settles on the
+    model, none does sooner, and all are kept."""
+    if not order:
+        return []
+    limit = factor * order[0][1].settling_10_s
+    return [g for g, m in order if m.settling_10_s <= limit]
 
 
 def alternatives_of(order: Sequence[ServoGains], n: int = ALTERNATIVES) -> tuple[ServoGains, ...]:
@@ -562,7 +584,7 @@ def tune_on_model(
                 f"the ranking chose an inertia feed-forward of "
                 f"{chosen.inertia_ff / plant.total_inertia:.2f} x J"
             )
-        alternatives = alternatives_of([g for g, _ in order])
+        alternatives = alternatives_of(worth_trying(order))
         metrics_of = dict(order)
         alternative_metrics = tuple(metrics_of[g] for g in alternatives)
     else:
