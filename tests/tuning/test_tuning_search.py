@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import pickle
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -287,11 +288,17 @@ def test_a_finer_simulation_orders_the_variations() -> None:
     assert ModelMoves.of(two, RATE, counts_per_rev=CPR, torque_limit=PEAK) is None
 
 
-def test_the_oracles_structures_join_the_ranking_within_the_same_margins() -> None:
-    plant = PlantModel(JM, 3 * JM, 800.0, 0.03, 0.0, 2000.0)
+def _on_model(plant: PlantModel) -> dict[str, Any]:
+    """tune_on_model's keywords as the service gives them for ``plant`` with 0.09 N m of
+    Coulomb friction, ranked on its tick-by-tick simulation."""
     finer = ModelMoves.of(plant, RATE, counts_per_rev=CPR, torque_limit=PEAK, coulomb=0.09)
     assert finer is not None
-    kw = {"counts_per_rev": CPR, "torque_limit": PEAK, "coulomb": 0.09, "rerank": finer}
+    return {"counts_per_rev": CPR, "torque_limit": PEAK, "coulomb": 0.09, "rerank": finer}
+
+
+def test_the_oracles_structures_join_the_ranking_within_the_same_margins() -> None:
+    plant = PlantModel(JM, 3 * JM, 800.0, 0.03, 0.0, 2000.0)
+    kw = _on_model(plant)
     plain = tune_on_model(plant, RATE, "high", **kw)
     pooled = tune_on_model(plant, RATE, "high", structure_runs=40, **kw)
     assert any("filter structures" in n for n in pooled.notes)
@@ -364,9 +371,7 @@ def test_high_response_trusts_a_measured_resonance_and_stays_stable_off_it() -> 
     # motor alone, 31 x its low-frequency gain, and only a notch right on the resonance lets
     # the velocity gain up. Held +-2 % off, the notch capped it at 0.6 x what the oracle uses.
     plant = PlantModel(JM, 30 * JM, 800.0, 0.03, 0.0, 2000.0)
-    finer = ModelMoves.of(plant, RATE, counts_per_rev=CPR, torque_limit=PEAK, coulomb=0.09)
-    assert finer is not None
-    kw = {"counts_per_rev": CPR, "torque_limit": PEAK, "coulomb": 0.09, "rerank": finer}
+    kw = _on_model(plant)
     wide = tune_on_model(plant, RATE, "high", **kw)
     tight = tune_on_model(plant, RATE, "high", resonance_tol=RESONANCE_TOL_PEAK, **kw)
     assert tight.gains.kp_vel > 1.3 * wide.gains.kp_vel
