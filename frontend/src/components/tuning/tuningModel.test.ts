@@ -168,7 +168,7 @@ describe('decadeLabel', () => {
 describe('modeText', () => {
   it("states what servodesk's own tuning promises about a moving resonance, and nothing for the drive's own", () => {
     expect(modeText('gains', 'high')).toContain('within 0.75 % of a measured resonance, stable within 2 %');
-    expect(modeText('gains', 'basic')).toContain('resonance 2 % off');
+    expect(modeText('gains', 'basic')).toContain('resonance up to 2 % off');
     expect(modeText('builtin', 'high')).toBe('High response: the stiffest gains the drive accepts (high mode)');
     expect(modeText('gains', 'low')).toBe(modeText('builtin', 'low'));
   });

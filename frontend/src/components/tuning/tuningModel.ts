@@ -99,7 +99,7 @@ export const MODE_TEXT: Record<TuningMode, string> = {
  * (search.RESONANCE_TOL, RESONANCE_TOL_PEAK, RESONANCE_DRIFT; docs/tuning.md). */
 const OWN_MODE_NOTE: Record<TuningMode, string> = {
   low: '',
-  basic: '; margins kept with a resonance 2 % off where it was measured',
+  basic: '; margins kept with a resonance up to 2 % off what was measured',
   high: '; margins kept within 0.75 % of a measured resonance, stable within 2 %: tune again when the load changes',
 };
 
