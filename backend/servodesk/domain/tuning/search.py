@@ -515,6 +515,7 @@ def tune_on_model(
     variations: Variations = VARIATIONS,
     structure_runs: int = 0,
     resonance_tol: float = RESONANCE_TOL,
+    try_factor: float = ALTERNATIVE_SETTLING_FACTOR,
 ) -> SearchResult:
     """The tuner's design: :func:`design_gains` at the response level, then for ``high`` the
     best move among the variations that keep the margins on every plant the identification
@@ -528,7 +529,8 @@ def tune_on_model(
     held on the same sets, and rank its candidates with the variations. ``resonance_tol``:
     how far the resonances may be off with the margins held (:func:`identification_set`);
     below :data:`RESONANCE_DRIFT` the axis must also stay stable with them that far off
-    (:func:`drift_set`)."""
+    (:func:`drift_set`). ``try_factor``: the runners-up offered for the axis settle within
+    that factor of the winner's time on the model (:func:`worth_trying`; ``inf``: any)."""
     check = identification_set(plant, resonance_tol)
     drift = drift_set(plant, resonance_tol)
     stuck = stuck_load_set(plant) + drift
@@ -586,7 +588,7 @@ def tune_on_model(
                 f"the ranking chose an inertia feed-forward of "
                 f"{chosen.inertia_ff / plant.total_inertia:.2f} x J"
             )
-        alternatives = alternatives_of(worth_trying(order))
+        alternatives = alternatives_of(worth_trying(order, try_factor))
         metrics_of = dict(order)
         alternative_metrics = tuple(metrics_of[g] for g in alternatives)
     else:
