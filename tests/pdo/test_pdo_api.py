@@ -278,7 +278,10 @@ async def test_custom_mapping_on_generic_drive_and_plain_canopen_reads_it_back(r
             n = int.from_bytes(node.sdo.upload(0x1A01, 0), "little")
             return [int.from_bytes(node.sdo.upload(0x1A01, i), "little") for i in range(n + 1)]
 
-        got = await asyncio.to_thread(read)
+        # One SDO client per channel (CiA 301): the session's status poll waits meanwhile,
+        # or the plain master may get the answer to its read of 6041h.
+        async with rig.app.state.servodesk.manager.get(s).link.exclusive():
+            got = await asyncio.to_thread(read)
     finally:
         net.disconnect()
     assert got == [3, 0x60410010, 0x60640020, 0x60610008]

@@ -10,7 +10,8 @@ import asyncio
 
 import pytest
 
-from servodesk.links.base import _Turn
+from servodesk.domain.address import ObjectAddress
+from servodesk.links.base import DriveLink, LinkParams, _Turn
 
 
 async def _holder(turn: _Turn, name: str, log: list[str]) -> None:
@@ -67,3 +68,33 @@ async def test_a_waiter_cancelled_just_after_the_hand_over_passes_the_turn_on() 
     assert not turn.try_take()
     turn.give()
     assert turn.try_take()
+
+
+async def test_a_link_held_exclusive_keeps_its_requests_until_the_block_ends() -> None:
+    # Another master talking to the same device meanwhile (tests/pdo: a plain canopen master
+    # reading 1A01h) must not have the session's poll on the same SDO channel.
+
+    log: list[str] = []
+
+    class Recorder(DriveLink):
+        fieldbus = "test"
+
+        def _open(self) -> None:
+            pass
+
+        def _close(self) -> None:
+            pass
+
+        async def _aread(self, address: ObjectAddress) -> bytes:
+            log.append(f"read {address.index:04X}h")
+            return b"\x00\x00"
+
+    link = Recorder(LinkParams())
+    await link.open()
+    async with link.exclusive():
+        poll = asyncio.create_task(link.read(ObjectAddress(0x6041)))
+        await asyncio.sleep(0.02)
+        log.append("other master done")
+    assert await poll == b"\x00\x00"
+    assert log == ["other master done", "read 6041h"]
+    await link.close()

@@ -14,7 +14,7 @@ import threading
 import time
 from abc import ABC, abstractmethod
 from collections import deque
-from collections.abc import Awaitable, Callable, Iterator, Sequence
+from collections.abc import AsyncIterator, Awaitable, Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
@@ -269,6 +269,20 @@ class DriveLink(ObjectAccess):
                 cb(ev)
             except Exception:  # A subscriber's bug must not stop bus processing.
                 log.exception("event callback failed for %s", kind)
+
+    @contextlib.asynccontextmanager
+    async def exclusive(self) -> AsyncIterator[None]:
+        """Hold this link's turn: none of servodesk's requests (the session's status poll
+        among them) goes to the device until the block ends. For another master that must
+        talk to the same device meanwhile: an SDO server channel serves one client (CiA 301),
+        and its answer does not say which request it answers."""
+        turn = self._turn
+        if not turn.try_take():
+            await turn.take()
+        try:
+            yield
+        finally:
+            turn.give()
 
     # Shared machinery ----------------------------------------------------------------
 
