@@ -388,10 +388,8 @@ def test_high_response_trusts_a_measured_resonance_and_stays_stable_off_it() -> 
     ) in tight.notes
     # Full margins within the tight tolerance ...
     for model in identification_set(plant, RESONANCE_TOL_PEAK):
-        for m in (
-            LoopModel(model, RATE, tight.gains).velocity_margins(),
-            LoopModel(model, RATE, tight.gains).position_margins(),
-        ):
+        loop = LoopModel(model, RATE, tight.gains)
+        for m in (loop.velocity_margins(), loop.position_margins()):
             assert m.phase_margin_deg >= PM_MIN + TUNER_PM_EXTRA_DEG - 1e-6
             assert m.gain_margin_db >= GM_MIN_DB + TUNER_GM_EXTRA_DB - 1e-6
     # ... and still stable with the resonance drifted further, where the full margins are gone.
