@@ -296,6 +296,21 @@ def _on_model(plant: PlantModel) -> dict[str, Any]:
     return {"counts_per_rev": CPR, "torque_limit": PEAK, "coulomb": 0.09, "rerank": finer}
 
 
+def test_the_axis_only_tries_runners_up_the_model_puts_near_the_winner() -> None:
+    # On a load 3 x the motor behind an 800 Hz shaft the model ranks one runner-up within
+    # 1.5 x the winner's settling time and another further behind; only the first is worth
+    # a move on the axis (a noisy try once took one the model put 3 x slower).
+    plant = PlantModel(JM, 3 * JM, 800.0, 0.03, 0.0, 2000.0)
+    kw = _on_model(plant)
+    near = tune_on_model(plant, RATE, "high", **kw)
+    every = tune_on_model(plant, RATE, "high", try_factor=math.inf, **kw)
+    assert near.gains == every.gains
+    limit = ALTERNATIVE_SETTLING_FACTOR * near.metrics.settling_10_s
+    assert near.alternative_metrics
+    assert all(m.settling_10_s <= limit for m in near.alternative_metrics)
+    assert any(m.settling_10_s > limit for m in every.alternative_metrics)
+
+
 def test_the_oracles_structures_join_the_ranking_within_the_same_margins() -> None:
     plant = PlantModel(JM, 3 * JM, 800.0, 0.03, 0.0, 2000.0)
     kw = _on_model(plant)
@@ -376,10 +391,6 @@ def test_high_response_trusts_a_measured_resonance_and_stays_stable_off_it() -> 
     tight = tune_on_model(plant, RATE, "high", resonance_tol=RESONANCE_TOL_PEAK, **kw)
     assert tight.gains.kp_vel > 1.3 * wide.gains.kp_vel
     assert tight.metrics.key() < wide.metrics.key()
-    # The runners-up for the axis are those the model puts near the winner (worth_trying).
-    for r in (wide, tight):
-        limit = ALTERNATIVE_SETTLING_FACTOR * r.metrics.settling_10_s
-        assert all(m.settling_10_s <= limit for m in r.alternative_metrics)
     # The user is told which promise the gains keep.
     assert "margins held with the resonances up to 2 % off" in wide.notes
     assert (
