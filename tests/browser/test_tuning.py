@@ -152,6 +152,9 @@ def test_own_tuning_from_the_page_shows_what_it_found_then_undo(generic_page: Pa
     # Each level says how far the resonance it measured may move (docs/tuning.md).
     modes = page.get_by_role("radiogroup", name="Response mode")
     expect(modes).to_contain_text("within 0.75 % of a measured resonance, stable within 2 %")
+    expect(page.get_by_test_id("tuning-mode-basic").locator("xpath=..")).to_contain_text(
+        "up to 2 % off what was measured"
+    )
     page.get_by_test_id("tuning-mode-basic").check()
     # The machine's move torque is optional; a bad one is named and blocks the start.
     move = page.get_by_test_id("tuning-move-torque")

@@ -69,6 +69,7 @@ def test_info_says_what_each_family_can_do(channel, tmp_path) -> None:  # type: 
         assert "electronic gear" in lecsn["position"]["units_per_rev_source"]
         assert lecsn["job"] is None and lecsn["result_available"] is False
         assert lecsn["step_source"] == "recorder"
+        assert lecsn["mode_notes"] == {}  # The drive's own tuning promises nothing of its own.
 
         generic = client.get("/api/v1/sessions/cia402-generic-1/tuning").json()
         assert generic["kind"] == "gains"
@@ -78,6 +79,17 @@ def test_info_says_what_each_family_can_do(channel, tmp_path) -> None:  # type: 
         assert kp_vel["object"] == "0x2101:00" and kp_vel["unit"] == "N m s/rad"
         assert kp_vel["value"] is not None and kp_vel["value"] > 0
         assert generic["loop_rate_hz"] and generic["loop_rate_hz"] > 0
+        # servodesk's own tuning says at each level how far a measured resonance may move.
+        notes = generic["mode_notes"]
+        assert notes["high"] == (
+            "margins kept within 0.75 % of a measured resonance, stable within 2 %: "
+            "tune again when the load changes"
+        )
+        assert (
+            notes["basic"]
+            == notes["low"]
+            == ("margins kept with a resonance up to 2 % off what was measured")
+        )
 
         ctmm = client.get("/api/v1/sessions/ctmm04x-4/tuning").json()
         assert ctmm["kind"] == "none" and ctmm["modes"] == [] and ctmm["gains"] == []

@@ -54,6 +54,7 @@ from servodesk.domain import cia402
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, Value, codec, coerce_int
 from servodesk.domain.profile import DeviceProfile, ObjectSpec, RecorderSpec
+from servodesk.domain.tuning.search import mode_promise
 from servodesk.errors import (
     ConflictError,
     DriveStateError,
@@ -515,6 +516,8 @@ class TuningService:
             "reason": reason,
             "applies": applies_instead(p) if kind == "none" else [],
             "modes": list(MODES) if kind != "none" else [],
+            # What servodesk's own tuning promises at each level (the drive's own: nothing).
+            "mode_notes": {m: mode_promise(m) for m in MODES} if kind == "gains" else {},
             "gains": gains,
             "loop_rate_hz": await self._loop_rate(session) if kind != "none" else None,
             "defaults": dict(DEFAULTS),

@@ -66,6 +66,9 @@ export interface TuningInfo {
   reason: string;
   applies: { page: string; group: string; label: string }[];
   modes: TuningMode[];
+  /** What servodesk's own tuning promises at each level (empty for the drive's own tuning;
+   * optional for an older server). */
+  mode_notes?: Partial<Record<TuningMode, string>>;
   gains: GainRow[];
   loop_rate_hz: number | null;
   defaults: { mode: TuningMode; travel_window_rev: number; torque_limit_pct: number };

@@ -359,7 +359,7 @@ export function TuningPage({ sid }: PageProps) {
                   {info.modes.map((m: TuningMode) => (
                     <label key={m} className="op-check">
                       <input type="radio" name="tuning-mode" checked={inputs.mode === m} disabled={running} onChange={() => set('mode', m)} data-testid={`tuning-mode-${m}`} />
-                      {modeText(info.kind, m)}
+                      {modeText(m, info.mode_notes)}
                     </label>
                   ))}
                 </div>

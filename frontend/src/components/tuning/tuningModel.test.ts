@@ -166,10 +166,12 @@ describe('decadeLabel', () => {
 });
 
 describe('modeText', () => {
-  it("states what servodesk's own tuning promises about a moving resonance, and nothing for the drive's own", () => {
-    expect(modeText('gains', 'high')).toContain('within 0.75 % of a measured resonance, stable within 2 %');
-    expect(modeText('gains', 'basic')).toContain('resonance up to 2 % off');
-    expect(modeText('builtin', 'high')).toBe('High response: the stiffest gains the drive accepts (high mode)');
-    expect(modeText('gains', 'low')).toBe(modeText('builtin', 'low'));
+  it("adds the server's note on what a level promises, and nothing where there is none", () => {
+    const notes = { high: 'margins kept within 0.75 % of a measured resonance', basic: 'up to 2 % off' };
+    expect(modeText('high', notes)).toBe('High response: the stiffest gains the drive accepts (high mode); margins kept within 0.75 % of a measured resonance');
+    expect(modeText('basic', notes)).toBe('Basic: the usual choice (basic mode); up to 2 % off');
+    expect(modeText('low', notes)).toBe('Low response: the softest gains, for machines that must not ring (low mode)');
+    expect(modeText('high', {})).toBe('High response: the stiffest gains the drive accepts (high mode)');
+    expect(modeText('high')).toBe(modeText('high', {}));
   });
 });

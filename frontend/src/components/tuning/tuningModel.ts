@@ -95,17 +95,11 @@ export const MODE_TEXT: Record<TuningMode, string> = {
   high: 'High response: the stiffest gains the drive accepts (high mode)',
 };
 
-/** What servodesk's own tuning promises at each level about a resonance that moves
- * (search.RESONANCE_TOL, RESONANCE_TOL_PEAK, RESONANCE_DRIFT; docs/tuning.md). */
-const OWN_MODE_NOTE: Record<TuningMode, string> = {
-  low: '',
-  basic: '; margins kept with a resonance up to 2 % off what was measured',
-  high: '; margins kept within 0.75 % of a measured resonance, stable within 2 %: tune again when the load changes',
-};
-
-/** The radio label of a response level; servodesk's own tuning adds what it promises. */
-export function modeText(kind: TuningKind, mode: TuningMode): string {
-  return MODE_TEXT[mode] + (kind === 'gains' ? OWN_MODE_NOTE[mode] : '');
+/** The radio label of a response level, with what the tuning promises at that level where the
+ * server says (GET .../tuning `mode_notes`: servodesk's own tuning; the drive's own says nothing). */
+export function modeText(mode: TuningMode, notes?: Partial<Record<TuningMode, string>>): string {
+  const note = notes?.[mode];
+  return MODE_TEXT[mode] + (note ? `; ${note}` : '');
 }
 
 export function kindTitle(kind: TuningKind): string {
