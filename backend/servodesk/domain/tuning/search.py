@@ -501,8 +501,8 @@ def mode_promise(mode: str) -> str:
     """What servodesk's own tuning at ``mode`` promises about a resonance that moves, in the
     Tuning page's words: the tolerance its margins hold where the frequency response's peak
     placed the resonance (the service's choice of ``resonance_tol``) and, where that is
-    tighter than :data:`RESONANCE_DRIFT`, how far off it stays stable. One source for the
-    page (GET .../tuning ``mode_notes``) and for these constants."""
+    tighter than :data:`RESONANCE_DRIFT`, how far off it stays stable. The page shows it
+    (GET .../tuning ``mode_notes``), so its labels follow these constants."""
     if mode == "high":
         return (
             f"margins kept within {100.0 * RESONANCE_TOL_PEAK:g} % of a measured resonance, "
