@@ -52,6 +52,7 @@ from servodesk.domain.tuning.metrics import MoveMetrics, move_metrics
 from servodesk.domain.tuning.model import LoopModel, PlantModel
 from servodesk.domain.tuning.oracle import oracle_search
 from servodesk.domain.tuning.search import (
+    DIVERGED,
     ReferenceMove,
     candidates_around,
     mechanical,
@@ -78,8 +79,6 @@ ORACLE_VERSION = 4
 ORACLE_TRUE_PLANT_RUNS = 12
 #: How many runs on the true plant the oracle's second search (domain/tuning/oracle.py) may make.
 ORACLE_SEARCH_RUNS = 150
-#: A move that diverged, for a search that ranks by MoveMetrics.
-DIVERGED = MoveMetrics(math.inf, math.inf, math.inf, math.inf, math.inf)
 #: The torque-noise seed of the measured moves.
 RUN_SEED = 7
 

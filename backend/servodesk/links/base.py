@@ -276,13 +276,11 @@ class DriveLink(ObjectAccess):
         among them) goes to the device until the block ends. For another master that must
         talk to the same device meanwhile: an SDO server channel serves one client (CiA 301),
         and its answer does not say which request it answers."""
-        turn = self._turn
-        if not turn.try_take():
-            await turn.take()
+        await self._turn.take()
         try:
             yield
         finally:
-            turn.give()
+            self._turn.give()
 
     # Shared machinery ----------------------------------------------------------------
 
