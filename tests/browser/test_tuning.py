@@ -175,7 +175,9 @@ def test_own_tuning_from_the_page_shows_what_it_found_then_undo(generic_page: Pa
     expect(status).to_have_attribute("data-status", "done")
     identified = page.get_by_test_id("tuning-identified")
     expect(identified).to_contain_text("kg m²")
-    expect(identified).to_contain_text("Coulomb friction")
+    expect(identified).to_contain_text("Coulomb friction (test moves)")
+    # The friction the frequency response's slow travel measured, beside it, in N m.
+    expect(page.get_by_test_id("tuning-travel-friction")).to_contain_text("N m")
     expect(page.get_by_test_id("tuning-margins")).to_contain_text("Phase margin")
     expect(page.get_by_test_id("tuning-bode").locator("canvas")).to_have_count(2)
     expect(page.get_by_test_id("tuning-step-plot").locator("canvas")).to_have_count(1)

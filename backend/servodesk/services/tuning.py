@@ -966,6 +966,7 @@ class TuningService:
                 "coulomb_nm": None,
                 "viscous_nms": None,
                 "gravity_nm": None,
+                "travel_friction_nm": None,
                 "resonances": [],
             },
             "bode": None,
@@ -1035,6 +1036,7 @@ class TuningService:
             "coulomb_nm": None,
             "viscous_nms": None,
             "gravity_nm": None,
+            "travel_friction_nm": None,
             "resonances": [],
         }
         error = None if ok else decoded

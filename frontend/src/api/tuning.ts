@@ -143,6 +143,9 @@ export interface Identified {
   coulomb_nm: number | null;
   viscous_nms: number | null;
   gravity_nm: number | null;
+  /** Coulomb friction from the frequency response's slow constant-speed travel [N m]; absent
+   * from older results, null where it gave none (the moves' fit is `coulomb_nm`). */
+  travel_friction_nm?: number | null;
   resonances: {
     freq_hz: number;
     anti_freq_hz: number | null;

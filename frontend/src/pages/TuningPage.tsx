@@ -451,8 +451,14 @@ export function TuningPage({ sid }: PageProps) {
                       )}
                       {result.identified.coulomb_nm !== null && (
                         <tr>
-                          <th>Coulomb friction</th>
+                          <th>Coulomb friction (test moves)</th>
                           <td className="mono num">{withUnit(result.identified.coulomb_nm, 'N m')}</td>
+                        </tr>
+                      )}
+                      {result.identified.travel_friction_nm != null && (
+                        <tr data-testid="tuning-travel-friction">
+                          <th>Coulomb friction (slow travel)</th>
+                          <td className="mono num">{withUnit(result.identified.travel_friction_nm, 'N m')}</td>
                         </tr>
                       )}
                       {result.identified.viscous_nms !== null && (
