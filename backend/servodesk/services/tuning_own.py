@@ -461,9 +461,11 @@ class OwnTuning:
             elif travel is not None:
                 # Below a low anti-resonance the moves are too gentle to tell friction from
                 # the shaft (their c: 8-30 % low on R30-100Hz, R10-100Hz and
-                # stress-soft60Hz); the frequency response's slow, constant-speed travel
-                # measures it within 1.1 % on every benchmark axis. Taken there only: as
-                # every axis's friction it reshuffled the picks that settle on a knife edge
+                # stress-soft60Hz); the frequency response's slow, constant-speed travel,
+                # less the moves' gravity, is within 1.2 % on the benchmark's axes there.
+                # Not elsewhere: the moves' gravity of a 400 Hz axis was up to 2.5 mN m off
+                # (the travel's friction then 2-3.7 % high), and as every axis's friction
+                # the travel's reshuffled the picks that settle on a knife edge
                 # (stress-noise4x seed 2: 4.4 -> 10.2 x the oracle; docs/tuning.md).
                 friction = travel
                 self._notes.append(
