@@ -840,6 +840,15 @@ class OwnTuning:
             f_min_hz=CHIRP_F0_HZ,
         )
 
+    def _travel_load(self, inertia: float) -> tuple[float, float]:
+        """The frequency response's travel: its mean load torque [N m], friction and gravity
+        (:func:`travel_load_torque`; ``inertia`` for its small inertial share), and its mean
+        speed [rad/s]. ValueError without that record or where it is too short."""
+        if self._frf_record is None:
+            raise ValueError("no frequency response recorded")
+        rate, _signal, torque, speed = self._frf_record
+        return travel_load_torque(rate, torque, speed, inertia), float(np.mean(speed))
+
     def _moves_inertia(self, inertia: float) -> float | None:
         """A compliant axis's inertia from the double integral of its identification moves
         (:func:`inertia_from_moves`), or None where that cannot be trusted. Only the moves in
@@ -850,13 +859,11 @@ class OwnTuning:
         share. Taken when friction is a small share of every move's double integral and the
         moves agree (:data:`MOVES_INERTIAL_SHARE_MIN`, :data:`MOVES_SPREAD_MAX`); fitted with a
         viscous friction where that changes it (:data:`MOVES_VISCOUS_PART`)."""
-        if self._frf_record is None or self._moves_record is None:
+        if self._moves_record is None:
             return None
-        f_rate, _signal, f_torque, f_speed = self._frf_record
         rate, torque, position, demand = self._moves_record
         try:
-            load = travel_load_torque(f_rate, f_torque, f_speed, inertia)
-            speed = float(np.mean(f_speed))
+            load, speed = self._travel_load(inertia)
             way = 1.0 if speed >= 0.0 else -1.0
             spans = [(a, b) for a, b in demand_spans(demand) if (demand[b] - demand[a]) * way > 0]
             moves = inertia_from_moves(rate, torque, position, spans, load, load_speed=speed)
@@ -875,15 +882,12 @@ class OwnTuning:
         """The Coulomb friction [N m] from the frequency response's travel: its mean load
         torque (:func:`travel_load_torque`, friction and gravity at a slow constant speed)
         less the moves' ``gravity``; None without that record or where it gives none."""
-        if self._frf_record is None:
-            return None
-        rate, _signal, torque, speed = self._frf_record
         try:
-            load = travel_load_torque(rate, torque, speed, inertia)
+            load, speed = self._travel_load(inertia)
         except ValueError as exc:
             log.debug("no friction from the travel: %s", exc)
             return None
-        way = 1.0 if float(np.mean(speed)) >= 0.0 else -1.0
+        way = 1.0 if speed >= 0.0 else -1.0
         friction = way * (load - gravity)
         log.debug("friction from the travel: %.5g N m (load torque %.5g)", friction, load)
         return friction if friction > 0.0 else None
