@@ -373,3 +373,62 @@ async def test_a_stale_read_answer_is_not_taken_for_a_write_of_the_same_object(
     time.sleep(0.05)  # noqa: ASYNC251 -- holds the loop: both answers wait in the doorbell.
     await write  # Not "unexpected answer": the read's answer is dropped, the write's taken.
     assert sim.drives[0].read(0x6081, 0) == 123456
+
+
+async def test_a_refused_write_is_not_hidden_by_the_answer_to_a_cancelled_one(
+    link: CanopenLink, sim: SimulatedBus
+) -> None:
+    # CiA 301 SDO frames carry no transaction id: the confirmation of a cancelled write of
+    # 6060h looks like the answer to the next write of 6060h. It used to be taken for it, and
+    # the drive's refusal of that next write (an abort) went unseen: the caller was told a
+    # mode was set that the drive had refused.
+    cancelled = asyncio.create_task(link.write(A(0x6060), bytes([1])))
+    await asyncio.sleep(0)  # On the bus.
+    cancelled.cancel()
+    await asyncio.gather(cancelled, return_exceptions=True)
+    refused = asyncio.create_task(link.write(A(0x6060), bytes([0x55])))
+    await asyncio.sleep(0)
+    time.sleep(0.05)  # noqa: ASYNC251 -- holds the loop: both answers wait in the doorbell.
+    with pytest.raises(ObjectAccessError) as info:
+        await refused
+    assert info.value.code == 0x06090030
+    assert sim.drives[0].read(0x6060, 0) == 1
+
+
+async def test_a_late_answer_that_arrives_between_requests_settles_what_was_owed(
+    link: CanopenLink,
+) -> None:
+    # The cancelled write's answer arrives while no request waits: it is dropped, and the
+    # next request of the same object takes its own answer at once (the link's time-out is
+    # 0.3 s; waiting it out would show).
+    cancelled = asyncio.create_task(link.write(A(0x6060), bytes([1])))
+    await asyncio.sleep(0)
+    cancelled.cancel()
+    await asyncio.gather(cancelled, return_exceptions=True)
+    await asyncio.sleep(0.05)
+    t0 = time.monotonic()
+    with pytest.raises(ObjectAccessError):
+        await link.write(A(0x6060), bytes([0x55]))
+    assert await link.read(A(0x6060)) == bytes([1])
+    assert time.monotonic() - t0 < 0.2
+
+
+async def test_after_a_time_out_the_same_object_is_read_right_and_then_at_full_speed(
+    link: CanopenLink,
+) -> None:
+    # A stopped node does not answer SDO (CiA 301 §7.3.2.2.2), so the read times out and its
+    # answer is owed, although it never comes. The next read of that object then drops its
+    # own answer once (taken for the owed one) and waits out one time-out before its retry:
+    # slower, never stale. Once the debt has lapsed (a time-out later), reads are fast again.
+    await link.nmt("stop")
+    await asyncio.sleep(0.05)
+    with pytest.raises(LinkTimeoutError):
+        await link.read(A(0x1000))
+    await link.nmt("start")
+    await asyncio.sleep(0.05)
+    assert await link.read(A(0x1000)) == bytes.fromhex("92010200")
+    await asyncio.sleep(0.3)
+    t0 = time.monotonic()
+    for _ in range(3):
+        assert await link.read(A(0x1000)) == bytes.fromhex("92010200")
+    assert time.monotonic() - t0 < 0.2

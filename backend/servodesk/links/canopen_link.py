@@ -224,6 +224,10 @@ class CanopenLink(DriveLink):
         #: Answers that arrived while the waiter already held one the request has not yet
         #: looked at (a stale answer ahead of the real one, both in one doorbell ring).
         self._unread: deque[bytes] = deque()
+        #: Answers still owed to initiate requests that ended without theirs (cancelled on
+        #: the bus, or timed out): (multiplexor, answer kind, loop time it is no longer
+        #: expected). See :meth:`_pay`.
+        self._owed: list[tuple[bytes, int, float]] = []
         self._doorbell: _Doorbell | None = None
         self._watchdog: asyncio.Handle | None = None
         #: When the armed watchdog fires (loop time). Kept here, not read from the handle:
@@ -303,7 +307,10 @@ class CanopenLink(DriveLink):
     def _deliver(self, frame: bytes) -> None:
         waiter = self._waiter
         if waiter is None:
-            return  # No request in flight: a late answer to one that timed out, dropped.
+            # No request in flight: a late answer to one that timed out or was cancelled,
+            # dropped; it no longer stands in for the next request's answer.
+            self._pay(frame)
+            return
         if not waiter.done():
             waiter.set_result(frame)
         else:
@@ -328,6 +335,37 @@ class CanopenLink(DriveLink):
         else:
             self._watchdog_at = self._deadline
             self._watchdog = loop.call_at(self._deadline, self._on_watchdog)
+
+    def _owe(self, request: bytes, kind: int) -> None:
+        """An initiate ``request`` on the bus ended without its answer (``kind``: the scs bits
+        of the answer it waits for); the answer may still come, for up to a time-out."""
+        loop = self._loop
+        if loop is not None:
+            self._owed.append((request[1:4], kind, loop.time() + self.request_timeout))
+
+    def _pay(self, frame: bytes) -> bool:
+        """Whether ``frame`` is the late answer owed to an earlier request (:meth:`_owe`); the
+        debt is then settled.
+
+        CiA 301 SDO frames carry no transaction id: the answer to a cancelled write of 6060h
+        and the answer to the next write of 6060h look alike, and the first would be taken
+        for the second, whose refusal (an abort) then went unseen. A server answers in order,
+        so the owed answer comes first. Debts lapse after a time-out: where the request never
+        reached the drive (the usual cause of a time-out), the next request of the same object
+        loses its answer once and waits out one time-out before its retry, rather than take
+        a stale one."""
+        if not self._owed or len(frame) < 4:
+            return False
+        loop = self._loop
+        now = loop.time() if loop is not None else math.inf
+        self._owed = [d for d in self._owed if d[2] > now]
+        kind = frame[0] & 0xE0
+        for i, (mux, owed_kind, _until) in enumerate(self._owed):
+            # An abort (scs 4) answers either kind of request (CiA 301 §7.2.4.3.17).
+            if mux == frame[1:4] and kind in (owed_kind, 0x80):
+                del self._owed[i]
+                return True
+        return False
 
     def _abandon(self) -> None:
         """End the request in flight now: the link is closing, no answer will be awaited."""
@@ -387,6 +425,7 @@ class CanopenLink(DriveLink):
                     dog.cancel()
                 self._watchdog_at = deadline
                 self._watchdog = loop.call_at(deadline, self._on_watchdog)
+            sent = False
             try:
                 try:
                     network.send_message(cob_id, request)
@@ -397,15 +436,21 @@ class CanopenLink(DriveLink):
                         f"{address}: the SDO request could not be sent: {exc}",
                         hint="check the CAN adapter, and that the bus is not in bus-off",
                     ) from exc
+                sent = True
                 answer = await waiter
                 # An initiate request's answer (and any abort) echoes the multiplexor
                 # (CiA 301 §7.2.4.3). One for another object, or of another kind (an upload's
                 # answer to a download of the same object), is the late answer to a request
-                # that already timed out or was cancelled: drop it and keep waiting.
+                # that already timed out or was cancelled: drop it and keep waiting. So is one
+                # that matches but is still owed to such a request of the same object (_pay).
                 while (
                     initiate
                     and len(answer) >= 4
-                    and (answer[1:4] != request[1:4] or answer[0] & 0xE0 not in answer_scs)
+                    and (
+                        self._pay(answer)
+                        or answer[1:4] != request[1:4]
+                        or answer[0] & 0xE0 not in answer_scs
+                    )
                 ):
                     log.debug(
                         "node %d: dropped a stale SDO answer %s", self.params.node_id, answer.hex()
@@ -417,6 +462,19 @@ class CanopenLink(DriveLink):
                     self._waiter = waiter
                     answer = await waiter
                 return answer
+            except asyncio.CancelledError:
+                # Cancelled on the bus (a motion's monitor ended by a dead-man stop): its
+                # answer is still to come, unless it is already here, unread.
+                held = [*self._unread]
+                if waiter.done() and not waiter.cancelled() and waiter.exception() is None:
+                    held.append(waiter.result())
+                if (
+                    initiate
+                    and sent
+                    and not any(a[1:4] == request[1:4] and a[0] & 0xE0 in answer_scs for a in held)
+                ):
+                    self._owe(request, answer_scs[0])
+                raise
             except TimeoutError:
                 if self._network is None:
                     raise LinkClosedError(
@@ -429,6 +487,8 @@ class CanopenLink(DriveLink):
                     network.send_message(
                         cob_id, sdo.abort(address.index, address.subindex, sdo.ABORT_TIMEOUT)
                     )
+                if initiate:
+                    self._owe(request, answer_scs[0])
                 raise LinkTimeoutError(
                     f"{address}: no SDO response from node {self.params.node_id} within "
                     f"{self.request_timeout:g} s",
