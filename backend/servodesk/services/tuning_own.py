@@ -1194,29 +1194,41 @@ class OwnTuning:
         -> 1.0 on three; docs/tuning.md)."""
         distance, velocity, acc = profile
         start = float(drive.start_counts)
-        fe = [FOLLOWING_ERROR] if await self._has(FOLLOWING_ERROR) else []
         keys = []
         for origin, target in ((start, start + distance), (start + distance, start)):
             # The way back waits for arrival too: the next try starts from rest.
-            rec, spans = await self._run_moves(
-                drive,
-                [target],
-                velocity,
-                acc,
-                VERIFY_SETTLE_S,
-                settle=target == start,
-                extra=fe,
-                origin=origin,
+            rec, span, fe_rms = await self._watched_move(
+                drive, origin, target, velocity, acc, settle=target == start
             )
-            fe_rms = _following_error_rms(rec, spans[0]) if fe else None
             keys.append(
                 (
-                    smoothed_settling(rec.t, target, rec[POSITION], spans[0][1]),
+                    smoothed_settling(rec.t, target, rec[POSITION], span[1]),
                     math.inf if fe_rms is None else fe_rms,
                 )
             )
         a, b = keys
         return ((a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0)
+
+    async def _watched_move(
+        self,
+        drive: _Drive,
+        origin: float,
+        target: float,
+        velocity: float,
+        acc: float,
+        *,
+        settle: bool,
+    ) -> tuple[Recording, tuple[float, float], float | None]:
+        """One move from ``origin`` to ``target`` [counts], watched for
+        :data:`VERIFY_SETTLE_S` after its profile (a try on the axis, the verification move):
+        its recording (with the drive's following error 60F4h where it records one), its span
+        and that following error's RMS over it [counts], None without 60F4h. ``settle``: wait
+        for target reached (:meth:`_run_moves`)."""
+        fe = [FOLLOWING_ERROR] if await self._has(FOLLOWING_ERROR) else []
+        rec, spans = await self._run_moves(
+            drive, [target], velocity, acc, VERIFY_SETTLE_S, settle=settle, extra=fe, origin=origin
+        )
+        return rec, spans[0], _following_error_rms(rec, spans[0]) if fe else None
 
     def _verify_profile(self, drive: _Drive, inertia: float) -> tuple[float, float, float]:
         """(distance, velocity, acceleration) of the verification move, the same before and
@@ -1231,9 +1243,8 @@ class OwnTuning:
     ) -> dict[str, Any]:
         distance, velocity, acc = profile
         start = float(drive.start_counts)
-        fe = [FOLLOWING_ERROR] if await self._has(FOLLOWING_ERROR) else []
-        rec, spans = await self._run_moves(
-            drive, [start + distance], velocity, acc, VERIFY_SETTLE_S, extra=fe
+        rec, span, fe_rms = await self._watched_move(
+            drive, start, start + distance, velocity, acc, settle=False
         )
         # The way back counts its whole profile. Measured from the start it looked like no
         # move, and only its acceleration and braking (2 v / a) were counted: for this
@@ -1244,9 +1255,8 @@ class OwnTuning:
         del back
         pos = rec[POSITION]
         t = rec.t
-        t_end = spans[0][1]
+        t_end = span[1]
         m = move_metrics(t, start + distance, pos, t_end)
-        fe_rms = _following_error_rms(rec, spans[0]) if fe else None
         keep = max(1, len(t) // 800)  # The page draws about 800 points.
         return {
             "t_s": [round(float(x), 6) for x in t[::keep]],
