@@ -451,9 +451,7 @@ class OwnTuning:
             ):
                 # Two estimates with independent errors: the response's few rigid-body bins
                 # below 0.7 f_ar, two-mass shape divided out, and the fit of the whole record
-                # (R1-200Hz: 1.5-5 % low and -0.5 to +1.8 %). Their mean's median error is
-                # below either one's on R1-200Hz and R1-100Hz; on R3-200Hz the fit alone is
-                # closer, the mean still closer than the band (RECORD_BLEND_BELOW_HZ).
+                # (how far each was off: RECORD_BLEND_BELOW_HZ).
                 blended = math.sqrt(j_record * inertia)
                 log.debug(
                     "inertia: %.4g, between the response's band %.4g and the record fit %.4g",
