@@ -18,6 +18,7 @@ from servodesk.domain.tuning.identify import (
     identify_rigid,
     inertia_from_frf,
     inertia_from_moves,
+    moves_gravity,
     plant_from_identification,
     resonance_from_record,
     travel_load_torque,
@@ -379,12 +380,14 @@ def _two_mass_moves(
     rest_s: float,
     seed: int,
     viscous: float = 0.0,
+    gravity: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Moves of 0.2 rev there and back, twice, on a motor and a load coupled by a shaft
     resonating at ``f_r``, under a collocated PD loop at 30 Hz with the demand's acceleration
-    as feed-forward; Coulomb friction ``tc`` at the load (smoothed over 0.01 rad/s) and
-    ``viscous`` friction there, torque noise. Semi-implicit Euler at 8 substeps of the 16 kHz
-    loop. Returns the recorded torque, the motor angle and the demand."""
+    as feed-forward; Coulomb friction ``tc`` at the load (smoothed over 0.01 rad/s),
+    ``viscous`` friction and a constant ``gravity`` torque there, torque noise. Semi-implicit
+    Euler at 8 substeps of the 16 kHz loop. Returns the recorded torque, the motor angle and
+    the demand."""
     rng = np.random.default_rng(seed)
     j = jm + jl
     k = jm * jl / j * (TWO_PI * f_r) ** 2
@@ -415,7 +418,7 @@ def _two_mass_moves(
         for _ in range(sub):
             shaft = k * (xm - xl) + c * (wm - wl)
             wm += h * (u - shaft) / jm
-            wl += h * (shaft - tc * math.tanh(wl / 0.01) - viscous * wl) / jl
+            wl += h * (shaft - tc * math.tanh(wl / 0.01) - viscous * wl - gravity) / jl
             xm += h * wm
             xl += h * wl
     return tau, pos, demand
@@ -435,6 +438,20 @@ def test_inertia_from_moves_sees_the_whole_compliant_axis() -> None:
         assert est.inertial_share > 0.6
     # The friction is part of the double integral: taken as none, the inertia is far off.
     assert inertia_from_moves(RATE, tau, pos, there, 0.0).inertia > 1.1 * (jm + jl)
+
+
+@pytest.mark.parametrize("gravity", [0.0, 0.3])
+def test_moves_back_and_forth_give_the_gravity_apart_from_the_friction(gravity: float) -> None:
+    jm, jl = 3.7e-5, 3 * 3.7e-5
+    tau, pos, demand = _two_mass_moves(jm, jl, 400.0, 0.09, 0.04, 0.1, seed=7, gravity=gravity)
+    spans = demand_spans(demand)
+    g = moves_gravity(RATE, tau, pos, spans, jm + jl)
+    # Within 1 % of the friction, which the response's travel less this gravity then is.
+    assert g == pytest.approx(gravity, abs=0.0009)
+    # One direction alone holds friction and gravity together: refused.
+    there = [(a, b) for a, b in spans if demand[b] > demand[a]]
+    with pytest.raises(ValueError, match="each direction"):
+        moves_gravity(RATE, tau, pos, there, jm + jl)
 
 
 def test_viscous_friction_is_fitted_with_the_inertia() -> None:

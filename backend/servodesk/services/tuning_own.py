@@ -64,6 +64,7 @@ from servodesk.domain.tuning.identify import (
     inertia_from_frf,
     inertia_from_moves,
     model_damping,
+    moves_gravity,
     plant_from_identification,
     resonance_from_record,
     travel_load_torque,
@@ -480,34 +481,41 @@ class OwnTuning:
             )
             self.progress(0.65, "designing gains and filters")
             # The ranking's model has Coulomb friction only (its viscous term is dropped,
-            # below). The moves measured c + b v at their one cruise speed, and from one speed
-            # the fit cannot tell c from b: it lent up to half of the Coulomb friction to b
-            # (R1-100Hz: c 47 % low, where b is 0), and a sticking axis that stops 10 counts
-            # early or late settles at another time. So the model takes the friction the moves
-            # saw (bench over seeds 1-4 with the machine's move: median 1.84 -> 1.76 x the
-            # oracle, geometric mean 1.94 -> 1.83, docs/tuning.md).
-            # Not below a low anti-resonance: there the moves are sized by it, gentle, and
-            # their b is the shaft's, not friction (a load 10 x the motor behind 18 Hz: c + b v
-            # was far above the friction, and the ranking's gains overshot 11 % where the
-            # factory gains overshot 6 %).
+            # below), and a sticking axis that stops 10 counts early or late settles at another
+            # time: the friction it takes matters to the percent.
             friction = max(est.coulomb, 0.0)
             f_ar = model.anti_resonance_hz
+            # The moves' own friction: c + b v at their cruise speed. They measured it at that
+            # one speed, and from one speed the fit cannot tell c from b: it lent up to half
+            # of the Coulomb friction to b (R1-100Hz: c 47 % low, where b is 0; taking c + b v
+            # rather than c: bench median 1.84 -> 1.76 x the oracle, docs/tuning.md).
+            moves_friction = max(est.coulomb + est.viscous * cruise_rad_s, 0.0)
+            low_anti = f_ar is not None and f_ar < LOW_ANTI_RESONANCE_HZ
+            if low_anti:
+                # Below a low anti-resonance the moves are gentle and their b is the shaft's,
+                # not friction (a load 10 x the motor behind 18 Hz: c + b v was far above the
+                # friction, and the ranking's gains overshot 11 % where the factory gains
+                # overshot 6 %); their c was 8-30 % low there.
+                moves_friction = friction
+            # A compliant axis's moves, recorded with the drive's demand, give the gravity
+            # apart from the friction (identify.moves_gravity: within 0.02 % of the peak
+            # torque, where their least squares were up to 0.054 % off, 2.4 mN m, the same way
+            # on every seed), and the frequency response's slow constant-speed travel less
+            # that gravity is the friction: within 1.6 % on every compliant axis of the
+            # benchmark over two seeds, where c + b v was -3 to +11 % off (docs/tuning.md).
+            # Without the moves' gravity the travel's friction is taken below a low
+            # anti-resonance only (within 1.2 % there): a 400 Hz axis's least-squares gravity
+            # left it 2-3.7 % high.
+            gravity = self._moves_gravity(inertia)
+            if gravity is not None:
+                est = replace(est, gravity=gravity)
             travel = self._travel_friction(inertia, est.gravity)
-            if f_ar is None or f_ar >= LOW_ANTI_RESONANCE_HZ:
-                friction = max(est.coulomb + est.viscous * cruise_rad_s, 0.0)
-            elif travel is not None:
-                # Below a low anti-resonance the moves are too gentle to tell friction from
-                # the shaft (their c: 8-30 % low on R30-100Hz, R10-100Hz and
-                # stress-soft60Hz); the frequency response's slow, constant-speed travel,
-                # less the moves' gravity, is within 1.2 % on the benchmark's axes there.
-                # Not elsewhere: the moves' gravity of a 400 Hz axis was up to 2.5 mN m off
-                # (the travel's friction then 2-3.7 % high), and as every axis's friction
-                # the travel's reshuffled the picks that settle on a knife edge
-                # (stress-noise4x seed 2: 4.4 -> 10.2 x the oracle; docs/tuning.md).
+            friction = moves_friction
+            if travel is not None and (gravity is not None or low_anti):
                 friction = travel
                 self._notes.append(
                     f"Coulomb friction from the slow travel of the frequency response "
-                    f"({travel:.4g} N m; the gentle test moves gave {est.coulomb:.4g} N m)"
+                    f"({travel:.4g} N m; the test moves gave {moves_friction:.4g} N m)"
                 )
 
             # Ranked without the viscous term: the moves' fit lends it friction and shaft
@@ -914,6 +922,20 @@ class OwnTuning:
         if abs(moves.with_viscous / j - 1.0) > MOVES_VISCOUS_PART:
             j = moves.with_viscous
         return j if j > 0.0 else None
+
+    def _moves_gravity(self, inertia: float) -> float | None:
+        """A compliant axis's gravity torque [N m] from its identification moves back and
+        forth (:func:`moves_gravity`), or None without their record or a move each way."""
+        if self._moves_record is None:
+            return None
+        rate, torque, position, demand = self._moves_record
+        try:
+            g = moves_gravity(rate, torque, position, demand_spans(demand), inertia)
+        except ValueError as exc:
+            log.debug("no gravity from the moves: %s", exc)
+            return None
+        log.debug("gravity from the moves back and forth: %.5g N m", g)
+        return g
 
     def _travel_friction(self, inertia: float, gravity: float) -> float | None:
         """The Coulomb friction [N m] from the frequency response's travel: its mean load
