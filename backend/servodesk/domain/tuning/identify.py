@@ -288,9 +288,9 @@ def moves_gravity(
     samples over which the drive's demand moves, :func:`demand_spans`): ``Tc sign(w) + g`` on
     an axis with Coulomb friction. The friction changes sign with the direction and the
     gravity does not, so the two directions' means average to the gravity. Each move's own
-    figure is off, on a compliant axis, by up to 40 % of the friction (the span cuts the move
-    where the motor alone is accounted for; not further studied), but by the same in either
-    direction, so it cancels from the gravity: within 0.02 % of the peak torque on the
+    figure is off, on a compliant axis, by up to 40 % of the friction (the same on every move
+    of a tuning; its cause was not studied further), but by the same in either direction, so
+    it cancels from the gravity: within 0.02 % of the peak torque on the
     benchmark's compliant axes over two seeds, with and without a gravity of 5-10 %, where the
     least squares of :func:`identify_rigid` were up to 0.054 % off the same way on every seed
     (its constant column takes what the rigid model leaves of the shaft's swing).
