@@ -25,7 +25,7 @@ import numpy.typing as npt
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.metrics import MoveMetrics, move_metrics
 from servodesk.domain.tuning.model import PlantModel
-from servodesk.domain.tuning.search import ReferenceMove
+from servodesk.domain.tuning.search import ReferenceMove, Rerank, reference_move
 from servodesk.sim.plant import Plant, PlantParams, mechanics_for
 from servodesk.sim.servo import ServoLoop
 
@@ -126,6 +126,32 @@ class ModelMoves:
 
 
 @dataclass(frozen=True, slots=True)
+class OwnMove:
+    """An identified axis with another inertia, run on the reference move built for that
+    inertia rather than on the move it is handed (whose hold after the profile it keeps).
+
+    The reference move accelerates at a share of the machine's move torque over the inertia
+    (search.reference_move): an axis heavier than identified makes the machine's own move
+    gentler, and one lighter makes it harder. ``moves`` simulates the axis with ``inertia``
+    [kg m^2]; picklable like it."""
+
+    moves: ModelMoves
+    inertia: float
+
+    def __call__(
+        self, gains: Sequence[ServoGains], move: ReferenceMove
+    ) -> list[MoveMetrics | None]:
+        own = reference_move(
+            self.inertia,
+            self.moves.torque_limit,
+            self.moves.params.counts_per_rev,
+            self.moves.rate_hz,
+            hold_s=float(move.t[-1] - move.t_end),
+        )
+        return self.moves(gains, own)
+
+
+@dataclass(frozen=True, slots=True)
 class WorstOf:
     """Candidate gains run on several simulated axes; each candidate's metrics are those of
     the axis it settles worst on (:meth:`MoveMetrics.key`), None if it diverges on any.
@@ -136,7 +162,7 @@ class WorstOf:
     feed-forward 2 % off, docs/tuning.md), and gains that are fast only on the nominal axis
     would stake the result on the inertia being known better than it is."""
 
-    members: tuple[ModelMoves, ...]
+    members: tuple[Rerank, ...]
 
     def __call__(
         self, gains: Sequence[ServoGains], move: ReferenceMove
