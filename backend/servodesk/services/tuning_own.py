@@ -315,8 +315,6 @@ class OwnTuning:
         #: The last identification moves of a compliant axis: rate [Hz], torque at the
         #: shaft [N m], angle and position demand [rad] (_identify).
         self._moves_record: tuple[float, np.ndarray, np.ndarray, np.ndarray] | None = None
-        # How far the moves' inertias spread (MovesInertia.spread) where they gave the axis's.
-        self._moves_spread: float | None = None
         self.excursion = (0.0, 0.0)
         self.peak_torque = 0.0
         #: What the procedure adds to the design's notes in the result.
@@ -410,7 +408,8 @@ class OwnTuning:
             # double integral (the benchmark's 400-800 Hz axes over seeds 1-4: |error| median
             # 0.25 %, worst 1.2 %, where the response's band was 0.94 % and 3.9 %,
             # docs/tuning.md).
-            j_moves = self._moves_inertia(inertia) if compliant else None
+            from_moves = self._moves_inertia(inertia) if compliant else None
+            j_moves, moves_spread = from_moves if from_moves is not None else (None, None)
             if j_moves is not None:
                 log.debug("inertia from the moves: %.4g (the response's: %.4g)", j_moves, inertia)
                 inertia = j_moves
@@ -489,20 +488,19 @@ class OwnTuning:
             # The ranking's model has Coulomb friction only (its viscous term is dropped,
             # below), and a sticking axis that stops 10 counts early or late settles at another
             # time: the friction it takes matters to the percent.
-            friction = max(est.coulomb, 0.0)
             f_ar = model.anti_resonance_hz
+            low_anti = f_ar is not None and f_ar < LOW_ANTI_RESONANCE_HZ
             # The moves' own friction: c + b v at their cruise speed. They measured it at that
             # one speed, and from one speed the fit cannot tell c from b: it lent up to half
             # of the Coulomb friction to b (R1-100Hz: c 47 % low, where b is 0; taking c + b v
-            # rather than c: bench median 1.84 -> 1.76 x the oracle, docs/tuning.md).
-            moves_friction = max(est.coulomb + est.viscous * cruise_rad_s, 0.0)
-            low_anti = f_ar is not None and f_ar < LOW_ANTI_RESONANCE_HZ
-            if low_anti:
-                # Below a low anti-resonance the moves are gentle and their b is the shaft's,
-                # not friction (a load 10 x the motor behind 18 Hz: c + b v was far above the
-                # friction, and the ranking's gains overshot 11 % where the factory gains
-                # overshot 6 %); their c was 8-30 % low there.
-                moves_friction = friction
+            # rather than c: bench median 1.84 -> 1.76 x the oracle, docs/tuning.md). Below a
+            # low anti-resonance c alone: the moves are gentle there and their b is the
+            # shaft's, not friction (a load 10 x the motor behind 18 Hz: c + b v was far above
+            # the friction, and the ranking's gains overshot 11 % where the factory gains
+            # overshot 6 %); their c was 8-30 % low there.
+            moves_friction = max(
+                est.coulomb + (0.0 if low_anti else est.viscous * cruise_rad_s), 0.0
+            )
             # A compliant axis's moves, recorded with the drive's demand, give the gravity
             # apart from the friction (identify.moves_gravity: within 0.02 % of the peak
             # torque, where their least squares were up to 0.054 % off, 2.4 mN m, the same way
@@ -578,13 +576,13 @@ class OwnTuning:
                 off: list[ModelMoves | OwnMove | None] = [
                     moves(1.0, 1.0 + f) for f in (-FRICTION_CONFIRM, FRICTION_CONFIRM)
                 ]
-                if j_moves is not None and self._moves_spread is not None:
+                if moves_spread is not None:
                     # Where the moves' double integral gave the inertia, also with the inertia
                     # off by as much as their moves disagree (at least INERTIA_CONFIRM_MIN), each
                     # on the machine's move as that inertia makes it: stress-noise4x seed 2's
                     # model, 1.2 % light, put first gains that settled 10 x slower than the
                     # oracle's on the axis (docs/tuning.md).
-                    spread = max(self._moves_spread, INERTIA_CONFIRM_MIN)
+                    spread = max(moves_spread, INERTIA_CONFIRM_MIN)
                     log.debug("confirmed with the inertia +-%.2g %%", 100.0 * spread)
                     for f in (-spread, spread):
                         m = moves(1.0 + f)
@@ -913,9 +911,10 @@ class OwnTuning:
         rate, _signal, torque, speed = self._frf_record
         return travel_load_torque(rate, torque, speed, inertia), float(np.mean(speed))
 
-    def _moves_inertia(self, inertia: float) -> float | None:
+    def _moves_inertia(self, inertia: float) -> tuple[float, float] | None:
         """A compliant axis's inertia from the double integral of its identification moves
-        (:func:`inertia_from_moves`), or None where that cannot be trusted. Only the moves in
+        (:func:`inertia_from_moves`) and how far the moves' own inertias spread
+        (:attr:`MovesInertia.spread`), or None where that cannot be trusted. Only the moves in
         the frequency response's direction are taken: the mean torque of its constant-speed
         travel is their friction and gravity (:func:`travel_load_torque`, within 1 % on the
         benchmark's axes where the moves' fit was up to 25 % off), and the way back would need
@@ -937,11 +936,10 @@ class OwnTuning:
         log.debug("inertia from the moves' double integral: %s", moves)
         if moves.inertial_share < MOVES_INERTIAL_SHARE_MIN or moves.spread > MOVES_SPREAD_MAX:
             return None
-        self._moves_spread = moves.spread
         j = moves.inertia
         if abs(moves.with_viscous / j - 1.0) > MOVES_VISCOUS_PART:
             j = moves.with_viscous
-        return j if j > 0.0 else None
+        return (j, moves.spread) if j > 0.0 else None
 
     def _moves_gravity(self, inertia: float) -> float | None:
         """A compliant axis's gravity torque [N m] from its identification moves back and

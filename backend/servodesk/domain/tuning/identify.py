@@ -293,7 +293,7 @@ def moves_gravity(
     it cancels from the gravity: within 0.02 % of the peak torque on the
     benchmark's compliant axes over two seeds, with and without a gravity of 5-10 %, where the
     least squares of :func:`identify_rigid` were up to 0.054 % off the same way on every seed
-    (its constant column takes what the rigid model leaves of the shaft's swing).
+    (on the compliant R3 axes only; why, was not studied).
     ValueError without a whole move in each direction."""
     dt, tau, pos = _torque_and(t, torque, position_rad, "position")
     speed = np.gradient(pos, dt)
