@@ -715,9 +715,10 @@ def resonance_from_record(
     anti-resonance comes from the fitted numerator. On the tuner's records of the benchmark's
     compliant axes (two noise seeds) the damping comes out 0.92-1.08 x the truth at 200-800
     Hz and 0.76-1.26 x at 100 Hz (the windowed magnitude fit it replaces: 0.8-1.6 x and
-    1.3-2.8 x); lightly damped modes below 100 Hz come out low (0.24-0.33 x for 0.01 at 60 Hz,
-    on the safe side for a design, where the old fit's 10 x left an axis unstable), and the
-    anti-resonance within 2 % everywhere (the Welch bins: up to 17 % at 18 Hz, 32 % at 11 Hz).
+    1.3-2.8 x); a lightly damped mode below 100 Hz is barely resolved (0.01 at 60 Hz is 1.2 Hz
+    wide at half power, about a bin) and comes out anywhere from 0.24 to 5.7 x (eight noise
+    seeds; the old fit's 10 x left an axis unstable), so the design allows for a lighter one
+    (search.identification_set, ``light_damping``), and the anti-resonance within 2 % everywhere (the Welch bins: up to 17 % at 18 Hz, 32 % at 11 Hz).
     The motor's inertia is ``1 / b2``: within 3 % up to 400 Hz, about 10 % high at 800 Hz (the
     current loop's roll-off, not in this model, bends the band's top), so the whole axis's
     ``J_M (f_r / f_ar)^2`` is used below a low anti-resonance only. It costs 20-200 ms.
