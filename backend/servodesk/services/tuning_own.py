@@ -221,9 +221,10 @@ RANK_TORQUE_SHARE = 0.7
 STRUCTURE_RUNS = 100
 #: A rigid axis whose inertia the drive's position demand instrumented (identify_rigid) is
 #: ranked on the identified axis and on it this much lighter and heavier (``WorstOf``): the
-#: instrumented fit was within 0.6 % on the benchmark's seven rigid axes (the plain fit
-#: -1.5 % to +1.7 %).
-RIGID_INERTIA_TOLERANCE = 0.005
+#: instrumented fit was within 0.64 % on the benchmark's seven rigid axes over noise seeds
+#: 1-8 (the plain fit -1.5 % to +1.7 %). At 0.5 % R1-rigid seed 7 (+0.49 %) stuck 11 counts
+#: past the target for 86 ms, where the model had it stop inside +-10 (docs/tuning.md).
+RIGID_INERTIA_TOLERANCE = 0.0065
 #: A compliant axis's first candidates are re-ranked by their worst move over the model and
 #: the model with its Coulomb friction this much lower and higher (search.confirmed). The
 #: friction the moves measure was 1.4-6.9 % off on the benchmark's 400 Hz axes. Offline over
