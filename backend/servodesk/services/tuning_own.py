@@ -241,8 +241,8 @@ INERTIA_CONFIRM_MIN = 0.002
 #: fit gave 0.0024-0.057 over noise seeds 1-8, up to 5.7 x the truth, and the estimate's own
 #: standard error (from the fit's Jacobian) put seed 8's within +-25 %: it cannot say itself
 #: how far off it is. With 0.25 every seed's gains kept PM >= 47.8 deg on the true plant; 0.15
-#: gave seed 3 (fit 0.028) gains that had not settled to +-10 counts 0.6 s after the move
-#: (docs/tuning.md).
+#: gave seed 3 (fit 0.028) gains that had not settled to +-10 counts by the end of the
+#: benchmark's observed record (docs/tuning.md).
 LIGHT_DAMPING_FACTOR = 0.25
 
 

@@ -718,7 +718,8 @@ def resonance_from_record(
     1.3-2.8 x); a lightly damped mode below 100 Hz is barely resolved (0.01 at 60 Hz is 1.2 Hz
     wide at half power, about a bin) and comes out anywhere from 0.24 to 5.7 x (eight noise
     seeds; the old fit's 10 x left an axis unstable), so the design allows for a lighter one
-    (search.identification_set, ``light_damping``), and the anti-resonance within 2 % everywhere (the Welch bins: up to 17 % at 18 Hz, 32 % at 11 Hz).
+    (search.identification_set, ``light_damping``). The anti-resonance comes out within 2 %
+    everywhere (the Welch bins: up to 17 % at 18 Hz, 32 % at 11 Hz).
     The motor's inertia is ``1 / b2``: within 3 % up to 400 Hz, about 10 % high at 800 Hz (the
     current loop's roll-off, not in this model, bends the band's top), so the whole axis's
     ``J_M (f_r / f_ar)^2`` is used below a low anti-resonance only. It costs 20-200 ms.

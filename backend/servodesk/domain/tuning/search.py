@@ -623,6 +623,11 @@ def tune_on_model(
             f"margins held with the resonances up to {100.0 * resonance_tol:g} % off"
             + (f", stable with them {100.0 * RESONANCE_DRIFT:g} % off" if drift else "")
         )
+        if light_damping is not None:
+            notes.append(
+                f"margins also held with the shaft damping {light_damping:.2g} "
+                f"(identified {plant.damping:.2g}: the record resolves it poorly)"
+            )
     chosen = design.gains
     cands = [design.gains]
     if mode == "high":
