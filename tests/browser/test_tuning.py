@@ -178,6 +178,8 @@ def test_own_tuning_from_the_page_shows_what_it_found_then_undo(generic_page: Pa
     expect(identified).to_contain_text("Coulomb friction (test moves)")
     # The friction the frequency response's slow travel measured, beside it, in N m.
     expect(page.get_by_test_id("tuning-travel-friction")).to_contain_text("N m")
+    # And which friction the ranking's model took, so the user sees what the gains rest on.
+    expect(page.get_by_test_id("tuning-ranking-friction")).to_contain_text("N m")
     expect(page.get_by_test_id("tuning-margins")).to_contain_text("Phase margin")
     expect(page.get_by_test_id("tuning-bode").locator("canvas")).to_have_count(2)
     expect(page.get_by_test_id("tuning-step-plot").locator("canvas")).to_have_count(1)

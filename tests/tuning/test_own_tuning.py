@@ -145,6 +145,7 @@ def test_resonance_found_and_notched() -> None:
     travel = result["identified"]["travel_friction_nm"]
     assert travel == pytest.approx(0.02 * spec.peak_torque, rel=0.02)
     assert any("from the slow travel" in n for n in result["notes"])
+    assert result["identified"]["ranking_friction_nm"] == travel
     g = _gains(result)
     assert abs(g.notch1_hz / 400.0 - 1.0) < 0.05
     loop = LoopModel(exact_model(spec), float(spec.loop_rate_hz), g)

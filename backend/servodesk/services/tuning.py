@@ -967,6 +967,7 @@ class TuningService:
                 "viscous_nms": None,
                 "gravity_nm": None,
                 "travel_friction_nm": None,
+                "ranking_friction_nm": None,
                 "resonances": [],
             },
             "bode": None,
@@ -1037,6 +1038,7 @@ class TuningService:
             "viscous_nms": None,
             "gravity_nm": None,
             "travel_friction_nm": None,
+            "ranking_friction_nm": None,
             "resonances": [],
         }
         error = None if ok else decoded

@@ -667,7 +667,16 @@ class OwnTuning:
         await self._restore_settings(saved)
         self.progress(1.0, "done")
         return self._result(
-            drive, before, design, est, travel, resonances, model, frf, step_before, step_after
+            drive,
+            before,
+            design,
+            est,
+            (travel, friction),
+            resonances,
+            model,
+            frf,
+            step_before,
+            step_after,
         )
 
     async def _learn(self) -> _Drive:
@@ -1379,13 +1388,17 @@ class OwnTuning:
         before: ServoGains,
         design: Any,
         est: InertiaEstimate,
-        travel_friction: float | None,
+        frictions: tuple[float | None, float],
         resonances: list[Resonance],
         model: PlantModel,
         frf: Frf,
         step_before: dict[str, Any],
         step_after: dict[str, Any],
     ) -> dict[str, Any]:
+        """The job's result (docs/tuning.md ``TuningResult``). ``frictions``: the Coulomb
+        friction the frequency response's slow travel measured (None where it gave none) and
+        the one the ranking's model took."""
+        travel_friction, ranking_friction = frictions
         new: ServoGains = design.gains
         gains = []
         b, a = before.as_dict(), new.as_dict()
@@ -1421,6 +1434,9 @@ class OwnTuning:
                 # The Coulomb friction the frequency response's slow travel measured (the
                 # moves' c and b come from one brisk speed); None where it gave none.
                 "travel_friction_nm": travel_friction,
+                # The one the ranking's model took: the travel's, or the moves' c + b v at
+                # their cruise speed (c alone below a low anti-resonance).
+                "ranking_friction_nm": ranking_friction,
                 "resonances": [
                     {
                         "freq_hz": r.freq_hz,

@@ -146,6 +146,10 @@ export interface Identified {
   /** Coulomb friction from the frequency response's slow constant-speed travel [N m]; absent
    * from older results, null where it gave none (the moves' fit is `coulomb_nm`). */
   travel_friction_nm?: number | null;
+  /** The Coulomb friction servodesk's ranking model took [N m]: the slow travel's, or the test
+   * moves' c + b v at their cruise speed; absent from older results, null for the drive's own
+   * tuning. */
+  ranking_friction_nm?: number | null;
   resonances: {
     freq_hz: number;
     anti_freq_hz: number | null;

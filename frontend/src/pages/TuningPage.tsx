@@ -461,6 +461,12 @@ export function TuningPage({ sid }: PageProps) {
                           <td className="mono num">{withUnit(result.identified.travel_friction_nm, 'N m')}</td>
                         </tr>
                       )}
+                      {result.identified.ranking_friction_nm != null && (
+                        <tr data-testid="tuning-ranking-friction">
+                          <th>Coulomb friction the ranking used</th>
+                          <td className="mono num">{withUnit(result.identified.ranking_friction_nm, 'N m')}</td>
+                        </tr>
+                      )}
                       {result.identified.viscous_nms !== null && (
                         <tr>
                           <th>Viscous friction</th>
