@@ -126,6 +126,21 @@ def test_a_rigid_axis_tuned_for_the_machines_move_settles_fast_on_it_and_on_gent
     assert any("move torque given" in n for n in result["notes"])
 
 
+def test_a_rigid_axis_stays_fast_with_its_load_a_little_lighter() -> None:
+    # A load 3 x the motor with Coulomb friction 5 % of peak, as the benchmark tunes it. Ranked
+    # on the identified inertia +-0.65 % alone the tuner took a feed-forward of 0.98 J: settled
+    # in 0.9 ms, but with the load 2 % lighter (a lighter part) the axis overshot, stuck on
+    # the friction and crept in under the integral for 120 ms. Ranked also 1.5 % lighter
+    # (RIGID_LIGHTER), 1.1 ms and 1.2 ms (the oracle's gains: 1.0 and 1.1 ms).
+    spec = PlantSpec(inertia_ratio=3.0, coulomb=0.05)
+    result, _drive = asyncio.run(tune(spec, "high", 1))
+    g = _gains(result)
+    lighter = quiet_move(spec, g, replace(spec, inertia_ratio=0.98 * spec.inertia_ratio))
+    assert lighter is not None and lighter.settling_10_s < 0.005
+    assert measure(spec, g)["settling_10_s"] < 0.0015
+    assert any("1.5 % lighter" in n for n in result["notes"])
+
+
 def test_resonance_found_and_notched() -> None:
     """As the service runs it: the record fits and the design search in the worker process
     (the event loop carries the operator's heartbeats meanwhile)."""
@@ -321,6 +336,17 @@ def test_the_tries_on_a_slow_axis_are_watched_until_they_settle(
     assert watched.count(TRY_WATCH_MAX_S) >= 4  # at least two tries, there and back
     assert VERIFY_SETTLE_S in watched  # the verification moves keep theirs
     assert measure(spec, _gains(result))["settling_10_s"] < 0.78
+
+
+def test_a_runner_up_must_settle_clearly_sooner_on_the_axis_to_replace_the_models_pick() -> None:
+    # A load 3 x the motor behind a 400 Hz shaft as the benchmark tunes it (noise seed 3). Its
+    # model's winner settles in 12 ms on the true plant; tried on the axis it took 43.5 ms (the
+    # mean of its two moves), a runner-up 32.8 ms, which won while any lead did and settles in
+    # 29 ms on the true plant. The two moves of one try disagree by 10 % (median) to 31 % (75th
+    # percentile): a lead under 30 % is the torque noise the try saw (TRY_CLEAR_SHARE).
+    spec = PlantSpec(inertia_ratio=3.0, resonance_hz=400.0)
+    result, _drive = asyncio.run(tune(spec, "high", 3))
+    assert measure(spec, _gains(result))["settling_10_s"] < 0.016
 
 
 def test_below_a_low_anti_resonance_the_friction_comes_from_the_slow_travel() -> None:
