@@ -1317,7 +1317,8 @@ class OwnTuning:
             # (inf) the axis cannot tell them apart and the model's order stands, and one that
             # settles beats one that does not.
             clear = key[0] < TRY_CLEAR_SHARE * best_key[0]
-            if clear if trust_model else key < best_key:
+            better = clear if trust_model else key < best_key
+            if better:
                 best, best_key = g, key
         if last != best:
             await self.write_gains(best)
