@@ -655,6 +655,9 @@ class OwnTuning:
                 # than 1.5 x the winner settled it.
                 try_factor=math.inf if unseen else ALTERNATIVE_SETTLING_FACTOR,
                 confirm=confirm,
+                # Not where the response did not show the anti-resonance: there the model's
+                # moves are the least like the axis's.
+                ff_sweep=not unseen,
                 # A mode the record fit placed is a low, sharp one whose damping the record
                 # barely resolves (identify.resonance_from_record): the margins also hold
                 # with it LIGHT_DAMPING_FACTOR as damped.

@@ -203,6 +203,56 @@ def confirmed(
     return sorted(worst, key=lambda x: x[1].key()) + list(order[top:])
 
 
+#: Inertia feed-forwards (shares of the identified inertia) the first of a confirmed ranking
+#: are also run at (:func:`ff_swept`). Against the variations' two: within 2 x the oracle 94 ->
+#: 97 of 104 on the benchmark's seeds 1-4 and 92 -> 99 on the held-out seeds 5-8, geometric
+#: mean 1.147 -> 1.084 and 1.146 -> 1.097, worst 3.19 -> 2.46 and 2.74 -> 2.49; tuning compute
+#: median 6.4 -> 7.7 s (docs/tuning.md) ...
+FF_SWEEP = (0.6, 0.65, 0.7, 0.75, 0.8, 0.85, 0.9, 0.95, 1.0)
+#: ... and how many of its first.
+FF_SWEEP_TOP = 5
+
+
+def ff_swept(
+    order: Sequence[tuple[ServoGains, MoveMetrics]],
+    rerank: Rerank,
+    confirm: Rerank,
+    move: ReferenceMove,
+    inertia: float,
+    top: int = FF_SWEEP_TOP,
+) -> list[tuple[ServoGains, MoveMetrics]]:
+    """A confirmed ranking (:func:`confirmed`; best first, its first ``top`` with their worst
+    move) with the first ``top`` also run at every inertia feed-forward of :data:`FF_SWEEP`
+    and ranked among them by their worst move over ``rerank`` and ``confirm``.
+
+    The feed-forward decides where the load is when the profile ends: too little and the
+    position loop must catch up the lag, too much and it overshoots onto friction. Which is
+    fastest depends on the rest of the gains, and the variations' two (0.81 and 0.85 J) often
+    miss it: on stress-noise4x the confirmed picks settled in 29-34 ms on four of eight seeds,
+    the same gains at 0.7 J in 11-13 ms, as the oracle's 10.6 ms (its feed-forward: 0.7 J).
+    Ranked by the worst move, not the nominal one: a feed-forward that is fast only at the
+    identified friction and inertia is a knife edge (R30-400Hz at 0.7 J ranked on the model
+    alone: 81 ms on it, never settled on the axis; docs/tuning.md). The feed-forward changes
+    no loop's margins (it acts outside the loops), so every swept candidate keeps them."""
+    head = [g for g, _ in order[:top]]
+    if not head or inertia <= 0.0:
+        return list(order)
+    seen = {g for g, _ in order}
+    swept = [
+        s for g in head for f in FF_SWEEP if (s := replace(g, inertia_ff=f * inertia)) not in seen
+    ]
+    swept = list(dict.fromkeys(swept))
+    nominal = rerank(swept, move)
+    off = confirm(swept, move)
+    runs = [
+        (g, max(m, a, key=MoveMetrics.key))
+        for g, m, a in zip(swept, nominal, off, strict=True)
+        if m is not None and a is not None
+    ]
+    merged = sorted([*order[:top], *runs], key=lambda x: x[1].key())
+    return merged + list(order[top:])
+
+
 def alternatives_of(order: Sequence[ServoGains], n: int = ALTERNATIVES) -> tuple[ServoGains, ...]:
     """Up to ``n`` runners-up of a ranking that differ from the winner, and from each other,
     in what the model is least sure of: the integral time (by more than 20 %) or the
@@ -581,6 +631,7 @@ def tune_on_model(
     try_factor: float = ALTERNATIVE_SETTLING_FACTOR,
     confirm: Rerank | None = None,
     light_damping: float | None = None,
+    ff_sweep: bool = False,
 ) -> SearchResult:
     """The tuner's design: :func:`design_gains` at the response level, then for ``high`` the
     best move among the variations that keep the margins on every plant the identification
@@ -600,7 +651,8 @@ def tune_on_model(
     which the ranking's first :data:`CONFIRM_TOP` are run again and ranked by their worst move
     (:func:`confirmed`); the result's metrics are then those worst moves. ``light_damping``:
     a shaft damping the identification may have overestimated the mode's to
-    (:func:`identification_set`)."""
+    (:func:`identification_set`). ``ff_sweep``: with ``confirm``, the confirmed first also
+    run at other inertia feed-forwards (:func:`ff_swept`)."""
     check = identification_set(plant, resonance_tol, light_damping)
     drift = drift_set(plant, resonance_tol)
     stuck = stuck_load_set(plant) + drift
@@ -662,6 +714,12 @@ def tune_on_model(
                 f"the first {min(CONFIRM_TOP, len(order))} re-ranked by their worst move on the "
                 "model and on it a little off what was identified"
             )
+            if mode == "high" and ff_sweep:
+                order = ff_swept(order, rerank, confirm, move, plant.total_inertia)
+                notes.append(
+                    f"the first {min(FF_SWEEP_TOP, len(order))} also run with inertia "
+                    f"feed-forwards of {FF_SWEEP[0]:g}-{FF_SWEEP[-1]:g} x J"
+                )
     if order:
         chosen, metrics = order[0]
         if chosen.inertia_ff != design.gains.inertia_ff and plant.total_inertia > 0.0:
