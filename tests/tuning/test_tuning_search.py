@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import pickle
+from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
@@ -434,16 +435,11 @@ def test_an_axis_of_another_inertia_runs_the_move_that_inertia_makes() -> None:
     )
 
 
-def test_the_first_candidates_must_also_settle_with_the_inertia_a_little_off() -> None:
-    # stress-noise4x seed 2 as the tuner identified it (a load 3 x the motor behind a 400 Hz
-    # shaft, torque noise 2 % of peak): the inertia 1.2 % light, the moves' inertias 1.17 %
-    # apart. Confirmed with the friction +-2 % alone, the model's winner settled in 18 ms on
-    # the model and 108 ms on the true plant (the oracle: 10.6 ms); with the inertia +-1.17 %
-    # too, each on the move that inertia makes, in 12 ms (docs/tuning.md).
-    plant = PlantModel(
-        3.644660553312745e-05, 0.00010983079524594678, 400.9069528408022, 0.027494213821098033
-    )
-    coulomb, gravity = 0.08781675336980779, 0.00036264534755948985
+def _identified_moves(
+    plant: PlantModel, coulomb: float, gravity: float
+) -> Callable[..., ModelMoves]:
+    """The reference move on an identified axis, its inertia scaled by ``scale`` and its
+    Coulomb friction by ``f`` (as services/tuning_own.py builds its ranking and confirmation)."""
 
     def moves(scale: float = 1.0, f: float = 1.0) -> ModelMoves:
         axis = replace(
@@ -457,19 +453,40 @@ def test_the_first_candidates_must_also_settle_with_the_inertia_a_little_off() -
         assert m is not None
         return m
 
-    friction = (moves(f=0.98), moves(f=1.02))
-    spread = 0.011662819159076
-    inertia = tuple(
-        OwnMove(moves(1.0 + d), plant.total_inertia * (1.0 + d)) for d in (-spread, spread)
-    )
-    kw: dict[str, Any] = {
+    return moves
+
+
+def _search_kw(coulomb: float, gravity: float, **more: Any) -> dict[str, Any]:
+    """``tune_on_model``'s keywords as the service passes them on a compliant axis."""
+    return {
         "counts_per_rev": CPR,
         "torque_limit": PEAK,
         "coulomb": coulomb,
         "gravity": gravity,
         "structure_runs": 100,
-        "resonance_tol": RESONANCE_TOL_PEAK,
+        **more,
     }
+
+
+def test_the_first_candidates_must_also_settle_with_the_inertia_a_little_off() -> None:
+    # stress-noise4x seed 2 as the tuner identified it (a load 3 x the motor behind a 400 Hz
+    # shaft, torque noise 2 % of peak): the inertia 1.2 % light, the moves' inertias 1.17 %
+    # apart. Confirmed with the friction +-2 % alone, the model's winner settled in 18 ms on
+    # the model and 108 ms on the true plant (the oracle: 10.6 ms); with the inertia +-1.17 %
+    # too, each on the move that inertia makes, in 12 ms (docs/tuning.md).
+    plant = PlantModel(
+        3.644660553312745e-05, 0.00010983079524594678, 400.9069528408022, 0.027494213821098033
+    )
+    coulomb, gravity = 0.08781675336980779, 0.00036264534755948985
+
+    moves = _identified_moves(plant, coulomb, gravity)
+
+    friction = (moves(f=0.98), moves(f=1.02))
+    spread = 0.011662819159076
+    inertia = tuple(
+        OwnMove(moves(1.0 + d), plant.total_inertia * (1.0 + d)) for d in (-spread, spread)
+    )
+    kw = _search_kw(coulomb, gravity, resonance_tol=RESONANCE_TOL_PEAK)
     fragile = tune_on_model(plant, RATE, "high", rerank=moves(), confirm=WorstOf(friction), **kw)
     sure = tune_on_model(
         plant, RATE, "high", rerank=moves(), confirm=WorstOf(friction + inertia), **kw
@@ -536,17 +553,7 @@ def test_a_feed_forward_the_variations_miss_is_found_where_it_settles_on_every_a
     )
     coulomb, gravity, spread = 0.08678049211598564, 0.0016617220054061244, 0.012228444575776098
 
-    def moves(scale: float = 1.0, f: float = 1.0) -> ModelMoves:
-        axis = replace(
-            plant,
-            motor_inertia=plant.motor_inertia * scale,
-            load_inertia=plant.load_inertia * scale,
-        )
-        m = ModelMoves.of(
-            axis, RATE, counts_per_rev=CPR, torque_limit=PEAK, coulomb=coulomb * f, gravity=gravity
-        )
-        assert m is not None
-        return m
+    moves = _identified_moves(plant, coulomb, gravity)
 
     off = WorstOf(
         (
@@ -555,16 +562,13 @@ def test_a_feed_forward_the_variations_miss_is_found_where_it_settles_on_every_a
             *(OwnMove(moves(1.0 + d), plant.total_inertia * (1.0 + d)) for d in (-spread, spread)),
         )
     )
-    kw: dict[str, Any] = {
-        "counts_per_rev": CPR,
-        "torque_limit": PEAK,
-        "coulomb": coulomb,
-        "gravity": gravity,
-        "structure_runs": 100,
-        "resonance_tol": RESONANCE_TOL,
-        "confirm": off,
-        "light_damping": 0.25 * plant.damping,
-    }
+    kw = _search_kw(
+        coulomb,
+        gravity,
+        resonance_tol=RESONANCE_TOL,
+        confirm=off,
+        light_damping=0.25 * plant.damping,
+    )
     plain = tune_on_model(plant, RATE, "high", rerank=moves(), **kw)
     swept = tune_on_model(plant, RATE, "high", rerank=moves(), ff_sweep=True, **kw)
     true = true_plant_metrics(PlantSpec(inertia_ratio=3.0, resonance_hz=400.0, noise_torque=0.02))

@@ -207,7 +207,7 @@ def confirmed(
 #: are also run at (:func:`ff_swept`). Against the variations' two: within 2 x the oracle 94 ->
 #: 97 of 104 on the benchmark's seeds 1-4 and 92 -> 99 on the held-out seeds 5-8, geometric
 #: mean 1.147 -> 1.084 and 1.146 -> 1.097, worst 3.19 -> 2.46 and 2.74 -> 2.49; tuning compute
-#: median 6.4 -> 7.7 s (docs/tuning.md) ...
+#: median 6.4 -> 7.8 s (docs/tuning.md) ...
 FF_SWEEP = (0.6, 0.65, 0.7, 0.75, 0.8, 0.85, 0.9, 0.95, 1.0)
 #: ... and how many of its first.
 FF_SWEEP_TOP = 5
@@ -228,7 +228,7 @@ def ff_swept(
     The feed-forward decides where the load is when the profile ends: too little and the
     position loop must catch up the lag, too much and it overshoots onto friction. Which is
     fastest depends on the rest of the gains, and the variations' two (0.81 and 0.85 J) often
-    miss it: on stress-noise4x the confirmed picks settled in 29-34 ms on four of eight seeds,
+    miss it: on stress-noise4x the confirmed picks settled in 29 ms on three of eight seeds,
     the same gains at 0.7 J in 11-13 ms, as the oracle's 10.6 ms (its feed-forward: 0.7 J).
     Ranked by the worst move, not the nominal one: a feed-forward that is fast only at the
     identified friction and inertia is a knife edge (R30-400Hz at 0.7 J ranked on the model
@@ -715,9 +715,10 @@ def tune_on_model(
                 "model and on it a little off what was identified"
             )
             if mode == "high" and ff_sweep:
+                swept = min(FF_SWEEP_TOP, len(order))
                 order = ff_swept(order, rerank, confirm, move, plant.total_inertia)
                 notes.append(
-                    f"the first {min(FF_SWEEP_TOP, len(order))} also run with inertia "
+                    f"the first {swept} also run with inertia "
                     f"feed-forwards of {FF_SWEEP[0]:g}-{FF_SWEEP[-1]:g} x J"
                 )
     if order:
