@@ -526,7 +526,6 @@ def test_the_first_are_also_run_at_other_feed_forwards_and_ranked_by_their_worst
         return [
             None if at(x) == 0.9 else replace(m, settling_10_s=0.080) if at(x) == 0.65 else m
             for x, m in zip(gains, out, strict=True)
-            if m is not None
         ]
 
     out = ff_swept(order, nominal, off, None, j)  # type: ignore[arg-type]
@@ -575,7 +574,9 @@ def test_a_feed_forward_the_variations_miss_is_found_where_it_settles_on_every_a
     assert true(plain.gains).settling_10_s > 0.025
     assert true(swept.gains).settling_10_s < 0.015
     assert swept.metrics.settling_10_s < 0.8 * plain.metrics.settling_10_s
-    assert swept.gains.inertia_ff / plant.total_inertia not in (0.85, 0.85 * 0.95)
+    # A feed-forward the variations do not have (theirs: 0.85 and 0.81 J).
+    ff = swept.gains.inertia_ff / plant.total_inertia
+    assert min(abs(ff - x) for x in (0.85, 0.85 * 0.95)) > 0.01
     assert any("feed-forwards of 0.6-1 x J" in n for n in swept.notes)
     assert not any("feed-forwards of" in n for n in plain.notes)
 

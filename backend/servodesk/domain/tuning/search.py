@@ -242,13 +242,9 @@ def ff_swept(
         s for g in head for f in FF_SWEEP if (s := replace(g, inertia_ff=f * inertia)) not in seen
     ]
     swept = list(dict.fromkeys(swept))
-    nominal = rerank(swept, move)
-    off = confirm(swept, move)
-    runs = [
-        (g, max(m, a, key=MoveMetrics.key))
-        for g, m, a in zip(swept, nominal, off, strict=True)
-        if m is not None and a is not None
-    ]
+    ran = [(g, m) for g, m in zip(swept, rerank(swept, move), strict=True) if m is not None]
+    # Each by its worst move, as the first were (one that diverges off the model is dropped).
+    runs = [(g, m) for g, m in confirmed(ran, confirm, move, len(ran)) if m is not DIVERGED]
     merged = sorted([*order[:top], *runs], key=lambda x: x[1].key())
     return merged + list(order[top:])
 
