@@ -37,6 +37,7 @@ is quantised by ``floor`` and may carry Gaussian count noise (``noise_counts``, 
 
 from __future__ import annotations
 
+import functools
 import math
 import random
 from collections import deque
@@ -299,24 +300,14 @@ class TwoMassMechanics:
     def _discretise(self, dt: float) -> None:
         """The zero-order-hold matrices for step ``dt`` (exp of the augmented system)."""
         self._dt = dt
-        k, c, b = self.stiffness, self.damper, self.viscous
-        im, il = self.inv_jm, self.inv_jl
-        # Moving load: z = [q, w_M, w_L, p_M, T, f], f the load's external torque.
-        move = [
-            [0.0, 1.0, -1.0, 0.0, 0.0, 0.0],
-            [-k * im, -(c + b) * im, c * im, 0.0, im, 0.0],
-            [k * il, c * il, -c * il, 0.0, 0.0, il],
-            [0.0, 1.0, 0.0, 0.0, 0.0, 0.0],
-            [0.0] * 6,
-            [0.0] * 6,
-        ]
-        e = _expm([[x * dt for x in row] for row in move])
-        # Rows q', w_M', w_L' (columns q, w_M, w_L, T, f), then p_M' - p_M.
-        self._move = tuple(e[i][j] for i in range(4) for j in (0, 1, 2, 4, 5))
-        # Load held by static friction: z = [q, w_M, T], the load fixed.
-        lock = [[0.0, 1.0, 0.0], [-k * im, -(c + b) * im, im], [0.0, 0.0, 0.0]]
-        e = _expm([[x * dt for x in row] for row in lock])
-        self._lock = tuple(e[i][j] for i in range(2) for j in range(3))
+        self._move, self._lock = _zoh_matrices(
+            float(self.stiffness),
+            float(self.damper),
+            float(self.viscous),
+            float(self.inv_jm),
+            float(self.inv_jl),
+            float(dt),
+        )
 
     def advance(self, torque: float, dt: float) -> None:
         if dt != self._dt:
@@ -357,6 +348,34 @@ class TwoMassMechanics:
         self.velocity = wm_new
         self.load_pos = pm_new - q_new
         self.load_vel = wl_new
+
+
+@functools.lru_cache(maxsize=512)
+def _zoh_matrices(
+    k: float, c: float, b: float, im: float, il: float, dt: float
+) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """:meth:`TwoMassMechanics._discretise`'s matrices for shaft stiffness ``k``, damper
+    ``c``, motor viscous friction ``b``, inverse inertias ``im`` / ``il`` and step ``dt``.
+
+    Cached: the tuning builds a new axis for every candidate it simulates (hundreds per
+    tuning, all with the same few mechanics), and each exponential costs about a millisecond
+    of pure Python."""
+    # Moving load: z = [q, w_M, w_L, p_M, T, f], f the load's external torque.
+    move = [
+        [0.0, 1.0, -1.0, 0.0, 0.0, 0.0],
+        [-k * im, -(c + b) * im, c * im, 0.0, im, 0.0],
+        [k * il, c * il, -c * il, 0.0, 0.0, il],
+        [0.0, 1.0, 0.0, 0.0, 0.0, 0.0],
+        [0.0] * 6,
+        [0.0] * 6,
+    ]
+    e = _expm([[x * dt for x in row] for row in move])
+    # Rows q', w_M', w_L' (columns q, w_M, w_L, T, f), then p_M' - p_M.
+    moving = tuple(e[i][j] for i in range(4) for j in (0, 1, 2, 4, 5))
+    # Load held by static friction: z = [q, w_M, T], the load fixed.
+    lock = [[0.0, 1.0, 0.0], [-k * im, -(c + b) * im, im], [0.0, 0.0, 0.0]]
+    e = _expm([[x * dt for x in row] for row in lock])
+    return moving, tuple(e[i][j] for i in range(2) for j in range(3))
 
 
 def _expm(a: list[list[float]]) -> list[list[float]]:

@@ -26,6 +26,7 @@ from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.metrics import MoveMetrics, move_metrics
 from servodesk.domain.tuning.model import PlantModel
 from servodesk.domain.tuning.search import ReferenceMove, Rerank, reference_move
+from servodesk.sim.fused import fused_move
 from servodesk.sim.plant import Plant, PlantParams, mechanics_for
 from servodesk.sim.servo import ServoLoop
 
@@ -43,14 +44,34 @@ def run_move(
     move: ReferenceMove,
 ) -> FloatArray:
     """The motor position per tick [counts] of ``move`` on the axis ``params`` describes under
-    ``gains``; NaN from the tick the loop's torque stops being finite."""
+    ``gains``; NaN from the tick the loop's torque stops being finite.
+
+    A noiseless axis runs through the fused tick loop of sim/fused.py (the same arithmetic,
+    several times faster); one with noise or a dead time through :func:`run_move_stepwise`."""
+    p, v, a = move.p.tolist(), move.v.tolist(), move.a.tolist()
+    # Start where the axis rests under gravity: the loop holds it with its integral.
+    hold = int(GRAVITY_HOLD_S * rate_hz) if params.gravity else 0
+    pos = fused_move(params, gains, rate_hz, torque_limit, p, v, a, hold)
+    if pos is None:
+        pos = run_move_stepwise(params, gains, rate_hz, torque_limit, move)
+    return pos
+
+
+def run_move_stepwise(
+    params: PlantParams,
+    gains: ServoGains,
+    rate_hz: float,
+    torque_limit: float,
+    move: ReferenceMove,
+) -> FloatArray:
+    """:func:`run_move` through ``ServoLoop.update`` and ``Plant.step``, one call each per
+    tick, as the simulated drive's engine composes them: any plant (noise, dead time)."""
     plant = Plant(params, mechanics_for(params))
     dt = 1.0 / rate_hz
     loop = ServoLoop(gains, rate_hz, params.counts_per_rev, torque_limit)
     step = plant.step
     update = loop.update
     if params.gravity:
-        # Start where the axis rests under gravity: the loop holds it with its integral.
         for _ in range(int(GRAVITY_HOLD_S * rate_hz)):
             step(update(0.0, 0.0, 0.0, plant.encoder_counts), dt)
     p, v, a = move.p.tolist(), move.v.tolist(), move.a.tolist()

@@ -1,0 +1,137 @@
+"""Per-tick cost of the move simulation the own tuning ranks its candidates with and the
+benchmark's oracle is chosen with: the fused tick loop (sim/fused.py, what ``run_move`` takes
+for a noiseless axis) against the call-per-tick path through ``ServoLoop.update`` and
+``Plant.step`` (``run_move_stepwise``, the baseline), alternating in one process.
+
+Each plant runs the benchmark's reference move (0.5 rev, jerk-limited, watched 0.5 s) with the
+``high`` design of its exact model, twice: with the model's numbers as Python floats, and as
+numpy scalars, which is how an identified model and a designed gain set carry them (the
+tuning's case). Reports the median microseconds per tick of each path, their ratio (fused over
+baseline; below 1 is faster) and whether the two gave the same positions to the count.
+
+    python bench/bench_replay.py [--rounds 5] [--plants R10-200Hz,R30-100Hz,R3-rigid] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import time
+from dataclasses import fields, replace
+from typing import Any
+
+import numpy as np
+
+from servodesk.benchmarks.tuning import default_plants, exact_model
+from servodesk.domain.tuning.design import design_gains
+from servodesk.domain.tuning.gains import ServoGains
+from servodesk.domain.tuning.search import reference_move
+from servodesk.sim.plant import PlantParams
+from servodesk.sim.replay import ModelMoves, run_move, run_move_stepwise
+
+DEFAULT_PLANTS = "R10-200Hz,R30-100Hz,R1-800Hz,R3-rigid"
+
+
+def _as_numpy(params: PlantParams, gains: ServoGains) -> tuple[PlantParams, ServoGains]:
+    """The same numbers as numpy scalars where an identified model has them."""
+    p = replace(
+        params,
+        motor_inertia=np.float64(params.motor_inertia),
+        load_inertia=np.float64(params.load_inertia),
+        coulomb=np.float64(params.coulomb),
+    )
+    g = replace(gains, **{f.name: np.float64(getattr(gains, f.name)) for f in fields(gains)})
+    return p, g
+
+
+def one_plant(name: str, rounds: int, numpy_scalars: bool) -> dict[str, Any]:
+    spec = dict(default_plants())[name]
+    plant = exact_model(spec)
+    rate = float(spec.loop_rate_hz)
+    gains = design_gains(plant, rate, "high").gains
+    moves = ModelMoves.of(
+        plant,
+        rate,
+        counts_per_rev=spec.encoder_counts,
+        torque_limit=spec.peak_torque,
+        coulomb=spec.coulomb * spec.peak_torque,
+    )
+    assert moves is not None
+    params = moves.params
+    if numpy_scalars:
+        params, gains = _as_numpy(params, gains)
+    move = reference_move(plant.total_inertia, spec.peak_torque, spec.encoder_counts, rate)
+    ticks = len(move.p)
+    base: list[float] = []
+    fused: list[float] = []
+    same = True
+    for _ in range(rounds):
+        t0 = time.perf_counter()
+        a = run_move_stepwise(params, gains, rate, spec.peak_torque, move)
+        t1 = time.perf_counter()
+        b = run_move(params, gains, rate, spec.peak_torque, move)
+        t2 = time.perf_counter()
+        base.append((t1 - t0) / ticks * 1e6)
+        fused.append((t2 - t1) / ticks * 1e6)
+        same = same and bool(np.array_equal(a, b, equal_nan=True))
+    return {
+        "plant": name,
+        "numbers": "numpy scalars" if numpy_scalars else "floats",
+        "ticks": ticks,
+        "baseline_us_per_tick": statistics.median(base),
+        "fused_us_per_tick": statistics.median(fused),
+        "ratio": statistics.median(fused) / statistics.median(base),
+        "same_positions": same,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--rounds", type=int, default=5, help="rounds of each path per plant")
+    ap.add_argument("--plants", default=DEFAULT_PLANTS, help="comma-separated plant names")
+    ap.add_argument("--json", action="store_true", help="print JSON")
+    args = ap.parse_args(argv)
+    known = dict(default_plants())
+    names = [n for n in args.plants.split(",") if n]
+    unknown = [n for n in names if n not in known]
+    if unknown or args.rounds < 1:
+        what = f"unknown plant(s): {', '.join(unknown)}" if unknown else "--rounds must be >= 1"
+        print(f"bench_replay: {what} (known: {', '.join(known)})", file=sys.stderr)
+        return 2
+    rows = [one_plant(n, args.rounds, np_) for n in names for np_ in (False, True)]
+    out = {
+        "what": "reference move on an exact plant model, fused tick loop (sim/fused.py) "
+        "against ServoLoop.update + Plant.step per tick (baseline), same process",
+        "rounds": args.rounds,
+        "cpu_count": os.cpu_count(),
+        "loadavg": os.getloadavg(),
+        "plants": rows,
+        "ratio_median_floats": statistics.median(
+            r["ratio"] for r in rows if r["numbers"] == "floats"
+        ),
+        "ratio_median_numpy_scalars": statistics.median(
+            r["ratio"] for r in rows if r["numbers"] == "numpy scalars"
+        ),
+        "same_positions": all(r["same_positions"] for r in rows),
+    }
+    if args.json:
+        print(json.dumps(out, indent=2))
+    else:
+        for r in rows:
+            print(
+                f"{r['plant']:12s} {r['numbers']:14s} {r['ticks']:6d} ticks  baseline "
+                f"{r['baseline_us_per_tick']:.2f} us  fused {r['fused_us_per_tick']:.2f} us  "
+                f"ratio {r['ratio']:.2f}" + ("" if r["same_positions"] else "  DIFFERENT")
+            )
+        print(
+            f"median ratio: floats {out['ratio_median_floats']:.2f}, "
+            f"numpy scalars {out['ratio_median_numpy_scalars']:.2f}"
+        )
+    return 0 if out["same_positions"] else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
