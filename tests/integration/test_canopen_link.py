@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 import sys
+import threading
 import time
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Iterator
 
 import can
 import canopen
@@ -432,3 +434,83 @@ async def test_after_a_time_out_the_same_object_is_read_right_and_then_at_full_s
     for _ in range(3):
         assert await link.read(A(0x1000)) == bytes.fromhex("92010200")
     assert time.monotonic() - t0 < 0.2
+
+
+@contextlib.contextmanager
+def slow_node(channel: str, node: int, delays: list[float | None]) -> Iterator[None]:
+    """A node that answers its SDO requests after ``delays`` (one per request, in order;
+    None: no answer; 0.05 s once they run out): confirmations, and an abort (06090030h) for a
+    write of 55h to 6060h. Raw python-can on the bus, so the link's timing can be set."""
+    responder = can.Bus(interface="virtual", channel=channel)
+    stop = threading.Event()
+    pending = iter(delays)
+
+    def reply(request: bytes) -> None:
+        index = int.from_bytes(request[1:3], "little")
+        if request[0] & 0xE0 == 0x20 and index == 0x6060 and request[4] == 0x55:
+            data = bytes([0x80]) + request[1:4] + (0x06090030).to_bytes(4, "little")
+        elif request[0] & 0xE0 == 0x40:
+            data = bytes([0x4F]) + request[1:4] + bytes([7, 0, 0, 0])  # 1 byte: 7
+        else:
+            data = bytes([0x60]) + request[1:4] + bytes(4)
+        responder.send(can.Message(arbitration_id=0x580 + node, data=data, is_extended_id=False))
+
+    def serve() -> None:
+        while not stop.is_set():
+            msg = responder.recv(0.05)
+            if msg is not None and msg.arbitration_id == 0x600 + node:
+                delay = next(pending, 0.05)
+                if delay is not None:
+                    threading.Timer(delay, reply, (bytes(msg.data),)).start()
+
+    server = threading.Thread(target=serve, daemon=True)
+    server.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        server.join(1.0)
+        responder.shutdown()
+
+
+async def test_a_refused_write_is_not_hidden_by_the_late_answer_to_a_retried_one(
+    channel: str,
+) -> None:
+    # A drive busy for a moment (an EEPROM save, say) answers the first write of 6060h late,
+    # after the link's time-out: the link sends it again, and the late answer to the first
+    # send answers the retry. The answer to the second send is still to come; the next write
+    # of 6060h used to take it for its own, and the drive's refusal of that write (an abort,
+    # which arrives after it) went unseen.
+    link = CanopenLink(LinkParams(interface="virtual", channel=channel, node_id=9, timeout=0.3))
+    with slow_node(channel, 9, [0.4, 0.05, 0.15]):
+        await link.open()
+        try:
+            await link.write(A(0x6060), bytes([1]))  # answered on its retry
+            with pytest.raises(ObjectAccessError) as info:
+                await link.write(A(0x6060), bytes([0x55]))
+            assert info.value.code == 0x06090030
+        finally:
+            await link.close()
+
+
+async def test_where_the_first_send_was_lost_the_next_write_is_done_one_time_out_later(
+    channel: str,
+) -> None:
+    # The other case of an answer on the retry: the first send never reached the drive. What
+    # the link owes then never comes, and the next write of that object within a time-out
+    # drops its own answer once and waits for its retry: done, one time-out slower. Reads
+    # (another kind of answer) and other objects are not held up.
+    link = CanopenLink(LinkParams(interface="virtual", channel=channel, node_id=9, timeout=0.3))
+    with slow_node(channel, 9, [None]):
+        await link.open()
+        try:
+            await link.write(A(0x6060), bytes([1]))  # answered on its retry
+            t0 = time.monotonic()
+            assert await link.read(A(0x6060)) == bytes([7])
+            await link.write(A(0x6061), bytes([1]))
+            assert time.monotonic() - t0 < 0.2
+            t0 = time.monotonic()
+            await link.write(A(0x6060), bytes([3]))
+            assert 0.25 < time.monotonic() - t0 < 0.6
+        finally:
+            await link.close()

@@ -461,6 +461,14 @@ class CanopenLink(DriveLink):
                     waiter = loop.create_future()
                     self._waiter = waiter
                     answer = await waiter
+                if initiate and attempt == 1:
+                    # Answered on the retry: the drive may have been slow rather than deaf,
+                    # and this may be the late answer to the first send, the retry's still
+                    # to come. Taken by the next request of the same object, it would stand
+                    # in for that one's answer (a write's refusal unseen). Owed, it is dropped
+                    # when it comes; where the first send was lost, the next such request
+                    # within a time-out waits one out before its own retry instead.
+                    self._owe(request, answer_scs[0])
                 return answer
             except asyncio.CancelledError:
                 # Cancelled on the bus (a motion's monitor ended by a dead-man stop): its
