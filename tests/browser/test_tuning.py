@@ -175,7 +175,14 @@ def test_own_tuning_from_the_page_shows_what_it_found_then_undo(generic_page: Pa
     expect(status).to_have_attribute("data-status", "done")
     identified = page.get_by_test_id("tuning-identified")
     expect(identified).to_contain_text("kg m²")
-    expect(identified).to_contain_text("Coulomb friction (test moves)")
+    expect(identified).to_contain_text("Coulomb friction (test moves' fit)")
+    # The moves' friction as they measured it: at their speed, in rev/s and rad/s, and the
+    # fit's split between Coulomb and viscous friction said to be only that.
+    moves = page.get_by_test_id("tuning-moves-friction")
+    expect(moves).to_contain_text("N m at")
+    expect(moves).to_contain_text("rev/s")
+    expect(moves).to_contain_text("rad/s")
+    expect(page.get_by_test_id("tuning-viscous")).to_contain_text("cannot tell Coulomb from viscous")
     # The friction the frequency response's slow travel measured, beside it, in N m.
     expect(page.get_by_test_id("tuning-travel-friction")).to_contain_text("N m")
     # And which friction the ranking's model took, so the user sees what the gains rest on.

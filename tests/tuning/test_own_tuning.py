@@ -157,6 +157,14 @@ def test_resonance_found_and_notched() -> None:
     # At 50 rad/s (8 rev/s) the viscous term stays under a quarter of the true friction (it
     # was 0.08 N m there).
     assert abs(result["identified"]["viscous_nms"]) * 50.0 < 0.25 * 0.02 * spec.peak_torque
+    # What the moves measured, reported as such: their friction at their cruise speed, the
+    # fit's c + b v, near the true friction there (Coulomb only on this plant).
+    ident = result["identified"]
+    assert ident["moves_speed_rad_s"] > 10.0
+    assert ident["moves_friction_nm"] == pytest.approx(
+        ident["coulomb_nm"] + ident["viscous_nms"] * ident["moves_speed_rad_s"], rel=1e-12
+    )
+    assert ident["moves_friction_nm"] == pytest.approx(0.02 * spec.peak_torque, rel=0.1)
     # The frequency response's slow travel, less the gravity of the moves back and forth,
     # measures the friction closer (reported beside the moves'), and the ranking takes it.
     travel = result["identified"]["travel_friction_nm"]

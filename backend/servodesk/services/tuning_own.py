@@ -703,6 +703,7 @@ class OwnTuning:
             design,
             est,
             (travel, friction),
+            cruise_rad_s,
             resonances,
             model,
             frf,
@@ -1441,6 +1442,7 @@ class OwnTuning:
         design: Any,
         est: InertiaEstimate,
         frictions: tuple[float | None, float],
+        cruise_rad_s: float,
         resonances: list[Resonance],
         model: PlantModel,
         frf: Frf,
@@ -1449,7 +1451,7 @@ class OwnTuning:
     ) -> dict[str, Any]:
         """The job's result (docs/tuning.md ``TuningResult``). ``frictions``: the Coulomb
         friction the frequency response's slow travel measured (None where it gave none) and
-        the one the ranking's model took."""
+        the one the ranking's model took. ``cruise_rad_s``: the test moves' cruise speed."""
         travel_friction, ranking_friction = frictions
         new: ServoGains = design.gains
         gains = []
@@ -1482,6 +1484,11 @@ class OwnTuning:
                 "inertia_ratio": (est.inertia - jm) / jm if model.resonance_hz else None,
                 "coulomb_nm": est.coulomb,
                 "viscous_nms": est.viscous,
+                # What the moves measured: their friction at their cruise speed, c + b v. They
+                # run at one speed, where the fit cannot tell c from b (it may trade them to a
+                # negative b); the sum is what it measured.
+                "moves_friction_nm": est.coulomb + est.viscous * cruise_rad_s,
+                "moves_speed_rad_s": cruise_rad_s,
                 "gravity_nm": est.gravity,
                 # The Coulomb friction the frequency response's slow travel measured (the
                 # moves' c and b come from one brisk speed); None where it gave none.

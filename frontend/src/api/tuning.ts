@@ -140,8 +140,17 @@ export interface ResultGain {
 export interface Identified {
   inertia_kgm2: number | null;
   inertia_ratio: number | null;
+  /** The test moves' least squares: Coulomb friction [N m] and viscous friction [N m s/rad].
+   * The moves run at one cruise speed, where the split between the two is not determined
+   * (the fit may trade them, to a negative viscous term); their sum at that speed is
+   * `moves_friction_nm`. */
   coulomb_nm: number | null;
   viscous_nms: number | null;
+  /** The test moves' friction at their cruise speed, c + b v [N m]; absent from older results
+   * and from the drive's own tuning. */
+  moves_friction_nm?: number | null;
+  /** That cruise speed [rad/s]. */
+  moves_speed_rad_s?: number | null;
   gravity_nm: number | null;
   /** Coulomb friction from the frequency response's slow constant-speed travel [N m]; absent
    * from older results, null where it gave none (the moves' fit is `coulomb_nm`). */

@@ -449,9 +449,18 @@ export function TuningPage({ sid }: PageProps) {
                           <td className="mono num">{withUnit(result.identified.inertia_kgm2, 'kg m²')}</td>
                         </tr>
                       )}
+                      {result.identified.moves_friction_nm != null && result.identified.moves_speed_rad_s != null && (
+                        <tr data-testid="tuning-moves-friction">
+                          <th>Friction at the test moves' speed</th>
+                          <td className="mono num">
+                            {withUnit(result.identified.moves_friction_nm, 'N m')} at {withUnit(result.identified.moves_speed_rad_s / (2 * Math.PI), 'rev/s')} (
+                            {withUnit(result.identified.moves_speed_rad_s, 'rad/s')})
+                          </td>
+                        </tr>
+                      )}
                       {result.identified.coulomb_nm !== null && (
                         <tr>
-                          <th>Coulomb friction (test moves)</th>
+                          <th>Coulomb friction (test moves' fit)</th>
                           <td className="mono num">{withUnit(result.identified.coulomb_nm, 'N m')}</td>
                         </tr>
                       )}
@@ -468,9 +477,17 @@ export function TuningPage({ sid }: PageProps) {
                         </tr>
                       )}
                       {result.identified.viscous_nms !== null && (
-                        <tr>
-                          <th>Viscous friction</th>
-                          <td className="mono num">{withUnit(result.identified.viscous_nms, 'N m s/rad')}</td>
+                        <tr data-testid="tuning-viscous">
+                          <th>Viscous friction (test moves' fit)</th>
+                          <td className="mono num">
+                            {withUnit(result.identified.viscous_nms, 'N m s/rad')}
+                            {result.identified.moves_speed_rad_s != null && (
+                              <div className="muted small">
+                                The moves run at one speed, where the fit cannot tell Coulomb from viscous friction (it may trade them, to a negative
+                                viscous term): their sum at that speed, above, is what they measured.
+                              </div>
+                            )}
+                          </td>
                         </tr>
                       )}
                       {result.identified.gravity_nm !== null && (
