@@ -182,7 +182,8 @@ def test_own_tuning_from_the_page_shows_what_it_found_then_undo(generic_page: Pa
     expect(moves).to_contain_text("N m at")
     expect(moves).to_contain_text("rev/s")
     expect(moves).to_contain_text("rad/s")
-    expect(page.get_by_test_id("tuning-viscous")).to_contain_text("cannot tell Coulomb from viscous")
+    viscous = page.get_by_test_id("tuning-viscous")
+    expect(viscous).to_contain_text("cannot tell Coulomb from viscous")
     # The friction the frequency response's slow travel measured, beside it, in N m.
     expect(page.get_by_test_id("tuning-travel-friction")).to_contain_text("N m")
     # And which friction the ranking's model took, so the user sees what the gains rest on.
