@@ -100,6 +100,16 @@ def fused_move(
     pos = np.empty(n)
     total = hold_ticks + n
 
+    # The mechanics' coefficients and state: a two-mass axis (TwoMassMechanics.advance) or a
+    # rigid one (RigidMechanics.advance); the other's stay unused. One branch per tick costs
+    # far less than the loop's arithmetic.
+    two_mass = isinstance(mech, TwoMassMechanics)
+    q0 = q1_ = q2 = q3 = q4 = m0 = m1 = m2 = m3 = m4 = 0.0
+    l0 = l1 = l2 = l3 = l4 = c0 = c1 = c2 = c3 = c4 = 0.0
+    a00 = a01 = a02 = a10 = a11 = a12 = 0.0
+    stiff = damper = fc = g = lp_ = wl = 0.0
+    inv_j = visc = c = grav = 0.0
+    exact = False
     if isinstance(mech, TwoMassMechanics):
         mech._discretise(dt)
         (
@@ -113,96 +123,18 @@ def fused_move(
         damper = float(mech.damper)
         fc = float(mech.coulomb)
         g = float(mech.gravity)
-        pm = float(mech.position)
         lp_ = float(mech.load_pos)
-        wm = float(mech.velocity)
         wl = float(mech.load_vel)
-        for t in range(total):
-            enc = floor(pm * scale)
-            if t < hold_ticks:
-                pd = vd = ad = 0.0
-            else:
-                k = t - hold_ticks
-                pos[k] = enc
-                pd = p[k]
-                vd = v[k]
-                ad = a[k]
-            # ServoLoop.update
-            vmeas = (enc - prev) * rr
-            prev = enc
-            ev = kp * (pd - enc * rad) + kvff * vd - vmeas
-            if ki and not ((s > 0 and ev > 0.0) or (s < 0 and ev < 0.0)):
-                integ += ki * ev
-            x = kv * ev + integ + jff * ad + tt
-            if lp_on:
-                y = lb0 * x + lz
-                lz = lb1 * x - la1 * y
-                x = y
-            if n1_on:
-                y = p10 * x + z11
-                z11 = p11 * x - q11 * y + z12
-                z12 = p12 * x - q12 * y
-                x = y
-            if n2_on:
-                y = p20 * x + z21
-                z21 = p21 * x - q21 * y + z22
-                z22 = p22 * x - q22 * y
-                x = y
-            if x > lim:
-                x = lim
-                s = 1
-            elif x < -lim:
-                x = -lim
-                s = -1
-            else:
-                s = 0
-            cmd = nxt
-            nxt = x
-            if t >= hold_ticks and not isfinite(cmd):
-                pos[t - hold_ticks :] = math.nan
-                break
-            # Plant.step
-            if cmd > peak:
-                cmd = peak
-            elif cmd < -peak:
-                cmd = -peak
-            t0 = torque_state
-            torque_state = t0 + (cmd - t0) * alpha
-            tq = cmd + (t0 - cmd) * beta
-            # TwoMassMechanics.advance
-            q = pm - lp_
-            if wl == 0.0 and fc > 0.0:
-                drive = stiff * q + damper * wm - g
-                if -fc <= drive <= fc:
-                    q1 = a00 * q + a01 * wm + a02 * tq
-                    wm = a10 * q + a11 * wm + a12 * tq
-                    pm = pm + q1 - q
-                    continue
-                f = -g - (fc if drive > 0.0 else -fc)
-            else:
-                f = -g - (fc if wl > 0.0 else -fc if wl < 0.0 else 0.0)
-            q_new = q0 * q + q1_ * wm + q2 * wl + q3 * tq + q4 * f
-            wm_new = m0 * q + m1 * wm + m2 * wl + m3 * tq + m4 * f
-            wl_new = l0 * q + l1 * wm + l2 * wl + l3 * tq + l4 * f
-            pm_new = pm + c0 * q + c1 * wm + c2 * wl + c3 * tq + c4 * f
-            if wl != 0.0 and (wl > 0.0) != (wl_new > 0.0):
-                drive = stiff * q_new + damper * wm_new - g
-                if -fc <= drive <= fc:
-                    wl_new = 0.0
-            pm = pm_new
-            wm = wm_new
-            lp_ = pm_new - q_new
-            wl = wl_new
-        return pos
-
-    assert isinstance(mech, RigidMechanics)
-    inv_j = float(mech.inv_inertia)
-    visc = float(mech.viscous)
-    c = float(mech.coulomb)
-    grav = float(mech.gravity)
-    exact = mech.exact
+    else:
+        assert isinstance(mech, RigidMechanics)
+        inv_j = float(mech.inv_inertia)
+        visc = float(mech.viscous)
+        c = float(mech.coulomb)
+        grav = float(mech.gravity)
+        exact = mech.exact
     pm = float(mech.position)
-    w = float(mech.velocity)
+    wm = float(mech.velocity)
+
     for t in range(total):
         enc = floor(pm * scale)
         if t < hold_ticks:
@@ -213,6 +145,7 @@ def fused_move(
             pd = p[k]
             vd = v[k]
             ad = a[k]
+        # ServoLoop.update, _velocity_loop, _output
         vmeas = (enc - prev) * rr
         prev = enc
         ev = kp * (pd - enc * rad) + kvff * vd - vmeas
@@ -246,6 +179,7 @@ def fused_move(
         if t >= hold_ticks and not isfinite(cmd):
             pos[t - hold_ticks :] = math.nan
             break
+        # Plant.step
         if cmd > peak:
             cmd = peak
         elif cmd < -peak:
@@ -253,21 +187,47 @@ def fused_move(
         t0 = torque_state
         torque_state = t0 + (cmd - t0) * alpha
         tq = cmd + (t0 - cmd) * beta
-        # RigidMechanics.advance
-        drive = tq - grav
-        if w == 0.0:
-            if -c <= drive <= c:
-                continue
-            net = drive - c if drive > 0.0 else drive + c
-            w_new = net * inv_j * dt
+        if two_mass:
+            # TwoMassMechanics.advance
+            q = pm - lp_
+            if wl == 0.0 and fc > 0.0:
+                drive = stiff * q + damper * wm - g
+                if -fc <= drive <= fc:
+                    q1 = a00 * q + a01 * wm + a02 * tq
+                    wm = a10 * q + a11 * wm + a12 * tq
+                    pm = pm + q1 - q
+                    continue
+                f = -g - (fc if drive > 0.0 else -fc)
+            else:
+                f = -g - (fc if wl > 0.0 else -fc if wl < 0.0 else 0.0)
+            q_new = q0 * q + q1_ * wm + q2 * wl + q3 * tq + q4 * f
+            wm_new = m0 * q + m1 * wm + m2 * wl + m3 * tq + m4 * f
+            wl_new = l0 * q + l1 * wm + l2 * wl + l3 * tq + l4 * f
+            pm_new = pm + c0 * q + c1 * wm + c2 * wl + c3 * tq + c4 * f
+            if wl != 0.0 and (wl > 0.0) != (wl_new > 0.0):
+                drive = stiff * q_new + damper * wm_new - g
+                if -fc <= drive <= fc:
+                    wl_new = 0.0
+            pm = pm_new
+            wm = wm_new
+            lp_ = pm_new - q_new
+            wl = wl_new
         else:
-            net = drive - visc * w - (c if w > 0.0 else -c)
-            w_new = w + net * inv_j * dt
-            if (w > 0.0) != (w_new > 0.0) and -c <= drive <= c:
-                w_new = 0.0
-        if exact:
-            pm += 0.5 * (w + w_new) * dt
-        else:
-            pm += w_new * dt
-        w = w_new
+            # RigidMechanics.advance
+            drive = tq - grav
+            if wm == 0.0:
+                if -c <= drive <= c:
+                    continue
+                net = drive - c if drive > 0.0 else drive + c
+                w_new = net * inv_j * dt
+            else:
+                net = drive - visc * wm - (c if wm > 0.0 else -c)
+                w_new = wm + net * inv_j * dt
+                if (wm > 0.0) != (w_new > 0.0) and -c <= drive <= c:
+                    w_new = 0.0
+            if exact:
+                pm += 0.5 * (wm + w_new) * dt
+            else:
+                pm += w_new * dt
+            wm = w_new
     return pos
