@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from servodesk.benchmarks.tuning import default_plants, exact_model
+from servodesk.benchmarks.tuning import default_plants, exact_model, plant_names
 from servodesk.domain.tuning.design import design_gains
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.search import reference_move
@@ -94,12 +94,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--plants", default=DEFAULT_PLANTS, help="comma-separated plant names")
     ap.add_argument("--json", action="store_true", help="print JSON")
     args = ap.parse_args(argv)
-    known = dict(default_plants())
-    names = [n for n in args.plants.split(",") if n]
-    unknown = [n for n in names if n not in known]
-    if unknown or args.rounds < 1:
-        what = f"unknown plant(s): {', '.join(unknown)}" if unknown else "--rounds must be >= 1"
-        print(f"bench_replay: {what} (known: {', '.join(known)})", file=sys.stderr)
+    try:
+        names = plant_names(args.plants)
+        if args.rounds < 1:
+            raise ValueError("--rounds must be >= 1")
+    except ValueError as exc:
+        print(f"bench_replay: {exc}", file=sys.stderr)
         return 2
     rows = [one_plant(n, args.rounds, np_) for n in names for np_ in (False, True)]
     out = {

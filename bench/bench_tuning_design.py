@@ -23,7 +23,7 @@ import sys
 import time
 from typing import Any
 
-from servodesk.benchmarks.tuning import default_plants, exact_model
+from servodesk.benchmarks.tuning import default_plants, exact_model, plant_names
 from servodesk.domain.tuning import model as loop_model
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.search import tune_on_model
@@ -67,12 +67,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--plants", default=DEFAULT_PLANTS, help="comma-separated plant names")
     ap.add_argument("--json", action="store_true", help="print JSON")
     args = ap.parse_args(argv)
-    known = dict(default_plants())
-    names = [n for n in args.plants.split(",") if n]
-    unknown = [n for n in names if n not in known]
-    if unknown or args.rounds < 1:
-        what = f"unknown plant(s): {', '.join(unknown)}" if unknown else "--rounds must be >= 1"
-        print(f"bench_tuning_design: {what} (known: {', '.join(known)})", file=sys.stderr)
+    try:
+        names = plant_names(args.plants)
+        if args.rounds < 1:
+            raise ValueError("--rounds must be >= 1")
+    except ValueError as exc:
+        print(f"bench_tuning_design: {exc}", file=sys.stderr)
         return 2
     size = loop_model.RESPONSE_CACHE_SIZE
     rows: list[dict[str, Any]] = []

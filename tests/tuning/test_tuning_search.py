@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from servodesk.benchmarks.tuning import true_plant_metrics
+from servodesk.benchmarks.tuning import plant_names, true_plant_metrics
 from servodesk.domain.tuning.design import FF_FACTOR, STUCK_GM_MIN_DB, STUCK_PM_MIN, design_gains
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.metrics import MoveMetrics
@@ -702,3 +702,9 @@ def test_the_result_says_when_it_held_the_margins_at_a_lighter_damping() -> None
     # the tuner's phase margin.
     sharp_axis = replace(SOFT60_SEED8, damping=light, viscous=0.0)
     assert _worst_pm([sharp_axis], sharp.gains) >= PM_MIN + TUNER_PM_EXTRA_DEG - 1e-6
+
+
+def test_the_bench_scripts_plant_list_names_what_is_unknown() -> None:
+    assert plant_names("R3-rigid,,R10-200Hz") == ["R3-rigid", "R10-200Hz"]
+    with pytest.raises(ValueError, match=r"unknown plant\(s\): R3-300Hz, x \(known: R1-rigid"):
+        plant_names("R3-rigid,R3-300Hz,x")

@@ -101,6 +101,17 @@ def default_plants() -> list[tuple[str, PlantSpec]]:
     return out
 
 
+def plant_names(text: str) -> list[str]:
+    """The plants of a comma-separated list of the default set's names (the bench scripts'
+    ``--plants``); ValueError naming the unknown ones and the known ones."""
+    known = [n for n, _spec in default_plants()]
+    names = [n for n in text.split(",") if n]
+    unknown = [n for n in names if n not in known]
+    if unknown:
+        raise ValueError(f"unknown plant(s): {', '.join(unknown)} (known: {', '.join(known)})")
+    return names
+
+
 def exact_model(spec: PlantSpec) -> PlantModel:
     """The plant's linear model, exactly (what the oracle knows)."""
     return PlantModel(
