@@ -11,15 +11,20 @@ sqrt(k J_M J_L / (J_M + J_L))``), so that the motor velocity shows the anti-reso
 ``w_r / sqrt(1 + J_L/J_M)`` and the resonance at ``w_r``. :func:`mechanics_for` picks one from
 :class:`PlantParams` (``resonance_hz`` None: rigid).
 
-Integration (``PlantParams.exact``, set for plant files): with ``exact`` the plant follows a
+Integration (``PlantParams.exact``, set for plant files and, since the third session of
+2026-11-29, for the profile twins unless their ``simulation.exact_integration`` is false):
+with ``exact`` the plant follows a
 torque command held over each step (zero-order hold), so it is what a sampled drive sees at
 any loop rate: the current loop's first-order lag is solved exactly and the mechanics get its
 mean over the step (exact for the velocity change); :class:`RigidMechanics` moves by the step's
-mean velocity. Without it (the profile twins, as they always were) the mechanics get the lag's
+mean velocity. Without it (what every profile twin did until then) the mechanics get the lag's
 value at the end of the step and the rigid axis moves semi-implicitly (position with the new
 velocity): the position is then half a step ahead of a held torque, a phase lead of
 ``w dt / 2`` that makes a fast loop look better damped (at 4 kHz a 200 Hz velocity loop on a
-ratio-1 axis: damping 0.57 instead of 0.24; at 16 kHz the difference is small).
+ratio-1 axis: damping 0.57 instead of 0.24; at 16 kHz the difference is small), and a tuning's
+identification on the generic twin (4 kHz) found its inertia 0.5 % light, its friction at the
+test moves' speed 39 % high and a gravity of -1.8 mN m where there is none (exact: +0.2 %,
++1.6 %, 0.03 mN m).
 :class:`TwoMassMechanics` always advances with the matrix exponential of its linear dynamics
 (computed once per step size), exact for the torque it is given: a semi-implicit Euler step
 made the closed loop look better damped than it is near an 800-1000 Hz resonance at 16 kHz
@@ -81,8 +86,8 @@ class PlantParams:
     torque_noise: float = 0.0
     #: Current loop bandwidth [Hz]; when given it sets ``current_tau = 1 / (2 pi f)``.
     current_loop_hz: float | None = None
-    #: Integrate exactly for a torque held over each step (module docstring); False keeps the
-    #: profile twins' semi-implicit step.
+    #: Integrate exactly for a torque held over each step (module docstring); False: the
+    #: semi-implicit step (a profile with ``simulation.exact_integration: false``).
     exact: bool = False
 
     def __post_init__(self) -> None:
@@ -113,7 +118,8 @@ class PlantParams:
 
     @classmethod
     def from_settings(cls, s: SimSettings, **overrides: Any) -> PlantParams:
-        """Parameters from a profile's ``simulation`` section; keyword overrides win."""
+        """Parameters from a profile's ``simulation`` section (integrated exactly unless its
+        ``exact_integration`` is false); keyword overrides win."""
         p = cls(
             motor_inertia=s.motor_inertia,
             load_inertia=s.motor_inertia * s.load_inertia_ratio,
@@ -122,6 +128,7 @@ class PlantParams:
             rated_torque=s.rated_torque,
             peak_torque=s.peak_torque,
             counts_per_rev=s.counts_per_rev,
+            exact=s.exact_integration,
         )
         return replace(p, **overrides) if overrides else p
 
@@ -169,7 +176,7 @@ class RigidMechanics:
         self.coulomb = coulomb
         self.gravity = gravity
         #: Position by the step's mean velocity (exact for a held torque) instead of the new
-        #: velocity (semi-implicit Euler, the profile twins' step).
+        #: velocity (semi-implicit Euler, the profile twins' old step).
         self.exact = exact
         self.position = 0.0
         self.velocity = 0.0
