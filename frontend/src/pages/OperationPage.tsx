@@ -20,7 +20,7 @@ import { TorquePanel } from '../components/operation/TorquePanel';
 import { VelocityPanel } from '../components/operation/VelocityPanel';
 import { ViewerFrame } from '../components/operation/ViewerFrame';
 import type { PanelContext } from '../components/operation/context';
-import { clearDeadman, heartbeatRunning, me, operationLive, setControl, setMotion, startOperationStore, stopHeartbeat } from '../components/operation/operationStore';
+import { clearDeadman, heartbeatRunning, loadControl, me, operationLive, setMotion, startOperationStore, stopHeartbeat } from '../components/operation/operationStore';
 import '../components/operation/operation.css';
 import { FailureBox } from '../components/FailureBox';
 import { LivePlot } from '../components/LivePlot';
@@ -152,10 +152,7 @@ export function OperationPage({ sid }: PageProps) {
       (s) => alive && applyState(sid, s),
       (e: unknown) => alive && notifyError(e),
     );
-    operationApi.control(sid).then(
-      (c) => alive && setControl(sid, c),
-      () => undefined,
-    );
+    loadControl(sid);
     operationApi.motion(sid).then(
       (m) => alive && setMotion(sid, m),
       () => undefined,

@@ -21,7 +21,7 @@ import { FailureBox } from '../components/FailureBox';
 import { ProgressBar } from '../components/ProgressBar';
 import { StatePill } from '../components/StatePill';
 import { ControlCard } from '../components/operation/ControlCard';
-import { beginHeartbeat, heartbeatRunning, me, operationLive, setControl, startAnswered, startOperationStore, stopHeartbeat } from '../components/operation/operationStore';
+import { beginHeartbeat, heartbeatRunning, loadControl, me, operationLive, startAnswered, startOperationStore, stopHeartbeat } from '../components/operation/operationStore';
 import '../components/operation/operation.css';
 import { GainTable } from '../components/tuning/GainTable';
 import { BodePlot, StepPlot } from '../components/tuning/TuningPlots';
@@ -111,10 +111,7 @@ export function TuningPage({ sid }: PageProps) {
       (s) => alive && applyState(sid, s),
       () => undefined,
     );
-    operationApi.control(sid).then(
-      (c) => alive && setControl(sid, c),
-      () => undefined,
-    );
+    loadControl(sid);
     loadInfo();
     const off = socket.on('tuning', (m) => {
       if (m.session !== sid) return;

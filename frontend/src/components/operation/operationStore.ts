@@ -15,6 +15,7 @@ import { tabClientId } from '../../lib/backupClientId';
 import { HeartbeatLoop, type HeartbeatInfo } from '../../lib/heartbeat';
 import { Observable } from '../../state/observable';
 import { socket } from '../../state/store';
+import { Fresh } from '../../lib/fresh';
 import type { DeadmanMessage } from '../../ws/messages';
 
 export interface OperationLive {
@@ -27,6 +28,8 @@ export interface OperationLive {
 
 interface Entry {
   obs: Observable<OperationLive>;
+  /** Who holds control: pushed by messages and actions, read when a page opens (lib/fresh). */
+  control: Fresh<Control>;
   loop: HeartbeatLoop;
   /** The motion this tab started was seen running since the loop started. */
   seenActive: boolean;
@@ -52,7 +55,8 @@ function entry(sid: string): Entry {
       homing: null,
       heartbeat: loop.state,
     });
-    const created: Entry = { obs, loop, seenActive: false, startAnswered: false, poll: null };
+    const control = new Fresh<Control>((c) => obs.update((v) => ({ ...v, control: c })));
+    const created: Entry = { obs, control, loop, seenActive: false, startAnswered: false, poll: null };
     loop.onChange((heartbeat) => obs.update((v) => ({ ...v, heartbeat })));
     entries.set(sid, created);
     e = created;
@@ -65,9 +69,22 @@ export function operationLive(sid: string): Observable<OperationLive> {
 }
 
 export function setControl(sid: string, control: Control): void {
-  const e = entry(sid);
-  e.obs.update((v) => ({ ...v, control }));
+  entry(sid).control.set(control);
   if (control.owner !== me()) stopHeartbeat(sid);
+}
+
+/** GET who holds control (a page opening) and show it, unless a message or the user's own
+ * action set it meanwhile: that one is newer. */
+export function loadControl(sid: string): void {
+  const e = entry(sid);
+  e.control
+    .read(() => operationApi.control(sid))
+    .then(
+      (applied) => {
+        if (applied && e.obs.get().control?.owner !== me()) stopHeartbeat(sid);
+      },
+      () => undefined,
+    );
 }
 
 export function setMotion(sid: string, motion: MotionStatus): void {
