@@ -26,7 +26,7 @@ from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.metrics import MoveMetrics, move_metrics
 from servodesk.domain.tuning.model import PlantModel
 from servodesk.domain.tuning.search import ReferenceMove, Rerank, reference_move
-from servodesk.sim.fused import fused_move
+from servodesk.sim.fused import applies, fused_move
 from servodesk.sim.plant import Plant, PlantParams, mechanics_for
 from servodesk.sim.servo import ServoLoop
 
@@ -48,12 +48,13 @@ def run_move(
 
     A noiseless axis runs through the fused tick loop of sim/fused.py (the same arithmetic,
     several times faster); one with noise or a dead time through :func:`run_move_stepwise`."""
+    if not applies(params):
+        return run_move_stepwise(params, gains, rate_hz, torque_limit, move)
     p, v, a = move.p.tolist(), move.v.tolist(), move.a.tolist()
     # Start where the axis rests under gravity: the loop holds it with its integral.
     hold = int(GRAVITY_HOLD_S * rate_hz) if params.gravity else 0
     pos = fused_move(params, gains, rate_hz, torque_limit, p, v, a, hold)
-    if pos is None:
-        pos = run_move_stepwise(params, gains, rate_hz, torque_limit, move)
+    assert pos is not None
     return pos
 
 

@@ -55,7 +55,10 @@ function entry(sid: string): Entry {
       homing: null,
       heartbeat: loop.state,
     });
-    const control = new Fresh<Control>((c) => obs.update((v) => ({ ...v, control: c })));
+    const control = new Fresh<Control>((c) => {
+      obs.update((v) => ({ ...v, control: c }));
+      if (c.owner !== me()) stopHeartbeat(sid);
+    });
     const created: Entry = { obs, control, loop, seenActive: false, startAnswered: false, poll: null };
     loop.onChange((heartbeat) => obs.update((v) => ({ ...v, heartbeat })));
     entries.set(sid, created);
@@ -70,21 +73,14 @@ export function operationLive(sid: string): Observable<OperationLive> {
 
 export function setControl(sid: string, control: Control): void {
   entry(sid).control.set(control);
-  if (control.owner !== me()) stopHeartbeat(sid);
 }
 
 /** GET who holds control (a page opening) and show it, unless a message or the user's own
  * action set it meanwhile: that one is newer. */
 export function loadControl(sid: string): void {
-  const e = entry(sid);
-  e.control
-    .read(() => operationApi.control(sid))
-    .then(
-      (applied) => {
-        if (applied && e.obs.get().control?.owner !== me()) stopHeartbeat(sid);
-      },
-      () => undefined,
-    );
+  entry(sid)
+    .control.read(() => operationApi.control(sid))
+    .catch(() => undefined);
 }
 
 export function setMotion(sid: string, motion: MotionStatus): void {
