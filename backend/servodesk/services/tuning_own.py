@@ -1470,9 +1470,12 @@ class OwnTuning:
             )
         loop = LoopModel(model, drive.rate_hz, new)
         w = 2.0 * math.pi * frf.f_hz
-        # The identified mechanics (the measured curve of the twin carries no loop delay: its
-        # 606Ch is the plant's velocity sampled after each step, not a differenced encoder).
-        g_model = model.response(w)
+        # The identified plant as the recorder measures it: the mechanics behind the drive's
+        # current loop (2109h), the command held over each period and the velocity read at its
+        # end (the twin's 606Ch is the plant's velocity after each step, not a differenced
+        # encoder, so no loop delay). The mechanics alone were 15 dB above the generic twin's
+        # measurement at its 2 kHz Nyquist frequency (docs/tuning.md, "Bode plot").
+        g_model = model.sampled_velocity_response(w, drive.rate_hz)
         jm = model.motor_inertia
         return {
             "kind": "gains",

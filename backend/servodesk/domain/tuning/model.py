@@ -214,6 +214,26 @@ class PlantModel:
             g = g + m.gain * s / (s**2 + 2.0 * m.damping * wm * s + wm**2)
         return g
 
+    def sampled_velocity_response(self, w: npt.ArrayLike, rate_hz: float) -> ComplexArray:
+        """Velocity / torque command as a drive running at ``rate_hz`` measures it: the command
+        held over each period (zero-order hold) through the current loop and the mechanics,
+        the velocity read at the end of that period and recorded with the command (what the
+        simulated drives' recorder pairs: 2110h:07 and 606Ch of the same tick).
+
+        :meth:`response` is the mechanics alone. Near the loop's Nyquist frequency the two part:
+        the hold and the sampling turn the phase up to 0 deg at ``rate_hz / 2``, and the current
+        loop takes the magnitude down (generic twin, 4 kHz with its 796 Hz current loop: 5 dB
+        below the mechanics at 1 kHz, 15 dB at 2 kHz; docs/tuning.md, "Bode plot")."""
+        a, _bu, _bw, c = self.state_space()
+        dp = discretise(self, float(rate_hz), 0.0)
+        ww = np.asarray(w, dtype=np.float64)
+        z = np.exp(1j * ww / rate_hz)
+        n = dp.ad.shape[0]
+        x = np.linalg.solve(z[:, None, None] * np.eye(n)[None] - dp.ad[None], dp.b_now)
+        # The motor velocity is d(c x)/dt = c A x: the command does not reach the position
+        # directly (c B_u = 0), and an extra mode's position output is its q.
+        return np.asarray(z * (x @ (c @ a)), dtype=np.complex128)
+
     def state_space(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """Continuous ``(A, B_u, B_w, C)``: input torque command (into the current loop) ``u``,
         external torque on the load ``w`` (positive accelerates), output motor position [rad].
