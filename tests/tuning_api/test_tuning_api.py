@@ -299,17 +299,18 @@ def test_the_drives_error_code_is_decoded(channel, tmp_path) -> None:  # type: i
     with operation_app(channel, tmp_path, "lecsn-t") as (client, sim):
         drive = sim.drives[0]
         assert client.post(f"/api/v1/sessions/{SID}/tuning/stop").status_code == 404
-        # PA10 (in-position range) of 1 pulse: the twin's overshoot check fails (C001h).
-        w = client.put(f"/api/v1/sessions/{SID}/objects/0x200A:00", json={"value": 1})
+        # PA10 (in-position range) of 0 pulses: any overshoot fails the twin's check (C001h).
+        # The low-response gains overshoot the tuning's moves by about 3 counts here.
+        w = client.put(f"/api/v1/sessions/{SID}/objects/0x200A:00", json={"value": 0})
         assert w.status_code == 200, w.text
         take_and_enable(client, SID, "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
             beats = Heartbeats(ws, SID)
-            assert start(client, SID, "A", travel=0.25, mode="high").status_code == 202
+            assert start(client, SID, "A", travel=0.25, mode="low").status_code == 202
             end = wait_job(client, SID, 90.0)
             beats.stop()
         assert end["state"] == "failed", end
-        assert drive.read(PA10, 0) == 1 and drive.read(P11604, 0) == 0xC001
+        assert drive.read(PA10, 0) == 0 and drive.read(P11604, 0) == 0xC001
         err = end["error"]
         assert err["code"] == 0xC001 and err["code_hex"] == "0xC001"
         assert err["name"] == "Overshoot exceeded"

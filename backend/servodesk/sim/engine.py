@@ -60,8 +60,10 @@ Choices where the standard leaves room (documented here once):
   signal generator (sim/siggen.py) adds its torque in the loop while it runs; it starts only
   in Operation enabled (0800 0022h otherwise) and stops when the drive is disabled. Other
   profiles keep the cycle-rate cascade (:class:`ControllerGains`) with the torque held over
-  the cycle's sub-steps. A plant with another encoder resolution than the profile's keeps the
-  profile's speeds, switch positions and homing travel in revolutions.
+  the cycle's sub-steps; it tracks the demand as it stood at the start of the cycle and feeds
+  forward the acceleration of the cycle ahead (:meth:`SimulatedDrive._control`). A plant
+  with another encoder resolution than the profile's keeps the profile's speeds, switch
+  positions and homing travel in revolutions.
 """
 
 from __future__ import annotations
@@ -1556,6 +1558,9 @@ class SimulatedDrive:
         # interpolation toward this cycle's demand (docs/tuning.md).
         raw0 = self._dp - self._pos_offset
         self._raw0 = raw0
+        #: The demand velocity at the start of the cycle, with raw0 the reference the
+        #: cycle-rate controller tracks (:meth:`_control`).
+        self._dv0 = self._dv
         if self._enabled:
             # 1. Demand (set-point generators, stop ramps, halt).
             stop = self._stop
@@ -1656,14 +1661,26 @@ class SimulatedDrive:
             self._dp = float(p_act)
             self._dv = v_act
         else:
+            # The torque set now acts over the coming cycle, so the acceleration it feeds
+            # forward is the demand's for that cycle (this cycle's generator step), and the
+            # loop tracks the demand as it stood at the start of the cycle: the profile runs
+            # one control cycle late and the feed-forward on time. The generators step the
+            # position with the new velocity (dp += v T), half a step of each velocity change
+            # ahead of the motion a held torque gives, so the tracked position is that demand
+            # less dv T / 2. Tracking this cycle's demand instead put the feed-forward a cycle
+            # behind: the LECSN twin's tuned gains at low response overshot a 0.3 s ramp by
+            # 98-122 counts on the exactly integrated plant, now 7-12 (docs/tuning.md, "The
+            # other twins").
+            dv0 = self._dv0
             if kind == _POSITION:
-                err = self._dp - p_act
+                ref = self._raw0 + self._pos_offset - 0.5 * dv0 * self._T
+                err = ref - p_act
                 self._fe = err
-                v_cmd = g.kp_pos * err + self._dv
+                v_cmd = g.kp_pos * err + dv0
             else:
                 self._fe = 0.0
                 self._dp = float(p_act)
-                v_cmd = self._dv
+                v_cmd = dv0
             ev = v_cmd - v_act
             t = g.kp_vel * ev + self._integ + g.acc_ff * self._da
             # Conditional integration (anti-windup): hold the integral while saturated.
@@ -1693,6 +1710,7 @@ class SimulatedDrive:
         self._srv_vlim = math.inf
         #: This cycle's position demand at its start (raw counts) and per tick (sub-step).
         self._raw0 = 0.0
+        self._dv0 = 0.0
         self._inc = 0.0
         tuning = profile.tuning
         if tuning is None or tuning.kind != "gains":
