@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import time
 
 from tests.operation.support import (
@@ -213,5 +214,12 @@ def test_a_backend_stall_stretches_the_cyclic_waveform_instead_of_skipping_it(
             assert done["state"] == "done", done
             assert min(seen) < -15_000  # The negative half was run after the stall.
             assert any("set-point stream stalled" in r.getMessage() for r in caplog.records)
+            # The motion's status says so too, with how long: the page shows that message.
+            # (A loaded machine may add stalls of its own.)
+            said = re.search(
+                r"the set-point stream stalled (\d+) x \(longest (\d+) ms", done["message"]
+            )
+            assert said is not None, done
+            assert int(said[1]) >= 1 and 400 <= int(said[2]) <= 2000, done["message"]
             assert wait_until(lambda: abs(hiwin.position - start) < 500, 1.0)
             beats.stop()

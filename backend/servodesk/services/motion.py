@@ -35,7 +35,8 @@ Choices where CiA 402 leaves room (documented once):
   ``csp_align_target_before_enable``: otherwise the axis jumps). ``duration`` is rounded up to
   whole periods of the waveform so the set-point ends where it started. The waveform's time is
   counted in set-points: a stall of the backend stretches it (the drive holds the last
-  set-point) rather than skipping part of it, which would step the set-point.
+  set-point) rather than skipping part of it, which would step the set-point. The motion's
+  message says how often and how long it stalled, while it runs and after it ends.
 - Limits 607Dh min = max = 0 switch the position limits off (CiA 402-2 §6.5.4); 607Fh = 0 is
   read as "no extra limit", as the simulated drive does. Objects a family lists in the quirk
   ``objects_not_usable`` are not read.
@@ -952,6 +953,7 @@ class MotionService:
             )
             base = position
             data_codec = codec(spec.data_type if spec else DataType.INTEGER32)
+            running_message = motion.message
 
             async def generate() -> None:
                 # write_raw: by SDO, or into the RPDO output image when cyclic data carries
@@ -960,6 +962,19 @@ class MotionService:
                 period = self.cyclic_period
                 due = time.monotonic()
                 k = 0
+                stalls: list[float] = []
+
+                def stalled() -> str:
+                    # What the user sees in the motion's status, running and ended: the
+                    # waveform is not the one asked for when the stream stalled.
+                    if not stalls:
+                        return ""
+                    return (
+                        f"; the set-point stream stalled {len(stalls)} x (longest "
+                        f"{max(stalls) * 1000:.0f} ms, {sum(stalls) * 1000:.0f} ms in all): "
+                        "the drive held the set-point, the waveform ran that much longer"
+                    )
+
                 try:
                     while motion.active:
                         k += 1
@@ -976,6 +991,9 @@ class MotionService:
                                 late * 1000,
                             )
                             due += late
+                            stalls.append(late)
+                            motion.message = running_message + stalled()
+                            self._publish(axis)
                         await asyncio.sleep(max(0.0, due - time.monotonic()))
                         # The waveform's time is counted in periods, not read off the clock.
                         t = k * period
@@ -985,9 +1003,14 @@ class MotionService:
                         await write(address, data_codec.encode(value))
                     if motion.active:
                         await write(address, data_codec.encode(base))
-                        self._end(axis, motion, "done", f"{mode_name} {waveform} done")
+                        self._end(axis, motion, "done", f"{mode_name} {waveform} done{stalled()}")
                 except ServodeskError as exc:
-                    self._end(axis, motion, "error", f"set-point stream failed: {exc.message}")
+                    self._end(
+                        axis,
+                        motion,
+                        "error",
+                        f"set-point stream failed: {exc.message}{stalled()}",
+                    )
 
             self._begin(axis, motion, generate)
         return self.status(sid)
