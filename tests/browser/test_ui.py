@@ -97,3 +97,24 @@ def test_write_6081_and_read_it_back(page: Page) -> None:
     expect(page.get_by_test_id("object-value-dec")).to_contain_text("2000")
     expect(page.get_by_test_id("object-value-hex")).to_have_text("0x000007D0")
     expect(page.get_by_test_id("history-row")).to_have_count(3)
+
+
+@pytest.mark.parametrize("width", [1280, 1024])
+def test_the_drive_state_stays_whole_in_the_header_on_a_laptop_screen(
+    page: Page, width: int
+) -> None:
+    # The LECSN-T's device name and link line are long. At 1400 px its state pill was cut to
+    # "Switch on d": the name and the node line now give way (ellipsis, full text in their
+    # tooltips), the state and the SIM badge never do.
+    page.set_viewport_size({"width": width, "height": 800})
+    page.goto("/#/overview/lecsn-t-5")
+    pill = page.get_by_test_id("header-state")
+    expect(pill).to_have_text(re.compile(r"\w+ \w+"))
+    title = page.locator(".drive-title")
+    box, area = pill.bounding_box(), title.bounding_box()
+    assert box is not None and area is not None
+    assert box["x"] >= area["x"] and box["x"] + box["width"] <= area["x"] + area["width"] + 0.5
+    assert pill.evaluate("e => e.scrollWidth <= e.clientWidth")
+    name = page.get_by_test_id("header-drive-name")
+    expect(name).to_have_attribute("title", "SMC LECSN-T servo amplifier (LEC-S-NP PROFINET)")
+    expect(page.locator(".drive-meta")).to_have_attribute("title", re.compile(r"^node 5 · "))

@@ -37,13 +37,14 @@ function DriveTitle({ session }: { session: SessionInfo }) {
   const liveState = useObservable(liveSession(session.id)).state;
   const state = liveState?.state ?? session.state;
   const name = session.identity.device_name || session.profile_name;
+  const meta = `node ${session.node_id} · ${session.fieldbus} · ${session.interface}:${session.channel}`;
   return (
     <div className="drive-title">
-      <span className="drive-name" data-testid="header-drive-name" title={session.profile_name}>
+      <span className="drive-name" data-testid="header-drive-name" title={name === session.profile_name ? name : `${name} (${session.profile_name})`}>
         {name}
       </span>
-      <span className="drive-meta mono">
-        node {session.node_id} · {session.fieldbus} · {session.interface}:{session.channel}
+      <span className="drive-meta mono" title={meta}>
+        {meta}
       </span>
       {session.simulated && (
         <span className="badge badge-sim" title={session.note ?? 'simulated twin'}>
