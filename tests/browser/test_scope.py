@@ -12,6 +12,8 @@ halted and disabled, control released.
 from __future__ import annotations
 
 import json
+import re
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -266,3 +268,32 @@ def test_scope_traces_trigger_export_and_reimport(scope_page: Page, tmp_path: Pa
         expect(view).to_have_attribute("data-name", name)
         assert view_counts(page) == (channels, samples), f"{name} reopened with other counts"
     expect(page.get_by_test_id("scope-failure")).to_have_count(0)
+
+
+def test_one_click_adds_the_drives_motion_channels(scope_page: Page) -> None:
+    # The generic twin has 6064h, 60F4h, 606Ch and 6077h (no 6062h): four rows in that
+    # order, the server takes them, and live values arrive; a second click has nothing to add.
+    page = scope_page
+    add = page.get_by_test_id("scope-add-motion")
+    expect(add).to_be_enabled()
+    motion = ("0x6064:00", "0x60F4:00", "0x606C:00", "0x6077:00")
+    expect(add).to_have_attribute("title", re.compile(rf"^adds {', '.join(motion)} "))
+    add.click()
+    table = page.get_by_test_id("scope-channels")
+    expect(table).to_have_attribute("data-count", "4")
+    for i, address in enumerate(motion):
+        expect(page.get_by_test_id(f"scope-channel-{i}")).to_have_attribute("data-address", address)
+    expect(add).to_be_disabled()
+
+    def server_channels() -> list[str]:
+        r = page.request.get("/api/v1/scope")
+        return [c["address"] for c in r.json()["channels"]]
+
+    deadline = time.monotonic() + 5.0
+    while server_channels() != list(motion):
+        assert time.monotonic() < deadline, server_channels()
+        time.sleep(0.1)
+    page.get_by_test_id("scope-run").click()
+    expect(page.get_by_test_id("scope-channel-3-latest")).to_have_attribute(
+        "data-raw", re.compile(r"^-?\d"), timeout=10_000
+    )

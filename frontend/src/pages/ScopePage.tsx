@@ -21,7 +21,7 @@ import {
 import type { ObjectInfo, ProfileDetail } from '../api/types';
 import { FailureBox } from '../components/FailureBox';
 import { saveBlob } from '../components/pdo/download';
-import { ChannelTable, type ChannelRowInfo, MAX_CHANNELS } from '../components/scope/ChannelTable';
+import { ChannelTable, type ChannelRowInfo, MAX_CHANNELS, MOTION_SET } from '../components/scope/ChannelTable';
 import { EMPTY_SUMMARY, LiveMeasurements, type ScopeSummary, SkippedBadge, ViewLine } from '../components/scope/live';
 import { MathPanel } from '../components/scope/MathPanel';
 import { ScopeModel, type TraceDef, type ViewKind } from '../components/scope/model';
@@ -266,6 +266,25 @@ export function ScopePage({ sid }: PageProps) {
     const last = cur[cur.length - 1];
     const next: ScopeChannelConfig = { id, session: last?.session ?? sid, address: '', source: 'auto', scale: 1, offset: 0, visible: true, label: '', rate_hz: 0 };
     setDrafts([...cur, next].sort((x, y) => x.id - y.id));
+  };
+
+  /** The motion channels of this page's drive that the profile has and the scope does not
+   * show yet, as many as fit: one click to what a commissioning engineer looks at first. */
+  const motionSet = (): string[] => {
+    const have = new Set((drafts ?? []).filter((c) => c.session === sid).map((c) => c.address.toUpperCase()));
+    return MOTION_SET.filter((a) => objectOf(sid, a) !== null && !have.has(a.toUpperCase()));
+  };
+
+  const addMotionSet = () => {
+    const cur = drafts ?? [];
+    const next = [...cur];
+    for (const address of motionSet()) {
+      if (next.length >= MAX_CHANNELS) break;
+      let id = 0;
+      while (next.some((c) => c.id === id)) id++;
+      next.push({ id, session: sid, address, source: 'auto', scale: 1, offset: 0, visible: true, label: '', rate_hz: 0 });
+    }
+    if (next.length > cur.length) pushChannels(next.sort((x, y) => x.id - y.id));
   };
 
   const removeChannel = (id: number) => {
@@ -739,6 +758,8 @@ export function ScopePage({ sid }: PageProps) {
             onColour={(id, colour) => updatePrefs((p) => ({ ...p, colours: { ...p.colours, [`c${id}`]: colour } }))}
             onRemove={removeChannel}
             onAdd={addChannel}
+            onAddMotion={addMotionSet}
+            motionToAdd={(drafts ?? []).length < MAX_CHANNELS ? motionSet() : []}
             busy={busy !== null}
           />
         )}

@@ -13,6 +13,11 @@ import type { Observable } from '../../state/observable';
 
 export const MAX_CHANNELS = 8;
 
+/** The motion channels, in this order where the profile has them (CiA 402-2): position demand
+ * 6062h, position actual 6064h, following error 60F4h, velocity actual 606Ch, torque actual
+ * 6077h. */
+export const MOTION_SET: readonly string[] = ['0x6062:00', '0x6064:00', '0x60F4:00', '0x606C:00', '0x6077:00'];
+
 const SOURCES: { id: ScopeSource; text: string; title: string }[] = [
   { id: 'auto', text: 'auto', title: 'PDO when the object is in an active TPDO, else the drive recorder when it can record it, else SDO polling' },
   { id: 'pdo', text: 'PDO', title: 'cyclic data (the object must be mapped in an active TPDO while cyclic data runs)' },
@@ -40,10 +45,13 @@ interface Props {
   onColour: (id: number, colour: string) => void;
   onRemove: (id: number) => void;
   onAdd: () => void;
+  /** Adds :data:`MOTION_SET`'s ``motionToAdd`` for the page's drive. */
+  onAddMotion: () => void;
+  motionToAdd: readonly string[];
   busy: boolean;
 }
 
-export function ChannelTable({ channels, info, summary, sessions, objectsOf, recordableOf, colourOf, onChange, onColour, onRemove, onAdd, busy }: Props) {
+export function ChannelTable({ channels, info, summary, sessions, objectsOf, recordableOf, colourOf, onChange, onColour, onRemove, onAdd, onAddMotion, motionToAdd, busy }: Props) {
   return (
     <div className="scope-channels" data-testid="scope-channels" data-count={channels.length}>
       <table className="grid scope-grid">
@@ -170,6 +178,19 @@ export function ChannelTable({ channels, info, summary, sessions, objectsOf, rec
       <div className="scope-row">
         <button type="button" onClick={onAdd} disabled={channels.length >= MAX_CHANNELS || busy} data-testid="scope-add-channel">
           Add channel
+        </button>
+        <button
+          type="button"
+          onClick={onAddMotion}
+          disabled={motionToAdd.length === 0 || busy}
+          data-testid="scope-add-motion"
+          title={
+            motionToAdd.length > 0
+              ? `adds ${motionToAdd.join(', ')} of this drive (position demand and actual, following error, velocity, torque: those its profile has)`
+              : "this drive's motion channels are all shown, or no channel is free"
+          }
+        >
+          Add motion channels
         </button>
         <span className="muted small">
           {channels.length} of {MAX_CHANNELS} channels · shown = raw × profile scale × scale + offset
