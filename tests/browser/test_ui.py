@@ -118,3 +118,18 @@ def test_the_drive_state_stays_whole_in_the_header_on_a_laptop_screen(
     name = page.get_by_test_id("header-drive-name")
     expect(name).to_have_attribute("title", "SMC LECSN-T servo amplifier (LEC-S-NP PROFINET)")
     expect(page.locator(".drive-meta")).to_have_attribute("title", re.compile(r"^node 5 · "))
+
+
+def test_the_open_sessions_fit_a_laptop_screen(page: Page) -> None:
+    # With the five twins open, the sessions table ran past its card at 1280 px and the Close
+    # buttons stood outside it. Fieldbus and bus now share a column; a table still too wide
+    # for a smaller screen scrolls inside its card.
+    page.set_viewport_size({"width": 1280, "height": 800})
+    page.goto("/#/connect")
+    close = page.get_by_test_id("session-close-lecsn-t-5")
+    expect(close).to_be_visible()
+    wrap = page.locator(".table-scroll").filter(has=page.get_by_test_id("sessions"))
+    assert wrap.evaluate("e => e.scrollWidth <= e.clientWidth")
+    box, card = close.bounding_box(), wrap.bounding_box()
+    assert box is not None and card is not None
+    assert box["x"] + box["width"] <= card["x"] + card["width"] + 0.5

@@ -312,60 +312,63 @@ export function ConnectPage() {
         ) : list.length === 0 ? (
           <div className="empty">No session is open. Scan the bus or open a node above.</div>
         ) : (
-          <table className="grid" data-testid="sessions">
-            <thead>
-              <tr>
-                <th>Session</th>
-                <th>Profile</th>
-                <th>Fieldbus</th>
-                <th>Node</th>
-                <th>Bus</th>
-                <th>State</th>
-                <th>NMT</th>
-                <th>Note</th>
-                <th />
-              </tr>
-            </thead>
-            <tbody>
-              {list.map((s) => (
-                <tr key={s.id} data-testid={`session-row-${s.id}`} data-profile={s.profile_id}>
-                  <td className="mono nowrap">
-                    {s.id}
-                    {s.simulated && (
-                      <span className="badge badge-sim" title="a simulated twin, not a real drive">
-                        SIM
-                      </span>
-                    )}
-                    {!s.connected && <span className="badge badge-bad">disconnected</span>}
-                  </td>
-                  <td title={s.profile_id}>{s.profile_name}</td>
-                  <td>{s.fieldbus}</td>
-                  <td className="mono num">{s.node_id}</td>
-                  <td className="mono nowrap">
-                    {s.interface}:{s.channel}
-                    {s.bitrate ? ` @ ${formatBitrate(s.bitrate)}` : ''}
-                  </td>
-                  <td>
-                    <StatePill state={s.state} testid={`session-state-${s.id}`} />
-                  </td>
-                  <td className="mono">{s.nmt_state}</td>
-                  <td className="note">
-                    <span className="clamp" title={s.note ?? ''}>
-                      {s.note ?? ''}
-                    </span>
-                  </td>
-                  <td className="actions">
-                    <button type="button" className="primary" data-testid={`session-open-${s.id}`} onClick={() => navigate('overview', s.id)}>
-                      Open
-                    </button>
-                    <button type="button" data-testid={`session-close-${s.id}`} onClick={() => void close(s)}>
-                      Close
-                    </button>
-                  </td>
+          <div className="table-scroll">
+            <table className="grid" data-testid="sessions">
+              <thead>
+                <tr>
+                  <th>Session</th>
+                  <th>Profile</th>
+                  <th>Node</th>
+                  <th title="the drive's fieldbus, and the bus servodesk reaches it on">Fieldbus · bus</th>
+                  <th>State</th>
+                  <th>NMT</th>
+                  <th>Note</th>
+                  <th />
                 </tr>
-              ))}
-            </tbody>
-          </table>
+              </thead>
+              <tbody>
+                {list.map((s) => (
+                  <tr key={s.id} data-testid={`session-row-${s.id}`} data-profile={s.profile_id}>
+                    <td className="mono nowrap">
+                      {s.id}
+                      {s.simulated && (
+                        <span className="badge badge-sim" title="a simulated twin, not a real drive">
+                          SIM
+                        </span>
+                      )}
+                      {!s.connected && <span className="badge badge-bad">disconnected</span>}
+                    </td>
+                    <td title={s.profile_id}>{s.profile_name}</td>
+                    <td className="mono num">{s.node_id}</td>
+                    <td>
+                      {s.fieldbus}
+                      <div className="mono nowrap small muted">
+                        {s.interface}:{s.channel}
+                        {s.bitrate ? ` @ ${formatBitrate(s.bitrate)}` : ''}
+                      </div>
+                    </td>
+                    <td>
+                      <StatePill state={s.state} testid={`session-state-${s.id}`} />
+                    </td>
+                    <td className="mono">{s.nmt_state}</td>
+                    <td className="note">
+                      <span className="clamp" title={s.note ?? ''}>
+                        {s.note ?? ''}
+                      </span>
+                    </td>
+                    <td className="actions">
+                      <button type="button" className="primary" data-testid={`session-open-${s.id}`} onClick={() => navigate('overview', s.id)}>
+                        Open
+                      </button>
+                      <button type="button" data-testid={`session-close-${s.id}`} onClick={() => void close(s)}>
+                        Close
+                      </button>
+                    </td>
+                  </tr>
+                ))}
+              </tbody>
+            </table>
+          </div>
         )}
       </section>
     </div>
