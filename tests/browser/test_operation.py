@@ -183,3 +183,19 @@ def test_3d_view_page(page: Page) -> None:
     else:
         # Switched off or not built into this server: the page says so instead of a blank frame.
         expect(page.get_by_test_id("viewer-disabled")).to_contain_text("3D view not available")
+
+
+def test_lecsn_jog_starts_from_a_usable_ramp_and_a_readable_number(page: Page) -> None:
+    # The LECSN-T gives its ramps as times (6083h in ms from 0 to the rated speed, at most
+    # 50000). The panel started at that limit, the gentlest ramp: 50 s to 3000 r/min, a jog
+    # that hardly moved. And its long velocity unit squeezed the number to a few digits.
+    page.set_viewport_size({"width": 1280, "height": 800})
+    page.goto("/#/operation/lecsn-t-5")
+    acc = page.get_by_test_id("jog-acceleration")
+    expect(acc).to_have_value("200")
+    vel = page.get_by_test_id("jog-velocity")
+    expect(vel).to_have_value(re.compile(r"^\d+$"))
+    fits = vel.evaluate("e => e.scrollWidth <= e.clientWidth")
+    assert fits, f"the jog velocity {vel.input_value()} does not fit its field"
+    unit = page.get_by_test_id("panel-jog").locator(".op-unit").first
+    expect(unit).to_have_attribute("title", "0.01 r/min (0.01 mm/s linear)")

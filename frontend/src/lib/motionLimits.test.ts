@@ -10,6 +10,7 @@ import {
   checkVelocity,
   cyclicUnavailable,
   defaultAcceleration,
+  rampTimeUnit,
   defaultVelocity,
   entryText,
   formatQuantity,
@@ -159,5 +160,20 @@ describe('defaults', () => {
     expect(defaultVelocity(null)).toBe(100_000);
     expect(defaultAcceleration(GENERIC, 100_000)).toBe(500_000); // capped by 60C6h
     expect(defaultAcceleration({ ...GENERIC, max_deceleration: null }, 819)).toBe(8190);
+  });
+
+  it('starts a ramp given as a time at 0.2 s, not at its gentlest limit', () => {
+    // LECSN-T: 6083h / 6084h in ms (0 .. 50000) from 0 to the rated speed.
+    const lecsn: Limits = {
+      ...GENERIC,
+      max_acceleration: 50_000,
+      max_deceleration: 50_000,
+      units: { ...GENERIC.units, acceleration: { raw_unit: 'ms', unit: 'ms', scale: 1 } },
+    };
+    expect(defaultAcceleration(lecsn, 100_000)).toBe(200);
+    expect(defaultAcceleration({ ...lecsn, max_acceleration: 50 }, 100_000)).toBe(50);
+    expect(rampTimeUnit('ms')).toBe('ms');
+    expect(rampTimeUnit('inc/s²')).toBeNull();
+    expect(rampTimeUnit(null)).toBeNull();
   });
 });

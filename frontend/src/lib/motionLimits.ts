@@ -313,8 +313,27 @@ export function defaultVelocity(limits: Limits | null): number {
   return Math.max(1, Math.round(Math.min(100_000, max !== null ? max / 10 : 100_000)));
 }
 
-/** A starting acceleration: reach `velocity` in 0.1 s, within the drive's limits. */
+/** The ramp time constant a panel starts from where the family gives its ramps as times
+ * (LECSN-T 6083h / 6084h: ms from 0 to the rated speed, 004 §20.9.3.10(7)). */
+export const DEFAULT_RAMP_S = 0.2;
+
+/** The time unit of a ramp object's raw unit ("ms" or "s"), null for a rate. */
+export function rampTimeUnit(rawUnit: string | null | undefined): 'ms' | 's' | null {
+  const u = (rawUnit ?? '').trim();
+  return u === 'ms' ? 'ms' : u === 's' ? 's' : null;
+}
+
+/** A starting acceleration: reach `velocity` in 0.1 s, within the drive's limits. Where the
+ * ramp is a time (a larger value is a gentler ramp, so the limit is the gentlest), a time
+ * constant of :data:`DEFAULT_RAMP_S` instead: the rate rule capped at that limit gave the
+ * LECSN-T a 50 s ramp to its rated speed, a jog that hardly moved. */
 export function defaultAcceleration(limits: Limits | null, velocity: number): number {
+  const time = rampTimeUnit(limits?.units.acceleration?.raw_unit);
+  if (time !== null) {
+    let t = time === 'ms' ? DEFAULT_RAMP_S * 1000 : DEFAULT_RAMP_S;
+    for (const m of [limits?.max_acceleration ?? null, limits?.max_deceleration ?? null]) if (m !== null) t = Math.min(t, m);
+    return Math.max(time === 'ms' ? 1 : 0, t);
+  }
   let a = Math.abs(velocity) * 10;
   for (const m of [limits?.max_acceleration ?? null, limits?.max_deceleration ?? null]) if (m !== null) a = Math.min(a, m);
   return Math.max(1, Math.round(a));

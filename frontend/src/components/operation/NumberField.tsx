@@ -88,7 +88,9 @@ export function NumberField({
             onChange(p.ok ? p.raw : null, p.ok ? null : p.error);
           }}
         />
-        <span className="op-unit mono">{shownUnit}</span>
+        <span className="op-unit mono" title={shownUnit}>
+          <span className="op-unit-text">{shownUnit}</span>
+        </span>
       </span>
       <span className="op-conv mono muted" data-testid={`${testid}-conv`}>
         {other ?? '\u00a0'}
