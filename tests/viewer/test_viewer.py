@@ -72,6 +72,19 @@ async def test_viewer_api_reports_the_running_server_and_serves_the_bundled_clie
     assert "<html" in html.lower() and len(html) > 10_000
 
 
+async def test_the_view_offers_no_public_share_link(twin: Viewer) -> None:
+    # viser's share button tunnels the view through a public relay: the axes of a machine
+    # must not leave its network from a click. What every client gets on connecting (the
+    # server's persistent messages) configures the page without it.
+    ws = twin.service.server._websock_server
+    themes = [
+        m
+        for m in ws.get_message_buffer().message_from_id.values()
+        if type(m).__name__ == "ThemeConfigurationMessage"
+    ]
+    assert themes and themes[-1].show_share_button is False
+
+
 async def test_one_stage_per_session_side_by_side_with_labels(twin: Viewer) -> None:
     sessions = (await twin.client.get("/api/v1/sessions")).json()
     assert {s["id"] for s in sessions} == {GENERIC, HIWIN}
@@ -82,7 +95,10 @@ async def test_one_stage_per_session_side_by_side_with_labels(twin: Viewer) -> N
     for s, info in zip(stages, sessions, strict=True):
         assert s.choice.kind == "rotary"  # Both families are rotary servo motors.
         assert info["id"] in s.label.text
-        assert info["profile_name"][:20] in s.label.text  # Long names are shortened.
+        # Long names are shortened to fit a stage's slot.
+        name = info["profile_name"]
+        n = viewer_mod.LABEL_NAME_CHARS
+        assert (name if len(name) <= n else name[: n - 1] + "…") in s.label.text
         assert f"node {info['node_id']}" in s.label.text
     axes = {a["session"]: a for a in (await twin.client.get("/api/v1/viewer")).json()["axes"]}
     assert axes[GENERIC]["kind"] == "rotary" and axes[GENERIC]["source"] == "default"

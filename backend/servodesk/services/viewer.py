@@ -54,6 +54,8 @@ INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
 
 #: Distance between two stages along x, in scene units (metres in the viewer).
 SPACING = 2.0
+#: The longest profile name a stage's label shows whole; longer ones end in an ellipsis.
+LABEL_NAME_CHARS = 20
 #: Radius of a rotary stage's disc and length of a linear stage's rail window.
 DISC_RADIUS = 0.5
 RAIL_LENGTH = 1.2
@@ -469,7 +471,9 @@ class ViewerService:
         """Point the camera new clients start with at the row of ``n`` stages."""
         width = max(n - 1, 0) * SPACING + 2.0 * DISC_RADIUS + 0.6
         cx = max(n - 1, 0) * SPACING / 2.0
-        d = max(2.0, 0.62 * width)
+        # Framed so that a row of five fills the view: at 0.62 x the row's width the five
+        # twins' labels overlapped on a 1280 px screen (about 100 px between stages).
+        d = max(2.0, 0.48 * width)
         self.server.initial_camera.look_at = (cx, 0.0, 0.0)
         self.server.initial_camera.position = (cx, -d, 0.8 * d)
         self._framed = n
@@ -477,7 +481,9 @@ class ViewerService:
     def _label_text(self, stage: Stage) -> str:
         s = stage.session
         st = s.last_state
-        name = s.profile.name if len(s.profile.name) <= 24 else s.profile.name[:23] + "…"
+        # Short enough for the label to stay within its stage's slot (LABEL_NAME_CHARS).
+        n = LABEL_NAME_CHARS
+        name = s.profile.name if len(s.profile.name) <= n else s.profile.name[: n - 1] + "…"
         lines = [s.id, name, f"node {s.link.params.node_id}"]
         if st is not None:
             lines.append(st.state if s.connected else "link lost")
@@ -767,4 +773,10 @@ def _make_server(host: str, port: int) -> Any:
         server = viser.ViserServer(host=host, port=port, label="servodesk", verbose=False)
     finally:
         _client_autobuild.ensure_client_is_built = saved
+    # No share button: viser's share link tunnels the view through a public relay, and the
+    # axes of a machine must not leave its network from a click. The control panel is small
+    # and docked to the right (the user can fold it), so that it does not float over the row
+    # of stages on a laptop screen.
+    server.gui.configure_theme(control_width="small", show_share_button=False)
+    server.gui.main_panel.dock_right()
     return server
