@@ -242,3 +242,25 @@ def test_drag_into_tpdo_apply_and_see_it_live(pdo_page: Page) -> None:
     assert first != second != third, f"position shown {first}, {second}, {third}"
     assert third > first, f"moving forward, the position went {first} -> {third}"
     expect(page.get_by_test_id("pdo-TPDO1-rate")).to_be_visible()
+
+
+def test_a_fixed_telegram_names_its_words(page: Page) -> None:
+    # Telegram 1's STW1 / NSOLL_A and ZSW1 / NIST_A are no objects of the dictionary (004
+    # §20.3 (1)): the drive's mapping holds them as 16-bit entries of index 0. The page showed
+    # them as "Reserved (16 bits)"; the server's layout names them, and so does the page now.
+    r = page.request.get("/api/v1/sessions/lecsn-t-5/pdo")
+    assert r.ok and r.json()["telegram"] == 1, r.text()
+    page.goto("/#/pdo/lecsn-t-5")
+    expect(page.get_by_test_id("pdo-page")).to_be_visible()
+    words = {
+        "setpoint telegram": ("STW1 (Control word 1)", "UNSIGNED16", "NSOLL_A", "INTEGER16"),
+        "actual-value telegram": ("ZSW1 (Status word 1)", "UNSIGNED16", "NIST_A", "INTEGER16"),
+    }
+    for pdo, (first, first_type, second, second_type) in words.items():
+        row0 = page.get_by_test_id(f"pdo-{pdo}-entry-0")
+        expect(row0).to_contain_text(first)
+        expect(row0).to_contain_text(first_type)
+        row1 = page.get_by_test_id(f"pdo-{pdo}-entry-1")
+        expect(row1).to_contain_text(second)
+        expect(row1).to_contain_text(second_type)
+        expect(row0).not_to_contain_text("Reserved")

@@ -522,6 +522,7 @@ export function PdoPage({ sid }: PageProps) {
                       rawUnits={rawUnits}
                       mappable={mappable?.[p.direction] ?? []}
                       padding={padding}
+                      slots={(check.view ?? view)?.pdos.find((q) => q.direction === p.direction && q.number === p.number)?.entries}
                       live={live}
                       drag={drag}
                       canDropHere={(item) => canDrop(draft, item, p)}

@@ -9,7 +9,7 @@
  * shown next to the entry, field or PDO they name.
  */
 import { type DragEvent, useState } from 'react';
-import type { MappableObject, PdoKind } from '../../api/types';
+import type { MappableObject, PdoEntryOut, PdoKind } from '../../api/types';
 import type { Observable } from '../../state/observable';
 import { useObservable } from '../../state/observable';
 import { BudgetBar, NumberBox, ProblemList, decimalParser, intParser } from './fields';
@@ -266,6 +266,10 @@ export interface PdoCardProps {
   mappable: readonly MappableObject[];
   /** The family allows Reserved padding entries (telegram). */
   padding: boolean;
+  /** This PDO's entries as the server laid them out (the latest check of the draft, else the
+   * drive's): the name of a fixed telegram's word that is no object (telegram 1's STW1,
+   * NSOLL_A: 004 §20.3 (1)) comes from there. */
+  slots?: readonly PdoEntryOut[];
   live: Observable<PdoLive>;
   drag: DragState;
   canDropHere: (item: DragItem) => boolean;
@@ -274,6 +278,13 @@ export interface PdoCardProps {
   onRemove: (at: number) => void;
   onMove: (from: number, to: number) => void;
   onComm: (patch: Partial<DraftComm>) => void;
+}
+
+/** The server's slot for a padding entry when it names a telegram word (STW1, ...): the same
+ * entry at the same place, and a name other than plain padding. */
+function telegramWord(slot: PdoEntryOut | undefined, e: { index: number; subindex: number; bits: number }): PdoEntryOut | null {
+  if (!slot || !slot.padding || slot.index !== e.index || slot.subindex !== e.subindex || slot.bits !== e.bits) return null;
+  return slot.name && slot.name !== 'Reserved' && !slot.name.startsWith('dummy') ? slot : null;
 }
 
 export function PdoCard(props: PdoCardProps) {
@@ -397,6 +408,7 @@ export function PdoCard(props: PdoCardProps) {
           {pdo.entries.map((e, i) => {
             const address = entryAddress(e);
             const d = address ? props.describe.get(address.toUpperCase()) : undefined;
+            const word = address ? null : telegramWord(props.slots?.[i], e);
             const off = offsets[i];
             const eProblems = problems?.entries.get(i);
             return (
@@ -425,10 +437,10 @@ export function PdoCard(props: PdoCardProps) {
                   {address ?? <span className="muted">{hex(e.index)}</span>}
                 </td>
                 <td>
-                  {address ? (d?.name ?? <span className="muted">unknown object</span>) : <span className="muted">{paddingName(e)}</span>}
+                  {address ? (d?.name ?? <span className="muted">unknown object</span>) : word ? word.name : <span className="muted">{paddingName(e)}</span>}
                   <ProblemList problems={eProblems} testid={id(`entry-${i}-problems`)} />
                 </td>
-                <td className="small mono">{d?.data_type ?? ''}</td>
+                <td className="small mono">{d?.data_type ?? (typeof word?.data_type === 'string' ? word.data_type : '')}</td>
                 <td className="small">{d?.unit ?? ''}</td>
                 <td className="small nowrap">
                   {address ? (
