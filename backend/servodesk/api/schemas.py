@@ -412,6 +412,9 @@ class UnitOut(BaseModel):
     raw_unit: str | None
     unit: str | None
     scale: float
+    default: int | None = Field(
+        default=None, description="the profile's default of the object (raw), where it has one"
+    )
 
 
 class LimitsOut(BaseModel):

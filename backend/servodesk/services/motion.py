@@ -311,10 +311,15 @@ class MotionService:
             for address in candidates:
                 spec = profile.spec(address)
                 if spec is not None:
+                    dv = spec.default_value()
                     units[kind] = {
                         "raw_unit": spec.raw_unit,
                         "unit": spec.unit,
                         "scale": spec.scale,
+                        # The family's own default of that object: where a ramp is neither a
+                        # rate nor a time (CTMM04x: PMC842SR rate registers, 003 §5-3-1), the
+                        # panels start from it.
+                        "default": dv if isinstance(dv, int) and not isinstance(dv, bool) else None,
                     }
                     break
         return Limits(

@@ -577,6 +577,8 @@ export interface UnitInfo {
   raw_unit: string | null;
   unit: string | null;
   scale: number;
+  /** The profile's default of the object (raw), where it has one (limits only). */
+  default?: number | null;
 }
 
 export interface Limits {

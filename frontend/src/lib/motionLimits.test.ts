@@ -10,6 +10,7 @@ import {
   checkVelocity,
   cyclicUnavailable,
   defaultAcceleration,
+  rampIsRate,
   rampTimeUnit,
   defaultVelocity,
   entryText,
@@ -175,5 +176,21 @@ describe('defaults', () => {
     expect(rampTimeUnit('ms')).toBe('ms');
     expect(rampTimeUnit('inc/s²')).toBeNull();
     expect(rampTimeUnit(null)).toBeNull();
+  });
+
+  it("starts a ramp given as a register at the family's default", () => {
+    // CTMM04x: 6083h / 6084h are PMC842SR rate registers (1 .. 8191), default 100.
+    const ctmm: Limits = {
+      ...GENERIC,
+      max_acceleration: 8191,
+      max_deceleration: 8191,
+      units: { ...GENERIC.units, acceleration: { raw_unit: 'PMC842SR RATE DATA', unit: null, scale: 1, default: 100 } },
+    };
+    expect(defaultAcceleration(ctmm, 819)).toBe(100);
+    expect(rampIsRate('PMC842SR RATE DATA')).toBe(false);
+    expect(rampIsRate('u.u. (inc/s² with 6097h = 1/1)')).toBe(true);
+    // Without a default, the rate rule as before.
+    const bare = { ...ctmm, units: { ...ctmm.units, acceleration: { raw_unit: 'PMC842SR RATE DATA', unit: null, scale: 1 } } };
+    expect(defaultAcceleration(bare, 819)).toBe(8190);
   });
 });

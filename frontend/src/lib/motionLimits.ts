@@ -323,16 +323,33 @@ export function rampTimeUnit(rawUnit: string | null | undefined): 'ms' | 's' | n
   return u === 'ms' ? 'ms' : u === 's' ? 's' : null;
 }
 
+/** True when a ramp object's raw unit is a rate in position units per s² (CiA 402-2 §6.5;
+ * an unknown unit is taken as one). */
+export function rampIsRate(rawUnit: string | null | undefined): boolean {
+  if (rawUnit === null || rawUnit === undefined) return true;
+  const u = rawUnit.replace(/\s/g, '');
+  return u.includes('/s²') || u.includes('/s^2') || u.includes('/s2');
+}
+
 /** A starting acceleration: reach `velocity` in 0.1 s, within the drive's limits. Where the
  * ramp is a time (a larger value is a gentler ramp, so the limit is the gentlest), a time
  * constant of :data:`DEFAULT_RAMP_S` instead: the rate rule capped at that limit gave the
- * LECSN-T a 50 s ramp to its rated speed, a jog that hardly moved. */
+ * LECSN-T a 50 s ramp to its rated speed, a jog that hardly moved. Where it is neither (the
+ * CTMM04x's rate registers, 1..8191, larger also gentler), the family's own default of
+ * 6083h: the rate rule gave 8190, some 1.6 s to the jog speed. */
 export function defaultAcceleration(limits: Limits | null, velocity: number): number {
-  const time = rampTimeUnit(limits?.units.acceleration?.raw_unit);
+  const unit = limits?.units.acceleration;
+  const time = rampTimeUnit(unit?.raw_unit);
+  const caps = [limits?.max_acceleration ?? null, limits?.max_deceleration ?? null];
   if (time !== null) {
     let t = time === 'ms' ? DEFAULT_RAMP_S * 1000 : DEFAULT_RAMP_S;
-    for (const m of [limits?.max_acceleration ?? null, limits?.max_deceleration ?? null]) if (m !== null) t = Math.min(t, m);
+    for (const m of caps) if (m !== null) t = Math.min(t, m);
     return Math.max(time === 'ms' ? 1 : 0, t);
+  }
+  if (unit && !rampIsRate(unit.raw_unit) && typeof unit.default === 'number' && unit.default > 0) {
+    let r = unit.default;
+    for (const m of caps) if (m !== null) r = Math.min(r, m);
+    return r;
   }
   let a = Math.abs(velocity) * 10;
   for (const m of [limits?.max_acceleration ?? null, limits?.max_deceleration ?? null]) if (m !== null) a = Math.min(a, m);
