@@ -97,6 +97,8 @@ def test_lecsn_one_touch_tuning_from_the_page_then_undo(lecsn_page: Page) -> Non
     status = page.get_by_test_id("tuning-result-status")
     expect(status).to_have_attribute("data-status", "done")
     expect(status).to_contain_text("finished normally")
+    # The peak torque is what polls of 6077h saw, and the page says so.
+    expect(status).to_contain_text("in 6077h read every 0.1 s (a shorter peak")
     gains = page.get_by_test_id("tuning-gains")
     expect(gains).to_contain_text("PB06 Load to motor inertia ratio")
     expect(gains.get_by_test_id("gain-inertia_ratio")).to_contain_text("700 →")
@@ -173,6 +175,8 @@ def test_own_tuning_from_the_page_shows_what_it_found_then_undo(generic_page: Pa
 
     status = page.get_by_test_id("tuning-result-status")
     expect(status).to_have_attribute("data-status", "done")
+    expect(status).to_contain_text("% of the rated torque.")
+    expect(status).not_to_contain_text("read every")
     identified = page.get_by_test_id("tuning-identified")
     expect(identified).to_contain_text("kg m²")
     expect(identified).to_contain_text("Coulomb friction (test moves' fit)")

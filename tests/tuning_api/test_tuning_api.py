@@ -233,6 +233,9 @@ def test_builtin_run_result_undo_and_store(channel, tmp_path) -> None:  # type: 
         assert 0.1 < res["excursion_rev"] <= 0.13, res["excursion_rev"]
         assert abs(drive.position - start_pos) < REV // 1000
         assert res["axis_time_s"] > 1.0 and res["stored"] is False
+        # The peak torque is the largest of 6077h's polls, and the result says so: the drive's
+        # own tuning records nothing servodesk reads, and its acceleration peaks are short.
+        assert res["peak_torque_polled_s"] == 0.1 and res["peak_torque_pct"] is not None
         # The profile velocity the motion used is the drive's own again (6081h default).
         assert drive.read(0x6081, 0) == 10000
         assert "0x6081:00" not in client.get(f"/api/v1/sessions/{SID}").json()["dirty"]
@@ -401,6 +404,7 @@ def test_own_tuning_runs_on_the_generic_twin(channel, tmp_path) -> None:  # type
         assert after["settling_100_s"] is not None and after["settling_100_s"] < 0.1
         assert res["excursion_rev"] <= 0.5 + 1e-6  # Within +-0.25 rev of the start.
         assert res["peak_torque_pct"] <= 100.0 + 0.5  # The run's limit, not the move's 300 %.
+        assert res["peak_torque_polled_s"] is None  # From the recordings, every tick.
         assert any("70 % of 300 % of the rated torque" in n for n in res["notes"]), res["notes"]
         m = client.get(f"/api/v1/sessions/{sid}/motion").json()
         assert not m["active"] and m["kind"] == "tuning"

@@ -977,6 +977,10 @@ class TuningService:
             "axis_time_s": round(run.axis_time_s, 3),
             "excursion_rev": round(run.excursion / run.upr, 4) if run.upr else None,
             "peak_torque_pct": run.peak_torque_pct,
+            # The largest 6077h of the polls while the drive tuned: the drive has no recorder
+            # servodesk reads, so a torque peak shorter than a poll period goes unseen (a
+            # LECSN-T run on its twin read 1.7 % where the unramped moves reach the limit).
+            "peak_torque_polled_s": POLL_S if run.peak_torque_pct is not None else None,
             "applied": applied,
             "stored": False,
             "notes": list(run.notes),

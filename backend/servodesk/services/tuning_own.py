@@ -1541,6 +1541,8 @@ class OwnTuning:
             "axis_time_s": self.axis_time_s,
             "excursion_rev": self.excursion[1] - self.excursion[0],
             "peak_torque_pct": 100.0 * self.peak_torque / drive.rated_torque,
+            # From the drive's recordings of every test move, tick by tick: not polled.
+            "peak_torque_polled_s": None,
             "loop_rate_hz": drive.rate_hz,
             "counts_per_rev": drive.counts_per_rev,
             "applied": True,

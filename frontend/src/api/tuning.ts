@@ -182,6 +182,9 @@ export interface TuningResult {
   axis_time_s: number | null;
   excursion_rev: number | null;
   peak_torque_pct: number | null;
+  /** Set where the peak is the largest of 6077h polls this many seconds apart (a drive's own
+   * tuning): shorter peaks are not seen. Null where it comes from recordings. */
+  peak_torque_polled_s?: number | null;
   applied: boolean;
   stored: boolean;
   notes?: string[];

@@ -425,7 +425,12 @@ export function TuningPage({ sid }: PageProps) {
                   </strong>{' '}
                   <span className="muted">
                     Mode {result.mode}; the axis moved for {withUnit(result.axis_time_s, 's')}, at most {withUnit(result.excursion_rev, 'rev')} from the start
-                    {result.peak_torque_pct !== null ? `, peak torque ${fmtNumber(result.peak_torque_pct)} %` : ''}.{' '}
+                    {result.peak_torque_pct !== null
+                      ? result.peak_torque_polled_s
+                        ? `, peak torque ${fmtNumber(result.peak_torque_pct)} % of the rated torque in 6077h read every ${fmtNumber(result.peak_torque_polled_s)} s (a shorter peak, such as an acceleration's, is not seen)`
+                        : `, peak torque ${fmtNumber(result.peak_torque_pct)} % of the rated torque`
+                      : ''}
+                    .{' '}
                     {result.applied ? 'The new gains are active.' : 'The gains from before are active.'} {result.stored ? 'Stored to EEPROM.' : 'Not stored.'}
                     {result.undone ? ` Undone (${result.undone === 'before' ? 'to the gains before tuning' : 'to the defaults'}).` : ''}
                   </span>
