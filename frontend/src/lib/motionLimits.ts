@@ -317,10 +317,10 @@ export function defaultVelocity(limits: Limits | null): number {
  * (LECSN-T 6083h / 6084h: ms from 0 to the rated speed, 004 §20.9.3.10(7)). */
 export const DEFAULT_RAMP_S = 0.2;
 
-/** The time unit of a ramp object's raw unit ("ms" or "s"), null for a rate. */
-export function rampTimeUnit(rawUnit: string | null | undefined): 'ms' | 's' | null {
-  const u = (rawUnit ?? '').trim();
-  return u === 'ms' ? 'ms' : u === 's' ? 's' : null;
+/** "ms" where a ramp object's raw unit is a time in milliseconds, else null (a rate, or a
+ * register). */
+export function rampTimeUnit(rawUnit: string | null | undefined): 'ms' | null {
+  return (rawUnit ?? '').trim() === 'ms' ? 'ms' : null;
 }
 
 /** True when a ramp object's raw unit is a rate in position units per s² (CiA 402-2 §6.5;
@@ -342,9 +342,9 @@ export function defaultAcceleration(limits: Limits | null, velocity: number): nu
   const time = rampTimeUnit(unit?.raw_unit);
   const caps = [limits?.max_acceleration ?? null, limits?.max_deceleration ?? null];
   if (time !== null) {
-    let t = time === 'ms' ? DEFAULT_RAMP_S * 1000 : DEFAULT_RAMP_S;
+    let t = DEFAULT_RAMP_S * 1000;
     for (const m of caps) if (m !== null) t = Math.min(t, m);
-    return Math.max(time === 'ms' ? 1 : 0, t);
+    return Math.max(1, Math.round(t));
   }
   if (unit && !rampIsRate(unit.raw_unit) && typeof unit.default === 'number' && unit.default > 0) {
     let r = unit.default;
