@@ -264,3 +264,15 @@ def test_a_fixed_telegram_names_its_words(page: Page) -> None:
         expect(row1).to_contain_text(second)
         expect(row1).to_contain_text(second_type)
         expect(row0).not_to_contain_text("Reserved")
+        # A fixed telegram's layout is the telegram: nothing to move, remove or drop in.
+        expect(page.get_by_test_id(f"pdo-{pdo}-entry-0-remove")).to_have_count(0)
+        expect(page.get_by_test_id(f"pdo-{pdo}-dropzone")).to_have_count(0)
+    # The telegram choice is labelled from the profile's telegrams (004 §20.3).
+    options = page.get_by_test_id("pdo-telegram-select").locator("option")
+    expect(options).to_have_text(
+        [
+            "1 · Standard telegram 1 (fixed)",
+            "102 · Telegram 102, variable, at most 48 bytes / 24 entries",
+            "103 · Telegram 103, variable, at most 60 bytes / 30 entries",
+        ]
+    )

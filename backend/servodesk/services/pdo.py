@@ -185,6 +185,18 @@ async def view(
             "section": rules.section,
             "rpdo_count": rules.rpdo_count,
             "tpdo_count": rules.tpdo_count,
+            # The family's telegrams (PROFIdrive, 004 §20.3): the page labels its telegram
+            # choice from them and keeps a fixed telegram's entries as they are.
+            "telegrams": [
+                {
+                    "number": t.number,
+                    "name": t.name,
+                    "bytes": t.bytes,
+                    "max_entries": t.max_entries,
+                    "variable": t.variable,
+                }
+                for t in (rules.telegrams if rules.kind == "telegram" else ())
+            ],
         },
         "pdos": [_pdo_out(session, config, p) for p in config.pdos],
         "assignment": (

@@ -707,6 +707,18 @@ export interface PdoRules {
   section: string | null;
   rpdo_count: number;
   tpdo_count: number;
+  /** The family's PROFIdrive telegrams (empty for the other kinds). */
+  telegrams?: PdoTelegramInfo[];
+}
+
+/** One telegram of the family (004 §20.3): a fixed one's layout cannot change. */
+export interface PdoTelegramInfo {
+  number: number;
+  name: string;
+  /** IO data per direction; a variable mapping must fill it exactly. */
+  bytes: number;
+  max_entries: number;
+  variable: boolean;
 }
 
 /** A reason a mapping is refused, shown next to the PDO / entry / field it names. */

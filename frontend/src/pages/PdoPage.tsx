@@ -19,6 +19,7 @@ import type {
   PdoKind,
   PdoMappable,
   PdoProblem,
+  PdoTelegramInfo,
   PdoTemplate,
   PdoView,
 } from '../api/types';
@@ -83,13 +84,14 @@ const KIND_TEXT: Record<PdoKind, string> = {
   telegram: 'PROFIdrive telegram',
 };
 
-/** Telegram sizes for the select's labels (004 §20.1.2); the server checks the mapping. */
-const TELEGRAM_LABELS: Record<number, string> = {
-  1: '1 · standard telegram (fixed)',
-  100: '100 · fixed',
-  102: '102 · variable, at most 48 bytes / 24 entries',
-  103: '103 · variable, at most 60 bytes / 30 entries',
-};
+/** A telegram choice's label from the profile's telegram (004 §20.3); the server checks the
+ * mapping. */
+function telegramLabel(t: PdoTelegramInfo | undefined, n: number): string {
+  if (!t) return String(n);
+  return t.variable
+    ? `${n} · ${t.name}, variable, at most ${t.bytes} bytes / ${t.max_entries} entries`
+    : `${n} · ${t.name} (fixed)`;
+}
 
 interface Check {
   state: 'idle' | 'checking' | 'done' | 'failed';
@@ -192,6 +194,10 @@ export function PdoPage({ sid }: PageProps) {
 
   const kind: PdoKind = view?.kind ?? 'canopen';
   const readOnly = kind === 'fixed' || view?.rules.mapping_state === 'fixed';
+  const telegrams = view?.rules.telegrams ?? [];
+  // A fixed telegram's layout is the telegram (004 §20.3: 1 and 100): its entries stay as they
+  // are; choosing a variable telegram makes them editable.
+  const fixedTelegram = kind === 'telegram' && telegrams.find((t) => t.number === draft?.telegram)?.variable === false;
   const layout = useMemo(() => (draft ? layoutFromDraft(draft) : null), [draft]);
   const layoutKey = layout ? JSON.stringify(layout) : '';
 
@@ -425,9 +431,9 @@ export function PdoPage({ sid }: PageProps) {
                 onChange={(e) => edit((x) => ({ ...x, telegram: Number(e.target.value) }))}
                 data-testid="pdo-telegram-select"
               >
-                {[...new Set([...(draft.telegram !== null ? [draft.telegram] : []), 102, 103])].map((t) => (
+                {[...new Set([...(draft.telegram !== null ? [draft.telegram] : []), ...telegrams.filter((t) => t.variable).map((t) => t.number)])].map((t) => (
                   <option key={t} value={t}>
-                    {TELEGRAM_LABELS[t] ?? String(t)}
+                    {telegramLabel(telegrams.find((x) => x.number === t), t)}
                   </option>
                 ))}
               </select>
@@ -516,7 +522,7 @@ export function PdoPage({ sid }: PageProps) {
                       maxEntries={view.rules.max_entries}
                       active={isActive(p, draft, kind)}
                       changed={changed.has(p.name)}
-                      readOnly={readOnly}
+                      readOnly={readOnly || fixedTelegram}
                       problems={grouped.byPdo.get(p.name)}
                       describe={describe}
                       rawUnits={rawUnits}
