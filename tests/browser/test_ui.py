@@ -133,3 +133,13 @@ def test_the_open_sessions_fit_a_laptop_screen(page: Page) -> None:
     box, card = close.bounding_box(), wrap.bounding_box()
     assert box is not None and card is not None
     assert box["x"] + box["width"] <= card["x"] + card["width"] + 0.5
+    # The NMT state says what it rests on; an unknown one says why (the LECSN-T twin sends no
+    # heartbeat, and a test before this one may have sent it an NMT command).
+    nmt = page.get_by_test_id("session-nmt-lecsn-t-5")
+    if nmt.inner_text().strip() == "unknown":
+        expect(nmt).to_have_attribute("title", re.compile(r"no heartbeat .* \(1017h\) is 0"))
+    else:
+        expect(nmt).to_have_attribute("title", re.compile(r"from the drive's last heartbeat"))
+    smartris = page.get_by_test_id("session-nmt-smartris-3")
+    expect(smartris).not_to_have_text("unknown")  # Its twin sends a heartbeat.
+    expect(smartris).to_have_attribute("title", re.compile(r"^NMT state \w+: from the drive's"))

@@ -7,6 +7,7 @@ import type { BusInterface, ProfileSummary, ScanNode, SessionInfo, SessionReques
 import { api } from '../api/client';
 import { StatePill } from '../components/StatePill';
 import { toHex } from '../lib/format';
+import { nmtTitle } from '../lib/nmt';
 import { notify, notifyError } from '../state/notify';
 import { useObservable } from '../state/observable';
 import { navigate } from '../state/router';
@@ -350,7 +351,9 @@ export function ConnectPage() {
                     <td>
                       <StatePill state={s.state} testid={`session-state-${s.id}`} />
                     </td>
-                    <td className="mono">{s.nmt_state}</td>
+                    <td className="mono" title={nmtTitle(s.nmt_state)} data-testid={`session-nmt-${s.id}`}>
+                      {s.nmt_state}
+                    </td>
                     <td className="note">
                       <span className="clamp" title={s.note ?? ''}>
                         {s.note ?? ''}

@@ -15,6 +15,7 @@ import { StatePill } from '../components/StatePill';
 import { StatuswordTable } from '../components/StatuswordTable';
 import { modeName } from '../lib/cia402';
 import { formatEngineering, toHex } from '../lib/format';
+import { nmtTitle } from '../lib/nmt';
 import { notify, notifyError } from '../state/notify';
 import { useObservable } from '../state/observable';
 import { applyState, liveSession, sessions, socket, socketStatus } from '../state/store';
@@ -108,7 +109,8 @@ function IdentityCard({ session }: { session: SessionInfo }) {
           <tr>
             <th>Link</th>
             <td className="mono">
-              {session.fieldbus} · node {session.node_id} · {session.interface}:{session.channel} · NMT {session.nmt_state}
+              {session.fieldbus} · node {session.node_id} · {session.interface}:{session.channel} ·{' '}
+              <span title={nmtTitle(session.nmt_state)}>NMT {session.nmt_state}</span>
             </td>
           </tr>
         </tbody>

@@ -1,0 +1,12 @@
+import { describe, expect, it } from 'vitest';
+import { nmtTitle } from './nmt';
+
+describe('nmtTitle', () => {
+  it('says why the state is unknown', () => {
+    expect(nmtTitle('unknown')).toContain('1017h');
+    expect(nmtTitle(null)).toContain('no heartbeat');
+  });
+  it('says where a known state comes from', () => {
+    expect(nmtTitle('preop')).toMatch(/^NMT state preop: from the drive's last heartbeat/);
+  });
+});
