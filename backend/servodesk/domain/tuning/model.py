@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property, lru_cache
 
 import numpy as np
@@ -225,14 +225,14 @@ class PlantModel:
         loop takes the magnitude down (generic twin, 4 kHz with its 796 Hz current loop: 5 dB
         below the mechanics at 1 kHz, 15 dB at 2 kHz; docs/tuning.md, "Bode plot")."""
         a, _bu, _bw, c = self.state_space()
-        dp = discretise(self, float(rate_hz), 0.0)
-        ww = np.asarray(w, dtype=np.float64)
-        z = np.exp(1j * ww / rate_hz)
-        n = dp.ad.shape[0]
-        x = np.linalg.solve(z[:, None, None] * np.eye(n)[None] - dp.ad[None], dp.b_now)
         # The motor velocity is d(c x)/dt = c A x: the command does not reach the position
-        # directly (c B_u = 0), and an extra mode's position output is its q.
-        return np.asarray(z * (x @ (c @ a)), dtype=np.complex128)
+        # directly (c B_u = 0), and an extra mode's position output is its q. Read at the end
+        # of the period the command was held over: one step ahead of the state it acts on.
+        dp = replace(discretise(self, float(rate_hz), 0.0), c=c @ a)
+        ww = np.asarray(w, dtype=np.float64)
+        return np.asarray(
+            np.exp(1j * ww / rate_hz) * _solve_response(dp, ww, rate_hz), dtype=np.complex128
+        )
 
     def state_space(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """Continuous ``(A, B_u, B_w, C)``: input torque command (into the current loop) ``u``,
