@@ -25,6 +25,10 @@ class Settings(BaseSettings):
     #: A TOML plant file (docs/tuning.md, "Plant files") the simulated drives run on in place
     #: of their profiles' simulation sections; None: the profiles' own.
     sim_plant: Path | None = None
+    #: Where the simulated CC-Link IE TSN station (the CTMM04x twin) answers SLMP, as
+    #: ``host:port`` on UDP (port 0: a free port, shown as the session's channel); empty: the
+    #: CTMM04x twin is a CANopen node like the others.
+    sim_slmp: str = "127.0.0.1:0"
     #: Extra profile directories, searched before the shipped profiles (os.pathsep list).
     profile_dirs: str = ""
     #: Where backups, the audit log and the store live.

@@ -143,3 +143,40 @@ def test_the_open_sessions_fit_a_laptop_screen(page: Page) -> None:
     smartris = page.get_by_test_id("session-nmt-smartris-3")
     expect(smartris).not_to_have_text("unknown")  # Its twin sends a heartbeat.
     expect(smartris).to_have_attribute("title", re.compile(r"^NMT state \w+: from the drive's"))
+
+
+def test_the_ctmm04x_is_on_slmp_and_the_form_takes_a_station_and_an_axis(page: Page) -> None:
+    # serve --sim opens the CTMM04x twin over SLMP (docs/slmp.md); the Connect form reaches a
+    # station by host:port and an axis, with no bitrate and no scan.
+    page.set_viewport_size({"width": 1280, "height": 800})
+    page.goto("/#/connect")
+    row = page.get_by_test_id("session-row-ctmm04x-1")
+    expect(row).to_contain_text(re.compile(r"cclink-ie-tsn\s*slmp:127\.0\.0\.1:\d+"))
+    expect(page.get_by_test_id("session-nmt-ctmm04x-1")).to_have_attribute(
+        "title", re.compile(r"manager's command \(003 §3-3\)")
+    )
+    where = re.search(r"slmp:(127\.0\.0\.1:\d+)", row.inner_text())
+    assert where is not None
+
+    page.get_by_test_id("bus-interface").select_option("slmp")
+    expect(page.get_by_test_id("bus-channel")).to_have_value("192.168.0.250:5010")
+    expect(page.get_by_test_id("bus-bitrate")).to_be_disabled()
+    expect(page.get_by_test_id("scan-bus")).to_be_disabled()
+    axis = page.get_by_test_id("bus-node-id")
+    assert axis.locator("option").all_inner_texts() == [
+        "X (node id 1, multidrop 0)",
+        "Y (node id 2, multidrop 1)",
+        "Z (node id 3, multidrop 2)",
+        "U (node id 4, multidrop 3)",
+    ]
+    page.get_by_test_id("bus-channel").fill(where.group(1))
+    axis.select_option("2")  # The twin's station has axis X only.
+    page.get_by_test_id("open-session").click()
+    notice = page.get_by_test_id("notice-error")
+    expect(notice).to_contain_text("has no axis Y")
+    expect(page).to_have_url(re.compile(r"#/connect"))
+
+    # Its PDO page says there is no cyclic data over SLMP before anyone presses Start.
+    page.goto("/#/pdo/ctmm04x-1")
+    expect(page.get_by_test_id("pdo-cyclic-unavailable")).to_contain_text("manager only")
+    expect(page.get_by_test_id("pdo-cyclic-start")).to_be_disabled()

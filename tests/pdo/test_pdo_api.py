@@ -95,6 +95,9 @@ async def rig(tmp_path_factory) -> AsyncIterator[Rig]:  # type: ignore[no-untype
         sim_channel=channel,
         sim_profiles=",".join(FAMILIES),
         data_dir=tmp_path_factory.mktemp("data"),
+        # The CTMM04x twin on the CAN bus too: these tests read its fixed PDOs' frames there
+        # (serve --sim puts it on SLMP, which has no cyclic data: tests/links/test_slmp_api.py).
+        sim_slmp="",
     )
     app = create_app(settings)
     async with app.router.lifespan_context(app):

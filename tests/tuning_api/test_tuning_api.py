@@ -93,7 +93,7 @@ def test_info_says_what_each_family_can_do(channel, tmp_path) -> None:  # type: 
             == ("margins kept with a resonance up to 2 % off what was measured")
         )
 
-        ctmm = client.get("/api/v1/sessions/ctmm04x-4/tuning").json()
+        ctmm = client.get("/api/v1/sessions/ctmm04x-1/tuning").json()
         assert ctmm["kind"] == "none" and ctmm["modes"] == [] and ctmm["gains"] == []
         assert "Nothing to tune" in ctmm["reason"] and "pulse trains" in ctmm["reason"]
         assert "003 §1" in ctmm["reason"]

@@ -6,7 +6,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, JsonValue, field_validator
 
-from servodesk.links.registry import can_interfaces
+from servodesk.links.registry import bus_interfaces, can_interfaces
 
 Scalar = int | float | bool | str | None
 
@@ -138,6 +138,8 @@ class BusParams(BaseModel):
 
 
 class ScanRequest(BusParams):
+    """A scan of a CAN bus (SDO upload of 1000h to every node)."""
+
     timeout: float = Field(default=0.5, ge=0.05, le=3.0, description="Seconds to wait for answers")
 
 
@@ -161,8 +163,29 @@ class ScanOut(BaseModel):
     nodes: list[ScanNode]
 
 
+_BUS_INTERFACES = bus_interfaces()
+
+
 class SessionCreate(BusParams):
+    interface: str = Field(
+        default="virtual",
+        description="python-can interface for a CANopen drive (virtual, udp_multicast, "
+        "socketcan, pcan, ...), or slmp for a CC-Link IE TSN station reached by SLMP over UDP "
+        "(channel host:port, node id = axis + 1)",
+        json_schema_extra={"enum": list[JsonValue](_BUS_INTERFACES)},
+    )
     node_id: int = Field(ge=1, le=127)
+
+    @field_validator("interface")
+    @classmethod
+    def _known_interface(cls, v: str) -> str:
+        if v not in _BUS_INTERFACES:
+            raise ValueError(
+                f"unknown interface; python-can has {', '.join(_CAN_INTERFACES)}, and slmp "
+                "reaches a CC-Link IE TSN station"
+            )
+        return v
+
     profile: str | None = Field(default=None, description="Profile id; null detects it from 1018h")
 
 

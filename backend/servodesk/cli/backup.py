@@ -32,9 +32,14 @@ _EXPORTS = {".json": "json", ".dcf": "dcf", ".csv": "csv"}
 
 
 def _bus_options(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("bus options (python-can)")
-    g.add_argument("--interface", default="virtual", help="virtual, socketcan, pcan, ...")
-    g.add_argument("--channel", default="servodesk-sim", help="python-can channel")
+    g = p.add_argument_group("bus options (python-can style)")
+    g.add_argument(
+        "--interface",
+        default="virtual",
+        help="python-can interface (virtual, socketcan, pcan, ...) for CANopen, or slmp for a "
+        "CC-Link IE TSN station (channel host:port, node id = axis + 1)",
+    )
+    g.add_argument("--channel", default="servodesk-sim", help="python-can channel, or host:port")
     g.add_argument("--bitrate", type=int, default=None, help="bit rate for real interfaces")
     g.add_argument("--node-id", type=int, default=1, help="node id of the drive (1..127)")
     g.add_argument("--profile", default=None, help="profile id (default: detect from 1018h)")
@@ -114,6 +119,7 @@ class _Context:
 
     async def session(self) -> Any:
         from servodesk.links.base import LinkParams
+        from servodesk.links.registry import link_for_interface
 
         a = self.args
         if not 1 <= a.node_id <= 127:
@@ -127,7 +133,7 @@ class _Context:
             node_id=a.node_id,
             timeout=self.timeout,
         )
-        return await self.manager.open(params, a.profile)
+        return await self.manager.open(params, a.profile, fieldbus=link_for_interface(a.interface))
 
     async def close(self) -> None:
         await self.manager.close_all()

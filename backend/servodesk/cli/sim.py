@@ -4,6 +4,10 @@ Other programs (servodesk itself, a PLC, plain python-canopen code) talk to it o
 ``servodesk sim --profile cia402-generic --node-id 5 --interface udp_multicast
 --channel 239.74.163.9``. Runs until SIGINT or SIGTERM.
 
+``--interface slmp --channel HOST:PORT`` serves the drive as an axis of a CC-Link IE TSN
+station answering SLMP on that UDP port instead (node id 1..4 = axis X..U; docs/slmp.md):
+``servodesk sim --profile ctmm04x --interface slmp --channel 127.0.0.1:5010``.
+
 ``--plant FILE`` simulates the axis a TOML plant file describes (docs/tuning.md, "Plant
 files"; sim/plantfile.py) at its loop rate, in place of the profile's ``simulation`` section;
 a file that cannot be read or holds a bad key or value is refused with the message (exit 2).
@@ -32,9 +36,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.add_argument(
         "--interface",
         default="virtual",
-        help="python-can interface (virtual, udp_multicast, socketcan, ...)",
+        help="python-can interface (virtual, udp_multicast, socketcan, ...), or slmp: an SLMP "
+        "station on UDP",
     )
-    p.add_argument("--channel", default="servodesk-sim", help="python-can channel")
+    p.add_argument(
+        "--channel", default="servodesk-sim", help="python-can channel, or host:port for slmp"
+    )
     p.add_argument("--bitrate", type=int, default=None, help="bit rate for real interfaces")
     p.add_argument(
         "--serial", type=lambda s: int(s, 0), default=None, help="serial number (1018h:04)"
@@ -77,9 +84,10 @@ def run(args: argparse.Namespace) -> int:
     old = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         drive = bus.drives[0]
+        _fieldbus, interface, channel, node = bus.link_of(drive)
         print(
             f"servodesk sim: serving {drive.profile.id} ({drive.profile.name}) as node "
-            f"{drive.node_id} on {args.interface}:{args.channel}; Ctrl+C stops",
+            f"{node} on {interface}:{channel}; Ctrl+C stops",
             flush=True,
         )
         if plant is not None:

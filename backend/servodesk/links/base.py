@@ -19,11 +19,13 @@ from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
 from servodesk.domain.address import ObjectAddress
+from servodesk.domain.datatypes import DataType, codec
 from servodesk.errors import (
     LinkClosedError,
     LinkError,
     LinkTimeoutError,
     NotFoundError,
+    ObjectAccessError,
     ServodeskError,
 )
 
@@ -122,6 +124,35 @@ class _Turn:
         self._held = False
 
 
+async def object_identity(access: ObjectAccess) -> Identity:
+    """The identity object (1018h:01-04) and names (1008h-100Ah) read as objects, for links
+    that reach the device's object dictionary (CANopen SDO, SLMP 4020h); a missing entry is
+    None."""
+
+    async def u32(index: int, sub: int) -> int | None:
+        try:
+            return int.from_bytes((await access.read(ObjectAddress(index, sub)))[:4], "little")
+        except ObjectAccessError:
+            return None
+
+    async def text(index: int) -> str | None:
+        try:
+            v = codec(DataType.VISIBLE_STRING).decode(await access.read(ObjectAddress(index)))
+            return str(v)
+        except ObjectAccessError:
+            return None
+
+    return Identity(
+        vendor_id=await u32(0x1018, 1),
+        product_code=await u32(0x1018, 2),
+        revision=await u32(0x1018, 3),
+        serial=await u32(0x1018, 4),
+        device_name=await text(0x1008),
+        hardware_version=await text(0x1009),
+        software_version=await text(0x100A),
+    )
+
+
 class ObjectAccess(ABC):
     """Read and write object dictionary entries as raw bytes."""
 
@@ -169,6 +200,8 @@ class DriveLink(ObjectAccess):
 
     #: Registry name, e.g. "canopen".
     fieldbus: str = ""
+    #: Whether :meth:`nmt` sends network-management commands on this link.
+    sends_nmt: bool = True
 
     def __init__(self, params: LinkParams) -> None:
         self.params = params

@@ -28,7 +28,6 @@ import canopen
 
 from servodesk.domain import sdo
 from servodesk.domain.address import ObjectAddress
-from servodesk.domain.datatypes import DataType, codec
 from servodesk.domain.sdo_abort import ABORT_HINTS, abort_text
 from servodesk.errors import (
     LinkClosedError,
@@ -38,7 +37,7 @@ from servodesk.errors import (
     ObjectAccessError,
     ValidationError,
 )
-from servodesk.links.base import DriveLink, Identity, LinkParams
+from servodesk.links.base import DriveLink, Identity, LinkParams, object_identity
 
 log = logging.getLogger(__name__)
 
@@ -571,28 +570,7 @@ class CanopenLink(DriveLink):
         )
 
     async def identity(self) -> Identity:
-        async def u32(index: int, sub: int) -> int | None:
-            try:
-                return int.from_bytes((await self.read(ObjectAddress(index, sub)))[:4], "little")
-            except ObjectAccessError:
-                return None
-
-        async def text(index: int) -> str | None:
-            try:
-                v = codec(DataType.VISIBLE_STRING).decode(await self.read(ObjectAddress(index)))
-                return str(v)
-            except ObjectAccessError:
-                return None
-
-        return Identity(
-            vendor_id=await u32(0x1018, 1),
-            product_code=await u32(0x1018, 2),
-            revision=await u32(0x1018, 3),
-            serial=await u32(0x1018, 4),
-            device_name=await text(0x1008),
-            hardware_version=await text(0x1009),
-            software_version=await text(0x100A),
-        )
+        return await object_identity(self)
 
     def _nmt(self, command: str) -> None:
         node = self._require()

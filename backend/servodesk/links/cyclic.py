@@ -12,7 +12,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 
-from servodesk.errors import LinkUnavailableError
+from servodesk.errors import ConflictError
 
 #: Called on the bus thread with the frame's data and its receive time (seconds, bus clock).
 FrameCallback = Callable[[bytes, float], None]
@@ -57,15 +57,26 @@ class CyclicTransport(ABC):
         """Send SYNC (CiA 301 §7.2.5), with the counter byte when ``counter`` is given."""
 
 
+def no_cyclic_reason(link: object) -> str | None:
+    """Why ``link`` carries no cyclic process data; None when it does."""
+    from servodesk.links.canopen_link import CanopenLink
+
+    if isinstance(link, CanopenLink):
+        return None
+    reason: str | None = getattr(link, "no_cyclic", None)
+    return reason or f"the {getattr(link, 'fieldbus', '?')} link has no cyclic process data"
+
+
 def transport_for(link: object) -> CyclicTransport:
-    """The cyclic transport of ``link``; :class:`LinkUnavailableError` when it has none."""
+    """The cyclic transport of ``link``; :class:`ConflictError` (not possible on this link,
+    the link's ``no_cyclic`` says why) when it has none."""
     from servodesk.links.canopen_link import CanopenLink
 
     if isinstance(link, CanopenLink):
         from servodesk.links.canopen_cyclic import CanopenCyclic
 
         return CanopenCyclic(link.network)
-    raise LinkUnavailableError(
+    raise ConflictError(
         f"the {getattr(link, 'fieldbus', '?')} link has no cyclic process data",
-        hint="cyclic data needs a CANopen link (the simulated drives run on one)",
+        hint=no_cyclic_reason(link),
     )

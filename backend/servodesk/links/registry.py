@@ -75,3 +75,23 @@ registry.register(
     "CanopenLink",
     "CANopen over any python-can interface (virtual, udp_multicast, socketcan, pcan, kvaser, ...)",
 )
+registry.register(
+    "cclink-ie-tsn",
+    "servodesk.links.slmp_link",
+    "SlmpLink",
+    "CC-Link IE TSN object access over SLMP (4E frames on UDP; interface slmp, channel host:port)",
+)
+
+#: Interfaces that are no python-can interface, and the link that speaks over each.
+_INTERFACE_LINKS = {"slmp": "cclink-ie-tsn"}
+
+
+def link_for_interface(interface: str) -> str:
+    """The registry name of the link a bus interface is reached by: ``slmp`` is the SLMP
+    link, every python-can interface CANopen."""
+    return _INTERFACE_LINKS.get(interface, "canopen")
+
+
+def bus_interfaces() -> list[str]:
+    """Every interface a session can be opened on: python-can's and the other links'."""
+    return sorted({*can_interfaces(), *_INTERFACE_LINKS})

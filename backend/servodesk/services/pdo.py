@@ -27,7 +27,7 @@ from servodesk.errors import (
     ServodeskError,
     ValidationError,
 )
-from servodesk.links.cyclic import padded_length, transport_for
+from servodesk.links.cyclic import no_cyclic_reason, padded_length, transport_for
 from servodesk.services.cyclic import MAX_PERIOD, MIN_PERIOD, CyclicExchange, bus_cob_id
 
 if TYPE_CHECKING:
@@ -514,8 +514,11 @@ def idle_status() -> dict[str, Any]:
 
 
 def cyclic_status(session: Session) -> dict[str, Any]:
+    """The exchange's status; ``unavailable`` says why the session's link has none (SLMP)."""
     ex = cyclic_of(session)
-    return ex.status() if ex is not None else idle_status()
+    out = ex.status() if ex is not None else idle_status()
+    out["unavailable"] = no_cyclic_reason(session.link)
+    return out
 
 
 def set_outputs(session: Session, values: dict[str, Any]) -> dict[str, Any]:

@@ -28,6 +28,7 @@ from servodesk.domain.encoder_units import (
 from servodesk.domain.profile import DeviceProfile, ErrorEntry
 from servodesk.domain.values import ObjectValue, describe, encode_write
 from servodesk.errors import (
+    ConflictError,
     DriveStateError,
     LinkError,
     ObjectAccessError,
@@ -423,6 +424,14 @@ class Session:
     async def restore_defaults(self, reset: bool) -> dict[str, Any]:
         """Restore the default parameters (CiA 301 §7.5.2.14: 1011h <- "load")."""
         address, value = self._procedure("restore_defaults", 0x1011, 0x64616F6C)
+        if reset and not self.link.sends_nmt:
+            # Refused before the defaults are loaded: half of it would leave the drive with
+            # defaults that apply at a reset nobody sends.
+            raise ConflictError(
+                f"the {self.link.fieldbus} link sends no NMT reset; nothing was restored",
+                hint="restore without the reset, then reset the drive from its network's "
+                "manager (or power-cycle it)",
+            )
         await self.link.write(address, value.to_bytes(4, "little"), timeout=10.0)
         self.dirty.clear()
         if reset:

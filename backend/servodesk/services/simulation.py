@@ -1,4 +1,9 @@
-"""``serve --sim``: one simulated drive per family on a virtual bus, each opened as a session."""
+"""``serve --sim``: one simulated drive per family, each opened as a session.
+
+The drives are CANopen nodes on a virtual bus, except the CC-Link IE TSN one (the CTMM04x),
+which answers SLMP on a UDP port of 127.0.0.1 (``SERVODESK_SIM_SLMP``) and is opened over
+the SLMP link, as a real unit would be (docs/slmp.md).
+"""
 
 from __future__ import annotations
 
@@ -43,16 +48,16 @@ async def start_simulation(
         channel=settings.sim_channel,
         catalog=catalog,
         plant=plant,
+        slmp_channel=settings.sim_slmp or None,
     )
-    for pid, node in drives:
+    for drive in sim.drives:
+        pid, node = drive.profile.id, drive.node_id
+        fieldbus, interface, channel, node_id = sim.link_of(drive)
         params = LinkParams(
-            interface=settings.sim_interface,
-            channel=settings.sim_channel,
-            node_id=node,
-            timeout=settings.sdo_timeout,
+            interface=interface, channel=channel, node_id=node_id, timeout=settings.sdo_timeout
         )
         try:
-            await manager.open(params, pid, simulated=True)
+            await manager.open(params, pid, fieldbus=fieldbus, simulated=True)
         except Exception:
             log.exception("could not open the simulated %s drive (node %d)", pid, node)
     return sim

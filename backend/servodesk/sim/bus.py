@@ -9,6 +9,12 @@ messages and steps them all from one :class:`~servodesk.sim.runner.SimRunner` th
 (:class:`~servodesk.sim.plantfile.PlantSpec`, ``servodesk sim --plant FILE``) every drive
 simulates that axis at its loop rate instead of the profile's ``simulation`` section (the
 torque noise seeded with the node id).
+
+SLMP (:class:`~servodesk.sim.slmp_station.SlmpStation`): with ``interface="slmp"`` every drive
+is an axis of one SLMP station on ``channel`` (``host:port``; node id 1..4 = axis X..U), and
+no CAN bus is opened. With ``slmp_channel``, the drives whose profile speaks CC-Link IE TSN
+(the CTMM04x) are the station's axes X, Y, ... in order, and the others are CANopen nodes
+(``servodesk serve --sim``). A drive on the station is not on the CAN bus.
 """
 
 from __future__ import annotations
@@ -20,12 +26,17 @@ from typing import Any
 import can
 import canopen
 
+from servodesk.domain import slmp
 from servodesk.domain.profile_loader import ProfileCatalog
 from servodesk.errors import LinkError, LinkUnavailableError, ValidationError
 from servodesk.sim.canopen_device import SimCanopenDevice
 from servodesk.sim.engine import SimulatedDrive
 from servodesk.sim.plantfile import PlantSpec
 from servodesk.sim.runner import SimRunner
+from servodesk.sim.slmp_station import SlmpStation
+
+#: The fieldbus name of the profiles a station serves over SLMP.
+SLMP_FIELDBUS = "cclink-ie-tsn"
 
 log = logging.getLogger(__name__)
 
@@ -40,10 +51,17 @@ class SimulatedBus:
         runner: SimRunner,
         interface: str,
         channel: str,
+        drives: list[SimulatedDrive] | None = None,
+        station: SlmpStation | None = None,
     ) -> None:
         self.network = network
         self.devices = devices
-        self.drives: list[SimulatedDrive] = [d.drive for d in devices]
+        #: Every drive, in the order they were asked for (CANopen and SLMP).
+        self.drives: list[SimulatedDrive] = (
+            drives if drives is not None else [d.drive for d in devices]
+        )
+        #: The SLMP station serving the drives not on the CAN bus, if any.
+        self.station = station
         self.runner = runner
         self.interface = interface
         self.channel = channel
@@ -59,12 +77,19 @@ class SimulatedBus:
         catalog: ProfileCatalog | None = None,
         serials: Sequence[int | None] | None = None,
         plant: PlantSpec | None = None,
+        slmp_channel: str | None = None,
     ) -> SimulatedBus:
         """Start the drives; raises ValidationError / NotFoundError / LinkError."""
         catalog = catalog or ProfileCatalog()
         seen: set[int] = set()
         sims: list[SimulatedDrive] = []
+        all_slmp = interface == "slmp"
         for i, (profile_id, node_id) in enumerate(drives):
+            if all_slmp and not 1 <= node_id <= 4:
+                raise ValidationError(
+                    f"node id {node_id} is no axis of an SLMP station",
+                    hint="SLMP node ids are the axis + 1: 1 = X, 2 = Y, 3 = Z, 4 = U",
+                )
             if not 1 <= node_id <= 127:
                 raise ValidationError(
                     f"node id {node_id} is outside 1..127", hint="CANopen node ids are 1..127"
@@ -88,6 +113,49 @@ class SimulatedBus:
                         loop_rate_hz=plant.loop_rate_hz,
                     )
                 )
+        if all_slmp:
+            axes = {sim.node_id - 1: sim for sim in sims}
+            station_channel: str | None = channel
+        else:
+            on_station = [s for s in sims if slmp_channel and s.profile.fieldbus == SLMP_FIELDBUS]
+            axes = dict(enumerate(on_station[:4]))
+            station_channel = slmp_channel if axes else None
+        on_can = [sim for sim in sims if sim not in axes.values()]
+        station = None
+        if station_channel is not None:
+            host, port = slmp.parse_channel(station_channel, server=True)
+            try:
+                station = SlmpStation(axes, host, port).start()
+            except OSError as exc:
+                raise LinkError(
+                    f"cannot serve SLMP on udp {host}:{port}: {exc}",
+                    hint="choose another port, or stop the program that holds this one",
+                ) from exc
+        network = None
+        if on_can:
+            try:
+                network = cls._connect(interface, channel, bitrate)
+            except BaseException:
+                if station is not None:
+                    station.stop()
+                raise
+        devices: list[SimCanopenDevice] = []
+        for sim in on_can:
+            dev = SimCanopenDevice(sim)
+            assert network is not None  # Opened above when any drive is on the CAN bus.
+            network.add_node(dev)
+            devices.append(dev)
+        runner = SimRunner(sims)
+        for sim in sims:
+            sim.step(sim.CONTROL_PERIOD)  # Leave "Not ready to switch on" before boot-up.
+        for dev in devices:
+            dev.boot()
+        runner.start()
+        log.info("simulated drives %s on %s:%s", list(drives), interface, channel)
+        return cls(network, devices, runner, interface, channel, sims, station)
+
+    @staticmethod
+    def _connect(interface: str, channel: str, bitrate: int | None) -> Any:
         network = canopen.Network()
         # The notifier thread wakes this often to see whether it should stop (default 1 s).
         network.NOTIFIER_CYCLE = 0.05
@@ -110,19 +178,15 @@ class SimulatedBus:
                 f"cannot open CAN bus {interface}:{channel}: {exc}",
                 hint="check --interface and --channel (and --bitrate for real interfaces)",
             ) from exc
-        devices: list[SimCanopenDevice] = []
-        for sim in sims:
-            dev = SimCanopenDevice(sim)
-            network.add_node(dev)
-            devices.append(dev)
-        runner = SimRunner(sims)
-        for sim in sims:
-            sim.step(sim.CONTROL_PERIOD)  # Leave "Not ready to switch on" before boot-up.
-        for dev in devices:
-            dev.boot()
-        runner.start()
-        log.info("simulated drives %s on %s:%s", list(drives), interface, channel)
-        return cls(network, devices, runner, interface, channel)
+        return network
+
+    def link_of(self, drive: SimulatedDrive) -> tuple[str, str, str, int]:
+        """(fieldbus, interface, channel, node id) a client reaches ``drive`` at."""
+        if self.station is not None:
+            for axis, sim in self.station.axes.items():
+                if sim is drive:
+                    return SLMP_FIELDBUS, "slmp", self.station.channel, axis + 1
+        return "canopen", self.interface, self.channel, drive.node_id
 
     def stop(self) -> None:
         """Stop stepping, silence the heartbeats and close the bus (idempotent)."""
@@ -130,13 +194,16 @@ class SimulatedBus:
             return
         self._stopped = True
         self.runner.stop()
+        if self.station is not None:
+            self.station.stop()
         for dev in self.devices:
             try:
                 dev.shutdown()
             except Exception:  # Best effort: the bus may already be gone.
                 log.debug("device shutdown failed", exc_info=True)
         try:
-            self.network.disconnect()
+            if self.network is not None:
+                self.network.disconnect()
         except Exception:
             log.debug("network disconnect failed", exc_info=True)
 

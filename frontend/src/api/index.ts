@@ -22,6 +22,7 @@
  *   export type ScanResult = S['ScanOut'];
  *   export type SessionInfo = S['SessionInfo'];
  *   export type SessionRequest = S['SessionCreate'];
+ *   export type SessionInterface = S['SessionCreate']['interface'];
  *   export type StateCommand = S['StateCommand']['command'];
  *   export type StateCommandRequest = S['StateCommand'];
  *   export type StatusBit = S['StatusBit'];
@@ -54,6 +55,7 @@ export type {
   ScanRequest,
   ScanResult,
   SessionInfo,
+  SessionInterface,
   SessionRequest,
   StateCommand,
   StateCommandRequest,

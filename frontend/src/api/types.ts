@@ -65,6 +65,10 @@ export type BusInterface =
   | 'vector'
   | 'virtual';
 
+/** Every interface a session opens on: python-can's (CANopen), and slmp for a CC-Link IE TSN
+ * station reached by SLMP over UDP (channel host:port, node id = axis + 1). */
+export type SessionInterface = BusInterface | 'slmp';
+
 export interface ScanRequest {
   interface: BusInterface;
   channel: string;
@@ -101,7 +105,7 @@ export interface Identity {
 }
 
 export interface SessionRequest {
-  interface: BusInterface;
+  interface: SessionInterface;
   channel: string;
   bitrate: number | null;
   node_id: number;
@@ -927,6 +931,9 @@ export interface PdoCyclicStatus {
   values: Record<string, PdoLiveValue>;
   /** Backend addition: SYNCs sent. */
   syncs?: number;
+  /** Why the session's link carries no cyclic data (a CC-Link IE TSN station over SLMP
+   * exchanges it with its manager only); null or absent when it does. */
+  unavailable?: string | null;
 }
 
 export interface PdoCyclicRequest {

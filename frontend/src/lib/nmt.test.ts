@@ -9,4 +9,8 @@ describe('nmtTitle', () => {
   it('says where a known state comes from', () => {
     expect(nmtTitle('preop')).toMatch(/^NMT state preop: from the drive's last heartbeat/);
   });
+  it("says a CC-Link IE TSN station's state is its manager's", () => {
+    expect(nmtTitle('unknown', 'cclink-ie-tsn')).toContain('manager');
+    expect(nmtTitle('unknown', 'canopen')).toContain('1017h');
+  });
 });

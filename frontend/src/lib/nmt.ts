@@ -1,8 +1,14 @@
 /** What a session's NMT state (CiA 301 §7.3.2) rests on, for the pages' tooltips. */
 
 /** The tooltip of an NMT state as the backend reports it ("preop", "operational", "stopped",
- * "bootup" or "unknown"). */
-export function nmtTitle(state: string | null | undefined): string {
+ * "bootup" or "unknown"), for a session on ``link`` (its link's registry name). */
+export function nmtTitle(state: string | null | undefined, link?: string | null): string {
+  if (link === 'cclink-ie-tsn') {
+    return (
+      'NMT state not read: a CC-Link IE TSN station changes it at its manager\'s command (003 §3-3), ' +
+      'and servodesk reaches it by SLMP object access only.'
+    );
+  }
   if (!state || state === 'unknown') {
     return (
       'NMT state unknown: no heartbeat from the drive has been seen and servodesk has sent no NMT ' +

@@ -1,9 +1,11 @@
 /**
  * Connect: choose the bus (python-can interface, channel, bitrate), scan it for nodes
- * (identity from 1018h and the matching profile), and open or close drive sessions.
+ * (identity from 1018h and the matching profile), and open or close drive sessions. The slmp
+ * interface reaches a CC-Link IE TSN station (CTMM04x) by SLMP over UDP: the channel is its
+ * host:port, the node id its axis + 1, and there is no scan (docs/slmp.md).
  */
 import { type FormEvent, useEffect, useState } from 'react';
-import type { BusInterface, ProfileSummary, ScanNode, SessionInfo, SessionRequest } from '../api';
+import type { ProfileSummary, ScanNode, SessionInfo, SessionInterface, SessionRequest } from '../api';
 import { api } from '../api/client';
 import { StatePill } from '../components/StatePill';
 import { toHex } from '../lib/format';
@@ -13,8 +15,9 @@ import { useObservable } from '../state/observable';
 import { navigate } from '../state/router';
 import { refreshSessions, sessions } from '../state/store';
 
-/** python-can interface names (python-can "Hardware interfaces"); virtual is the simulator's. */
-const INTERFACES: ReadonlyArray<{ id: BusInterface; label: string }> = [
+/** python-can interface names (python-can "Hardware interfaces"); virtual is the simulator's.
+ * slmp is servodesk's SLMP link (CC-Link IE TSN), not a CAN interface. */
+const INTERFACES: ReadonlyArray<{ id: SessionInterface; label: string }> = [
   { id: 'virtual', label: 'virtual (in-process simulator)' },
   { id: 'udp_multicast', label: 'udp_multicast (simulator in another process)' },
   { id: 'socketcan', label: 'socketcan (Linux CAN)' },
@@ -24,7 +27,13 @@ const INTERFACES: ReadonlyArray<{ id: BusInterface; label: string }> = [
   { id: 'vector', label: 'vector' },
   { id: 'slcan', label: 'slcan (serial-line CAN)' },
   { id: 'gs_usb', label: 'gs_usb (candleLight)' },
+  { id: 'slmp', label: 'slmp (CC-Link IE TSN station, SLMP over UDP)' },
 ];
+
+/** 003 §1-3: the unit's IP address is 192.168.0.250 by default; the port is not in the manual
+ * (5010 is MR-J4-GF's SLMP port, servodesk's default). */
+const SLMP_DEFAULT_CHANNEL = '192.168.0.250:5010';
+const SLMP_AXES = ['X', 'Y', 'Z', 'U'] as const;
 
 const DEFAULT_CHANNEL: Readonly<Record<string, string>> = {
   virtual: 'servodesk-sim',
@@ -36,6 +45,7 @@ const DEFAULT_CHANNEL: Readonly<Record<string, string>> = {
   vector: '0',
   slcan: '/dev/ttyACM0',
   gs_usb: '0',
+  slmp: SLMP_DEFAULT_CHANNEL,
 };
 
 // CiA 301 §7.2 / CiA 102 bit timing table: the standard CANopen bitrates.
@@ -51,7 +61,7 @@ function hexOrDash(v: number | null | undefined): string {
 }
 
 interface BusForm {
-  interface: BusInterface;
+  interface: SessionInterface;
   channel: string;
   bitrate: string;
   nodeId: string;
@@ -83,22 +93,31 @@ export function ConnectPage() {
     };
   }, []);
 
-  const needsBitrate = form.interface !== 'virtual' && form.interface !== 'udp_multicast';
+  const slmp = form.interface === 'slmp';
+  const needsBitrate = !slmp && form.interface !== 'virtual' && form.interface !== 'udp_multicast';
   const bitrate = form.bitrate === '' ? null : Number(form.bitrate);
 
   function set<K extends keyof BusForm>(key: K, value: BusForm[K]) {
     setForm((f) => {
       const next = { ...f, [key]: value };
-      if (key === 'interface') next.channel = DEFAULT_CHANNEL[next.interface] ?? '';
+      if (key === 'interface') {
+        next.channel = DEFAULT_CHANNEL[next.interface] ?? '';
+        if (next.interface === 'slmp') {
+          next.bitrate = '';
+          if (Number(next.nodeId) > SLMP_AXES.length) next.nodeId = '1';
+        }
+      }
       return next;
     });
   }
 
   async function doScan() {
+    if (form.interface === 'slmp') return; // No scan over SLMP (the button is disabled).
+    const iface = form.interface;
     setBusy('scan');
     setScan(null);
     try {
-      const res = await api.scan({ interface: form.interface, channel: form.channel.trim(), bitrate, timeout: 0.5 });
+      const res = await api.scan({ interface: iface, channel: form.channel.trim(), bitrate, timeout: 0.5 });
       setScan(res.nodes);
       if (res.nodes.length === 0) {
         notify({
@@ -132,12 +151,20 @@ export function ConnectPage() {
   function onSubmit(e: FormEvent) {
     e.preventDefault();
     const node = Number(form.nodeId);
+    if (slmp && !(Number.isInteger(node) && node >= 1 && node <= SLMP_AXES.length)) {
+      setFormError('the axis must be X, Y, Z or U (node id 1 to 4; 003 §4-2)');
+      return;
+    }
     if (!Number.isInteger(node) || node < 1 || node > 127) {
       setFormError('node id must be a whole number from 1 to 127 (CiA 301 §7.3.3)');
       return;
     }
     if (!form.channel.trim()) {
-      setFormError('enter a channel (e.g. servodesk-sim for the simulator, can0 for socketcan)');
+      setFormError(
+        slmp
+          ? `enter the station's address as host:port (e.g. ${SLMP_DEFAULT_CHANNEL})`
+          : 'enter a channel (e.g. servodesk-sim for the simulator, can0 for socketcan)',
+      );
       return;
     }
     setFormError(null);
@@ -170,7 +197,10 @@ export function ConnectPage() {
             <select
               data-testid="bus-interface"
               value={form.interface}
-              onChange={(e) => set('interface', e.target.value as BusInterface)}
+              onChange={(e) => {
+                setScan(null); // The nodes found were on the other bus.
+                set('interface', e.target.value as SessionInterface);
+              }}
             >
               {INTERFACES.map((i) => (
                 <option key={i.id} value={i.id}>
@@ -180,7 +210,7 @@ export function ConnectPage() {
             </select>
           </label>
           <label>
-            Channel
+            {slmp ? 'Station (host:port)' : 'Channel'}
             <input
               data-testid="bus-channel"
               className="mono"
@@ -191,8 +221,15 @@ export function ConnectPage() {
           </label>
           <label>
             Bitrate
-            <select data-testid="bus-bitrate" value={form.bitrate} onChange={(e) => set('bitrate', e.target.value)}>
-              <option value="">{needsBitrate ? 'interface default' : 'not used (virtual bus)'}</option>
+            <select
+              data-testid="bus-bitrate"
+              value={form.bitrate}
+              onChange={(e) => set('bitrate', e.target.value)}
+              disabled={slmp}
+            >
+              <option value="">
+                {slmp ? 'not used (Ethernet)' : needsBitrate ? 'interface default' : 'not used (virtual bus)'}
+              </option>
               {BITRATES.map((b) => (
                 <option key={b} value={b}>
                   {formatBitrate(b)}
@@ -200,18 +237,31 @@ export function ConnectPage() {
               ))}
             </select>
           </label>
-          <label>
-            Node id
-            <input
-              data-testid="bus-node-id"
-              className="mono narrow"
-              type="number"
-              min={1}
-              max={127}
-              value={form.nodeId}
-              onChange={(e) => set('nodeId', e.target.value)}
-            />
-          </label>
+          {slmp ? (
+            <label title="003 §4-2: SLMP addresses an axis by the frame's multidrop station no. (0 = X ... 3 = U)">
+              Axis
+              <select data-testid="bus-node-id" value={form.nodeId} onChange={(e) => set('nodeId', e.target.value)}>
+                {SLMP_AXES.map((a, i) => (
+                  <option key={a} value={String(i + 1)}>
+                    {a} (node id {i + 1}, multidrop {i})
+                  </option>
+                ))}
+              </select>
+            </label>
+          ) : (
+            <label>
+              Node id
+              <input
+                data-testid="bus-node-id"
+                className="mono narrow"
+                type="number"
+                min={1}
+                max={127}
+                value={form.nodeId}
+                onChange={(e) => set('nodeId', e.target.value)}
+              />
+            </label>
+          )}
           <label className="wide">
             Profile
             <select data-testid="bus-profile" value={form.profile} onChange={(e) => set('profile', e.target.value)}>
@@ -224,7 +274,13 @@ export function ConnectPage() {
             </select>
           </label>
           <div className="form-actions">
-            <button type="button" data-testid="scan-bus" onClick={() => void doScan()} disabled={busy !== null}>
+            <button
+              type="button"
+              data-testid="scan-bus"
+              onClick={() => void doScan()}
+              disabled={busy !== null || slmp}
+              title={slmp ? 'SLMP has no scan: enter the station and the axis, then open the session' : undefined}
+            >
               {busy === 'scan' ? 'Scanning…' : 'Scan bus'}
             </button>
             <button type="submit" className="primary" data-testid="open-session" disabled={busy !== null}>
@@ -351,7 +407,7 @@ export function ConnectPage() {
                     <td>
                       <StatePill state={s.state} testid={`session-state-${s.id}`} />
                     </td>
-                    <td className="mono" title={nmtTitle(s.nmt_state)} data-testid={`session-nmt-${s.id}`}>
+                    <td className="mono" title={nmtTitle(s.nmt_state, s.link)} data-testid={`session-nmt-${s.id}`}>
                       {s.nmt_state}
                     </td>
                     <td className="note">

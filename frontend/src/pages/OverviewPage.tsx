@@ -110,7 +110,7 @@ function IdentityCard({ session }: { session: SessionInfo }) {
             <th>Link</th>
             <td className="mono">
               {session.fieldbus} · node {session.node_id} · {session.interface}:{session.channel} ·{' '}
-              <span title={nmtTitle(session.nmt_state)}>NMT {session.nmt_state}</span>
+              <span title={nmtTitle(session.nmt_state, session.link)}>NMT {session.nmt_state}</span>
             </td>
           </tr>
         </tbody>

@@ -32,6 +32,7 @@ from servodesk.domain.address import ObjectAddress
 from servodesk.domain.values import ObjectValue
 from servodesk.errors import ServodeskError
 from servodesk.links.base import LinkParams
+from servodesk.links.registry import link_for_interface
 
 router = APIRouter(tags=["sessions"], responses=ERROR_RESPONSES)
 
@@ -63,7 +64,9 @@ async def open_session(body: SessionCreate, state: StateDep) -> SessionInfo:
         node_id=body.node_id,
         timeout=state.settings.sdo_timeout,
     )
-    session = await state.manager.open(params, body.profile)
+    session = await state.manager.open(
+        params, body.profile, fieldbus=link_for_interface(params.interface)
+    )
     return SessionInfo.model_validate(session.info())
 
 

@@ -111,6 +111,7 @@ export function CyclicPanel({
   }
 
   const periodChanged = running && status?.sync_period_ms !== period;
+  const unavailable = status?.unavailable ?? null;
   const rates = [...(status?.rx_pdos ?? []), ...(status?.tx_pdos ?? [])];
   return (
     <section className="card" data-testid="pdo-cyclic-card">
@@ -144,7 +145,14 @@ export function CyclicPanel({
           ms
         </label>
         {!running && (
-          <button type="button" className="go" disabled={busy} onClick={() => void start()} data-testid="pdo-cyclic-start">
+          <button
+            type="button"
+            className="go"
+            disabled={busy || unavailable !== null}
+            title={unavailable ?? undefined}
+            onClick={() => void start()}
+            data-testid="pdo-cyclic-start"
+          >
             Start
           </button>
         )}
@@ -168,7 +176,13 @@ export function CyclicPanel({
           </span>
         )}
       </div>
-      <div className="muted small">Inputs only: the drive's TPDOs are read, no RPDO set-points are sent.</div>
+      {unavailable !== null ? (
+        <div className="bk-warn small" data-testid="pdo-cyclic-unavailable">
+          No cyclic data on this link: {unavailable}.
+        </div>
+      ) : (
+        <div className="muted small">Inputs only: the drive's TPDOs are read, no RPDO set-points are sent.</div>
+      )}
       {failure && <FailureBox f={failure} testid="pdo-cyclic-failure" />}
       {rates.length > 0 && (
         <table className="grid pdo-rates" data-testid="pdo-rates">

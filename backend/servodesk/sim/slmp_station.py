@@ -1,0 +1,151 @@
+"""The SLMP side of a simulated CC-Link IE TSN station: CiA 402 object access over UDP.
+
+:class:`SlmpStation` answers SLMP 4E binary requests (:mod:`servodesk.domain.slmp`) on a UDP
+socket, as the CTMM04x answers its manager's transient transmission (003 §4-2): the
+request-destination multidrop station no. picks the axis (0 = X ... 3 = U), and 4020h
+SDO Upload / SDO Download read and write that axis's object dictionary. It serves the same
+:class:`~servodesk.sim.engine.SimulatedDrive` objects the CANopen front-end does, so a drive
+can be reached over both.
+
+What it answers, and how (docs/slmp.md):
+
+- A frame that is no 4E binary request is dropped, as a station drops what it cannot parse
+  (the client's time-out says so).
+- A multidrop no. with no axis: end code CF10h; a command other than 4020h / 0001h, 0002h:
+  C059h; 4020h data whose lengths do not add up: C061h. Each with the error information.
+- A refused SDO: end code C05Ch with the CiA 301 abort code after the error information.
+"""
+
+from __future__ import annotations
+
+import logging
+import socket
+import threading
+from collections.abc import Mapping
+
+from servodesk.domain import slmp
+from servodesk.sim.engine import SimAbort, SimulatedDrive
+
+log = logging.getLogger(__name__)
+
+
+class SlmpStation:
+    """A UDP SLMP server for up to four axes; ``start()`` binds, ``address`` tells where."""
+
+    def __init__(
+        self, axes: Mapping[int, SimulatedDrive], host: str = "127.0.0.1", port: int = 0
+    ) -> None:
+        for axis in axes:
+            if not 0 <= axis <= 3:
+                raise ValueError(f"axis {axis} is outside 0..3 (X, Y, Z, U)")
+        self.axes = dict(axes)
+        self._host = host
+        self._port = port
+        self._sock: socket.socket | None = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        #: Requests answered and frames dropped (tests and logs).
+        self.answered = 0
+        self.dropped = 0
+
+    @property
+    def address(self) -> tuple[str, int]:
+        if self._sock is None:
+            raise RuntimeError("the station is not started")
+        host, port = self._sock.getsockname()[:2]
+        return str(host), int(port)
+
+    @property
+    def channel(self) -> str:
+        """``host:port``, the link's channel."""
+        host, port = self.address
+        return f"{host}:{port}"
+
+    def start(self) -> SlmpStation:
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            sock.bind((self._host, self._port))
+        except OSError:
+            sock.close()
+            raise
+        sock.settimeout(0.05)  # Wake up this often to see whether to stop.
+        self._sock = sock
+        self._thread = threading.Thread(target=self._serve, name="slmp-station", daemon=True)
+        self._thread.start()
+        log.info("SLMP station on udp %s (axes %s)", self.channel, sorted(self.axes))
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+            self._thread = None
+        if self._sock is not None:
+            self._sock.close()
+            self._sock = None
+
+    def __enter__(self) -> SlmpStation:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def _serve(self) -> None:
+        sock = self._sock
+        assert sock is not None
+        while not self._stop.is_set():
+            try:
+                frame, peer = sock.recvfrom(slmp.MAX_FRAME)
+            except TimeoutError:
+                continue
+            except OSError:
+                return  # Closed.
+            try:
+                answer = self.answer(frame)
+            except Exception:  # A bug here must not stop the station.
+                log.exception("SLMP request not answered")
+                answer = None
+            if answer is None:
+                self.dropped += 1
+                continue
+            try:
+                sock.sendto(answer, peer)
+                self.answered += 1
+            except OSError:
+                log.debug("SLMP answer to %s not sent", peer, exc_info=True)
+
+    def answer(self, frame: bytes) -> bytes | None:
+        """The response to one request frame; None for a frame that is dropped."""
+        try:
+            req = slmp.parse_request(frame)
+        except slmp.SlmpFrameError as exc:
+            log.debug("SLMP frame dropped: %s", exc)
+            return None
+
+        def refuse(end_code: int, extra: bytes = b"") -> bytes:
+            info = slmp.error_info(req.route, req.command, req.subcommand)
+            return slmp.build_response(req.serial, req.route, end_code, info + extra)
+
+        drive = self.axes.get(req.route.multidrop)
+        if drive is None:
+            return refuse(0xCF10)
+        if req.command != slmp.CMD_OBJECT or req.subcommand not in (
+            slmp.SUB_UPLOAD,
+            slmp.SUB_DOWNLOAD,
+        ):
+            return refuse(0xC059)
+        download = req.subcommand == slmp.SUB_DOWNLOAD
+        try:
+            obj = slmp.parse_object_data(req.data, with_value=download)
+        except slmp.SlmpFrameError:
+            return refuse(0xC061)
+        try:
+            if download:
+                drive.write_bytes(obj.index, obj.subindex, obj.data)
+                value = b""
+            else:
+                value = drive.read_bytes(obj.index, obj.subindex)
+        except SimAbort as exc:
+            return refuse(slmp.END_SDO_REFUSED, exc.code.to_bytes(4, "little"))
+        data = slmp.download_data(obj.index, obj.subindex, value)
+        return slmp.build_response(req.serial, req.route, 0, data)
