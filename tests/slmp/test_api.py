@@ -163,3 +163,12 @@ def test_cli_backs_up_and_restores_a_station_run_by_servodesk_sim(
         assert "no axis" in err and "Traceback" not in err
         assert not (tmp_path / "b.json").exists()
     assert os.path.getsize(out) > 0
+
+
+def test_sim_refuses_a_bad_station_address_or_axis(capsys: pytest.CaptureFixture[str]) -> None:
+    args = ["sim", "--profile", "ctmm04x", "--interface", "slmp"]
+    assert main([*args, "--channel", "127.0.0.1:x"]) == 2
+    assert "port 'x' is not a number" in capsys.readouterr().err
+    assert main([*args, "--channel", "127.0.0.1:0", "--node-id", "6"]) == 2
+    err = capsys.readouterr().err
+    assert "no axis of an SLMP station" in err and "Traceback" not in err

@@ -82,6 +82,10 @@ def test_refusals_name_the_abort_code_or_the_end_code(station: SimulatedBus) -> 
             with pytest.raises(ObjectAccessError) as err:
                 await x.write(STATUSWORD, b"\x00\x00")  # Read-only.
             assert err.value.code == 0x06010002
+            sent = station.station.answered if station.station else 0
+            with pytest.raises(ValidationError, match="do not fit one SLMP request"):
+                await x.write(ObjectAddress(0x1008), bytes(slmp.MAX_OBJECT_BYTES + 1))
+            assert station.station is not None and station.station.answered == sent
         # Axis Z is not on this station: no device there (end code CF10h), not an abort.
         async with link(channel, 3) as z:
             with pytest.raises(NotFoundError, match="has no axis Z") as missing:

@@ -78,6 +78,10 @@ END_CODES: dict[int, str] = {
 DEFAULT_PORT = 5010
 #: Largest SLMP message servodesk sends or accepts (SLMP's request data limit is 960 words).
 MAX_FRAME = 2048
+#: Largest object value one 4020h download carries here: 960 words of request data, less the
+#: monitoring timer, command, sub-command and the object header (servodesk sends no block
+#: transfers, 4020h / 0006h).
+MAX_OBJECT_BYTES = 1920 - 6 - 6
 
 
 class SlmpFrameError(ValueError):

@@ -112,6 +112,13 @@ class SlmpLink(DriveLink):
         return self._object(answer, address, with_value=True)
 
     async def _awrite(self, address: ObjectAddress, data: bytes) -> None:
+        if len(data) > slmp.MAX_OBJECT_BYTES:
+            raise ValidationError(
+                f"{address}: {len(data)} bytes do not fit one SLMP request "
+                f"(at most {slmp.MAX_OBJECT_BYTES})",
+                field="value",
+                hint="servodesk sends no SLMP block transfers",
+            )
         body = slmp.download_data(address.index, address.subindex, data)
         answer = await self._request(slmp.SUB_DOWNLOAD, body, address, "write")
         self._object(answer, address, with_value=False)
