@@ -93,6 +93,13 @@ def test_serve_sim_opens_the_ctmm04x_over_slmp_and_moves_it(channel, tmp_path) -
         assert status["running"] is False and "003 §3-3" in status["unavailable"]
         generic = client.get("/api/v1/sessions/cia402-generic-1/pdo/cyclic").json()
         assert generic["unavailable"] is None
+        # The scope samples it over SLMP; a cyclic-data channel says why there is none.
+        ch = {"id": 0, "session": SID, "address": "0x6064:00"}
+        r = client.put("/api/v1/scope/channels", json={"channels": [{**ch, "source": "pdo"}]})
+        assert r.status_code == 400 and "manager only" in r.json()["hint"], r.text
+        r = client.put("/api/v1/scope/channels", json={"channels": [{**ch, "source": "auto"}]})
+        assert r.status_code == 200, r.text
+        assert r.json()["channels"][0]["source"] in ("recorder", "sdo")
         # The PDO page still shows the fixed mapping (read over SLMP).
         view = client.get(f"/api/v1/sessions/{SID}/pdo").json()
         assert view["kind"] == "fixed"

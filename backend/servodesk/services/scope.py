@@ -53,6 +53,7 @@ from servodesk.errors import (
     ValidationError,
 )
 from servodesk.links.base import LinkEvent
+from servodesk.links.cyclic import no_cyclic_reason
 
 if TYPE_CHECKING:
     from servodesk.services.cyclic import CyclicExchange
@@ -644,10 +645,13 @@ class ScopeService:
         if source == "auto":
             source = "pdo" if mapped else "recorder" if recordable and free else "sdo"
         elif source == "pdo" and not mapped:
+            no_cyclic = no_cyclic_reason(session.link)
             raise ValidationError(
                 f"{where} is not in an active TPDO while cyclic data runs",
                 field="source",
-                hint="map it on the PDO page and start cyclic data, or use source sdo or auto",
+                hint=f"{no_cyclic}: use source sdo or auto"
+                if no_cyclic
+                else "map it on the PDO page and start cyclic data, or use source sdo or auto",
             )
         elif source == "recorder" and not recordable:
             raise ValidationError(
