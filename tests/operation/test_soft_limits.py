@@ -166,10 +166,21 @@ def test_limits_of_a_drive_that_does_not_answer_are_an_error(channel, tmp_path) 
         assert r.status_code in (502, 504), r.text
 
 
-def test_limits_carry_the_ramps_unit_and_the_familys_default(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
+def test_limits_carry_the_ramps_unit_kind_and_the_familys_default(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
     # The Operation page starts a ramp that is neither a rate nor a time (CTMM04x: PMC842SR
-    # rate registers, larger = gentler) at the family's own default of 6083h.
-    with operation_app(channel, tmp_path, "ctmm04x") as (client, _sim):
-        sid = client.get("/api/v1/sessions").json()[0]["id"]
-        acc = client.get(f"/api/v1/sessions/{sid}/limits").json()["units"]["acceleration"]
-        assert acc == {"raw_unit": "PMC842SR RATE DATA", "unit": None, "scale": 1.0, "default": 100}
+    # rate registers, larger = gentler) at the family's own default of 6083h; the server says
+    # which kind each family's ramp is (domain/ramps.py), so the page does not parse units.
+    with operation_app(channel, tmp_path, "ctmm04x,lecsn-t,cia402-generic") as (client, _sim):
+        kinds = {}
+        for s in client.get("/api/v1/sessions").json():
+            acc = client.get(f"/api/v1/sessions/{s['id']}/limits").json()["units"]["acceleration"]
+            kinds[s["profile_id"]] = acc["ramp"]
+            if s["profile_id"] == "ctmm04x":
+                assert acc == {
+                    "raw_unit": "PMC842SR RATE DATA",
+                    "unit": None,
+                    "scale": 1.0,
+                    "default": 100,
+                    "ramp": "register",
+                }
+        assert kinds == {"ctmm04x": "register", "lecsn-t": "time", "cia402-generic": "rate"}

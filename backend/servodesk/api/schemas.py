@@ -438,6 +438,11 @@ class UnitOut(BaseModel):
     default: int | None = Field(
         default=None, description="the profile's default of the object (raw), where it has one"
     )
+    ramp: Literal["rate", "time", "register"] | None = Field(
+        default=None,
+        description="acceleration only: the ramp objects hold a rate (units per s²), a time "
+        "(ms to the rated speed) or a register (docs/api.md)",
+    )
 
 
 class LimitsOut(BaseModel):

@@ -56,6 +56,7 @@ from typing import Any
 from servodesk.domain import cia402
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, Value, codec
+from servodesk.domain.ramps import ramp_kind
 from servodesk.domain.values import encode_write
 from servodesk.errors import (
     ConflictError,
@@ -321,6 +322,9 @@ class MotionService:
                         # panels start from it.
                         "default": dv if isinstance(dv, int) and not isinstance(dv, bool) else None,
                     }
+                    if kind == "acceleration":
+                        # What the ramp objects hold, so the UI need not parse the unit.
+                        units[kind]["ramp"] = ramp_kind(spec.raw_unit)
                     break
         return Limits(
             position_min=values["position_min"],
@@ -1453,15 +1457,9 @@ class MotionService:
 
 
 def _per_s2(raw_unit: str | None) -> bool:
-    """True when a ramp object's raw unit is position units per s² (CiA 402-2 §6.5 default).
-
-    Other families give ramps as times (LECSN-T 6084h in ms) or rate registers (CTMM04x); the
-    stopping distance is then estimated with ``FALLBACK_STOP_S``.
-    """
-    if raw_unit is None:
-        return True
-    unit = raw_unit.replace(" ", "")
-    return "/s²" in unit or "/s^2" in unit or "/s2" in unit
+    """True when a ramp object's raw unit is position units per s² (domain/ramps.py); with a
+    time or a register the stopping distance is estimated with ``FALLBACK_STOP_S``."""
+    return ramp_kind(raw_unit) == "rate"
 
 
 def _per_s(raw_unit: str | None) -> bool:

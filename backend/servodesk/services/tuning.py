@@ -54,6 +54,7 @@ from servodesk.domain import cia402
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, Value, codec, coerce_int
 from servodesk.domain.profile import DeviceProfile, ObjectSpec, RecorderSpec
+from servodesk.domain.ramps import ramp_kind
 from servodesk.domain.tuning.search import mode_promise
 from servodesk.errors import (
     ConflictError,
@@ -307,11 +308,6 @@ def speed_raw(profile: DeviceProfile, rps: float, upr: float) -> int | None:
     if spec.unit in ("r/min", "rpm", "min-1") and spec.scale > 0:
         return max(1, round(rps * 60.0 / spec.scale))
     return max(1, round(rps * upr))
-
-
-def _per_s2(raw_unit: str | None) -> bool:
-    unit = (raw_unit or "").replace(" ", "")
-    return "/s²" in unit or "/s^2" in unit or "/s2" in unit
 
 
 def step_metrics(
@@ -725,7 +721,12 @@ class TuningService:
         if run.velocity is not None and vspec is not None and isinstance(vspec.max, int):
             run.velocity = min(run.velocity, vspec.max)
         aspec = p.spec(PROFILE_ACC)
-        if aspec is not None and _per_s2(aspec.raw_unit) and run.velocity is not None:
+        if (
+            aspec is not None
+            and aspec.raw_unit is not None
+            and ramp_kind(aspec.raw_unit) == "rate"
+            and run.velocity is not None
+        ):
             vspec_unit = vspec.unit if vspec is not None else None
             per_s = rps * run.upr if vspec_unit in ("r/min", "rpm") else float(run.velocity)
             acc = round(per_s / RAMP_S)

@@ -583,6 +583,9 @@ export interface UnitInfo {
   scale: number;
   /** The profile's default of the object (raw), where it has one (limits only). */
   default?: number | null;
+  /** What the ramp objects hold (limits' acceleration only; backend domain/ramps.py): a rate
+   * in units per s², a time in ms to the rated speed (LECSN-T), or a register (CTMM04x). */
+  ramp?: 'rate' | 'time' | 'register' | null;
 }
 
 export interface Limits {

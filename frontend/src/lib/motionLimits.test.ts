@@ -10,8 +10,7 @@ import {
   checkVelocity,
   cyclicUnavailable,
   defaultAcceleration,
-  rampIsRate,
-  rampTimeUnit,
+  rampKind,
   defaultVelocity,
   entryText,
   formatQuantity,
@@ -169,13 +168,13 @@ describe('defaults', () => {
       ...GENERIC,
       max_acceleration: 50_000,
       max_deceleration: 50_000,
-      units: { ...GENERIC.units, acceleration: { raw_unit: 'ms', unit: 'ms', scale: 1 } },
+      units: { ...GENERIC.units, acceleration: { raw_unit: 'ms', unit: 'ms', scale: 1, ramp: 'time' } },
     };
     expect(defaultAcceleration(lecsn, 100_000)).toBe(200);
     expect(defaultAcceleration({ ...lecsn, max_acceleration: 50 }, 100_000)).toBe(50);
-    expect(rampTimeUnit('ms')).toBe('ms');
-    expect(rampTimeUnit('inc/s²')).toBeNull();
-    expect(rampTimeUnit(null)).toBeNull();
+    expect(rampKind(lecsn)).toBe('time');
+    expect(rampKind(GENERIC)).toBe('rate');
+    expect(rampKind(null)).toBe('rate');
   });
 
   it("starts a ramp given as a register at the family's default", () => {
@@ -184,13 +183,18 @@ describe('defaults', () => {
       ...GENERIC,
       max_acceleration: 8191,
       max_deceleration: 8191,
-      units: { ...GENERIC.units, acceleration: { raw_unit: 'PMC842SR RATE DATA', unit: null, scale: 1, default: 100 } },
+      units: {
+        ...GENERIC.units,
+        acceleration: { raw_unit: 'PMC842SR RATE DATA', unit: null, scale: 1, default: 100, ramp: 'register' },
+      },
     };
     expect(defaultAcceleration(ctmm, 819)).toBe(100);
-    expect(rampIsRate('PMC842SR RATE DATA')).toBe(false);
-    expect(rampIsRate('u.u. (inc/s² with 6097h = 1/1)')).toBe(true);
+    expect(rampKind(ctmm)).toBe('register');
     // Without a default, the rate rule as before.
-    const bare = { ...ctmm, units: { ...ctmm.units, acceleration: { raw_unit: 'PMC842SR RATE DATA', unit: null, scale: 1 } } };
+    const bare: Limits = {
+      ...ctmm,
+      units: { ...ctmm.units, acceleration: { raw_unit: 'PMC842SR RATE DATA', unit: null, scale: 1, ramp: 'register' } },
+    };
     expect(defaultAcceleration(bare, 819)).toBe(8190);
   });
 });

@@ -317,18 +317,10 @@ export function defaultVelocity(limits: Limits | null): number {
  * (LECSN-T 6083h / 6084h: ms from 0 to the rated speed, 004 §20.9.3.10(7)). */
 export const DEFAULT_RAMP_S = 0.2;
 
-/** "ms" where a ramp object's raw unit is a time in milliseconds, else null (a rate, or a
- * register). */
-export function rampTimeUnit(rawUnit: string | null | undefined): 'ms' | null {
-  return (rawUnit ?? '').trim() === 'ms' ? 'ms' : null;
-}
-
-/** True when a ramp object's raw unit is a rate in position units per s² (CiA 402-2 §6.5;
- * an unknown unit is taken as one). */
-export function rampIsRate(rawUnit: string | null | undefined): boolean {
-  if (rawUnit === null || rawUnit === undefined) return true;
-  const u = rawUnit.replace(/\s/g, '');
-  return u.includes('/s²') || u.includes('/s^2') || u.includes('/s2');
+/** What the ramp objects hold, as the server decided it from the profile (GET /limits
+ * `units.acceleration.ramp`, backend domain/ramps.py); a rate where it does not say. */
+export function rampKind(limits: Limits | null): 'rate' | 'time' | 'register' {
+  return limits?.units.acceleration?.ramp ?? 'rate';
 }
 
 /** A starting acceleration: reach `velocity` in 0.1 s, within the drive's limits. Where the
@@ -339,14 +331,14 @@ export function rampIsRate(rawUnit: string | null | undefined): boolean {
  * 6083h: the rate rule gave 8190, some 1.6 s to the jog speed. */
 export function defaultAcceleration(limits: Limits | null, velocity: number): number {
   const unit = limits?.units.acceleration;
-  const time = rampTimeUnit(unit?.raw_unit);
+  const kind = rampKind(limits);
   const caps = [limits?.max_acceleration ?? null, limits?.max_deceleration ?? null];
-  if (time !== null) {
+  if (kind === 'time') {
     let t = DEFAULT_RAMP_S * 1000;
     for (const m of caps) if (m !== null) t = Math.min(t, m);
     return Math.max(1, Math.round(t));
   }
-  if (unit && !rampIsRate(unit.raw_unit) && typeof unit.default === 'number' && unit.default > 0) {
+  if (kind === 'register' && typeof unit?.default === 'number' && unit.default > 0) {
     let r = unit.default;
     for (const m of caps) if (m !== null) r = Math.min(r, m);
     return r;
