@@ -6,7 +6,9 @@ Family profiles add the non-standard codes their manuals use (error table ``sdo_
 
 from __future__ import annotations
 
+from servodesk.domain.address import ObjectAddress
 from servodesk.domain.profile import DeviceProfile
+from servodesk.errors import ObjectAccessError
 
 ABORT_CODES: dict[int, str] = {
     0x05030000: "Toggle bit not alternated",
@@ -70,3 +72,16 @@ def abort_text(code: int, profile: DeviceProfile | None = None) -> str:
         if e is not None:
             return e.name
     return ABORT_CODES.get(code, "Unknown abort code")
+
+
+def abort_error(code: int, address: ObjectAddress, op: str) -> ObjectAccessError:
+    """The error a link raises when the drive aborts an SDO (CANopen, or carried by SLMP)."""
+    meaning = abort_text(code)
+    return ObjectAccessError(
+        f"{op} {address} refused by the drive: {meaning} (0x{code:08X})",
+        code=code,
+        meaning=meaning,
+        protocol="sdo",
+        address=str(address),
+        hint=ABORT_HINTS.get(code),
+    )

@@ -28,13 +28,12 @@ import canopen
 
 from servodesk.domain import sdo
 from servodesk.domain.address import ObjectAddress
-from servodesk.domain.sdo_abort import ABORT_HINTS, abort_text
+from servodesk.domain.sdo_abort import abort_error
 from servodesk.errors import (
     LinkClosedError,
     LinkError,
     LinkTimeoutError,
     NotFoundError,
-    ObjectAccessError,
     ValidationError,
 )
 from servodesk.links.base import DriveLink, Identity, LinkParams, object_identity
@@ -190,18 +189,6 @@ class _Doorbell:
                 return
             self._loop.remove_reader(fd)  # A no-op on a closed loop.
             os.close(fd)
-
-
-def _abort_error(code: int, address: ObjectAddress, op: str) -> ObjectAccessError:
-    meaning = abort_text(code)
-    return ObjectAccessError(
-        f"{op} {address} refused by the drive: {meaning} (0x{code:08X})",
-        code=code,
-        meaning=meaning,
-        protocol="sdo",
-        address=str(address),
-        hint=ABORT_HINTS.get(code),
-    )
 
 
 class CanopenLink(DriveLink):
@@ -533,7 +520,7 @@ class CanopenLink(DriveLink):
                 raise sdo.SdoProtocolError(f"announced {start.size} bytes, sent {len(out)}")
             return bytes(out)
         except sdo.SdoAbort as exc:
-            raise _abort_error(exc.code, address, "read") from exc
+            raise abort_error(exc.code, address, "read") from exc
         except sdo.SdoProtocolError as exc:
             raise self._protocol_error(exc, address) from exc
 
@@ -553,7 +540,7 @@ class CanopenLink(DriveLink):
                 sdo.parse_download_segment(answer, toggle, idx, sub)
                 toggle ^= 1
         except sdo.SdoAbort as exc:
-            raise _abort_error(exc.code, address, "write") from exc
+            raise abort_error(exc.code, address, "write") from exc
         except sdo.SdoProtocolError as exc:
             raise self._protocol_error(exc, address) from exc
 

@@ -28,7 +28,7 @@ import socket
 
 from servodesk.domain import slmp
 from servodesk.domain.address import ObjectAddress
-from servodesk.domain.sdo_abort import ABORT_HINTS, abort_text
+from servodesk.domain.sdo_abort import abort_error
 from servodesk.errors import (
     ConflictError,
     LinkError,
@@ -189,15 +189,7 @@ class SlmpLink(DriveLink):
     def _refusal(self, answer: slmp.Response, address: ObjectAddress, op: str) -> Exception:
         abort = slmp.refused_abort_code(answer.data)
         if abort is not None:
-            meaning = abort_text(abort)
-            return ObjectAccessError(
-                f"{op} {address} refused by the drive: {meaning} (0x{abort:08X})",
-                code=abort,
-                meaning=meaning,
-                protocol="sdo",
-                address=str(address),
-                hint=ABORT_HINTS.get(abort),
-            )
+            return abort_error(abort, address, op)
         meaning = slmp.end_code_text(answer.end_code)
         return ObjectAccessError(
             f"{op} {address} refused by the station: {meaning} (end code {answer.end_code:04X}h)",
