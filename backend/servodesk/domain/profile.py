@@ -611,6 +611,15 @@ SERVO_GAIN_NAMES: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(Ser
 REQUIRED_GAINS: tuple[str, ...] = ("kp_pos", "kp_vel", "ti_vel")
 
 
+def _check_address(v: str) -> str:
+    """An object address as authored (``"0x2101:00"``, ``"P922"``); kept as written."""
+    try:
+        ObjectAddress.parse(v)
+    except ServodeskError as exc:  # pydantic reports ValueErrors with their place.
+        raise ValueError(exc.message) from exc
+    return v
+
+
 class GainObject(BaseModel):
     """Where one canonical gain lives: SI value = raw object value * ``scale``."""
 
@@ -622,14 +631,7 @@ class GainObject(BaseModel):
     #: The SI unit of the canonical gain (docs/tuning.md), e.g. ``"N m s/rad"``.
     unit: str
 
-    @field_validator("object")
-    @classmethod
-    def _address(cls, v: str) -> str:
-        try:
-            ObjectAddress.parse(v)
-        except ServodeskError as exc:
-            raise ValueError(exc.message) from exc
-        return v
+    _address = field_validator("object")(_check_address)
 
     @property
     def address(self) -> ObjectAddress:
@@ -742,6 +744,59 @@ class RecorderSpec(BaseModel):
         )
 
 
+class NetworkObject(BaseModel):
+    """An object that configures or reports the fieldbus connection (the Network page reads it)."""
+
+    model_config = _STRICT
+
+    #: The object's address, e.g. ``"0x1017:00"``; it must be an object of the profile.
+    object: str
+    #: What it tells the engineer about the network, in the manual's terms.
+    note: str = Field(min_length=1)
+    section: str = Field(min_length=1)
+
+    _address = field_validator("object")(_check_address)
+
+    @property
+    def address(self) -> ObjectAddress:
+        return ObjectAddress.parse(self.object)
+
+
+class NetworkRule(BaseModel):
+    """An addressing rule the engineer must know (switches, defaults, DHCP, ...)."""
+
+    model_config = _STRICT
+
+    text: str = Field(min_length=1)
+    section: str = Field(min_length=1)
+
+
+class NetworkLed(BaseModel):
+    """One documented state of an LED: its colour or pattern and what it means."""
+
+    model_config = _STRICT
+
+    led: str = Field(min_length=1)
+    state: str = Field(min_length=1)
+    meaning: str = Field(min_length=1)
+    section: str = Field(min_length=1)
+
+
+class NetworkSpec(BaseModel):
+    """How the family is addressed on its fieldbus, as its manual says (the Network
+    configuration page; docs/profiles.md). Every entry cites its section."""
+
+    model_config = _STRICT
+
+    #: One or two sentences: how the family is found and addressed on its fieldbus.
+    summary: str = Field(min_length=1)
+    section: str = Field(min_length=1)
+    #: The objects that configure or report the network, in the order the page lists them.
+    objects: tuple[NetworkObject, ...] = ()
+    addressing: tuple[NetworkRule, ...] = ()
+    leds: tuple[NetworkLed, ...] = ()
+
+
 class DeviceProfile(BaseModel):
     """A drive family: identity, objects, codes, modes, rules and quirks."""
 
@@ -772,6 +827,9 @@ class DeviceProfile(BaseModel):
     recorder: RecorderSpec | None = None
     #: How the family is tuned (docs/tuning.md); None: not described.
     tuning: TuningSpec | None = None
+    #: How the family is addressed on its fieldbus (the Network configuration page); None: the
+    #: profile documents none.
+    network: NetworkSpec | None = None
 
     @cached_property
     def variables(self) -> dict[ObjectAddress, ObjectSpec]:

@@ -85,6 +85,9 @@ def merge(base: DeviceProfile, child: DeviceProfile) -> DeviceProfile:
     if child.tuning is None and base.tuning is not None:
         # Likewise the gain objects and the signal generator.
         update["tuning"] = base.tuning
+    # The base's ``network:`` is not inherited: it says how the base's own family is addressed
+    # on its fieldbus (its switches, LEDs, manual sections), which a derived family's manual
+    # says for itself.
     return child.model_copy(update=update)
 
 
@@ -125,6 +128,7 @@ def check_profile(p: DeviceProfile) -> list[str]:
                 problems.append(f"{spec.address} {spec.name}: group {spec.group!r} not in groups")
     problems.extend(_check_pdo_rules(p))
     problems.extend(_check_tuning(p))
+    problems.extend(_check_network(p))
     problems.extend(_check_increment_scales(p))
     for m in p.modes:
         if not -128 <= m <= 127:
@@ -219,6 +223,31 @@ def _check_tuning(p: DeviceProfile) -> list[str]:
             if s is None or s.data_type is not dt or s.access.writable != writable:
                 access = "writable" if writable else "read-only"
                 out.append(f"tuning: {t.signal_index:04X}h:{sub:02X} must be a {access} {dt.name}")
+    return out
+
+
+def _check_network(p: DeviceProfile) -> list[str]:
+    """The ``network:`` section names objects the profile has, each once: the Network page
+    reads them from the drive, so an object only the twin has (``sim_only``) or a write-only
+    one has no place there."""
+    net = p.network
+    if net is None:
+        return []
+    out: list[str] = []
+    seen: set[ObjectAddress] = set()
+    for i, o in enumerate(net.objects):
+        addr = o.address
+        where = f"network.objects.{i}: {o.object}"
+        spec = p.spec(addr)
+        if spec is None:
+            out.append(f"{where} is not an object of the profile")
+        elif not spec.access.readable:
+            out.append(f"{where} {spec.name} is write-only: the Network page reads it")
+        elif spec.sim_only:
+            out.append(f"{where} {spec.name} is the simulated twin's only (sim_only)")
+        if addr in seen:
+            out.append(f"{where} is listed twice")
+        seen.add(addr)
     return out
 
 
