@@ -107,11 +107,42 @@ class QuirkInfo(BaseModel):
     note: str | None
 
 
+class NetworkObjectInfo(BaseModel):
+    #: Canonical address, as in ``object_list`` (``"0x1017:00"``).
+    address: str
+    note: str
+    section: str
+
+
+class NetworkRuleInfo(BaseModel):
+    text: str
+    section: str
+
+
+class NetworkLedInfo(BaseModel):
+    led: str
+    state: str
+    meaning: str
+    section: str
+
+
+class NetworkInfo(BaseModel):
+    """How the family is addressed on its fieldbus (profile ``network:``, docs/profiles.md)."""
+
+    summary: str
+    section: str
+    objects: list[NetworkObjectInfo]
+    addressing: list[NetworkRuleInfo]
+    leds: list[NetworkLedInfo]
+
+
 class ProfileDetail(ProfileSummary):
     groups: list[GroupInfo]
     object_list: list[ObjectInfo]
     error_list: list[ErrorInfo]
     quirks: list[QuirkInfo]
+    #: None: the profile documents no network section.
+    network: NetworkInfo | None = None
 
 
 _CAN_INTERFACES = can_interfaces()

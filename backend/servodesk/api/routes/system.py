@@ -13,12 +13,16 @@ from servodesk.api.schemas import (
     ErrorInfo,
     GroupInfo,
     HealthOut,
+    NetworkInfo,
+    NetworkLedInfo,
+    NetworkObjectInfo,
+    NetworkRuleInfo,
     ObjectInfo,
     ProfileDetail,
     ProfileSummary,
     QuirkInfo,
 )
-from servodesk.domain.profile import DeviceProfile, ObjectSpec
+from servodesk.domain.profile import DeviceProfile, NetworkSpec, ObjectSpec
 from servodesk.domain.profile_loader import check_profile, save_profile
 from servodesk.errors import ConflictError, ValidationError
 from servodesk.services.session import error_info
@@ -156,12 +160,27 @@ async def get_profile(profile_id: str, state: StateDep) -> ProfileDetail:
     return profile_detail(state.catalog.get(profile_id))
 
 
+def network_info(n: NetworkSpec) -> NetworkInfo:
+    """The profile's ``network:`` section, its objects named as ``object_list`` names them."""
+    return NetworkInfo(
+        summary=n.summary,
+        section=n.section,
+        objects=[
+            NetworkObjectInfo(address=str(o.address), note=o.note, section=o.section)
+            for o in n.objects
+        ],
+        addressing=[NetworkRuleInfo(**r.model_dump()) for r in n.addressing],
+        leds=[NetworkLedInfo(**led.model_dump()) for led in n.leds],
+    )
+
+
 def profile_detail(p: DeviceProfile) -> ProfileDetail:
-    """A profile with all its objects, errors and quirks (GET /profiles/{id})."""
+    """A profile with all its objects, errors, quirks and network section (GET /profiles/{id})."""
     return ProfileDetail(
         **summary(p).model_dump(),
         groups=[GroupInfo(**g.model_dump()) for g in p.groups],
         object_list=[object_info(s) for s in p.variables.values()],
         error_list=[ErrorInfo(**error_info(e)) for e in p.errors],
         quirks=[QuirkInfo(**q.model_dump()) for q in p.quirks],
+        network=network_info(p.network) if p.network is not None else None,
     )
