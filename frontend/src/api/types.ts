@@ -265,12 +265,42 @@ export interface QuirkInfo {
   note: string | null;
 }
 
+/** An object of the profile's `network:` section: its address as `object_list` names it. */
+export interface NetworkObjectInfo {
+  address: string;
+  note: string;
+  section: string;
+}
+
+export interface NetworkRuleInfo {
+  text: string;
+  section: string;
+}
+
+export interface NetworkLedInfo {
+  led: string;
+  state: string;
+  meaning: string;
+  section: string;
+}
+
+/** How the family is addressed on its fieldbus (profile `network:`, docs/profiles.md). */
+export interface NetworkInfo {
+  summary: string;
+  section: string;
+  objects: NetworkObjectInfo[];
+  addressing: NetworkRuleInfo[];
+  leds: NetworkLedInfo[];
+}
+
 /** GET /profiles/{id}. */
 export interface ProfileDetail extends ProfileSummary {
   groups: GroupInfo[];
   object_list: ObjectInfo[];
   error_list: ErrorInfo[];
   quirks: QuirkInfo[];
+  /** null: the profile documents no network section. Optional for an older server. */
+  network?: NetworkInfo | null;
 }
 
 /** One answer of POST /sessions/{sid}/read: the value, or why that one address failed. */

@@ -9,6 +9,7 @@ import type { ProfileSummary, ScanNode, SessionInfo, SessionInterface, SessionRe
 import { api } from '../api/client';
 import { StatePill } from '../components/StatePill';
 import { toHex } from '../lib/format';
+import { SLMP_AXES, slmpAxisLabel } from '../lib/network';
 import { nmtTitle } from '../lib/nmt';
 import { notify, notifyError } from '../state/notify';
 import { useObservable } from '../state/observable';
@@ -33,7 +34,6 @@ const INTERFACES: ReadonlyArray<{ id: SessionInterface; label: string }> = [
 /** 003 §1-3: the unit's IP address is 192.168.0.250 by default; the port is not in the manual
  * (5010 is MR-J4-GF's SLMP port, servodesk's default). */
 const SLMP_DEFAULT_CHANNEL = '192.168.0.250:5010';
-const SLMP_AXES = ['X', 'Y', 'Z', 'U'] as const;
 
 const DEFAULT_CHANNEL: Readonly<Record<string, string>> = {
   virtual: 'servodesk-sim',
@@ -243,7 +243,7 @@ export function ConnectPage() {
               <select data-testid="bus-node-id" value={form.nodeId} onChange={(e) => set('nodeId', e.target.value)}>
                 {SLMP_AXES.map((a, i) => (
                   <option key={a} value={String(i + 1)}>
-                    {a} (node id {i + 1}, multidrop {i})
+                    {slmpAxisLabel(i + 1)}
                   </option>
                 ))}
               </select>

@@ -10,6 +10,7 @@ import type { ComponentType } from 'react';
 import { AlarmsPage } from './AlarmsPage';
 import { BackupPage } from './BackupPage';
 import { ConnectPage } from './ConnectPage';
+import { NetworkPage } from './NetworkPage';
 import { ObjectAccessPage } from './ObjectAccessPage';
 import { ObjectDictionaryPage } from './ObjectDictionaryPage';
 import { OperationPage } from './OperationPage';
@@ -37,7 +38,7 @@ export interface PageDef {
 
 export const PAGES: readonly PageDef[] = [
   { id: 'connect', title: 'Connect', group: 'Bus', scope: 'global', description: 'Scan the bus and open drive sessions', component: ConnectPage },
-  { id: 'network', title: 'Network configuration', group: 'Bus', scope: 'session', description: 'Station name, addresses, telegram, LEDs' },
+  { id: 'network', title: 'Network configuration', group: 'Bus', scope: 'session', description: 'Station name, addresses, telegram, LEDs', component: NetworkPage },
   { id: 'overview', title: 'Overview', group: 'Drive', scope: 'session', description: 'Identity, state machine, statusword, live values', component: OverviewPage },
   { id: 'operation', title: 'Operation', group: 'Drive', scope: 'session', description: 'Servo on, jog, move, home with a dead-man', component: OperationPage },
   { id: 'tuning', title: 'Tuning', group: 'Drive', scope: 'session', description: 'Gains, one-touch tuning, Bode', component: TuningPage },
