@@ -31,8 +31,8 @@ GENERIC = "cia402-generic"
 
 #: What the UI says about a twin whose own fieldbus link does not exist yet.
 _TWIN_NOTE = (
-    "{vendor} {name} speaks {fieldbus}; its simulated twin runs on CANopen "
-    "until the {fieldbus} link exists."
+    "{name} speaks {fieldbus}; its simulated twin runs on CANopen until the {fieldbus} "
+    "link exists."
 )
 
 
@@ -103,9 +103,9 @@ class SessionManager:
                         f"0x{identity.product_code or 0:08X}; using the generic CiA 402 profile."
                     )
                 if profile.fieldbus != link.fieldbus:
-                    note = _TWIN_NOTE.format(
-                        vendor=profile.vendor, name=profile.name, fieldbus=_bus_name(profile)
-                    )
+                    # The profile's name carries the brand ("SMC LECSN-T ..."): the vendor
+                    # in front of it read "SMC SMC LECSN-T".
+                    note = _TWIN_NOTE.format(name=profile.name, fieldbus=_bus_name(profile))
                 sid = self._new_id(profile, params.node_id)
                 session = Session(
                     sid,
