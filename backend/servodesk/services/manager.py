@@ -31,8 +31,7 @@ GENERIC = "cia402-generic"
 
 #: What the UI says about a twin whose own fieldbus link does not exist yet.
 _TWIN_NOTE = (
-    "{name} speaks {fieldbus}; its simulated twin runs on CANopen until the {fieldbus} "
-    "link exists."
+    "{name} speaks {fieldbus}; its simulated twin runs on CANopen until the {fieldbus} link exists."
 )
 
 
