@@ -201,8 +201,9 @@ class SessionCreate(BusParams):
     interface: str = Field(
         default="virtual",
         description="python-can interface for a CANopen drive (virtual, udp_multicast, "
-        "socketcan, pcan, ...), or slmp for a CC-Link IE TSN station reached by SLMP over UDP "
-        "(channel host:port, node id = axis + 1)",
+        "socketcan, pcan, ...), slmp for a CC-Link IE TSN station reached by SLMP over UDP "
+        "(channel host:port, node id = axis + 1), or ethercat for a slave of an EtherCAT line "
+        "reached by CoE (channel the network interface, node id = slave position + 1)",
         json_schema_extra={"enum": list[JsonValue](_BUS_INTERFACES)},
     )
     node_id: int = Field(ge=1, le=127)
@@ -212,8 +213,8 @@ class SessionCreate(BusParams):
     def _known_interface(cls, v: str) -> str:
         if v not in _BUS_INTERFACES:
             raise ValueError(
-                f"unknown interface; python-can has {', '.join(_CAN_INTERFACES)}, and slmp "
-                "reaches a CC-Link IE TSN station"
+                f"unknown interface; python-can has {', '.join(_CAN_INTERFACES)}, slmp "
+                "reaches a CC-Link IE TSN station and ethercat an EtherCAT line"
             )
         return v
 

@@ -82,13 +82,20 @@ registry.register(
     "CC-Link IE TSN object access over SLMP (4E frames on UDP; interface slmp, channel host:port)",
 )
 
+registry.register(
+    "ethercat",
+    "servodesk.links.ethercat_link",
+    "EthercatLink",
+    "EtherCAT CoE object access with pysoem (SOEM) (interface ethercat, channel the NIC name)",
+)
+
 #: Interfaces that are no python-can interface, and the link that speaks over each.
-_INTERFACE_LINKS = {"slmp": "cclink-ie-tsn"}
+_INTERFACE_LINKS = {"slmp": "cclink-ie-tsn", "ethercat": "ethercat"}
 
 
 def link_for_interface(interface: str) -> str:
     """The registry name of the link a bus interface is reached by: ``slmp`` is the SLMP
-    link, every python-can interface CANopen."""
+    link, ``ethercat`` the EtherCAT link, every python-can interface CANopen."""
     return _INTERFACE_LINKS.get(interface, "canopen")
 
 

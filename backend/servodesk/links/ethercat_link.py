@@ -1,0 +1,283 @@
+"""EtherCAT object access over CoE (CANopen over EtherCAT), with pysoem (SOEM) as the master.
+
+Where the drive is: ``interface`` ``ethercat``, ``channel`` the network interface the line
+is plugged into (``eth1``, or the master end of a veth pair for the simulated slave),
+``node_id`` the slave's position in the line + 1 (1 = the first slave after the master).
+Objects are read and written with CoE SDO upload / download (ETG.1000.6 §5.6.2), which SOEM
+does expedited, normal or segmented as the size needs.
+
+Opening a link opens the interface with SOEM and runs ``config_init``: every slave of the
+line is found, given its configured station address (1001h, 1002h, ...), its SII is read and
+its mailbox SyncManagers programmed, and PRE-OPERATIONAL is requested, where CoE works. Links
+to several slaves on one interface share one SOEM master (one per interface: a second
+``config_init`` would reset the line under the first), and their requests take turns.
+
+What this link does not do (docs/ethercat.md):
+
+- Cyclic process data (PDO mapping, SAFE-OP/OP with FMMUs, distributed clocks): servodesk
+  reaches the drive's objects by SDO, as on the other fieldbuses without a cyclic transport.
+- NMT: EtherCAT has none; ``preop`` and ``stop`` (INIT) and ``start`` (OP) are AL state
+  requests (AL control 0120h), which the slave may refuse with an AL status code: the refusal
+  is a ConflictError carrying it. ``reset`` and ``reset_comm`` are refused.
+
+pysoem holds the GIL in its state calls (``read_state``, ``write_state``, ``state_check``);
+only ``config_init`` and the SDO services release it. A slave simulated in the same Python
+process (tests) therefore cannot answer the state calls: the state reads "unknown" and a
+state request times out there. Across processes (``servodesk sim --interface ethercat``)
+and with a real drive they work.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+from servodesk.domain.address import ObjectAddress
+from servodesk.domain.sdo_abort import abort_error
+from servodesk.errors import (
+    ConflictError,
+    LinkError,
+    LinkTimeoutError,
+    LinkUnavailableError,
+    NotFoundError,
+    ValidationError,
+)
+from servodesk.links.base import DriveLink, Identity, LinkParams, object_identity
+
+try:
+    import pysoem
+except ImportError as exc:  # pragma: no cover - pysoem is a dependency
+    raise LinkUnavailableError(
+        f"pysoem is not installed: {exc}", hint="install servodesk with its dependencies"
+    ) from exc
+
+#: The interface name of this link.
+INTERFACE = "ethercat"
+#: AL states (ETG.1000.6 §6.4.1, AL status bits 0-3) by name, and back.
+AL_STATES = {0x01: "init", 0x02: "preop", 0x03: "boot", 0x04: "safeop", 0x08: "op"}
+#: The AL state each command of DriveLink.nmt requests.
+NMT_AL_STATES = {"preop": 0x02, "stop": 0x01, "start": 0x08}
+#: Largest object servodesk reads in one SDO upload (pysoem's buffer).
+READ_BUFFER = 4096
+#: How long a state request waits for the slave to get there (µs, SOEM's unit).
+STATE_TIMEOUT_US = 500_000
+#: How long a read AL state is reported before it is read again (s): the session polls the
+#: state with every status, and pysoem's read holds the GIL while it waits (module doc).
+STATE_MAX_AGE = 1.0
+
+
+@dataclass
+class _Master:
+    """One SOEM master on one interface, shared by the links to its slaves."""
+
+    master: Any
+    slaves: int
+    lock: threading.Lock = field(default_factory=threading.Lock)
+    users: int = 0
+
+
+_masters: dict[str, _Master] = {}
+_masters_lock = threading.Lock()
+
+
+def _open_master(channel: str) -> _Master:
+    """The shared master of ``channel``, opened and configured the first time."""
+    with _masters_lock:
+        shared = _masters.get(channel)
+        if shared is None:
+            shared = _Master(*_configure(channel))
+            _masters[channel] = shared
+        shared.users += 1
+        return shared
+
+
+def _release_master(channel: str, shared: _Master) -> None:
+    with _masters_lock:
+        shared.users -= 1
+        if shared.users <= 0 and _masters.get(channel) is shared:
+            del _masters[channel]
+            with shared.lock:
+                shared.master.close()
+
+
+def _configure(channel: str) -> tuple[Any, int]:
+    if not channel or "/" in channel or len(channel) > 15:
+        raise ValidationError(
+            f"{channel!r} is no network interface name",
+            field="channel",
+            hint="give the interface the EtherCAT line is plugged into, e.g. eth1",
+        )
+    if not os.path.exists(f"/sys/class/net/{channel}"):
+        raise NotFoundError(
+            f"no network interface {channel!r}",
+            hint="list the interfaces with `ip link`; the EtherCAT line's NIC is the channel",
+        )
+    master = pysoem.Master()
+    # The SDO calls release the GIL, so a slave simulated in this process can answer.
+    master.always_release_gil = True
+    try:
+        master.open(channel)
+    except ConnectionError as exc:
+        raise LinkError(
+            f"cannot open {channel!r} for EtherCAT: {exc}",
+            hint="SOEM sends raw Ethernet frames: run as root or give CAP_NET_RAW",
+        ) from exc
+    try:
+        found = int(master.config_init(release_gil=True))
+    except Exception as exc:
+        master.close()
+        raise LinkError(f"EtherCAT configuration on {channel!r} failed: {exc}") from exc
+    if found <= 0:
+        master.close()
+        raise NotFoundError(
+            f"no EtherCAT slave answers on {channel!r}",
+            hint="check the cable to the first slave's IN port and that the drive is powered",
+        )
+    return master, found
+
+
+class EthercatLink(DriveLink):
+    """One slave of an EtherCAT line, its objects reached by CoE SDO through SOEM."""
+
+    fieldbus = "ethercat"
+    #: Why there is no cyclic process data here (links/cyclic.py ``transport_for``).
+    no_cyclic = (
+        "servodesk's EtherCAT link reaches the drive's objects by CoE SDO; it maps no "
+        "process data (no SAFE-OP/OP, no distributed clocks)"
+    )
+
+    def __init__(self, params: LinkParams) -> None:
+        if params.interface != INTERFACE:
+            raise ValidationError(
+                f"interface {params.interface!r} does not carry EtherCAT",
+                field="interface",
+                hint=f"use interface {INTERFACE} with the network interface as channel",
+            )
+        if params.node_id < 1:
+            raise ValidationError(
+                f"node id {params.node_id} is no slave position",
+                field="node_id",
+                hint="EtherCAT node ids are the slave's position in the line + 1",
+            )
+        super().__init__(params)
+        self._shared: _Master | None = None
+        self._slave: Any = None
+        self._state: tuple[float, str] | None = None
+
+    # Hooks -------------------------------------------------------------------------
+
+    def _open(self) -> None:
+        shared = _open_master(self.params.channel)
+        if self.params.node_id > shared.slaves:
+            _release_master(self.params.channel, shared)
+            raise NotFoundError(
+                f"no EtherCAT slave at position {self.params.node_id} on "
+                f"{self.params.channel!r} ({shared.slaves} found)",
+                hint="the node id is the slave's position in the line + 1",
+            )
+        self._shared = shared
+        self._slave = shared.master.slaves[self.params.node_id - 1]
+
+    def _close(self) -> None:
+        shared, self._shared, self._slave = self._shared, None, None
+        if shared is not None:
+            _release_master(self.params.channel, shared)
+
+    def _master(self) -> tuple[_Master, Any]:
+        if self._shared is None or self._slave is None:
+            raise LinkError("the EtherCAT link is closed", hint="open the session again")
+        return self._shared, self._slave
+
+    def _read(self, address: ObjectAddress) -> bytes:
+        shared, slave = self._master()
+        with shared.lock:
+            shared.master.sdo_read_timeout = self._timeout_us()
+            try:
+                data = slave.sdo_read(
+                    address.index, address.subindex, READ_BUFFER, release_gil=True
+                )
+            except Exception as exc:
+                raise self._failed(exc, address, "read") from exc
+        return bytes(data)
+
+    def _write(self, address: ObjectAddress, data: bytes) -> None:
+        shared, slave = self._master()
+        with shared.lock:
+            shared.master.sdo_write_timeout = self._timeout_us()
+            try:
+                slave.sdo_write(address.index, address.subindex, bytes(data), release_gil=True)
+            except Exception as exc:
+                raise self._failed(exc, address, "write") from exc
+
+    def _timeout_us(self) -> int:
+        return max(1000, round(self.request_timeout * 1e6))
+
+    def _failed(self, exc: Exception, address: ObjectAddress, op: str) -> Exception:
+        if isinstance(exc, pysoem.SdoError):
+            return abort_error(int(exc.abort_code), address, op)
+        where = f"slave {self.params.node_id} on {self.params.channel!r}"
+        if isinstance(exc, pysoem.WkcError):
+            return LinkTimeoutError(
+                f"{op} {address}: no CoE answer from {where} within "
+                f"{self.request_timeout:g} s (working counter {getattr(exc, 'wkc', '?')})"
+            )
+        if isinstance(exc, (pysoem.MailboxError, pysoem.PacketError)):
+            return LinkError(
+                f"{op} {address}: the mailbox exchange with {where} failed: {exc}",
+                hint="the slave answered something other than a CoE SDO response",
+            )
+        return exc
+
+    async def identity(self) -> Identity:
+        return await object_identity(self)
+
+    def _network_state(self) -> str:
+        """The slave's AL state (AL status 0130h) as SOEM reads it: init, preop, boot,
+        safeop, op; "unknown" when the slave does not answer."""
+        now = time.monotonic()
+        if self._state is not None and now - self._state[0] < STATE_MAX_AGE:
+            return self._state[1]
+        shared, slave = self._master()
+        with shared.lock:
+            shared.master.read_state()
+            name = AL_STATES.get(int(slave.state) & 0x0F, "unknown")
+        self._state = (now, name)
+        return name
+
+    def _nmt(self, command: str) -> None:
+        target = NMT_AL_STATES.get(command)
+        if target is None:
+            raise ConflictError(
+                f"EtherCAT has no NMT command {command!r}",
+                hint="EtherCAT drives change state by AL control requests: "
+                "preop, stop (INIT) and start (OP)",
+            )
+        shared, slave = self._master()
+        self._state = None
+        with shared.lock:
+            slave.state = target
+            slave.write_state()
+            reached = int(slave.state_check(target, STATE_TIMEOUT_US)) & 0x0F
+            if reached == target:
+                return
+            code = int(slave.al_status)
+            now = int(slave.state)
+            if code:
+                # Acknowledge the refusal, so the slave's error indication does not block
+                # the next request (ETG.1000.6 §6.4.1, AL control bit 4).
+                slave.state = (now & 0x0F) | 0x10
+                slave.write_state()
+        name = AL_STATES[target].upper()
+        if code:
+            raise ConflictError(
+                f"the EtherCAT slave refused {name} ({command}): AL status code "
+                f"0x{code:04X} {pysoem.al_status_code_to_string(code)}",
+                hint="it stays in " + AL_STATES.get(now & 0x0F, "its state").upper(),
+            )
+        raise LinkTimeoutError(
+            f"the EtherCAT slave did not reach {name} ({command}) within "
+            f"{STATE_TIMEOUT_US / 1e6:g} s"
+        )
