@@ -15,6 +15,11 @@ is an axis of one SLMP station on ``channel`` (``host:port``; node id 1..4 = axi
 no CAN bus is opened. With ``slmp_channel``, the drives whose profile speaks CC-Link IE TSN
 (the CTMM04x) are the station's axes X, Y, ... in order, and the others are CANopen nodes
 (``servodesk serve --sim``). A drive on the station is not on the CAN bus.
+
+EtherCAT (:class:`~servodesk.sim.ethercat_slave.EthercatSlaveSim`): with
+``interface="ethercat"`` every drive is a slave of one simulated line on ``channel``, a
+network interface (the slave end of a veth pair, :mod:`servodesk.sim.veth`); node id N is
+the N-th slave, and no CAN bus is opened. Opening the interface needs root or CAP_NET_RAW.
 """
 
 from __future__ import annotations
@@ -31,12 +36,15 @@ from servodesk.domain.profile_loader import ProfileCatalog
 from servodesk.errors import LinkError, LinkUnavailableError, ValidationError
 from servodesk.sim.canopen_device import SimCanopenDevice
 from servodesk.sim.engine import SimulatedDrive
+from servodesk.sim.ethercat_slave import EthercatSlaveSim
 from servodesk.sim.plantfile import PlantSpec
 from servodesk.sim.runner import SimRunner
 from servodesk.sim.slmp_station import SlmpStation
 
 #: The fieldbus name of the profiles a station serves over SLMP.
 SLMP_FIELDBUS = "cclink-ie-tsn"
+#: The interface (and link) name of a simulated EtherCAT line.
+ETHERCAT = "ethercat"
 
 log = logging.getLogger(__name__)
 
@@ -53,6 +61,7 @@ class SimulatedBus:
         channel: str,
         drives: list[SimulatedDrive] | None = None,
         station: SlmpStation | None = None,
+        line: EthercatSlaveSim | None = None,
     ) -> None:
         self.network = network
         self.devices = devices
@@ -62,6 +71,8 @@ class SimulatedBus:
         )
         #: The SLMP station serving the drives not on the CAN bus, if any.
         self.station = station
+        #: The simulated EtherCAT line serving every drive, if ``interface="ethercat"``.
+        self.line = line
         self.runner = runner
         self.interface = interface
         self.channel = channel
@@ -84,11 +95,18 @@ class SimulatedBus:
         seen: set[int] = set()
         sims: list[SimulatedDrive] = []
         all_slmp = interface == "slmp"
+        all_ethercat = interface == ETHERCAT
         for i, (profile_id, node_id) in enumerate(drives):
             if all_slmp and not 1 <= node_id <= 4:
                 raise ValidationError(
                     f"node id {node_id} is no axis of an SLMP station",
                     hint="SLMP node ids are the axis + 1: 1 = X, 2 = Y, 3 = Z, 4 = U",
+                )
+            if all_ethercat and node_id != i + 1:
+                raise ValidationError(
+                    f"node id {node_id} is not the position of drive {i + 1} in the EtherCAT line",
+                    hint="EtherCAT node ids are the slave's position + 1: give the drives 1..N "
+                    "in order",
                 )
             if not 1 <= node_id <= 127:
                 raise ValidationError(
@@ -113,6 +131,17 @@ class SimulatedBus:
                         loop_rate_hz=plant.loop_rate_hz,
                     )
                 )
+        if all_ethercat:
+            try:
+                line = EthercatSlaveSim(sims, channel).start()
+            except ValueError as exc:
+                raise ValidationError(str(exc)) from exc
+            runner = SimRunner(sims)
+            for sim in sims:
+                sim.step(sim.CONTROL_PERIOD)
+            runner.start()
+            log.info("simulated EtherCAT slaves %s on %s", list(drives), channel)
+            return cls(None, [], runner, interface, channel, sims, line=line)
         if all_slmp:
             axes = {sim.node_id - 1: sim for sim in sims}
             station_channel: str | None = channel
@@ -186,6 +215,8 @@ class SimulatedBus:
             for axis, sim in self.station.axes.items():
                 if sim is drive:
                     return SLMP_FIELDBUS, "slmp", self.station.channel, axis + 1
+        if self.line is not None and drive in self.line.drives:
+            return ETHERCAT, ETHERCAT, self.line.ifname, self.line.drives.index(drive) + 1
         return "canopen", self.interface, self.channel, drive.node_id
 
     def stop(self) -> None:
@@ -196,6 +227,8 @@ class SimulatedBus:
         self.runner.stop()
         if self.station is not None:
             self.station.stop()
+        if self.line is not None:
+            self.line.stop()
         for dev in self.devices:
             try:
                 dev.shutdown()

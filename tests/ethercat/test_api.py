@@ -1,0 +1,118 @@
+"""The HIWIN E twin as an EtherCAT slave through the API and the command line: a session
+opened with interface ethercat, ``servodesk sim --interface ethercat`` in its own process
+(where SOEM's state calls get answers, docs/ethercat.md), AL state requests and a backup."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from servodesk.cli import main
+from servodesk.domain.address import ObjectAddress
+from servodesk.errors import ConflictError, LinkTimeoutError
+from servodesk.links.base import LinkParams
+from servodesk.links.ethercat_link import EthercatLink
+from servodesk.sim.bus import SimulatedBus
+from servodesk.sim.veth import VethPair
+from tests.operation.support import headers, operation_app
+from tests.simproc import sim_subprocess
+
+A = headers("A")
+
+
+@pytest.fixture(autouse=True)
+def data_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    d = tmp_path / "data"
+    monkeypatch.setenv("SERVODESK_DATA_DIR", str(d))
+    return d
+
+
+def test_api_opens_a_session_on_an_ethercat_slave(
+    veth: VethPair, channel: str, tmp_path: Path
+) -> None:
+    with (
+        SimulatedBus.start(
+            drives=[("hiwin-e", 1), ("hiwin-e", 2)], interface="ethercat", channel=veth.slave
+        ) as line,
+        operation_app(channel, tmp_path) as (client, _sim),
+    ):
+        assert line.link_of(line.drives[1]) == ("ethercat", "ethercat", veth.slave, 2)
+
+        def open_(**body: Any) -> Any:
+            return client.post("/api/v1/sessions", json={"interface": "ethercat", **body})
+
+        r = open_(channel=veth.master, node_id=2)  # The profile from its identity (1018h).
+        assert r.status_code == 201, r.text
+        s = r.json()
+        assert (s["profile_id"], s["link"], s["interface"], s["channel"]) == (
+            "hiwin-e",
+            "ethercat",
+            "ethercat",
+            veth.master,
+        )
+        assert s["identity"]["device_name"] == "HIWIN E series EtherCAT drive"
+        sid = s["id"]
+        r = client.get(f"/api/v1/sessions/{sid}/objects/0x6081:00")
+        assert r.status_code == 200 and r.json()["value"] == line.drives[1].read(0x6081)
+        r = client.put(f"/api/v1/sessions/{sid}/objects/0x6081:00", json={"value": 777}, headers=A)
+        assert r.status_code == 200, r.text
+        assert line.drives[1].read(0x6081) == 777 and line.drives[0].read(0x6081) != 777
+        r = client.put(f"/api/v1/sessions/{sid}/objects/0x6041:00", json={"value": 0}, headers=A)
+        assert r.status_code == 400 and r.json()["code"] == 0x06010002, r.text
+
+        r = open_(channel=veth.master, node_id=3)
+        assert r.status_code == 404 and "no EtherCAT slave at position 3" in r.text, r.text
+        r = open_(channel="sdnothere0", node_id=1)
+        assert r.status_code == 404 and "no network interface" in r.text, r.text
+
+
+def test_sim_process_state_requests_and_backup(
+    veth: VethPair, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with sim_subprocess("hiwin-e", 1, "ethercat", veth.slave):
+
+        async def states() -> None:
+            link = EthercatLink(
+                LinkParams(interface="ethercat", channel=veth.master, node_id=1, timeout=0.3)
+            )
+            async with link:
+                assert await link.network_state() == "preop"
+                with pytest.raises(ConflictError, match="0x0011") as info:
+                    await link.nmt("start")
+                assert "refused OP" in info.value.message
+                assert await link.network_state() == "preop"
+                await link.nmt("stop")
+                assert await link.network_state() == "init"
+                with pytest.raises(LinkTimeoutError):  # No mailbox in INIT.
+                    await link.read(ObjectAddress(0x6041))
+                await link.nmt("preop")
+                assert await link.network_state() == "preop"
+                assert len(await link.read(ObjectAddress(0x6041))) == 2
+                with pytest.raises(ConflictError, match="no NMT command 'reset'"):
+                    await link.nmt("reset")
+
+        asyncio.run(states())
+
+        node = ["--interface", "ethercat", "--channel", veth.master, "--node-id", "1"]
+        out = tmp_path / "hiwin.json"
+        assert main(["backup", "-o", str(out), *node, "--json"]) == 0
+        info = json.loads(capsys.readouterr().out)
+        assert info["entries"] > 20 and info["profile_id"] == "hiwin-e"
+        assert main(["backup", "-o", str(tmp_path / "b.json"), *node[:-2], "--node-id", "4"]) == 2
+        err = capsys.readouterr().err
+        assert "no EtherCAT slave at position 4" in err and "Traceback" not in err
+
+
+def test_sim_refuses_a_missing_interface_and_a_bad_node(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    args = ["sim", "--profile", "hiwin-e", "--interface", "ethercat"]
+    assert main([*args, "--channel", "sdnothere0"]) == 2
+    err = capsys.readouterr().err
+    assert "no network interface 'sdnothere0'" in err and "Traceback" not in err
+    assert main([*args, "--channel", "lo", "--node-id", "2"]) == 2
+    assert "not the position of drive 1" in capsys.readouterr().err
