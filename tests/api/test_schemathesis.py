@@ -28,6 +28,10 @@ def _offline_bus(case: Any) -> Any:
         # An SLMP station's address is a host:port; a generated text would be a host name to
         # resolve. UDP port 9 of loopback has nobody: "nothing answers SLMP" (404).
         body["channel"] = "127.0.0.1:9"
+    elif isinstance(body, dict) and body.get("interface") == "ethercat":
+        # A generated text must not name a real NIC: SOEM would broadcast EtherCAT frames on
+        # it. No such interface: "no network interface" (404).
+        body["channel"] = "sdnothere0"
     elif isinstance(body, dict) and body.get("interface") not in (None, *_OFFLINE):
         body["interface"] = _OFFLINE[hash(body["interface"]) % len(_OFFLINE)]
     return case
