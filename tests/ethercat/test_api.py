@@ -64,6 +64,16 @@ def test_api_opens_a_session_on_an_ethercat_slave(
         r = client.put(f"/api/v1/sessions/{sid}/objects/0x6041:00", json={"value": 0}, headers=A)
         assert r.status_code == 400 and r.json()["code"] == 0x06010002, r.text
 
+        # A restore with a reset is refused before anything is restored: no NMT reset here.
+        client.post(f"/api/v1/sessions/{sid}/control", json={"action": "take"}, headers=A)
+        r = client.post(
+            f"/api/v1/sessions/{sid}/restore-defaults",
+            json={"confirm": True, "reset": True},
+            headers=A,
+        )
+        assert r.status_code == 409 and "sends no NMT reset" in r.json()["message"], r.text
+        assert line.drives[1].read(0x6081) == 777
+
         r = open_(channel=veth.master, node_id=3)
         assert r.status_code == 404 and "no EtherCAT slave at position 3" in r.text, r.text
         r = open_(channel="sdnothere0", node_id=1)

@@ -143,6 +143,9 @@ class EthercatLink(DriveLink):
     """One slave of an EtherCAT line, its objects reached by CoE SDO through SOEM."""
 
     fieldbus = "ethercat"
+    #: No NMT reset (EtherCAT has none): a restore of the defaults with a reset is refused
+    #: before anything is restored (services/session.py), not left half done.
+    sends_nmt = False
     #: Why there is no cyclic process data here (links/cyclic.py ``transport_for``).
     no_cyclic = (
         "servodesk's EtherCAT link reaches the drive's objects by CoE SDO; it maps no "
