@@ -3,6 +3,8 @@ CoE SDO transfers, expedited, normal and segmented, with aborts."""
 
 from __future__ import annotations
 
+import threading
+import time
 from collections.abc import Iterator
 
 import pysoem
@@ -11,7 +13,7 @@ import pytest
 from servodesk.domain.profile_loader import ProfileCatalog
 from servodesk.sim.engine import SimulatedDrive
 from servodesk.sim.ethercat_slave import EthercatSlaveSim
-from servodesk.sim.veth import VethPair
+from servodesk.sim.veth import VethPair, create_veth
 
 NAME = b"HIWIN E series EtherCAT drive"
 
@@ -96,3 +98,24 @@ def test_segmented_transfers_through_a_small_mailbox(
         with pytest.raises(pysoem.SdoError) as info:
             slave.sdo_write(0x6041, 0, bytes(40), release_gil=True)
         assert info.value.abort_code == 0x06010002  # refused at the initiate
+
+
+def test_the_interface_going_away_stops_no_thread_with_a_traceback(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    failures: list[object] = []
+    monkeypatch.setattr(threading, "excepthook", failures.append)
+    pair = create_veth("sdg")
+    try:
+        line = EthercatSlaveSim(_drives(1), pair.slave).start()
+    except BaseException:
+        pair.delete()
+        raise
+    try:
+        time.sleep(0.1)
+        pair.delete()  # recv answers ENETDOWN: the line waits, as for a pulled cable.
+        time.sleep(0.3)
+        assert failures == []
+    finally:
+        line.stop()
+    assert failures == []

@@ -516,10 +516,15 @@ class EthercatSlaveSim:
                 frame, addr = sock.recvfrom(2048)
             except TimeoutError:
                 continue
-            except OSError:
-                if self._stop.is_set():
+            except OSError as exc:
+                if self._stop.is_set() or exc.errno in (errno.EBADF, errno.ENODEV, errno.ENXIO):
+                    if not self._stop.is_set():
+                        log.warning("EtherCAT slaves on %s stop: %s", self.ifname, exc)
                     return
-                raise
+                # The link is down for a moment (ENETDOWN): a cable pulled, not an end.
+                log.debug("EtherCAT slaves on %s: %s", self.ifname, exc)
+                self._stop.wait(0.1)
+                continue
             if addr[2] == socket.PACKET_OUTGOING:
                 continue
             answer = self.process(frame)
