@@ -11,6 +11,7 @@ import pytest
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.profile_loader import ProfileCatalog
 from servodesk.errors import (
+    LinkError,
     LinkTimeoutError,
     NotFoundError,
     ObjectAccessError,
@@ -108,3 +109,12 @@ async def test_wrong_addresses_and_a_silent_line(veth: VethPair) -> None:
         _link(veth.master, 0)
     with pytest.raises(ValidationError, match="does not carry EtherCAT"):
         EthercatLink(LinkParams(interface="virtual", channel=veth.master))
+
+
+async def test_a_closed_soem_interface_is_a_link_error(veth: VethPair) -> None:
+    with EthercatSlaveSim(_drives(1), veth.slave):
+        async with _link(veth.master) as link:
+            assert link._shared is not None
+            link._shared.master.close()  # SOEM's interface gone under the link
+            with pytest.raises(LinkError, match="NetworkInterfaceNotOpenError"):
+                await link.read(ObjectAddress(0x6041))

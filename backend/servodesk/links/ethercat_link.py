@@ -232,6 +232,9 @@ class EthercatLink(DriveLink):
                 f"{op} {address}: the mailbox exchange with {where} failed: {exc}",
                 hint="the slave answered something other than a CoE SDO response",
             )
+        if type(exc).__module__.startswith("pysoem"):
+            # Any other SOEM failure (an interface no longer open, ...) is the link's.
+            return LinkError(f"{op} {address} on {where}: {type(exc).__name__}: {exc}")
         return exc
 
     async def identity(self) -> Identity:
