@@ -56,6 +56,10 @@ def test_api_opens_a_session_on_an_ethercat_slave(
         )
         assert s["identity"]["device_name"] == "HIWIN E series EtherCAT drive"
         sid = s["id"]
+        # The ESCs run in a process of their own (SimulatedBus): SOEM's state read, which
+        # holds the GIL, is answered in this process too.
+        r = client.get(f"/api/v1/sessions/{sid}/state")
+        assert r.status_code == 200 and r.json()["nmt_state"] == "preop", r.text
         r = client.get(f"/api/v1/sessions/{sid}/objects/0x6081:00")
         assert r.status_code == 200 and r.json()["value"] == line.drives[1].read(0x6081)
         r = client.put(f"/api/v1/sessions/{sid}/objects/0x6081:00", json={"value": 777}, headers=A)
@@ -78,6 +82,23 @@ def test_api_opens_a_session_on_an_ethercat_slave(
         assert r.status_code == 404 and "no EtherCAT slave at position 3" in r.text, r.text
         r = open_(channel="sdnothere0", node_id=1)
         assert r.status_code == 404 and "no network interface" in r.text, r.text
+
+
+def test_state_requests_to_the_simulated_bus_in_this_process(veth: VethPair) -> None:
+    with SimulatedBus.start(drives=[("hiwin-e", 1)], interface="ethercat", channel=veth.slave):
+
+        async def states() -> None:
+            link = EthercatLink(LinkParams(interface="ethercat", channel=veth.master, node_id=1))
+            async with link:
+                assert await link.network_state() == "preop"
+                with pytest.raises(ConflictError, match="0x0011 Invalid requested state change"):
+                    await link.nmt("start")
+                await link.nmt("stop")
+                assert await link.network_state() == "init"
+                await link.nmt("preop")
+                assert len(await link.read(ObjectAddress(0x6041))) == 2
+
+        asyncio.run(states())
 
 
 def test_sim_process_state_requests_and_backup(

@@ -21,10 +21,11 @@ What this link does not do (docs/ethercat.md):
   is a ConflictError carrying it. ``reset`` and ``reset_comm`` are refused.
 
 pysoem holds the GIL in its state calls (``read_state``, ``write_state``, ``state_check``);
-only ``config_init`` and the SDO services release it. A slave simulated in the same Python
-process (tests) therefore cannot answer the state calls: the state reads "unknown" and a
-state request times out there. Across processes (``servodesk sim --interface ethercat``)
-and with a real drive they work.
+only ``config_init`` and the SDO services release it. A slave answered by Python code in this
+same process while it waits cannot answer those calls: the simulated line therefore runs its
+ESCs in a process of their own (:class:`~servodesk.sim.ethercat_slave.EthercatSlaveProcess`,
+what ``SimulatedBus`` uses); with the thread front-end (``EthercatSlaveSim``, tests) the
+state reads "unknown" and a state request times out.
 """
 
 from __future__ import annotations
@@ -65,7 +66,8 @@ READ_BUFFER = 4096
 #: How long a state request waits for the slave to get there (µs, SOEM's unit).
 STATE_TIMEOUT_US = 500_000
 #: How long a read AL state is reported before it is read again (s): the session polls the
-#: state with every status, and pysoem's read holds the GIL while it waits (module doc).
+#: state with every status, and pysoem's read holds the GIL while it waits (module doc), up to
+#: its time-out (about 17 ms) when nobody answers.
 STATE_MAX_AGE = 1.0
 
 

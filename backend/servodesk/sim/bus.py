@@ -16,7 +16,7 @@ no CAN bus is opened. With ``slmp_channel``, the drives whose profile speaks CC-
 (the CTMM04x) are the station's axes X, Y, ... in order, and the others are CANopen nodes
 (``servodesk serve --sim``). A drive on the station is not on the CAN bus.
 
-EtherCAT (:class:`~servodesk.sim.ethercat_slave.EthercatSlaveSim`): with
+EtherCAT (:class:`~servodesk.sim.ethercat_slave.EthercatSlaveProcess`): with
 ``interface="ethercat"`` every drive is a slave of one simulated line on ``channel``, a
 network interface (the slave end of a veth pair, :mod:`servodesk.sim.veth`); node id N is
 the N-th slave, and no CAN bus is opened. Opening the interface needs root or CAP_NET_RAW.
@@ -36,7 +36,7 @@ from servodesk.domain.profile_loader import ProfileCatalog
 from servodesk.errors import LinkError, LinkUnavailableError, ValidationError
 from servodesk.sim.canopen_device import SimCanopenDevice
 from servodesk.sim.engine import SimulatedDrive
-from servodesk.sim.ethercat_slave import EthercatSlaveSim
+from servodesk.sim.ethercat_slave import EthercatSlaveProcess
 from servodesk.sim.plantfile import PlantSpec
 from servodesk.sim.runner import SimRunner
 from servodesk.sim.slmp_station import SlmpStation
@@ -61,7 +61,7 @@ class SimulatedBus:
         channel: str,
         drives: list[SimulatedDrive] | None = None,
         station: SlmpStation | None = None,
-        line: EthercatSlaveSim | None = None,
+        line: EthercatSlaveProcess | None = None,
     ) -> None:
         self.network = network
         self.devices = devices
@@ -133,7 +133,7 @@ class SimulatedBus:
                 )
         if all_ethercat:
             try:
-                line = EthercatSlaveSim(sims, channel).start()
+                line = EthercatSlaveProcess(sims, channel).start()
             except ValueError as exc:
                 raise ValidationError(str(exc)) from exc
             runner = SimRunner(sims)

@@ -1,0 +1,513 @@
+"""The ESC side of simulated EtherCAT slaves: registers, SII, AL states and the mailbox.
+
+An :class:`EscSlave` is what the EtherCAT slave controller of a drive answers on the wire
+(ESC datasheet section II register names; ETG.1000.4 / ETG.1000.6 / ETG.2010): its memory
+with the registers SOEM's ``ecx_config_init`` uses, the EEPROM interface to an SII image,
+the AL state machine (INIT and PRE-OPERATIONAL; the rest refused with an AL status code) and
+the mailbox on SM0 (master -> slave) / SM1 (slave -> master). CoE requests are handed to a
+CoE server (:class:`servodesk.sim.ethercat_slave.CoeServer`, the drive's firmware) and its
+answers loaded into SM1. An :class:`EscLine` passes each datagram of a frame along the
+slaves and answers frames from a raw socket, in a thread or in a process of its own
+(:func:`child_main`). Nothing here imports the drive simulation, so that process starts
+light.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import functools
+import logging
+import selectors
+import socket
+import struct
+import threading
+from collections import deque
+from collections.abc import Callable, Sequence
+from multiprocessing.connection import Connection
+
+from servodesk.domain import ethercat as ec
+from servodesk.domain.ethercat import AlState, Cmd, Reg
+from servodesk.errors import LinkError
+
+log = logging.getLogger(__name__)
+
+#: ESC type this slave reports: the ET1100 (11h), whose register map it follows.
+ESC_TYPE = 0x11
+#: RAM size in KByte, FMMUs and SyncManagers reported in 0x0004-0x0006.
+FMMUS, SYNCMANAGERS, RAM_KB = 3, 4, 8
+#: Port descriptor (0x0007): ports 0 and 1 MII (11b), 2 and 3 not implemented.
+PORT_DESCRIPTOR = 0x0F
+#: PDI control (0x0140): 05h, SPI slave (the PDI is this process, not a microcontroller).
+PDI_TYPE = 0x05
+#: Default mailbox offsets and sizes (SII words 18h-1Bh).
+MAILBOX_OUT = (0x1000, 128)
+MAILBOX_IN = (0x1080, 128)
+
+_READ = {Cmd.APRD, Cmd.FPRD, Cmd.BRD}
+_WRITE = {Cmd.APWR, Cmd.FPWR, Cmd.BWR}
+_READWRITE = {Cmd.APRW, Cmd.FPRW, Cmd.BRW}
+_AUTO = {Cmd.APRD, Cmd.APWR, Cmd.APRW, Cmd.ARMW}
+_CONFIGURED = {Cmd.FPRD, Cmd.FPWR, Cmd.FPRW, Cmd.FRMW}
+_BROADCAST = {Cmd.BRD, Cmd.BWR, Cmd.BRW}
+
+#: Registers the master cannot write (ESC datasheet: read-only for ECAT).
+_READ_ONLY = frozenset(
+    [
+        *range(0x0000, 0x0010),  # Type .. ESC features
+        0x0110,  # DL status
+        0x0111,
+        *range(0x0130, 0x0136),  # AL status, AL status code
+        *[0x0800 + 8 * n + ec.SM_STATUS for n in range(16)],  # SM status
+        *[0x0800 + 8 * n + ec.SM_PDI_CONTROL for n in range(16)],  # SM PDI control
+    ]
+)
+
+
+def _or(a: bytes, b: bytes) -> bytes:
+    return bytes(x | y for x, y in zip(a, b, strict=True))
+
+
+class EscSlave:
+    """One slave's ESC: memory and registers, SII EEPROM, AL state machine and the mailbox.
+
+    CoE requests go to :attr:`coe` (the drive's SDO server, the "firmware" behind the PDI),
+    whose answers come back by :meth:`answer`, at once or later.
+    """
+
+    def __init__(self, sii: ec.SiiInfo, *, last: bool = True) -> None:
+        for _, size in (sii.mailbox_out, sii.mailbox_in):
+            if not 32 <= size <= 1024:
+                raise ValueError(f"mailbox size {size} is outside 32..1024")
+        self.sii = sii
+        self.eeprom = bytearray(ec.sii_image(self.sii))
+        self.mem = bytearray(0x10000)
+        m = self.mem
+        m[Reg.TYPE] = ESC_TYPE
+        m[Reg.FMMUS], m[Reg.SYNCMANAGERS], m[Reg.RAM_SIZE] = FMMUS, SYNCMANAGERS, RAM_KB
+        m[Reg.PORT_DESCRIPTOR] = PORT_DESCRIPTOR
+        # ESC features (0x0008): no distributed clocks (bit 2 clear), so SOEM sets hasdc 0.
+        # DL status (0x0110): PDI operational (bit 0), link on port 0 (bit 4) with
+        # communication (bits 8-9 = 10b: loop open, communication established); port 1 the
+        # same when another slave follows, else closed (loop, bits 10-11 = 01b); ports 2 and
+        # 3 closed. SOEM counts the open ports for the topology (ecx_config_init).
+        dl = 0x0001 | 0x0010 | 0x0200 | 0x1000 | 0x4000
+        dl |= 0x0400 if last else 0x0020 | 0x0800
+        struct.pack_into("<H", m, Reg.DL_STATUS, dl)
+        m[Reg.PDI_CONTROL] = PDI_TYPE
+        self._set_al(AlState.INIT, 0)
+        #: Mailbox responses waiting for SM1 (the oldest is in SM1 while it is full).
+        self._outbox: deque[bytes] = deque()
+        self._last_response: bytes | None = None
+        self._counter = 0
+        #: Mailbox requests taken (tests).
+        self.mailbox_requests = 0
+        #: Where a CoE request goes; the answer comes back by answer().
+        self.coe: Callable[[bytes], None] = lambda data: None
+        #: Called when the mailbox is reset (INIT, SM1 disabled): transfers in progress end.
+        self.on_reset: Callable[[], None] = lambda: None
+
+    # ESC memory ---------------------------------------------------------------------
+
+    @property
+    def station_address(self) -> int:
+        return int(struct.unpack_from("<H", self.mem, Reg.STATION_ADDRESS)[0])
+
+    @property
+    def al_state(self) -> int:
+        return self.mem[Reg.AL_STATUS] & 0x0F
+
+    @property
+    def al_status_code(self) -> int:
+        return int(struct.unpack_from("<H", self.mem, Reg.AL_STATUS_CODE)[0])
+
+    def _sm(self, n: int) -> tuple[int, int, bool]:
+        """SyncManager ``n``: start, length, enabled."""
+        base = Reg.SM0 + ec.SM_SIZE * n
+        start, length = struct.unpack_from("<HH", self.mem, base)
+        return start, length, bool(self.mem[base + ec.SM_ACTIVATE] & ec.SM_ACTIVATE_ENABLE)
+
+    def _mailbox_on(self) -> bool:
+        """The mailbox SMs work from PRE-OPERATIONAL on (ETG.1000.6 §6.4.1: INIT has no
+        mailbox communication)."""
+        return self.al_state != AlState.INIT
+
+    def read(self, ado: int, n: int) -> bytes | None:
+        """``n`` bytes from ``ado``; None when the access is refused (no working counter):
+        the SM1 mailbox read while it is empty, as the ESC's SyncManager blocks it."""
+        end = ado + n
+        if end > len(self.mem):
+            return None
+        s1, l1, on1 = self._sm(1)
+        in_mailbox = on1 and l1 and ado < s1 + l1 and end > s1
+        sm1_status = Reg.SM0 + ec.SM_SIZE + ec.SM_STATUS
+        if in_mailbox and not self.mem[sm1_status] & ec.SM_STATUS_MAILBOX_FULL:
+            return None
+        data = bytes(self.mem[ado:end])
+        if in_mailbox and end >= s1 + l1:
+            # Reading the buffer's last byte frees it (ESC datasheet, mailbox mode).
+            self.mem[sm1_status] &= ~ec.SM_STATUS_MAILBOX_FULL & 0xFF
+            self._next_response()
+        return data
+
+    def write(self, ado: int, data: bytes) -> bool:
+        """Write ``data`` at ``ado``; False when refused (no working counter)."""
+        end = ado + len(data)
+        if end > len(self.mem):
+            return False
+        s0, l0, on0 = self._sm(0)
+        if on0 and l0 and ado < s0 + l0 and end > s0:
+            if not self._mailbox_on():
+                return False  # The SM is deactivated in INIT: the ESC refuses the write.
+            self.mem[ado:end] = data
+            if end >= s0 + l0:  # The last byte written: the mailbox is full, process it.
+                self._mailbox(bytes(self.mem[s0 : s0 + l0]))
+            return True
+        kept = {a: self.mem[a] for a in _READ_ONLY if ado <= a < end}
+        old_repeat = self.mem[Reg.SM0 + ec.SM_SIZE + ec.SM_ACTIVATE] & ec.SM_ACTIVATE_REPEAT
+        self.mem[ado:end] = data
+        for a, v in kept.items():
+            self.mem[a] = v
+        if ado <= Reg.AL_CONTROL < end:
+            self._al_control(self.mem[Reg.AL_CONTROL])
+        if ado <= Reg.EEPROM_CONTROL + 1 and end > Reg.EEPROM_CONTROL:
+            self._eeprom_command()
+        if ado < Reg.SM0 + 2 * ec.SM_SIZE and end > Reg.SM0:
+            self._sm_changed(old_repeat)
+        return True
+
+    # AL state machine (ETG.1000.6 §6.4) -----------------------------------------------
+
+    def _set_al(self, state: int, code: int) -> None:
+        struct.pack_into("<H", self.mem, Reg.AL_STATUS, state | (ec.AL_ERROR if code else 0))
+        struct.pack_into("<H", self.mem, Reg.AL_STATUS_CODE, code)
+
+    def _al_control(self, control: int) -> None:
+        requested, ack = control & 0x0F, control & ec.AL_ACK
+        state = self.al_state
+        if self.mem[Reg.AL_STATUS] & ec.AL_ERROR and not ack:
+            return  # An error indication stays until the master acknowledges it.
+        if requested == AlState.INIT:
+            self._set_al(AlState.INIT, 0)
+            self._reset_mailbox()
+        elif requested == AlState.PREOP:
+            if self._mailbox_config_ok():
+                self._set_al(AlState.PREOP, 0)
+            else:
+                self._set_al(state, 0x0016)  # Invalid mailbox configuration
+        elif requested == AlState.BOOT:
+            self._set_al(state, 0x0013)  # Bootstrap not supported
+        elif requested in (AlState.SAFEOP, AlState.OP):
+            # No process data: SAFE-OP needs SM2/SM3 and the FMMUs mapped (ETG.1000.6).
+            self._set_al(state, 0x0011)  # Invalid requested state change
+        elif requested == 0 and ack:
+            self._set_al(state, 0)  # Acknowledge only: the error indication is cleared.
+        else:
+            self._set_al(state, 0x0012)  # Unknown requested state
+
+    def _mailbox_config_ok(self) -> bool:
+        s0, l0, on0 = self._sm(0)
+        s1, l1, on1 = self._sm(1)
+        return (
+            on0
+            and on1
+            and (s0, l0) == self.sii.mailbox_out
+            and (s1, l1) == self.sii.mailbox_in
+            and self.mem[Reg.SM0 + 4] & 0x0C == 0x04  # SM0: ECAT writes
+            and self.mem[Reg.SM0 + ec.SM_SIZE + 4] & 0x0C == 0x00  # SM1: ECAT reads
+        )
+
+    # EEPROM interface (ESC 0x0500-0x050F) ----------------------------------------------
+
+    def _eeprom_command(self) -> None:
+        control = int(struct.unpack_from("<H", self.mem, Reg.EEPROM_CONTROL)[0])
+        command = control & ec.EEPROM_CMD_MASK
+        word = int(struct.unpack_from("<I", self.mem, Reg.EEPROM_ADDRESS)[0])
+        status = 0
+        if command == ec.EEPROM_CMD_READ:
+            # 4 bytes from the word address (bit 6 of the status clear: 4-byte reads).
+            chunk = bytes(self.eeprom[word * 2 : word * 2 + 4]).ljust(4, b"\xff")
+            self.mem[Reg.EEPROM_DATA : Reg.EEPROM_DATA + 4] = chunk
+        elif command == ec.EEPROM_CMD_WRITE:
+            if word * 2 + 2 <= len(self.eeprom):
+                self.eeprom[word * 2 : word * 2 + 2] = self.mem[
+                    Reg.EEPROM_DATA : Reg.EEPROM_DATA + 2
+                ]
+            else:
+                status = ec.EEPROM_ERROR_NACK  # No such word: the EEPROM does not acknowledge.
+        elif command not in (0, ec.EEPROM_CMD_RELOAD):
+            status = ec.EEPROM_ERROR_COMMAND
+        # The command bits clear when it is done, and never busy: done at once.
+        struct.pack_into("<H", self.mem, Reg.EEPROM_CONTROL, status)
+
+    # SyncManagers and the mailbox -------------------------------------------------------
+
+    def _sm_changed(self, old_repeat: int) -> None:
+        sm1 = Reg.SM0 + ec.SM_SIZE
+        if not self.mem[sm1 + ec.SM_ACTIVATE] & ec.SM_ACTIVATE_ENABLE:
+            self._reset_mailbox()
+            return
+        repeat = self.mem[sm1 + ec.SM_ACTIVATE] & ec.SM_ACTIVATE_REPEAT
+        if repeat != old_repeat:
+            # Repeat request (SM1 activate bit 1): the last response is put back in the
+            # buffer, and the PDI acknowledges with bit 1 of 0x080F (ESC datasheet).
+            if self._last_response is not None:
+                self._load(self._last_response)
+            self.mem[sm1 + ec.SM_PDI_CONTROL] = (
+                self.mem[sm1 + ec.SM_PDI_CONTROL] & ~ec.SM_ACTIVATE_REPEAT & 0xFF
+            ) | repeat
+
+    def _reset_mailbox(self) -> None:
+        self._outbox.clear()
+        self.on_reset()
+        self.mem[Reg.SM0 + ec.SM_SIZE + ec.SM_STATUS] &= ~ec.SM_STATUS_MAILBOX_FULL & 0xFF
+
+    def _load(self, raw: bytes) -> None:
+        s1, l1, _ = self._sm(1)
+        self.mem[s1 : s1 + l1] = raw[:l1].ljust(l1, b"\x00")
+        self.mem[Reg.SM0 + ec.SM_SIZE + ec.SM_STATUS] |= ec.SM_STATUS_MAILBOX_FULL
+
+    def _next_response(self) -> None:
+        if self._outbox:
+            self._last_response = self._outbox.popleft()
+            self._load(self._last_response)
+
+    def _reply(self, mbx: ec.Mailbox) -> None:
+        self._counter = self._counter % 7 + 1  # Counter 1..7 (0 is "not used").
+        _, l1, _ = self._sm(1)
+        raw = ec.build_mailbox(
+            ec.Mailbox(mbx.type, mbx.data, self._counter, mbx.address, mbx.channel), l1
+        )
+        full = self.mem[Reg.SM0 + ec.SM_SIZE + ec.SM_STATUS] & ec.SM_STATUS_MAILBOX_FULL
+        if full:
+            self._outbox.append(raw)
+        else:
+            self._last_response = raw
+            self._load(raw)
+
+    def _mailbox(self, raw: bytes) -> None:
+        self.mailbox_requests += 1
+        try:
+            mbx = ec.parse_mailbox(raw)
+        except ec.EthercatFrameError:
+            self._reply(ec.mailbox_error(ec.MBXERR_INVALID_HEADER))
+            return
+        if mbx.type != ec.MailboxType.COE:
+            self._reply(ec.mailbox_error(ec.MBXERR_UNSUPPORTED_PROTOCOL))
+            return
+        try:
+            service = ec.coe_service(mbx.data)
+        except ec.EthercatFrameError:
+            self._reply(ec.mailbox_error(ec.MBXERR_SIZE_TOO_SHORT))
+            return
+        if service != ec.CoeService.SDO_REQUEST:
+            self._reply(ec.mailbox_error(ec.MBXERR_SERVICE_NOT_SUPPORTED))
+            return
+        self.coe(mbx.data)
+
+    def answer(self, data: bytes | None) -> None:
+        """The CoE server's answer to a request (None: it sends none, as after an abort from
+        the master); dropped when the mailbox was switched off meanwhile."""
+        if data is not None and self._mailbox_on():
+            self._reply(ec.Mailbox(ec.MailboxType.COE, data))
+
+
+class EscLine:
+    """Slaves in a line: each datagram of a frame passes slave 1, 2, ... in order."""
+
+    def __init__(self, slaves: Sequence[EscSlave]) -> None:
+        if not slaves:
+            raise ValueError("an EtherCAT line needs at least one slave")
+        self.slaves = list(slaves)
+        #: Frames answered and dropped (tests and logs).
+        self.frames = 0
+        self.dropped = 0
+
+    def process(self, frame: bytes) -> bytes | None:
+        """The frame as it comes back from the end of the line, or None when it is no
+        EtherCAT frame (dropped, as an ESC drops it)."""
+        try:
+            dst, src, payload = ec.parse_ethernet(frame)
+            datagrams = ec.parse_datagrams(payload)
+        except ec.EthercatFrameError:
+            return None
+        for d in datagrams:
+            self.datagram(d)
+        # The ESC at port 0 sets bit 1 of the source MAC's first byte (the locally
+        # administered bit) in frames it sends back (ESC datasheet, frame processing).
+        src = bytes([src[0] | 0x02]) + src[1:]
+        return ec.build_ethernet(dst, src, ec.build_datagrams(datagrams))
+
+    def datagram(self, d: ec.Datagram) -> None:
+        """Pass one datagram along the line: each slave reads, writes and counts."""
+        cmd = d.cmd
+        if cmd in (Cmd.NOP, Cmd.LRD, Cmd.LWR, Cmd.LRW) or cmd > Cmd.FRMW:
+            return  # No FMMU maps logical addresses: no slave is addressed.
+        adp, ado = d.adp, d.ado
+        data = d.data
+        wkc = d.wkc
+        n = len(data)
+        armw_source = False
+        for slave in self.slaves:
+            if cmd in _AUTO:
+                hit = adp == 0
+                adp = (adp + 1) & 0xFFFF  # Each slave increments ADP (ETG.1000.4 §5.4.1.2).
+            elif cmd in _CONFIGURED:
+                hit = adp == slave.station_address
+            else:  # Broadcast: every slave, and each increments ADP.
+                hit = True
+                adp = (adp + 1) & 0xFFFF
+            if cmd in (Cmd.ARMW, Cmd.FRMW):
+                if hit:
+                    got = slave.read(ado, n)
+                    if got is not None:
+                        data, wkc, armw_source = got, wkc + 1, True
+                elif armw_source and slave.write(ado, data):
+                    wkc += 1
+                continue
+            if not hit:
+                continue
+            if cmd in _READ:
+                got = slave.read(ado, n)
+                if got is not None:
+                    # BRD: the data is the OR of every slave's (ESC datasheet, commands).
+                    data = (
+                        bytes(a | b for a, b in zip(data, got, strict=True))
+                        if cmd == Cmd.BRD
+                        else got
+                    )
+                    wkc += 1
+            elif cmd in _WRITE:
+                if slave.write(ado, data):
+                    wkc += 1
+            elif cmd in _READWRITE:
+                got = slave.read(ado, n)
+                if got is not None:
+                    wkc += 1
+                if slave.write(ado, data):
+                    wkc += 2
+                if got is not None:
+                    data = (
+                        bytes(a | b for a, b in zip(data, got, strict=True))
+                        if cmd == Cmd.BRW
+                        else got
+                    )
+        d.data = data
+        d.wkc = wkc & 0xFFFF
+        if cmd in _AUTO or cmd in _BROADCAST:
+            d.address = adp | ado << 16
+
+    def serve(
+        self,
+        sock: socket.socket,
+        ifname: str,
+        stop: threading.Event,
+        pdi: Connection | None = None,
+    ) -> None:
+        """Answer the frames arriving on ``sock`` until ``stop`` is set (or ``pdi``, the
+        connection to the CoE servers of another process, closes). Answers from ``pdi``
+        are (``"coe"``, slave index, data) tuples."""
+        sel = selectors.DefaultSelector()
+        sel.register(sock, selectors.EVENT_READ, "ethernet")
+        if pdi is not None:
+            sel.register(pdi.fileno(), selectors.EVENT_READ, "pdi")
+        try:
+            while not stop.is_set():
+                for key, _ in sel.select(0.05):
+                    if key.data == "pdi":
+                        assert pdi is not None
+                        try:
+                            kind, index, data = pdi.recv()
+                        except (EOFError, OSError):
+                            return
+                        if kind == "coe":
+                            self.slaves[index].answer(data)
+                    elif not self._receive(sock, ifname, stop):
+                        return
+        finally:
+            sel.close()
+
+    def _receive(self, sock: socket.socket, ifname: str, stop: threading.Event) -> bool:
+        """Answer one frame; False when the socket is gone for good."""
+        try:
+            frame, addr = sock.recvfrom(2048)
+        except BlockingIOError:
+            return True
+        except OSError as exc:
+            if stop.is_set() or exc.errno in (errno.EBADF, errno.ENODEV, errno.ENXIO):
+                if not stop.is_set():
+                    log.warning("EtherCAT slaves on %s stop: %s", ifname, exc)
+                return False
+            # The link is down for a moment (ENETDOWN): a cable pulled, not an end.
+            log.debug("EtherCAT slaves on %s: %s", ifname, exc)
+            stop.wait(0.1)
+            return True
+        if addr[2] == socket.PACKET_OUTGOING:
+            return True
+        answer = self.process(frame)
+        if answer is None:
+            self.dropped += 1
+            return True
+        try:
+            sock.send(answer)
+            self.frames += 1
+        except OSError as exc:
+            log.warning("EtherCAT slave on %s cannot send: %s", ifname, exc)
+        return True
+
+
+def open_socket(ifname: str) -> socket.socket:
+    """A raw AF_PACKET socket for EtherType 88A4h on ``ifname`` (non-blocking); LinkError
+    when the interface is missing or the process may not (root or CAP_NET_RAW)."""
+    try:
+        sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(ec.ETHERTYPE))
+    except PermissionError as exc:
+        raise LinkError(
+            f"cannot open a raw socket for EtherCAT on {ifname}: {exc}",
+            hint="the simulated EtherCAT slave needs root or CAP_NET_RAW",
+        ) from exc
+    try:
+        sock.bind((ifname, ec.ETHERTYPE))
+    except OSError as exc:
+        sock.close()
+        if exc.errno == errno.ENODEV:
+            raise LinkError(
+                f"no network interface {ifname!r}",
+                hint="give the slave end of a veth pair (servodesk.sim.veth) or a NIC",
+            ) from exc
+        raise LinkError(f"cannot bind to {ifname!r}: {exc}") from exc
+    sock.setblocking(False)
+    return sock
+
+
+def child_main(fd: int) -> None:
+    """The ESCs of a line in a process of their own (``EthercatSlaveProcess``): their
+    registers answer SOEM at once, whatever the parent process holds (pysoem keeps the GIL
+    while it waits in its state calls); CoE requests go to the parent over the connection on
+    ``fd``, whose first message is (interface name, the slaves' SII)."""
+    pdi = Connection(fd)
+    try:
+        ifname, siis = pdi.recv()
+    except (EOFError, OSError):
+        return
+    try:
+        sock = open_socket(ifname)
+    except LinkError as exc:
+        pdi.send(("error", exc.message, exc.hint))
+        return
+    line = EscLine([EscSlave(s, last=i == len(siis) - 1) for i, s in enumerate(siis)])
+    for i, slave in enumerate(line.slaves):
+        slave.coe = functools.partial(_forward, pdi, "coe", i)
+        slave.on_reset = functools.partial(_forward, pdi, "reset", i, None)
+    pdi.send(("ready", None, None))
+    try:
+        line.serve(sock, ifname, threading.Event(), pdi)
+    finally:
+        sock.close()
+        pdi.close()
+
+
+def _forward(pdi: Connection, kind: str, index: int, data: bytes | None) -> None:
+    # The parent gone: the serve loop ends on the closed connection.
+    with contextlib.suppress(OSError):
+        pdi.send((kind, index, data))
