@@ -38,11 +38,8 @@ ESC_TYPE = 0x11
 FMMUS, SYNCMANAGERS, RAM_KB = 3, 4, 8
 #: Port descriptor (0x0007): ports 0 and 1 MII (11b), 2 and 3 not implemented.
 PORT_DESCRIPTOR = 0x0F
-#: PDI control (0x0140): 05h, SPI slave (the PDI is this process, not a microcontroller).
+#: PDI control (0x0140): 05h, SPI slave (the "microcontroller" behind it is the CoE server).
 PDI_TYPE = 0x05
-#: Default mailbox offsets and sizes (SII words 18h-1Bh).
-MAILBOX_OUT = (0x1000, 128)
-MAILBOX_IN = (0x1080, 128)
 
 _READ = {Cmd.APRD, Cmd.FPRD, Cmd.BRD}
 _WRITE = {Cmd.APWR, Cmd.FPWR, Cmd.BWR}
