@@ -105,6 +105,9 @@ async def test_wrong_addresses_and_a_silent_line(veth: VethPair) -> None:
         await _link(veth.master).open()
     with pytest.raises(NotFoundError, match="no network interface 'sdnothere0'"):
         await _link("sdnothere0").open()
+    for bad in ("..", "eth0:1", "a/b", "x" * 16, ""):
+        with pytest.raises(ValidationError, match="is no network interface name"):
+            await _link(bad).open()
     with pytest.raises(ValidationError):
         _link(veth.master, 0)
     with pytest.raises(ValidationError, match="does not carry EtherCAT"):

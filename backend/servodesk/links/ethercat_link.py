@@ -106,7 +106,12 @@ def _release_master(channel: str, shared: _Master) -> None:
 
 
 def _configure(channel: str) -> tuple[Any, int]:
-    if not channel or "/" in channel or len(channel) > 15:
+    # Linux's dev_valid_name: 1-15 characters, not "." or "..", no "/", ":" or white space.
+    if (
+        not 0 < len(channel) <= 15
+        or channel in (".", "..")
+        or any(c in "/:" or c.isspace() for c in channel)
+    ):
         raise ValidationError(
             f"{channel!r} is no network interface name",
             field="channel",
