@@ -29,6 +29,10 @@ class Settings(BaseSettings):
     #: ``host:port`` on UDP (port 0: a free port, shown as the session's channel); empty: the
     #: CTMM04x twin is a CANopen node like the others.
     sim_slmp: str = "127.0.0.1:0"
+    #: Serve the EtherCAT twin (HIWIN E) on a simulated EtherCAT line behind a veth pair and
+    #: open it with the EtherCAT link (pysoem). Needs root or CAP_NET_ADMIN / CAP_NET_RAW; off,
+    #: or where the pair cannot be made, the twin is a CANopen node (docs/ethercat.md).
+    sim_ethercat: bool = False
     #: Extra profile directories, searched before the shipped profiles (os.pathsep list).
     profile_dirs: str = ""
     #: Where backups, the audit log and the store live.

@@ -180,3 +180,32 @@ def test_the_ctmm04x_is_on_slmp_and_the_form_takes_a_station_and_an_axis(page: P
     page.goto("/#/pdo/ctmm04x-1")
     expect(page.get_by_test_id("pdo-cyclic-unavailable")).to_contain_text("manager only")
     expect(page.get_by_test_id("pdo-cyclic-start")).to_be_disabled()
+
+
+def test_an_ethercat_line_is_opened_from_the_connect_page(page: Page) -> None:
+    # A HIWIN E twin as slave 1 of a simulated EtherCAT line on one end of a veth pair (this
+    # test's process); the server's EtherCAT link (pysoem) opens it on the other end.
+    from servodesk.sim.bus import SimulatedBus
+    from servodesk.sim.veth import create_veth
+
+    with (
+        create_veth("sdb") as pair,
+        SimulatedBus.start(drives=[("hiwin-e", 1)], interface="ethercat", channel=pair.slave),
+    ):
+        page.goto("/#/connect")
+        page.get_by_test_id("bus-interface").select_option("ethercat")
+        expect(page.get_by_test_id("bus-bitrate")).to_be_disabled()
+        expect(page.get_by_test_id("scan-bus")).to_be_disabled()
+        page.get_by_test_id("bus-channel").fill(pair.master)
+        page.get_by_test_id("bus-node-id").fill("1")
+        page.get_by_test_id("open-session").click()
+        page.wait_for_url(re.compile(r"#/overview/hiwin-e-1"))
+        expect(page.locator(".drive-meta")).to_have_attribute(
+            "title", f"node 1 · ethercat · ethercat:{pair.master}"
+        )
+        page.goto("/#/network/hiwin-e-1")
+        expect(page.get_by_test_id("network-link-name")).to_have_text("ethercat")
+        expect(page.get_by_test_id("network-nmt")).to_have_text("preop")
+        page.goto("/#/connect")
+        page.get_by_test_id("session-close-hiwin-e-1").click()
+        expect(page.get_by_test_id("session-row-hiwin-e-1")).to_have_count(0)

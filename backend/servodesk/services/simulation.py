@@ -2,7 +2,10 @@
 
 The drives are CANopen nodes on a virtual bus, except the CC-Link IE TSN one (the CTMM04x),
 which answers SLMP on a UDP port of 127.0.0.1 (``SERVODESK_SIM_SLMP``) and is opened over
-the SLMP link, as a real unit would be (docs/slmp.md).
+the SLMP link, as a real unit would be (docs/slmp.md). With ``SERVODESK_SIM_ETHERCAT=1`` the
+EtherCAT one (the HIWIN E) is a slave of a simulated line behind a veth pair, opened with the
+EtherCAT link (pysoem); where the pair cannot be made (no root) it stays a CANopen node, and
+the log and its session's note say why (docs/ethercat.md).
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ import logging
 from typing import Any
 
 from servodesk.domain.profile_loader import ProfileCatalog
+from servodesk.errors import ServodeskError
 from servodesk.links.base import LinkParams
 from servodesk.services.manager import SessionManager
 from servodesk.settings import Settings
@@ -41,6 +45,15 @@ async def start_simulation(
 
     drives = simulated_drives(catalog, settings.sim_profiles)
     plant = load_plant_file(settings.sim_plant) if settings.sim_plant is not None else None
+    veth, no_ethercat = None, None
+    if settings.sim_ethercat:
+        from servodesk.sim.veth import create_veth
+
+        try:
+            veth = await asyncio.to_thread(create_veth, "sdsim")
+        except ServodeskError as exc:
+            no_ethercat = f"{exc.message} ({exc.hint})" if exc.hint else exc.message
+            log.warning("the EtherCAT twin stays on CANopen: %s", no_ethercat)
     sim = await asyncio.to_thread(
         SimulatedBus.start,
         drives=drives,
@@ -49,6 +62,7 @@ async def start_simulation(
         catalog=catalog,
         plant=plant,
         slmp_channel=settings.sim_slmp or None,
+        ethercat=veth,
     )
     for drive in sim.drives:
         pid, node = drive.profile.id, drive.node_id
@@ -57,7 +71,9 @@ async def start_simulation(
             interface=interface, channel=channel, node_id=node_id, timeout=settings.sdo_timeout
         )
         try:
-            await manager.open(params, pid, fieldbus=fieldbus, simulated=True)
+            session = await manager.open(params, pid, fieldbus=fieldbus, simulated=True)
+            if no_ethercat is not None and drive.profile.fieldbus == "ethercat":
+                session.note = f"{session.note} SERVODESK_SIM_ETHERCAT: {no_ethercat}"
         except Exception:
             log.exception("could not open the simulated %s drive (node %d)", pid, node)
     return sim

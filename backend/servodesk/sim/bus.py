@@ -20,6 +20,10 @@ EtherCAT (:class:`~servodesk.sim.ethercat_slave.EthercatSlaveProcess`): with
 ``interface="ethercat"`` every drive is a slave of one simulated line on ``channel``, a
 network interface (the slave end of a veth pair, :mod:`servodesk.sim.veth`); node id N is
 the N-th slave, and no CAN bus is opened. Opening the interface needs root or CAP_NET_RAW.
+With ``ethercat`` (a :class:`~servodesk.sim.veth.VethPair`, which the bus then owns and
+deletes at stop), the drives whose profile speaks EtherCAT (the HIWIN E) are the slaves of a
+line on the pair's slave end, reached on its master end, and the others are CANopen nodes
+(``servodesk serve --sim`` with ``SERVODESK_SIM_ETHERCAT=1``).
 """
 
 from __future__ import annotations
@@ -40,6 +44,7 @@ from servodesk.sim.ethercat_slave import EthercatSlaveProcess
 from servodesk.sim.plantfile import PlantSpec
 from servodesk.sim.runner import SimRunner
 from servodesk.sim.slmp_station import SlmpStation
+from servodesk.sim.veth import VethPair
 
 #: The fieldbus name of the profiles a station serves over SLMP.
 SLMP_FIELDBUS = "cclink-ie-tsn"
@@ -62,6 +67,7 @@ class SimulatedBus:
         drives: list[SimulatedDrive] | None = None,
         station: SlmpStation | None = None,
         line: EthercatSlaveProcess | None = None,
+        veth: VethPair | None = None,
     ) -> None:
         self.network = network
         self.devices = devices
@@ -71,8 +77,10 @@ class SimulatedBus:
         )
         #: The SLMP station serving the drives not on the CAN bus, if any.
         self.station = station
-        #: The simulated EtherCAT line serving every drive, if ``interface="ethercat"``.
+        #: The simulated EtherCAT line, if any: every drive with ``interface="ethercat"``, the
+        #: EtherCAT profiles' with ``ethercat`` (on ``veth``, deleted at stop).
         self.line = line
+        self.veth = veth
         self.runner = runner
         self.interface = interface
         self.channel = channel
@@ -89,6 +97,7 @@ class SimulatedBus:
         serials: Sequence[int | None] | None = None,
         plant: PlantSpec | None = None,
         slmp_channel: str | None = None,
+        ethercat: VethPair | None = None,
     ) -> SimulatedBus:
         """Start the drives; raises ValidationError / NotFoundError / LinkError."""
         catalog = catalog or ProfileCatalog()
@@ -149,13 +158,26 @@ class SimulatedBus:
             on_station = [s for s in sims if slmp_channel and s.profile.fieldbus == SLMP_FIELDBUS]
             axes = dict(enumerate(on_station[:4]))
             station_channel = slmp_channel if axes else None
-        on_can = [sim for sim in sims if sim not in axes.values()]
+        on_line = [s for s in sims if ethercat is not None and s.profile.fieldbus == ETHERCAT]
+        on_can = [sim for sim in sims if sim not in axes.values() and sim not in on_line]
+        ecat_line: EthercatSlaveProcess | None = None
+        if on_line:
+            assert ethercat is not None
+            try:
+                ecat_line = EthercatSlaveProcess(on_line, ethercat.slave).start()
+            except BaseException:
+                ethercat.delete()
+                raise
         station = None
         if station_channel is not None:
             host, port = slmp.parse_channel(station_channel, server=True)
             try:
                 station = SlmpStation(axes, host, port).start()
             except OSError as exc:
+                if ecat_line is not None:
+                    ecat_line.stop()
+                if ethercat is not None:
+                    ethercat.delete()
                 raise LinkError(
                     f"cannot serve SLMP on udp {host}:{port}: {exc}",
                     hint="choose another port, or stop the program that holds this one",
@@ -167,6 +189,10 @@ class SimulatedBus:
             except BaseException:
                 if station is not None:
                     station.stop()
+                if ecat_line is not None:
+                    ecat_line.stop()
+                if ethercat is not None:
+                    ethercat.delete()
                 raise
         devices: list[SimCanopenDevice] = []
         for sim in on_can:
@@ -181,7 +207,7 @@ class SimulatedBus:
             dev.boot()
         runner.start()
         log.info("simulated drives %s on %s:%s", list(drives), interface, channel)
-        return cls(network, devices, runner, interface, channel, sims, station)
+        return cls(network, devices, runner, interface, channel, sims, station, ecat_line, ethercat)
 
     @staticmethod
     def _connect(interface: str, channel: str, bitrate: int | None) -> Any:
@@ -216,7 +242,10 @@ class SimulatedBus:
                 if sim is drive:
                     return SLMP_FIELDBUS, "slmp", self.station.channel, axis + 1
         if self.line is not None and drive in self.line.drives:
-            return ETHERCAT, ETHERCAT, self.line.ifname, self.line.drives.index(drive) + 1
+            # The master's end of the pair, where the line was made for serve --sim; else the
+            # interface the line is on (servodesk sim: the other end is the caller's).
+            where = self.veth.master if self.veth is not None else self.line.ifname
+            return ETHERCAT, ETHERCAT, where, self.line.drives.index(drive) + 1
         return "canopen", self.interface, self.channel, drive.node_id
 
     def stop(self) -> None:
@@ -229,6 +258,11 @@ class SimulatedBus:
             self.station.stop()
         if self.line is not None:
             self.line.stop()
+        if self.veth is not None:
+            try:
+                self.veth.delete()
+            except Exception:  # Best effort: the pair may be gone with its namespace.
+                log.debug("veth pair not deleted", exc_info=True)
         for dev in self.devices:
             try:
                 dev.shutdown()

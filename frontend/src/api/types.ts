@@ -65,9 +65,10 @@ export type BusInterface =
   | 'vector'
   | 'virtual';
 
-/** Every interface a session opens on: python-can's (CANopen), and slmp for a CC-Link IE TSN
- * station reached by SLMP over UDP (channel host:port, node id = axis + 1). */
-export type SessionInterface = BusInterface | 'slmp';
+/** Every interface a session opens on: python-can's (CANopen), slmp for a CC-Link IE TSN
+ * station reached by SLMP over UDP (channel host:port, node id = axis + 1), and ethercat for
+ * an EtherCAT line (channel the network interface, node id = slave position + 1). */
+export type SessionInterface = BusInterface | 'slmp' | 'ethercat';
 
 export interface ScanRequest {
   interface: BusInterface;

@@ -2,7 +2,9 @@
  * Connect: choose the bus (python-can interface, channel, bitrate), scan it for nodes
  * (identity from 1018h and the matching profile), and open or close drive sessions. The slmp
  * interface reaches a CC-Link IE TSN station (CTMM04x) by SLMP over UDP: the channel is its
- * host:port, the node id its axis + 1, and there is no scan (docs/slmp.md).
+ * host:port, the node id its axis + 1, and there is no scan (docs/slmp.md). The ethercat
+ * interface reaches an EtherCAT line through SOEM: the channel is the network interface, the
+ * node id the slave's position + 1 (docs/ethercat.md).
  */
 import { type FormEvent, useEffect, useState } from 'react';
 import type { ProfileSummary, ScanNode, SessionInfo, SessionInterface, SessionRequest } from '../api';
@@ -29,6 +31,7 @@ const INTERFACES: ReadonlyArray<{ id: SessionInterface; label: string }> = [
   { id: 'slcan', label: 'slcan (serial-line CAN)' },
   { id: 'gs_usb', label: 'gs_usb (candleLight)' },
   { id: 'slmp', label: 'slmp (CC-Link IE TSN station, SLMP over UDP)' },
+  { id: 'ethercat', label: 'ethercat (EtherCAT line on a network interface, SOEM)' },
 ];
 
 /** 003 §1-3: the unit's IP address is 192.168.0.250 by default; the port is not in the manual
@@ -46,6 +49,7 @@ const DEFAULT_CHANNEL: Readonly<Record<string, string>> = {
   slcan: '/dev/ttyACM0',
   gs_usb: '0',
   slmp: SLMP_DEFAULT_CHANNEL,
+  ethercat: 'eth1',
 };
 
 // CiA 301 §7.2 / CiA 102 bit timing table: the standard CANopen bitrates.
@@ -94,7 +98,10 @@ export function ConnectPage() {
   }, []);
 
   const slmp = form.interface === 'slmp';
-  const needsBitrate = !slmp && form.interface !== 'virtual' && form.interface !== 'udp_multicast';
+  const ethercat = form.interface === 'ethercat';
+  /** Not a CAN bus: no bitrate and no scan. */
+  const ethernet = slmp || ethercat;
+  const needsBitrate = !ethernet && form.interface !== 'virtual' && form.interface !== 'udp_multicast';
   const bitrate = form.bitrate === '' ? null : Number(form.bitrate);
 
   function set<K extends keyof BusForm>(key: K, value: BusForm[K]) {
@@ -102,8 +109,8 @@ export function ConnectPage() {
       const next = { ...f, [key]: value };
       if (key === 'interface') {
         next.channel = DEFAULT_CHANNEL[next.interface] ?? '';
+        if (next.interface === 'slmp' || next.interface === 'ethercat') next.bitrate = '';
         if (next.interface === 'slmp') {
-          next.bitrate = '';
           if (Number(next.nodeId) > SLMP_AXES.length) next.nodeId = '1';
         }
       }
@@ -112,7 +119,7 @@ export function ConnectPage() {
   }
 
   async function doScan() {
-    if (form.interface === 'slmp') return; // No scan over SLMP (the button is disabled).
+    if (form.interface === 'slmp' || form.interface === 'ethercat') return; // Button disabled.
     const iface = form.interface;
     setBusy('scan');
     setScan(null);
@@ -163,7 +170,9 @@ export function ConnectPage() {
       setFormError(
         slmp
           ? `enter the station's address as host:port (e.g. ${SLMP_DEFAULT_CHANNEL})`
-          : 'enter a channel (e.g. servodesk-sim for the simulator, can0 for socketcan)',
+          : ethercat
+            ? 'enter the network interface the EtherCAT line is plugged into (e.g. eth1)'
+            : 'enter a channel (e.g. servodesk-sim for the simulator, can0 for socketcan)',
       );
       return;
     }
@@ -210,7 +219,7 @@ export function ConnectPage() {
             </select>
           </label>
           <label>
-            {slmp ? 'Station (host:port)' : 'Channel'}
+            {slmp ? 'Station (host:port)' : ethercat ? 'Network interface' : 'Channel'}
             <input
               data-testid="bus-channel"
               className="mono"
@@ -225,10 +234,10 @@ export function ConnectPage() {
               data-testid="bus-bitrate"
               value={form.bitrate}
               onChange={(e) => set('bitrate', e.target.value)}
-              disabled={slmp}
+              disabled={ethernet}
             >
               <option value="">
-                {slmp ? 'not used (Ethernet)' : needsBitrate ? 'interface default' : 'not used (virtual bus)'}
+                {ethernet ? 'not used (Ethernet)' : needsBitrate ? 'interface default' : 'not used (virtual bus)'}
               </option>
               {BITRATES.map((b) => (
                 <option key={b} value={b}>
@@ -249,8 +258,8 @@ export function ConnectPage() {
               </select>
             </label>
           ) : (
-            <label>
-              Node id
+            <label title={ethercat ? 'The slave position in the line + 1 (1 = the first slave after the master)' : undefined}>
+              {ethercat ? 'Slave (position + 1)' : 'Node id'}
               <input
                 data-testid="bus-node-id"
                 className="mono narrow"
@@ -278,8 +287,14 @@ export function ConnectPage() {
               type="button"
               data-testid="scan-bus"
               onClick={() => void doScan()}
-              disabled={busy !== null || slmp}
-              title={slmp ? 'SLMP has no scan: enter the station and the axis, then open the session' : undefined}
+              disabled={busy !== null || ethernet}
+              title={
+                slmp
+                  ? 'SLMP has no scan: enter the station and the axis, then open the session'
+                  : ethercat
+                    ? 'Opening the session finds the line (SOEM config_init): enter the interface and the slave'
+                    : undefined
+              }
             >
               {busy === 'scan' ? 'Scanning…' : 'Scan bus'}
             </button>
