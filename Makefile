@@ -17,7 +17,7 @@ PORT ?= 8000
 export UV_PYTHON_DOWNLOADS := never
 export UV_PROJECT_ENVIRONMENT := $(VENV)
 
-.PHONY: setup demo test lint typecheck unit wheel build clean chromium bench openapi
+.PHONY: setup demo test lint typecheck unit wheel build clean chromium netutils bench openapi
 
 setup: $(VENV)/.synced $(WEB_DIST)/index.html
 
@@ -49,6 +49,14 @@ chromium:
 	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || \
 	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium >/dev/null; }
 
+# iproute2 (ip: the veth pairs of the EtherCAT tests) and util-linux (setpriv: the tests that
+# run as an unprivileged user), where a minimal image lacks them.
+netutils:
+	@command -v ip >/dev/null 2>&1 || [ -x /usr/sbin/ip ] || [ -x /sbin/ip ] || \
+	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends iproute2 >/dev/null; }
+	@command -v setpriv >/dev/null 2>&1 || \
+	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends util-linux >/dev/null; }
+
 demo: setup
 	$(VENV)/bin/servodesk serve --sim --host $(HOST) --port $(PORT)
 
@@ -68,7 +76,7 @@ wheel: setup
 	rm -rf dist && $(UV) build --wheel -q -o dist
 	$(PY) scripts/check_wheel.py dist
 
-test: setup chromium lint typecheck unit wheel
+test: setup chromium netutils lint typecheck unit wheel
 	$(VENV)/bin/pytest -q -p no:cacheprovider
 
 bench: setup
