@@ -3,54 +3,19 @@
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-BACKEND = str(Path(__file__).resolve().parents[2] / "backend")
-
-
-def _as_nobody(tmp_path: Path, *args: str) -> subprocess.CompletedProcess[str]:
-    env = {
-        **os.environ,
-        "PYTHONPATH": BACKEND,
-        "HOME": str(tmp_path),
-        "SERVODESK_DATA_DIR": str(tmp_path / "data"),
-    }
-    return subprocess.run(
-        [
-            "setpriv",
-            "--reuid",
-            "65534",
-            "--regid",
-            "65534",
-            "--clear-groups",
-            "--inh-caps=-all",
-            sys.executable,
-            "-m",
-            "servodesk",
-            *args,
-        ],
-        capture_output=True,
-        text=True,
-        check=False,
-        env=env,
-        cwd=tmp_path,
-        timeout=120,
-    )
+from tests.ethercat.nobody import as_nobody, nobody_dir
 
 
 @pytest.fixture
 def tmp_path() -> Iterator[Path]:
     """A directory the unprivileged user can write (pytest's own is root's, mode 700)."""
-    with tempfile.TemporaryDirectory(prefix="sdk-ecat-") as d:
-        Path(d).chmod(0o777)
-        yield Path(d)
+    with nobody_dir() as d:
+        yield d
 
 
 @pytest.mark.parametrize(
@@ -71,7 +36,7 @@ def tmp_path() -> Iterator[Path]:
 def test_no_permission_is_a_clear_error(
     tmp_path: Path, args: list[str], message: str, hint: str
 ) -> None:
-    done = _as_nobody(tmp_path, *args)
+    done = as_nobody("-m", "servodesk", *args, cwd=tmp_path)
     assert done.returncode == 2, done.stderr
     assert message in done.stderr and hint in done.stderr, done.stderr
     assert "Traceback" not in done.stderr

@@ -6,9 +6,6 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
-import sys
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -16,9 +13,9 @@ from fastapi.testclient import TestClient
 
 from servodesk.api.app import create_app
 from servodesk.settings import Settings
+from tests.ethercat.nobody import as_nobody, nobody_dir
 from tests.operation.support import Heartbeats, headers, take_and_enable, wait_motion
 
-BACKEND = str(Path(__file__).resolve().parents[2] / "backend")
 A = headers("A")
 
 
@@ -84,14 +81,8 @@ def test_without_the_right_to_make_the_pair_the_twin_stays_on_canopen() -> None:
         "sim_ethercat=True, viewer_port=0); app = create_app(s)\n"
         "with TestClient(app) as c: print(json.dumps(c.get('/api/v1/sessions').json()))"
     )
-    with tempfile.TemporaryDirectory(prefix="sdk-ecat-") as d:
-        Path(d).chmod(0o777)
-        env = {**os.environ, "PYTHONPATH": BACKEND, "HOME": d, "SERVODESK_DATA_DIR": f"{d}/data"}
-        done = subprocess.run(
-            ["setpriv", "--reuid", "65534", "--regid", "65534", "--clear-groups",
-             "--inh-caps=-all", sys.executable, "-c", code],
-            capture_output=True, text=True, check=False, env=env, cwd=d, timeout=120,
-        )  # fmt: skip
+    with nobody_dir() as d:
+        done = as_nobody("-c", code, cwd=d)
     assert done.returncode == 0, done.stderr
     (hiwin,) = json.loads(done.stdout.strip().splitlines()[-1])
     assert hiwin["link"] == "canopen" and hiwin["id"] == "hiwin-e-1"

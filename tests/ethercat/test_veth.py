@@ -3,15 +3,13 @@ them, and a name that cannot be made or a refusal is a clear error."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from servodesk.errors import ValidationError
 from servodesk.sim.veth import IFNAME_MAX, create_veth
+from tests.ethercat.nobody import as_nobody
 
 
 def _up(name: str) -> bool:
@@ -52,26 +50,7 @@ def test_bad_prefix_and_a_refusal_are_clear_errors() -> None:
         "except Exception as e:\n"
         "    print(type(e).__name__, '|', e.message, '|', e.hint)\n"
     )
-    backend = str(Path(__file__).resolve().parents[2] / "backend")
-    done = subprocess.run(
-        [
-            "setpriv",
-            "--reuid",
-            "65534",
-            "--regid",
-            "65534",
-            "--clear-groups",
-            "--inh-caps=-all",
-            sys.executable,
-            "-c",
-            code,
-        ],
-        capture_output=True,
-        text=True,
-        check=False,
-        env={**os.environ, "PYTHONPATH": backend},
-        timeout=60,
-    )
+    done = as_nobody("-c", code)
     assert "Traceback" not in done.stderr, done.stderr
     kind, message, hint = (part.strip() for part in done.stdout.split("|"))
     assert kind == "LinkError" and "not permitted" in message, done.stdout
