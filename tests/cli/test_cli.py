@@ -89,3 +89,17 @@ def test_export_refuses_to_overwrite_and_writes_atomically(
     code, _, err = run(capsys, "profile", "cia402-generic", "--export", "eds", "-o", str(out))
     assert code == 2 and "exists" in err and out.read_text() == first
     assert list(tmp_path.iterdir()) == [out]  # No temporary file left behind.
+
+
+def test_a_data_directory_that_cannot_be_made_is_an_error_not_a_traceback(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # A file where the data directory should be (or no permission): exit 2 with the setting
+    # to fix. It was a NotADirectoryError traceback from the store's mkdir.
+    (tmp_path / "f").write_text("x")
+    monkeypatch.setenv("SERVODESK_DATA_DIR", str(tmp_path / "f" / "data"))
+    out = tmp_path / "b.json"
+    code, _, err = run(capsys, "backup", "-o", str(out), "--channel", "nothing-here")
+    assert code == 2 and "cannot use the data directory" in err, err
+    assert "SERVODESK_DATA_DIR" in err and "Traceback" not in err
+    assert not out.exists()

@@ -172,7 +172,15 @@ class Store:
     def __init__(self, data_dir: Path) -> None:
         self.data_dir = Path(data_dir)
         self.backups_dir = self.data_dir / "backups"
-        self.backups_dir.mkdir(parents=True, exist_ok=True)
+        try:
+            self.backups_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            # A data directory that cannot be made (a file in its path, no permission) is the
+            # user's setting to fix, not a traceback.
+            raise StoreError(
+                f"cannot use the data directory {self.data_dir}: {exc.strerror}",
+                hint="set SERVODESK_DATA_DIR to a directory you can write",
+            ) from exc
         self.path = self.data_dir / "servodesk.db"
         self._lock = threading.RLock()
         try:
