@@ -98,3 +98,34 @@ async def test_a_link_held_exclusive_keeps_its_requests_until_the_block_ends() -
     assert await poll == b"\x00\x00"
     assert log == ["other master done", "read 6041h"]
     await link.close()
+
+
+async def test_an_open_that_ends_after_its_time_out_is_closed_again() -> None:
+    # A bus or an EtherCAT master opened after the caller gave up must not stay held by a link
+    # nobody has (a shared master was kept for good; the next open of that NIC reused it).
+    import threading
+    import time
+
+    from servodesk.errors import NotFoundError
+
+    events: list[str] = []
+    closed = threading.Event()
+
+    class Slow(DriveLink):
+        fieldbus = "test"
+        OPEN_TIMEOUT = 0.05
+
+        def _open(self) -> None:
+            time.sleep(0.2)
+            events.append("opened")
+
+        def _close(self) -> None:
+            events.append("closed")
+            closed.set()
+
+    link = Slow(LinkParams())
+    with pytest.raises(NotFoundError, match=r"did not open within 0\.05 s"):
+        await link.open()
+    assert link.closed
+    assert await asyncio.to_thread(closed.wait, 2.0)
+    assert events == ["opened", "closed"]

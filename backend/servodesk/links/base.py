@@ -222,15 +222,25 @@ class DriveLink(ObjectAccess):
 
     async def open(self) -> None:
         self._loop = asyncio.get_running_loop()
+        opening = asyncio.ensure_future(self._call(self._open, check_open=False))
         try:
-            await asyncio.wait_for(self._call(self._open, check_open=False), self.OPEN_TIMEOUT)
+            await asyncio.wait_for(asyncio.shield(opening), self.OPEN_TIMEOUT)
         except TimeoutError:
+            # The open goes on in its worker thread (a thread cannot be stopped). Should it
+            # still succeed, what it opened is closed again: a late success must not hold a
+            # shared bus or EtherCAT master for a link nobody has.
+            opening.add_done_callback(self._close_late_open)
             raise NotFoundError(
                 f"{self.fieldbus} interface {self.params.interface!r} channel "
                 f"{self.params.channel!r} did not open within {self.OPEN_TIMEOUT:g} s",
                 hint="check that the adapter or host exists and is reachable",
             ) from None
         self._closed = False
+
+    def _close_late_open(self, opening: asyncio.Future[None]) -> None:
+        if opening.cancelled() or opening.exception() is not None:
+            return
+        threading.Thread(target=self._close_locked, name="link-late-close", daemon=True).start()
 
     async def close(self) -> None:
         if self._closed:

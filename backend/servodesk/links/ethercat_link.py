@@ -150,6 +150,8 @@ class EthercatLink(DriveLink):
     """One slave of an EtherCAT line, its objects reached by CoE SDO through SOEM."""
 
     fieldbus = "ethercat"
+    #: ``config_init`` reads every slave's SII over the line, some seconds on a long one.
+    OPEN_TIMEOUT = 15.0
     #: No NMT reset (EtherCAT has none): a restore of the defaults with a reset is refused
     #: before anything is restored (services/session.py), not left half done.
     sends_nmt = False
