@@ -28,6 +28,7 @@ line on the pair's slave end, reached on its master end, and the others are CANo
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from collections.abc import Sequence
 from typing import Any
@@ -140,17 +141,13 @@ class SimulatedBus:
                         loop_rate_hz=plant.loop_rate_hz,
                     )
                 )
+        # Where each drive is served: an EtherCAT line, an SLMP station, or the CAN bus.
+        line_nic: str | None
         if all_ethercat:
-            try:
-                line = EthercatSlaveProcess(sims, channel).start()
-            except ValueError as exc:
-                raise ValidationError(str(exc)) from exc
-            runner = SimRunner(sims)
-            for sim in sims:
-                sim.step(sim.CONTROL_PERIOD)
-            runner.start()
-            log.info("simulated EtherCAT slaves %s on %s", list(drives), channel)
-            return cls(None, [], runner, interface, channel, sims, line=line)
+            on_line, line_nic = sims, channel
+        else:
+            on_line = [s for s in sims if ethercat is not None and s.profile.fieldbus == ETHERCAT]
+            line_nic = ethercat.slave if ethercat is not None else None
         if all_slmp:
             axes = {sim.node_id - 1: sim for sim in sims}
             station_channel: str | None = channel
@@ -158,42 +155,33 @@ class SimulatedBus:
             on_station = [s for s in sims if slmp_channel and s.profile.fieldbus == SLMP_FIELDBUS]
             axes = dict(enumerate(on_station[:4]))
             station_channel = slmp_channel if axes else None
-        on_line = [s for s in sims if ethercat is not None and s.profile.fieldbus == ETHERCAT]
         on_can = [sim for sim in sims if sim not in axes.values() and sim not in on_line]
-        ecat_line: EthercatSlaveProcess | None = None
-        if on_line:
-            assert ethercat is not None
-            try:
-                ecat_line = EthercatSlaveProcess(on_line, ethercat.slave).start()
-            except BaseException:
-                ethercat.delete()
-                raise
-        station = None
-        if station_channel is not None:
-            host, port = slmp.parse_channel(station_channel, server=True)
-            try:
-                station = SlmpStation(axes, host, port).start()
-            except OSError as exc:
-                if ecat_line is not None:
-                    ecat_line.stop()
-                if ethercat is not None:
-                    ethercat.delete()
-                raise LinkError(
-                    f"cannot serve SLMP on udp {host}:{port}: {exc}",
-                    hint="choose another port, or stop the program that holds this one",
-                ) from exc
-        network = None
-        if on_can:
-            try:
-                network = cls._connect(interface, channel, bitrate)
-            except BaseException:
-                if station is not None:
-                    station.stop()
-                if ecat_line is not None:
-                    ecat_line.stop()
-                if ethercat is not None:
-                    ethercat.delete()
-                raise
+        with contextlib.ExitStack() as undo:
+            # What is started is stopped again when a later part fails; the veth pair the bus
+            # was given is deleted then too (it owns it from here on).
+            if ethercat is not None:
+                undo.callback(ethercat.delete)
+            ecat_line = None
+            if on_line:
+                assert line_nic is not None
+                try:
+                    ecat_line = EthercatSlaveProcess(on_line, line_nic).start()
+                except ValueError as exc:
+                    raise ValidationError(str(exc)) from exc
+                undo.callback(ecat_line.stop)
+            station = None
+            if station_channel is not None:
+                host, port = slmp.parse_channel(station_channel, server=True)
+                try:
+                    station = SlmpStation(axes, host, port).start()
+                except OSError as exc:
+                    raise LinkError(
+                        f"cannot serve SLMP on udp {host}:{port}: {exc}",
+                        hint="choose another port, or stop the program that holds this one",
+                    ) from exc
+                undo.callback(station.stop)
+            network = cls._connect(interface, channel, bitrate) if on_can else None
+            undo.pop_all()
         devices: list[SimCanopenDevice] = []
         for sim in on_can:
             dev = SimCanopenDevice(sim)
