@@ -1,7 +1,7 @@
 """Object dictionary search speed in the browser UI, on the largest profile (lecsn-t, 2912 objects).
 
 Starts ``servodesk serve --sim`` itself (tests/browser/harness.py), opens the Object dictionary
-of the simulated LECSN-T drive (session lecsn-t-5) in headless Chromium, and measures:
+of the simulated LECSN-T drive (session lecsn-t-1) in headless Chromium, and measures:
 
 - keystroke latency: from the ``keydown`` of each typed character in the search box
   (``performance.now()`` in a capture listener) to the filtered table drawn: the DOM change
@@ -33,7 +33,7 @@ if str(REPO) not in sys.path:
 from playwright.sync_api import Browser, Page, sync_playwright  # noqa: E402
 from tests.browser.harness import CHROMIUM_ARGS, chromium_executable, running_server  # noqa: E402
 
-SESSION = "lecsn-t-5"
+SESSION = "lecsn-t-1"
 PROFILE = "lecsn-t"
 TARGET_MS = 50.0
 # Index spellings (hex, 0x, h suffix, PNU), symbols and words of names and descriptions.

@@ -35,7 +35,7 @@ from viser import _messages
 from websockets.sync.client import connect
 
 #: Sessions moved (the fifth simulated drive stands).
-MOVED = ["cia402-generic-1", "hiwin-e-2", "ctmm04x-4", "lecsn-t-5"]
+MOVED = ["cia402-generic-1", "hiwin-e-2", "ctmm04x-1", "lecsn-t-1"]
 
 
 def free_port() -> int:

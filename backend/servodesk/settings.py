@@ -29,6 +29,10 @@ class Settings(BaseSettings):
     #: ``host:port`` on UDP (port 0: a free port, shown as the session's channel); empty: the
     #: CTMM04x twin is a CANopen node like the others.
     sim_slmp: str = "127.0.0.1:0"
+    #: Where the simulated PROFINET IO device (the LECSN-T twin) answers PNIO-CM record access,
+    #: as ``host:port`` on UDP (port 0: a free port, shown as the session's channel); empty:
+    #: the LECSN-T twin is a CANopen node, with cyclic PDOs (docs/profinet.md).
+    sim_profinet: str = "127.0.0.1:0"
     #: Serve the EtherCAT twin (HIWIN E) on a simulated EtherCAT line behind a veth pair and
     #: open it with the EtherCAT link (pysoem). Needs root or CAP_NET_ADMIN / CAP_NET_RAW; off,
     #: or where the pair cannot be made, the twin is a CANopen node (docs/ethercat.md).

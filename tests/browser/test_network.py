@@ -36,12 +36,12 @@ def _fits(page: Page) -> bool:
 def test_lecsn_shows_the_telegram_read_from_the_drive_and_the_leds(page: Page) -> None:
     page.set_viewport_size({"width": 1280, "height": 800})
     # The telegram the twin holds (P922 = 0x039A:00, 004 §20.4.3.1), as the API reads it.
-    r = page.request.post("/api/v1/sessions/lecsn-t-5/read", data={"addresses": ["0x039A:00"]})
+    r = page.request.post("/api/v1/sessions/lecsn-t-1/read", data={"addresses": ["0x039A:00"]})
     assert r.ok, r.text()
     telegram = r.json()["results"][0]["value"]
     assert telegram in (1, 100, 102, 103)
 
-    page.goto("/#/network/lecsn-t-5")
+    page.goto("/#/network/lecsn-t-1")
     expect(page.get_by_test_id("nav-network")).to_be_visible()
     row = page.get_by_test_id("network-row-0x039A:00")
     expect(row).to_contain_text("Telegram selection")
@@ -52,11 +52,14 @@ def test_lecsn_shows_the_telegram_read_from_the_drive_and_the_leds(page: Page) -
 
     link = page.get_by_test_id("network-link")
     expect(page.get_by_test_id("network-fieldbus")).to_have_text("profinet")
-    # The twin runs on CANopen until the PROFINET link exists: the page says so.
-    expect(page.get_by_test_id("network-link-name")).to_have_text("canopen")
-    expect(page.get_by_test_id("network-note")).to_contain_text("speaks PROFINET")
-    expect(page.get_by_test_id("network-nmt")).to_have_attribute("title", re.compile(r"NMT state"))
-    expect(link).to_contain_text("Node id")
+    # The twin is a PROFINET IO device, reached by PNIO-CM record access (docs/profinet.md).
+    expect(page.get_by_test_id("network-link-name")).to_have_text("profinet")
+    expect(page.get_by_test_id("network-interface")).to_have_text("profinet")
+    expect(page.get_by_test_id("network-channel")).to_have_text(re.compile(r"^127\.0\.0\.1:\d+$"))
+    expect(page.get_by_test_id("network-note")).to_have_count(0)
+    expect(page.get_by_test_id("network-nmt")).to_have_attribute("title", re.compile(r"No NMT"))
+    expect(link).to_contain_text("DO-ID")
+    expect(page.get_by_test_id("network-node-id")).to_have_text("1")
 
     # The SW2/SW3 rule with its section, and the LED decode (004 §20.2.3.1-3).
     rules = page.get_by_test_id("network-addressing")
@@ -71,7 +74,7 @@ def test_lecsn_shows_the_telegram_read_from_the_drive_and_the_leds(page: Page) -
     expect(leds.get_by_test_id("network-led")).to_have_count(15)
 
     # Read again reads the drive again (and shows the same telegram).
-    with page.expect_request(re.compile(r"/sessions/lecsn-t-5/read$")):
+    with page.expect_request(re.compile(r"/sessions/lecsn-t-1/read$")):
         page.get_by_test_id("network-reload").click()
     expect(row.get_by_test_id("network-value")).to_have_text(str(telegram))
     assert _fits(page)

@@ -19,7 +19,7 @@ from playwright.sync_api import Page, expect
 
 pytestmark = pytest.mark.browser
 
-SID = "lecsn-t-5"
+SID = "lecsn-t-1"
 ADDR = "0x6083:00"
 
 

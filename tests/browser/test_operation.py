@@ -190,7 +190,7 @@ def test_lecsn_jog_starts_from_a_usable_ramp_and_a_readable_number(page: Page) -
     # 50000). The panel started at that limit, the gentlest ramp: 50 s to 3000 r/min, a jog
     # that hardly moved. And its long velocity unit squeezed the number to a few digits.
     page.set_viewport_size({"width": 1280, "height": 800})
-    page.goto("/#/operation/lecsn-t-5")
+    page.goto("/#/operation/lecsn-t-1")
     acc = page.get_by_test_id("jog-acceleration")
     expect(acc).to_have_value("200")
     vel = page.get_by_test_id("jog-velocity")

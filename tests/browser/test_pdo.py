@@ -248,9 +248,9 @@ def test_a_fixed_telegram_names_its_words(page: Page) -> None:
     # Telegram 1's STW1 / NSOLL_A and ZSW1 / NIST_A are no objects of the dictionary (004
     # §20.3 (1)): the drive's mapping holds them as 16-bit entries of index 0. The page showed
     # them as "Reserved (16 bits)"; the server's layout names them, and so does the page now.
-    r = page.request.get("/api/v1/sessions/lecsn-t-5/pdo")
+    r = page.request.get("/api/v1/sessions/lecsn-t-1/pdo")
     assert r.ok and r.json()["telegram"] == 1, r.text()
-    page.goto("/#/pdo/lecsn-t-5")
+    page.goto("/#/pdo/lecsn-t-1")
     expect(page.get_by_test_id("pdo-page")).to_be_visible()
     words = {
         "setpoint telegram": ("STW1 (Control word 1)", "UNSIGNED16", "NSOLL_A", "INTEGER16"),

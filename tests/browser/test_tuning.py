@@ -17,7 +17,7 @@ from playwright.sync_api import Page, expect
 
 pytestmark = pytest.mark.browser
 
-LECSN = "lecsn-t-5"
+LECSN = "lecsn-t-1"
 CTMM = "ctmm04x-1"  # Axis X of the twin's SLMP station (docs/slmp.md)
 GENERIC = "cia402-generic-1"
 PB_DEFAULTS = [700, 150, 370, 823, 337]

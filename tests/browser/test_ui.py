@@ -107,7 +107,7 @@ def test_the_drive_state_stays_whole_in_the_header_on_a_laptop_screen(
     # "Switch on d": the name and the node line now give way (ellipsis, full text in their
     # tooltips), the state and the SIM badge never do.
     page.set_viewport_size({"width": width, "height": 800})
-    page.goto("/#/overview/lecsn-t-5")
+    page.goto("/#/overview/lecsn-t-1")
     pill = page.get_by_test_id("header-state")
     expect(pill).to_have_text(re.compile(r"\w+ \w+"))
     title = page.locator(".drive-title")
@@ -116,8 +116,11 @@ def test_the_drive_state_stays_whole_in_the_header_on_a_laptop_screen(
     assert box["x"] >= area["x"] and box["x"] + box["width"] <= area["x"] + area["width"] + 0.5
     assert pill.evaluate("e => e.scrollWidth <= e.clientWidth")
     name = page.get_by_test_id("header-drive-name")
-    expect(name).to_have_attribute("title", "SMC LECSN-T servo amplifier (LEC-S-NP PROFINET)")
-    expect(page.locator(".drive-meta")).to_have_attribute("title", re.compile(r"^node 5 · "))
+    # The name the card reports (I&M0 order ID, 004 §20.4.4), with the profile's.
+    expect(name).to_have_attribute(
+        "title", "MR-J4-TM (SMC LECSN-T servo amplifier (LEC-S-NP PROFINET))"
+    )
+    expect(page.locator(".drive-meta")).to_have_attribute("title", re.compile(r"^node 1 · "))
 
 
 def test_the_open_sessions_fit_a_laptop_screen(page: Page) -> None:
@@ -126,16 +129,20 @@ def test_the_open_sessions_fit_a_laptop_screen(page: Page) -> None:
     # for a smaller screen scrolls inside its card.
     page.set_viewport_size({"width": 1280, "height": 800})
     page.goto("/#/connect")
-    close = page.get_by_test_id("session-close-lecsn-t-5")
+    close = page.get_by_test_id("session-close-lecsn-t-1")
     expect(close).to_be_visible()
     wrap = page.locator(".table-scroll").filter(has=page.get_by_test_id("sessions"))
     assert wrap.evaluate("e => e.scrollWidth <= e.clientWidth")
     box, card = close.bounding_box(), wrap.bounding_box()
     assert box is not None and card is not None
     assert box["x"] + box["width"] <= card["x"] + card["width"] + 0.5
-    # The NMT state says what it rests on; an unknown one says why (the LECSN-T twin sends no
-    # heartbeat, and a test before this one may have sent it an NMT command).
-    nmt = page.get_by_test_id("session-nmt-lecsn-t-5")
+    # The NMT state says what it rests on: PROFINET has none; an unknown one on CANopen says
+    # why (a twin may send no heartbeat, and a test before this one may have sent it an NMT
+    # command).
+    expect(page.get_by_test_id("session-nmt-lecsn-t-1")).to_have_attribute(
+        "title", re.compile(r"^No NMT on PROFINET")
+    )
+    nmt = page.get_by_test_id("session-nmt-hiwin-e-2")
     if nmt.inner_text().strip() == "unknown":
         expect(nmt).to_have_attribute("title", re.compile(r"no heartbeat .* \(1017h\) is 0"))
     else:
@@ -179,6 +186,40 @@ def test_the_ctmm04x_is_on_slmp_and_the_form_takes_a_station_and_an_axis(page: P
     # Its PDO page says there is no cyclic data over SLMP before anyone presses Start.
     page.goto("/#/pdo/ctmm04x-1")
     expect(page.get_by_test_id("pdo-cyclic-unavailable")).to_contain_text("manager only")
+    expect(page.get_by_test_id("pdo-cyclic-start")).to_be_disabled()
+
+
+def test_a_profinet_drive_is_opened_by_its_address_and_do_id(page: Page) -> None:
+    # The LECSN-T twin of serve --sim is a PROFINET IO device on a loopback UDP port; the
+    # Connect page reaches such a drive by its IP address and DO-ID, with no bitrate and no
+    # scan (docs/profinet.md).
+    page.set_viewport_size({"width": 1280, "height": 800})
+    page.goto("/#/connect")
+    row = page.get_by_test_id("session-row-lecsn-t-1")
+    expect(row).to_contain_text(re.compile(r"profinet\s*profinet:127\.0\.0\.1:\d+"))
+    expect(page.get_by_test_id("session-nmt-lecsn-t-1")).to_have_attribute(
+        "title", re.compile(r"No NMT on PROFINET")
+    )
+    where = re.search(r"profinet:(127\.0\.0\.1:\d+)", row.inner_text())
+    assert where is not None
+
+    page.get_by_test_id("bus-node-id").fill("7")
+    page.get_by_test_id("bus-interface").select_option("profinet")
+    expect(page.get_by_test_id("bus-channel")).to_have_value("192.168.0.10")
+    expect(page.get_by_test_id("bus-bitrate")).to_be_disabled()
+    expect(page.get_by_test_id("scan-bus")).to_be_disabled()
+    node = page.get_by_test_id("bus-node-id")
+    expect(node).to_have_value("1")  # The LECSN-T's DO-ID.
+    expect(page.locator("label", has=node)).to_contain_text("DO-ID")
+    page.get_by_test_id("bus-channel").fill(where.group(1))
+    node.fill("2")  # The twin has drive object 1 only.
+    page.get_by_test_id("open-session").click()
+    expect(page.get_by_test_id("notice-error")).to_contain_text("no drive object 2")
+    expect(page).to_have_url(re.compile(r"#/connect"))
+
+    # Its PDO page says there is no cyclic data for a supervisor, before anyone presses Start.
+    page.goto("/#/pdo/lecsn-t-1")
+    expect(page.get_by_test_id("pdo-cyclic-unavailable")).to_contain_text("GSD file")
     expect(page.get_by_test_id("pdo-cyclic-start")).to_be_disabled()
 
 

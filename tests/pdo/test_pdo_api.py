@@ -95,9 +95,11 @@ async def rig(tmp_path_factory) -> AsyncIterator[Rig]:  # type: ignore[no-untype
         sim_channel=channel,
         sim_profiles=",".join(FAMILIES),
         data_dir=tmp_path_factory.mktemp("data"),
-        # The CTMM04x twin on the CAN bus too: these tests read its fixed PDOs' frames there
-        # (serve --sim puts it on SLMP, which has no cyclic data: tests/links/test_slmp_api.py).
+        # The CTMM04x and LECSN-T twins on the CAN bus too: these tests read their PDOs'
+        # frames there (serve --sim puts them on SLMP and PROFINET, which carry no cyclic data
+        # for servodesk: tests/slmp/test_api.py, tests/profinet/test_api.py).
         sim_slmp="",
+        sim_profinet="",
     )
     app = create_app(settings)
     async with app.router.lifespan_context(app):

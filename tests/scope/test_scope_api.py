@@ -96,12 +96,13 @@ async def test_refusals_name_what_is_wrong(fresh: Rig) -> None:
     # Not in an active TPDO (cyclic data is not running): no PDO source.
     body = await refused(rig, {"channels": [channel(0, "0x6064:00", source="pdo")]}, 400)
     assert "TPDO" in body["message"] and body["field"] == "source"
-    # The drive refuses to read it (an SDO abort), named with the abort code.
+    # The drive refuses to read it (the LECSN-T over PROFINET: PROFIdrive error 11h, no
+    # value in this state), named with its code.
     body = await refused(
-        rig, {"channels": [{"id": 2, "session": LECSN, "address": "0x2001:00"}]}, 400
+        rig, {"channels": [{"id": 2, "session": LECSN, "address": "0x2001:00"}]}, 409
     )
     assert "0x2001:00" in body["message"] and "channel 2" in body["message"]
-    assert body["code"] == 0x08000024 and body["protocol"] == "sdo"
+    assert body["code"] == 0x11 and body["protocol"] == "profidrive"
     # A refused list changes nothing.
     assert (await rig.client.get("/api/v1/scope")).json()["channels"] == []
     r = await rig.client.put(

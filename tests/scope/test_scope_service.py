@@ -41,7 +41,7 @@ from servodesk.sim.engine import SimulatedDrive
 pytestmark = pytest.mark.asyncio(loop_scope="module")
 
 GENERIC = "cia402-generic-1"
-LECSN = "lecsn-t-2"
+LECSN = "lecsn-t-1"  # On PROFINET: DO-ID 1.
 HDR = {"X-Servodesk-Client": "scope-test"}
 #: One motor revolution of the generic twin [counts] (its profile velocity: 200 000 counts/s).
 REV = 131072

@@ -45,15 +45,12 @@ def test_serve_sim_opens_the_ctmm04x_over_slmp_and_moves_it(channel, tmp_path) -
         assert host == "127.0.0.1" and int(port) > 0
         assert info["note"] is None  # No "twin runs on CANopen" note: it is on its own bus.
         assert info["identity"]["device_name"] == "AECAT-AXIS4"
-        # The generic drive stays a CANopen node; the LECSN-T twin still runs on CANopen and
-        # its note says so, naming it once (it had read "SMC SMC LECSN-T").
+        # The generic drive stays a CANopen node; the LECSN-T twin is on PROFINET.
         assert client.get("/api/v1/sessions/cia402-generic-1").json()["link"] == "canopen"
         lecsn = next(
             s for s in client.get("/api/v1/sessions").json() if s["id"].startswith("lecsn")
         )
-        assert lecsn["link"] == "canopen" and lecsn["note"].startswith(
-            "SMC LECSN-T servo amplifier (LEC-S-NP PROFINET) speaks PROFINET; its simulated twin"
-        )
+        assert lecsn["link"] == "profinet" and lecsn["note"] is None
 
         # A parameter written through the API lands in the drive, over SLMP.
         r = client.put(f"/api/v1/sessions/{SID}/objects/0x6081:00", json={"value": 4321}, headers=A)

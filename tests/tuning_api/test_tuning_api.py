@@ -55,7 +55,7 @@ def _drain(ws: Any, kind: str, until: Any, limit: int = 2000) -> list[dict[str, 
 
 def test_info_says_what_each_family_can_do(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
     with operation_app(channel, tmp_path, ALL) as (client, _sim):
-        lecsn = client.get("/api/v1/sessions/lecsn-t-5/tuning").json()
+        lecsn = client.get("/api/v1/sessions/lecsn-t-1/tuning").json()
         assert lecsn["kind"] == "builtin" and lecsn["modes"] == ["low", "basic", "high"]
         assert "one-touch tuning" in lecsn["reason"] and "004 §20.8.7" in lecsn["reason"]
         assert [g["symbol"] for g in lecsn["gains"]] == ["PB06", "PB07", "PB08", "PB09", "PB10"]
@@ -106,35 +106,35 @@ def test_info_says_what_each_family_can_do(channel, tmp_path) -> None:  # type: 
             assert "What applies" in info["reason"] and info["applies"]
 
         assert client.get("/api/v1/sessions/nope-9/tuning").status_code == 404
-        r = client.get("/api/v1/sessions/lecsn-t-5/tuning/result")
+        r = client.get("/api/v1/sessions/lecsn-t-1/tuning/result")
         assert r.status_code == 404 and "no tuning result" in r.json()["message"]
 
 
 def test_refusals_move_nothing(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
     with operation_app(channel, tmp_path, "lecsn-t,ctmm04x") as (client, sim):
-        drive = sim.drives[1]  # Nodes in servodesk's order: ctmm04x 1, lecsn-t 2.
+        drive = sim.drives[1]  # The drives in servodesk's order: ctmm04x, lecsn-t.
         sid_ctmm = "ctmm04x-1"
         # Nobody holds control: motion (and so tuning) needs it.
-        r = start(client, "lecsn-t-2", "A")
+        r = start(client, "lecsn-t-1", "A")
         assert r.status_code == 409 and "control" in r.json()["message"]
-        client.post("/api/v1/sessions/lecsn-t-2/control", json={"action": "take"}, headers=A)
+        client.post("/api/v1/sessions/lecsn-t-1/control", json={"action": "take"}, headers=A)
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
-            beats = Heartbeats(ws, "lecsn-t-2")
+            beats = Heartbeats(ws, "lecsn-t-1")
             # The servo is off.
-            r = start(client, "lecsn-t-2", "A")
+            r = start(client, "lecsn-t-1", "A")
             assert r.status_code == 409, r.text
             assert "servo is off" in r.json()["message"]
-            take_and_enable(client, "lecsn-t-2", "A")
+            take_and_enable(client, "lecsn-t-1", "A")
             # Software position limits 607Dh of +-0.1 rev: a 0.5 rev window does not fit.
             for sub, value in ((1, -REV // 10), (2, REV // 10)):
                 w = client.put(
-                    f"/api/v1/sessions/lecsn-t-2/objects/0x607D:0{sub}",
+                    f"/api/v1/sessions/lecsn-t-1/objects/0x607D:0{sub}",
                     json={"value": value},
                     headers=A,
                 )
                 assert w.status_code == 200, w.text
             before = drive.position
-            r = start(client, "lecsn-t-2", "A", travel=0.5)
+            r = start(client, "lecsn-t-1", "A", travel=0.5)
             assert r.status_code == 400, r.text
             body = r.json()
             assert body["field"] == "travel_window_rev"
@@ -143,12 +143,12 @@ def test_refusals_move_nothing(channel, tmp_path) -> None:  # type: ignore[no-un
             assert fits and 0.19 <= float(fits.group(1)) <= 0.2, body["hint"]
             assert drive.read(P11600, 0) == 0 and abs(drive.position - before) < 50
             # The machine's move torque is for servodesk's own tuning: the LECSN tunes itself.
-            r = start(client, "lecsn-t-2", "A", travel=0.1, move_torque=300.0)
+            r = start(client, "lecsn-t-1", "A", travel=0.1, move_torque=300.0)
             assert r.status_code == 400 and r.json()["field"] == "move_torque_pct", r.text
             assert drive.read(P11600, 0) == 0
             # A second client is refused, naming the one that holds control.
             with client.websocket_connect("/api/v1/ws?client=B"):
-                r = start(client, "lecsn-t-2", "B", travel=0.1)
+                r = start(client, "lecsn-t-1", "B", travel=0.1)
                 assert r.status_code == 409 and "'A'" in r.json()["message"]
             # Kind none: plainly nothing to tune (400 naming the input "kind").
             client.post(f"/api/v1/sessions/{sid_ctmm}/control", json={"action": "take"}, headers=A)
@@ -174,10 +174,10 @@ def test_refusals_move_nothing(channel, tmp_path) -> None:  # type: ignore[no-un
                     "move_torque_pct": 2000,
                 },
             ):
-                r = client.post("/api/v1/sessions/lecsn-t-2/tuning/start", json=body_in, headers=A)
+                r = client.post("/api/v1/sessions/lecsn-t-1/tuning/start", json=body_in, headers=A)
                 assert r.status_code == 422, (body_in, r.text)
             beats.stop()
-        assert client.get("/api/v1/sessions/lecsn-t-2/tuning").json()["job"] is None
+        assert client.get("/api/v1/sessions/lecsn-t-1/tuning").json()["job"] is None
         assert drive.read(P11600, 0) == 0
 
 

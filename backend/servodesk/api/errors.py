@@ -9,6 +9,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
+from servodesk.domain import profidrive
 from servodesk.errors import (
     ConflictError,
     DriveStateError,
@@ -36,6 +37,14 @@ def status_for(exc: ServodeskError) -> int:
     if isinstance(exc, ConflictError | DriveStateError):
         return 409
     if isinstance(exc, ObjectAccessError):
+        if exc.protocol == "profidrive":
+            # PROFIdrive error numbers (004 §20.4.2): no such parameter / subindex / drive
+            # object, or not in this operating state.
+            if exc.code in profidrive.MISSING:
+                return 404
+            return 409 if exc.code in profidrive.STATE else 400
+        if exc.protocol == "pnio":
+            return 502  # The device refused the record access itself (docs/profinet.md).
         if exc.code in _MISSING_ABORTS:
             return 404
         return 409 if exc.code in _STATE_ABORTS else 400

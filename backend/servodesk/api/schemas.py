@@ -202,8 +202,10 @@ class SessionCreate(BusParams):
         default="virtual",
         description="python-can interface for a CANopen drive (virtual, udp_multicast, "
         "socketcan, pcan, ...), slmp for a CC-Link IE TSN station reached by SLMP over UDP "
-        "(channel host:port, node id = axis + 1), or ethercat for a slave of an EtherCAT line "
-        "reached by CoE (channel the network interface, node id = slave position + 1)",
+        "(channel host:port, node id = axis + 1), profinet for a PROFIdrive drive reached by "
+        "PNIO-CM record access over UDP (channel host or host:port, node id = DO-ID), or "
+        "ethercat for a slave of an EtherCAT line reached by CoE (channel the network "
+        "interface, node id = slave position + 1)",
         json_schema_extra={"enum": list[JsonValue](_BUS_INTERFACES)},
     )
     node_id: int = Field(ge=1, le=127)
@@ -214,7 +216,8 @@ class SessionCreate(BusParams):
         if v not in _BUS_INTERFACES:
             raise ValueError(
                 f"unknown interface; python-can has {', '.join(_CAN_INTERFACES)}, slmp "
-                "reaches a CC-Link IE TSN station and ethercat an EtherCAT line"
+                "reaches a CC-Link IE TSN station, profinet a PROFINET IO device and ethercat an "
+                "EtherCAT line"
             )
         return v
 

@@ -37,8 +37,9 @@ def _bus_options(p: argparse.ArgumentParser) -> None:
         "--interface",
         default="virtual",
         help="python-can interface (virtual, socketcan, pcan, ...) for CANopen, slmp for a "
-        "CC-Link IE TSN station (channel host:port, node id = axis + 1), or ethercat for an "
-        "EtherCAT line (channel the network interface, node id = slave position + 1)",
+        "CC-Link IE TSN station (channel host:port, node id = axis + 1), profinet for a "
+        "PROFIdrive drive (channel host[:port], node id = DO-ID), or ethercat for an EtherCAT "
+        "line (channel the network interface, node id = slave position + 1)",
     )
     g.add_argument("--channel", default="servodesk-sim", help="python-can channel, or host:port")
     g.add_argument("--bitrate", type=int, default=None, help="bit rate for real interfaces")

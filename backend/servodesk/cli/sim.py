@@ -8,6 +8,11 @@ Other programs (servodesk itself, a PLC, plain python-canopen code) talk to it o
 station answering SLMP on that UDP port instead (node id 1..4 = axis X..U; docs/slmp.md):
 ``servodesk sim --profile ctmm04x --interface slmp --channel 127.0.0.1:5010``.
 
+``--interface profinet --channel HOST:PORT`` serves the drive as a PROFINET IO device
+answering PNIO-CM record access (PROFIdrive parameter access) on that UDP port (node id 1,
+the DO-ID; docs/profinet.md):
+``servodesk sim --profile lecsn-t --interface profinet --channel 127.0.0.1:34964``.
+
 ``--interface ethercat --channel NIC`` serves the drive as slave 1 of a simulated EtherCAT line
 on that network interface (CoE SDO; docs/ethercat.md), e.g. the slave end of a veth pair:
 ``servodesk sim --profile hiwin-e --interface ethercat --channel veth-s`` (needs root or
@@ -42,12 +47,14 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--interface",
         default="virtual",
         help="python-can interface (virtual, udp_multicast, socketcan, ...), or slmp: an SLMP "
-        "station on UDP, or ethercat: an EtherCAT slave on a network interface",
+        "station on UDP, profinet: a PROFINET IO device on UDP, or ethercat: an EtherCAT "
+        "slave on a network interface",
     )
     p.add_argument(
         "--channel",
         default="servodesk-sim",
-        help="python-can channel, host:port for slmp, or the network interface for ethercat",
+        help="python-can channel, host:port for slmp and profinet, or the network interface for "
+        "ethercat",
     )
     p.add_argument("--bitrate", type=int, default=None, help="bit rate for real interfaces")
     p.add_argument(

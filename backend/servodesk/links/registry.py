@@ -89,8 +89,16 @@ registry.register(
     "EtherCAT CoE object access with pysoem (SOEM) (interface ethercat, channel the NIC name)",
 )
 
+registry.register(
+    "profinet",
+    "servodesk.links.profinet_link",
+    "ProfinetLink",
+    "PROFINET PROFIdrive parameter access over PNIO-CM record read / write (interface profinet, "
+    "channel host[:port])",
+)
+
 #: Interfaces that are no python-can interface, and the link that speaks over each.
-_INTERFACE_LINKS = {"slmp": "cclink-ie-tsn", "ethercat": "ethercat"}
+_INTERFACE_LINKS = {"slmp": "cclink-ie-tsn", "ethercat": "ethercat", "profinet": "profinet"}
 
 
 def link_for_interface(interface: str) -> str:

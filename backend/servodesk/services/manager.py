@@ -29,10 +29,8 @@ log = logging.getLogger(__name__)
 
 GENERIC = "cia402-generic"
 
-#: What the UI says about a twin whose own fieldbus link does not exist yet.
-_TWIN_NOTE = (
-    "{name} speaks {fieldbus}; its simulated twin runs on CANopen until the {fieldbus} link exists."
-)
+#: What the UI says about a twin reached over CANopen though its family speaks another fieldbus.
+_TWIN_NOTE = "{name} speaks {fieldbus}; its simulated twin runs on CANopen in this session."
 
 
 class SessionManager:

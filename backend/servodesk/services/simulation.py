@@ -2,7 +2,9 @@
 
 The drives are CANopen nodes on a virtual bus, except the CC-Link IE TSN one (the CTMM04x),
 which answers SLMP on a UDP port of 127.0.0.1 (``SERVODESK_SIM_SLMP``) and is opened over
-the SLMP link, as a real unit would be (docs/slmp.md). With ``SERVODESK_SIM_ETHERCAT=1`` the
+the SLMP link, as a real unit would be (docs/slmp.md), and the PROFINET one (the LECSN-T),
+which answers PNIO-CM record access on a UDP port of 127.0.0.1 (``SERVODESK_SIM_PROFINET``)
+and is opened over the PROFINET link (docs/profinet.md). With ``SERVODESK_SIM_ETHERCAT=1`` the
 EtherCAT one (the HIWIN E) is a slave of a simulated line behind a veth pair, opened with the
 EtherCAT link (pysoem); where the pair cannot be made (no root) it stays a CANopen node, and
 the log and its session's note say why (docs/ethercat.md).
@@ -62,6 +64,7 @@ async def start_simulation(
         catalog=catalog,
         plant=plant,
         slmp_channel=settings.sim_slmp or None,
+        profinet_channel=settings.sim_profinet or None,
         ethercat=veth,
     )
     for drive in sim.drives:

@@ -16,6 +16,13 @@ no CAN bus is opened. With ``slmp_channel``, the drives whose profile speaks CC-
 (the CTMM04x) are the station's axes X, Y, ... in order, and the others are CANopen nodes
 (``servodesk serve --sim``). A drive on the station is not on the CAN bus.
 
+PROFINET (:class:`~servodesk.sim.profinet_device.ProfinetDevice`): with
+``interface="profinet"`` the one drive (node id 1, its DO-ID) is a PROFINET IO device
+answering PNIO-CM record access on ``channel`` (``host:port`` on UDP), and no CAN bus is
+opened. With ``profinet_channel``, the drives whose profile speaks PROFINET (the LECSN-T) are
+devices there (port 0: each on a free port), and the others are CANopen nodes
+(``servodesk serve --sim``).
+
 EtherCAT (:class:`~servodesk.sim.ethercat_slave.EthercatSlaveProcess`): with
 ``interface="ethercat"`` every drive is a slave of one simulated line on ``channel``, a
 network interface (the slave end of a veth pair, :mod:`servodesk.sim.veth`); node id N is
@@ -36,13 +43,14 @@ from typing import Any
 import can
 import canopen
 
-from servodesk.domain import slmp
+from servodesk.domain import pnio, slmp
 from servodesk.domain.profile_loader import ProfileCatalog
 from servodesk.errors import LinkError, LinkUnavailableError, ValidationError
 from servodesk.sim.canopen_device import SimCanopenDevice
 from servodesk.sim.engine import SimulatedDrive
 from servodesk.sim.ethercat_slave import EthercatSlaveProcess
 from servodesk.sim.plantfile import PlantSpec
+from servodesk.sim.profinet_device import ProfinetDevice
 from servodesk.sim.runner import SimRunner
 from servodesk.sim.slmp_station import SlmpStation
 from servodesk.sim.veth import VethPair
@@ -51,6 +59,8 @@ from servodesk.sim.veth import VethPair
 SLMP_FIELDBUS = "cclink-ie-tsn"
 #: The interface (and link) name of a simulated EtherCAT line.
 ETHERCAT = "ethercat"
+#: The interface (and link) name of a simulated PROFINET IO device.
+PROFINET = "profinet"
 
 log = logging.getLogger(__name__)
 
@@ -69,6 +79,7 @@ class SimulatedBus:
         station: SlmpStation | None = None,
         line: EthercatSlaveProcess | None = None,
         veth: VethPair | None = None,
+        profinet: Sequence[ProfinetDevice] = (),
     ) -> None:
         self.network = network
         self.devices = devices
@@ -82,6 +93,8 @@ class SimulatedBus:
         #: EtherCAT profiles' with ``ethercat`` (on ``veth``, deleted at stop).
         self.line = line
         self.veth = veth
+        #: The simulated PROFINET IO devices, one drive each.
+        self.profinet = list(profinet)
         self.runner = runner
         self.interface = interface
         self.channel = channel
@@ -99,6 +112,7 @@ class SimulatedBus:
         plant: PlantSpec | None = None,
         slmp_channel: str | None = None,
         ethercat: VethPair | None = None,
+        profinet_channel: str | None = None,
     ) -> SimulatedBus:
         """Start the drives; raises ValidationError / NotFoundError / LinkError."""
         catalog = catalog or ProfileCatalog()
@@ -106,6 +120,13 @@ class SimulatedBus:
         sims: list[SimulatedDrive] = []
         all_slmp = interface == "slmp"
         all_ethercat = interface == ETHERCAT
+        all_profinet = interface == PROFINET
+        if all_profinet and [n for _, n in drives] != [1]:
+            raise ValidationError(
+                "a simulated PROFINET device holds one drive object, node id 1",
+                hint="PROFINET node ids are the drive object's DO-ID (1 on the LECSN-T); run "
+                "one servodesk sim per device",
+            )
         for i, (profile_id, node_id) in enumerate(drives):
             if all_slmp and not 1 <= node_id <= 4:
                 raise ValidationError(
@@ -155,7 +176,17 @@ class SimulatedBus:
             on_station = [s for s in sims if slmp_channel and s.profile.fieldbus == SLMP_FIELDBUS]
             axes = dict(enumerate(on_station[:4]))
             station_channel = slmp_channel if axes else None
-        on_can = [sim for sim in sims if sim not in axes.values() and sim not in on_line]
+        pn_channel: str | None
+        if all_profinet:
+            on_pn, pn_channel = sims, channel
+        else:
+            on_pn = [s for s in sims if profinet_channel and s.profile.fieldbus == PROFINET]
+            pn_channel = profinet_channel
+        on_can = [
+            sim
+            for sim in sims
+            if sim not in axes.values() and sim not in on_line and sim not in on_pn
+        ]
         with contextlib.ExitStack() as undo:
             # What is started is stopped again when a later part fails; the veth pair the bus
             # was given is deleted then too (it owns it from here on).
@@ -180,6 +211,25 @@ class SimulatedBus:
                         hint="choose another port, or stop the program that holds this one",
                     ) from exc
                 undo.callback(station.stop)
+            devices_pn: list[ProfinetDevice] = []
+            if on_pn:
+                assert pn_channel is not None
+                host, port = pnio.parse_channel(pn_channel, server=True)
+                if port and len(on_pn) > 1:
+                    raise ValidationError(
+                        f"{len(on_pn)} PROFINET drives cannot share udp port {port}",
+                        hint="give port 0 (each device on a free port)",
+                    )
+                for sim in on_pn:
+                    try:
+                        pn_dev = ProfinetDevice(sim, host, port).start()
+                    except OSError as exc:
+                        raise LinkError(
+                            f"cannot serve PROFINET on udp {host}:{port}: {exc}",
+                            hint="choose another port, or stop the program that holds this one",
+                        ) from exc
+                    undo.callback(pn_dev.stop)
+                    devices_pn.append(pn_dev)
             network = cls._connect(interface, channel, bitrate) if on_can else None
             undo.pop_all()
         devices: list[SimCanopenDevice] = []
@@ -195,7 +245,18 @@ class SimulatedBus:
             dev.boot()
         runner.start()
         log.info("simulated drives %s on %s:%s", list(drives), interface, channel)
-        return cls(network, devices, runner, interface, channel, sims, station, ecat_line, ethercat)
+        return cls(
+            network,
+            devices,
+            runner,
+            interface,
+            channel,
+            sims,
+            station,
+            ecat_line,
+            ethercat,
+            devices_pn,
+        )
 
     @staticmethod
     def _connect(interface: str, channel: str, bitrate: int | None) -> Any:
@@ -234,6 +295,9 @@ class SimulatedBus:
             # interface the line is on (servodesk sim: the other end is the caller's).
             where = self.veth.master if self.veth is not None else self.line.ifname
             return ETHERCAT, ETHERCAT, where, self.line.drives.index(drive) + 1
+        for pn in self.profinet:
+            if pn.drive is drive:
+                return PROFINET, PROFINET, pn.channel, 1
         return "canopen", self.interface, self.channel, drive.node_id
 
     def stop(self) -> None:
@@ -244,6 +308,8 @@ class SimulatedBus:
         self.runner.stop()
         if self.station is not None:
             self.station.stop()
+        for pn in self.profinet:
+            pn.stop()
         if self.line is not None:
             self.line.stop()
         if self.veth is not None:

@@ -66,9 +66,11 @@ export type BusInterface =
   | 'virtual';
 
 /** Every interface a session opens on: python-can's (CANopen), slmp for a CC-Link IE TSN
- * station reached by SLMP over UDP (channel host:port, node id = axis + 1), and ethercat for
- * an EtherCAT line (channel the network interface, node id = slave position + 1). */
-export type SessionInterface = BusInterface | 'slmp' | 'ethercat';
+ * station reached by SLMP over UDP (channel host:port, node id = axis + 1), profinet for a
+ * PROFIdrive drive reached by PNIO-CM record access over UDP (channel host[:port], node id =
+ * DO-ID), and ethercat for an EtherCAT line (channel the network interface, node id = slave
+ * position + 1). */
+export type SessionInterface = BusInterface | 'slmp' | 'profinet' | 'ethercat';
 
 export interface ScanRequest {
   interface: BusInterface;

@@ -9,6 +9,12 @@ export function nmtTitle(state: string | null | undefined, link?: string | null)
       'and servodesk reaches it by SLMP object access only.'
     );
   }
+  if (link === 'profinet') {
+    return (
+      'No NMT on PROFINET: the drive\'s communication state belongs to its IO controller (004 §20.1.1); ' +
+      'servodesk reaches it as an IO supervisor by record access only.'
+    );
+  }
   if (!state || state === 'unknown') {
     return (
       'NMT state unknown: no heartbeat from the drive has been seen and servodesk has sent no NMT ' +

@@ -4,7 +4,9 @@
  * interface reaches a CC-Link IE TSN station (CTMM04x) by SLMP over UDP: the channel is its
  * host:port, the node id its axis + 1, and there is no scan (docs/slmp.md). The ethercat
  * interface reaches an EtherCAT line through SOEM: the channel is the network interface, the
- * node id the slave's position + 1 (docs/ethercat.md).
+ * node id the slave's position + 1 (docs/ethercat.md). The profinet interface reaches a
+ * PROFIdrive drive (LECSN-T) by PNIO-CM record access over UDP: the channel is its IP address
+ * (port 34964 unless given), the node id its DO-ID (docs/profinet.md).
  */
 import { type FormEvent, useEffect, useState } from 'react';
 import type { ProfileSummary, ScanNode, SessionInfo, SessionInterface, SessionRequest } from '../api';
@@ -31,8 +33,13 @@ const INTERFACES: ReadonlyArray<{ id: SessionInterface; label: string }> = [
   { id: 'slcan', label: 'slcan (serial-line CAN)' },
   { id: 'gs_usb', label: 'gs_usb (candleLight)' },
   { id: 'slmp', label: 'slmp (CC-Link IE TSN station, SLMP over UDP)' },
+  { id: 'profinet', label: 'profinet (PROFINET IO device, PROFIdrive over UDP)' },
   { id: 'ethercat', label: 'ethercat (EtherCAT line on a network interface, SOEM)' },
 ];
+
+/** 004 §20.1.3: the IP address comes from the master, DHCP or the rotary switches (4th octet);
+ * the manual prints no default, so this is an example. Port 34964 is PNIO-CM's. */
+const PROFINET_DEFAULT_CHANNEL = '192.168.0.10';
 
 /** 003 §1-3: the unit's IP address is 192.168.0.250 by default; the port is not in the manual
  * (5010 is MR-J4-GF's SLMP port, servodesk's default). */
@@ -49,6 +56,7 @@ const DEFAULT_CHANNEL: Readonly<Record<string, string>> = {
   slcan: '/dev/ttyACM0',
   gs_usb: '0',
   slmp: SLMP_DEFAULT_CHANNEL,
+  profinet: PROFINET_DEFAULT_CHANNEL,
   ethercat: 'eth1',
 };
 
@@ -99,8 +107,9 @@ export function ConnectPage() {
 
   const slmp = form.interface === 'slmp';
   const ethercat = form.interface === 'ethercat';
+  const profinet = form.interface === 'profinet';
   /** Not a CAN bus: no bitrate and no scan. */
-  const ethernet = slmp || ethercat;
+  const ethernet = slmp || ethercat || profinet;
   const needsBitrate = !ethernet && form.interface !== 'virtual' && form.interface !== 'udp_multicast';
   const bitrate = form.bitrate === '' ? null : Number(form.bitrate);
 
@@ -109,7 +118,8 @@ export function ConnectPage() {
       const next = { ...f, [key]: value };
       if (key === 'interface') {
         next.channel = DEFAULT_CHANNEL[next.interface] ?? '';
-        if (next.interface === 'slmp' || next.interface === 'ethercat') next.bitrate = '';
+        if (next.interface === 'slmp' || next.interface === 'ethercat' || next.interface === 'profinet') next.bitrate = '';
+        if (next.interface === 'profinet') next.nodeId = '1'; // The LECSN-T's DO-ID (P975.7).
         if (next.interface === 'slmp') {
           if (Number(next.nodeId) > SLMP_AXES.length) next.nodeId = '1';
         }
@@ -119,7 +129,7 @@ export function ConnectPage() {
   }
 
   async function doScan() {
-    if (form.interface === 'slmp' || form.interface === 'ethercat') return; // Button disabled.
+    if (form.interface === 'slmp' || form.interface === 'ethercat' || form.interface === 'profinet') return; // Button disabled.
     const iface = form.interface;
     setBusy('scan');
     setScan(null);
@@ -172,7 +182,9 @@ export function ConnectPage() {
           ? `enter the station's address as host:port (e.g. ${SLMP_DEFAULT_CHANNEL})`
           : ethercat
             ? 'enter the network interface the EtherCAT line is plugged into (e.g. eth1)'
-            : 'enter a channel (e.g. servodesk-sim for the simulator, can0 for socketcan)',
+            : profinet
+              ? `enter the drive's IP address, or host:port (e.g. ${PROFINET_DEFAULT_CHANNEL})`
+              : 'enter a channel (e.g. servodesk-sim for the simulator, can0 for socketcan)',
       );
       return;
     }
@@ -219,7 +231,7 @@ export function ConnectPage() {
             </select>
           </label>
           <label>
-            {slmp ? 'Station (host:port)' : ethercat ? 'Network interface' : 'Channel'}
+            {slmp ? 'Station (host:port)' : ethercat ? 'Network interface' : profinet ? 'Device (IP or host:port)' : 'Channel'}
             <input
               data-testid="bus-channel"
               className="mono"
@@ -258,8 +270,16 @@ export function ConnectPage() {
               </select>
             </label>
           ) : (
-            <label title={ethercat ? 'The slave position in the line + 1 (1 = the first slave after the master)' : undefined}>
-              {ethercat ? 'Slave (position + 1)' : 'Node id'}
+            <label
+              title={
+                ethercat
+                  ? 'The slave position in the line + 1 (1 = the first slave after the master)'
+                  : profinet
+                    ? "The drive object's DO-ID: 1 on the LECSN-T (P975.7, 004 §20.4.3.7)"
+                    : undefined
+              }
+            >
+              {ethercat ? 'Slave (position + 1)' : profinet ? 'DO-ID' : 'Node id'}
               <input
                 data-testid="bus-node-id"
                 className="mono narrow"
@@ -293,7 +313,9 @@ export function ConnectPage() {
                   ? 'SLMP has no scan: enter the station and the axis, then open the session'
                   : ethercat
                     ? 'Opening the session finds the line (SOEM config_init): enter the interface and the slave'
-                    : undefined
+                    : profinet
+                      ? 'PROFINET devices are found by DCP, which servodesk does not send: enter the IP address'
+                      : undefined
               }
             >
               {busy === 'scan' ? 'Scanning…' : 'Scan bus'}

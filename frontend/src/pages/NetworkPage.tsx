@@ -24,6 +24,7 @@ type Cell = { v: ObjectValue } | { f: Failure };
 
 function LinkCard({ session }: { session: SessionInfo }) {
   const slmp = session.interface === 'slmp';
+  const profinet = session.interface === 'profinet';
   const link = session.link ?? session.fieldbus;
   return (
     <section className="card" data-testid="network-link">
@@ -51,7 +52,7 @@ function LinkCard({ session }: { session: SessionInfo }) {
             </td>
           </tr>
           <tr>
-            <th>{slmp ? 'Station (host:port)' : 'Channel'}</th>
+            <th>{slmp ? 'Station (host:port)' : profinet ? 'Device (host:port)' : 'Channel'}</th>
             <td className="mono" data-testid="network-channel">
               {session.channel}
               {session.bitrate ? <span className="muted"> · {session.bitrate / 1000} kbit/s</span> : null}
@@ -66,7 +67,9 @@ function LinkCard({ session }: { session: SessionInfo }) {
             </tr>
           ) : (
             <tr>
-              <th>Node id</th>
+              <th title={profinet ? "The drive object's DO-ID (P975.7, 004 §20.4.3.7)" : undefined}>
+                {profinet ? 'DO-ID' : 'Node id'}
+              </th>
               <td className="mono" data-testid="network-node-id">
                 {session.node_id}
               </td>

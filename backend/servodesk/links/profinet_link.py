@@ -1,0 +1,663 @@
+"""PROFINET object access: PROFIdrive parameter access over PNIO-CM record read / write.
+
+Where the drive is: ``interface`` ``profinet``, ``channel`` ``host`` or ``host:port`` (the
+device's IP address; port 34964, the PNIO-CM RPC port, by default), ``node_id`` the drive
+object's DO-ID (1 on the LECSN-T, P975.7, 004 §20.4.3.7).
+
+Opening the link sets up a supervisor AR with device access (``Connect``); closing it ends
+the AR (``Release``). Each object access is one PROFIdrive parameter request written to
+record 0xB02E of slot 1 / subslot 1 and its response read back (004 §20.4.1); objects are
+parameters by the PNU rule of 004 §20.1.5 (:mod:`servodesk.domain.profidrive`). Values come
+back big-endian with their format and are handed on in CoE byte order, like every link's.
+
+What the link learns from the device, once per parameter: whether it is an array (the
+identifier's bit 14, description element 1), which decides what CoE sub 0 means (the value
+of a simple parameter, the number of entries of an array: description element 2), and the
+format of each element it reads, which a change request must name.
+
+What this link does not do, and why:
+
+- Cyclic process data: the telegram (1, 100, 102, 103) is exchanged with the IO controller
+  over the IO AR it set up from the GSD file (004 §20.1.1); servodesk is a supervisor.
+- NMT: PROFINET has none; the drive's communication state belongs to its IO controller.
+
+A request without an answer is sent once more with the same sequence number, which a
+device answers from its last response without carrying the call out twice. An AR the device
+no longer knows (it was restarted) is set up again once.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import errno
+import socket
+import time
+import uuid
+from collections.abc import Awaitable, Callable, Sequence
+from typing import Any, TypeVar
+
+from servodesk.domain import pnio
+from servodesk.domain import profidrive as pd
+from servodesk.domain.address import ObjectAddress
+from servodesk.errors import (
+    ConflictError,
+    LinkError,
+    LinkTimeoutError,
+    NotFoundError,
+    ObjectAccessError,
+    ServodeskError,
+    ValidationError,
+)
+from servodesk.links.base import DriveLink, Identity, LinkParams
+
+#: The interface name of this link (the transport: PNIO-CM connectionless RPC on UDP).
+INTERFACE = "profinet"
+#: Sends of one RPC call before it times out (the first and one resend).
+SENDS = 2
+#: Where the PROFIdrive drive object's parameter access record is.
+DRIVE_SLOT = 1
+DRIVE_SUBSLOT = 1
+#: The station name servodesk gives as the AR's initiator.
+INITIATOR_NAME = "servodesk"
+#: Bytes per block of a string longer than one response: 4 + 2 + 232 = 238 of 240 bytes.
+BLOCK_BYTES = 232
+#: How long to wait for a parameter response that is not ready yet (PNIORW B5h), per poll.
+NOT_READY_POLL_S = 0.002
+
+_AR_UNKNOWN = (pnio.DECODE_PNIO, pnio.CMRPC, 0x05)
+T = TypeVar("T")
+
+
+class _ArLost(Exception):
+    """The device no longer knows the AR (restarted, or it timed the AR out)."""
+
+
+class ProfinetLink(DriveLink):
+    """One PROFIdrive drive object of a PROFINET IO device, reached by record access."""
+
+    fieldbus = "profinet"
+    sends_nmt = False
+    #: Why there is no cyclic process data here (links/cyclic.py ``transport_for``).
+    no_cyclic = (
+        "a PROFINET IO device exchanges its telegram with the IO controller that set it up "
+        "from the GSD file (004 §20.1.1); servodesk is an IO supervisor and reads and writes "
+        "the drive's parameters acyclically"
+    )
+
+    def __init__(self, params: LinkParams) -> None:
+        if params.interface != INTERFACE:
+            raise ValidationError(
+                f"interface {params.interface!r} does not carry PROFINET",
+                field="interface",
+                hint=f"use interface {INTERFACE} with channel host or host:port",
+            )
+        if not 1 <= params.node_id <= 255:
+            raise ValidationError(
+                f"node id {params.node_id} is no PROFIdrive DO-ID (1..255)",
+                field="node_id",
+                hint="the node id of a PROFINET drive is its drive object's DO-ID: 1 on the "
+                "LECSN-T (P975.7)",
+            )
+        self.host, self.port = pnio.parse_channel(params.channel)
+        super().__init__(params)
+        self._sock: socket.socket | None = None
+        self._activity = uuid.uuid4()
+        self._seqnum = 0
+        self._ar_uuid = uuid.uuid4()
+        self._session_key = 0
+        self._record_seq = 0
+        self._reference = 0
+        self._server_boot = 0
+        #: Learnt from the device: PNU -> is an array; (PNU, PNU subindex) -> format.
+        self._arrays: dict[int, bool] = {}
+        self._formats: dict[tuple[int, int], int] = {}
+        #: Answers dropped (another call's, or no PNIO response) and ARs set up again.
+        self.stale = 0
+        self.reconnects = 0
+
+    # Hooks -------------------------------------------------------------------------
+
+    def _open(self) -> None:
+        try:
+            infos = socket.getaddrinfo(self.host, self.port, socket.AF_INET, socket.SOCK_DGRAM)
+        except OSError as exc:
+            raise LinkError(
+                f"cannot resolve {self.host!r}: {exc}", hint="check the device's IP address"
+            ) from exc
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            sock.connect(infos[0][4])
+            sock.settimeout(self.params.timeout)
+            self._sock = sock
+            self._connect_blocking()
+            sock.setblocking(False)
+        except BaseException:
+            self._sock = None
+            sock.close()
+            raise
+
+    def _close(self) -> None:
+        sock, self._sock = self._sock, None
+        if sock is None:
+            return
+        try:
+            # End the AR, so the device's AR resources are free for the next client.
+            sock.settimeout(min(0.3, self.params.timeout))
+            args = pnio.release_block(
+                pnio.BLOCK_RELEASE_REQ, self._ar_uuid, self._session_key, pnio.CONTROL_RELEASE
+            )
+            self._call_blocking(sock, pnio.OP_RELEASE, args)
+        except (OSError, ServodeskError, pnio.PnioFrameError):
+            pass  # Best effort: the device may be gone; its AR times out by itself.
+        finally:
+            sock.close()
+
+    async def _aread(self, address: ObjectAddress) -> bytes:
+        return await self._with_ar(self._read_object, address)
+
+    async def _awrite(self, address: ObjectAddress, data: bytes) -> None:
+        await self._with_ar(self._write_object, address, data)
+
+    async def identity(self) -> Identity:
+        """The I&M0 name plate (manufacturer, order ID, serial, revisions, 004 §20.4.4)."""
+        try:
+            im = await self._acall(self._with_ar, self._read_im0)
+        except (ObjectAccessError, NotFoundError):
+            # No I&M0 where servodesk looks (slot 0, subslot 1): the profile is then found
+            # from P964 (the profile's vendor_id_object), or chosen by the user.
+            return Identity()
+        serial = im.serial.strip()
+        return Identity(
+            vendor_id=im.vendor_id,
+            serial=int(serial) if serial.isdigit() else None,
+            device_name=im.order_id or None,
+            hardware_version=str(im.hardware_revision),
+            software_version=im.software_version,
+        )
+
+    async def read_many(self, addresses: Sequence[ObjectAddress]) -> list[bytes | ServodeskError]:
+        """Several objects in as few parameter requests as fit 240 bytes (39 parameters; an
+        object whose shape is not known yet takes three)."""
+        out: list[bytes | ServodeskError] = []
+        chunk: list[ObjectAddress] = []
+        size = 0
+        for a in [*addresses, None]:
+            n = len(self._plan(a)) if a is not None else 0
+            if chunk and (a is None or size + n > pd.MAX_PARAMETERS):
+                try:
+                    out += await self._acall(self._with_ar, self._read_batch, chunk)
+                except ServodeskError as exc:
+                    out += [exc] * len(chunk)
+                chunk, size = [], 0
+            if a is not None:
+                chunk.append(a)
+                size += n
+        return out
+
+    def _nmt(self, command: str) -> None:
+        raise ConflictError(
+            f"servodesk sends no NMT command ({command}) over PROFINET",
+            hint="PROFINET has no NMT; the drive's communication state belongs to its IO "
+            "controller (004 §20.1.1)",
+        )
+
+    def _network_state(self) -> str:
+        return "unknown"
+
+    # Objects as parameters -------------------------------------------------------------
+
+    def _plan(self, address: ObjectAddress) -> list[pd.ParameterAddress]:
+        """The parameters one object's read asks for."""
+        index, sub = address.index, address.subindex
+        if pd.needs_shape(index, sub) and index not in self._arrays:
+            # The identifier (array or not), the number of elements and the value of PNU
+            # subindex 0: what CoE sub 0 is follows from the first.
+            return [
+                pd.ParameterAddress(index, pd.DESC_ID, pd.ATTR_DESCRIPTION),
+                pd.ParameterAddress(index, pd.DESC_ELEMENTS, pd.ATTR_DESCRIPTION),
+                pd.ParameterAddress(index, 0),
+            ]
+        return [pd.parameter_for(index, sub, array=self._arrays.get(index, False))]
+
+    async def _read_object(self, address: ObjectAddress) -> bytes:
+        (result,) = await self._read_batch([address])
+        if (
+            isinstance(result, ObjectAccessError)
+            and result.protocol == "profidrive"
+            and result.code == 0x15
+        ):
+            return await self._read_blocks(address)
+        if isinstance(result, ServodeskError):
+            raise result
+        return result
+
+    async def _read_blocks(self, address: ObjectAddress) -> bytes:
+        """A string longer than one response (error 15h), read block by block: subindex =
+        block number, number of elements = block size, until a block comes back short
+        (servodesk's convention, which the twin's recorder data uses; docs/profinet.md)."""
+        out = bytearray()
+        for block in range(0x10000):
+            target = pd.ParameterAddress(address.index, block, pd.ATTR_VALUE, BLOCK_BYTES)
+            resp = await self._parameters(pd.REQUEST_READ, [target])
+            v = resp.values[0]
+            if v.error is not None:
+                raise self._refusal(v.error, address, "read")
+            out += v.data
+            if v.count < BLOCK_BYTES:
+                break
+        return bytes(out)
+
+    async def _read_batch(self, addresses: list[ObjectAddress]) -> list[bytes | ServodeskError]:
+        plans = [self._plan(a) for a in addresses]
+        resp = await self._parameters(pd.REQUEST_READ, [p for plan in plans for p in plan])
+        if len(addresses) > 1 and resp.negative and all(v.error == 0x15 for v in resp.values):
+            # Too long for one response (strings): one by one.
+            return [await self._read_one(a) for a in addresses]
+        out: list[bytes | ServodeskError] = []
+        pos = 0
+        for a, plan in zip(addresses, plans, strict=True):
+            values = resp.values[pos : pos + len(plan)]
+            pos += len(plan)
+            try:
+                out.append(self._decode(a, plan, values))
+            except ServodeskError as exc:
+                out.append(exc)
+        return out
+
+    def _decode(
+        self, address: ObjectAddress, plan: list[pd.ParameterAddress], values: Sequence[pd.Values]
+    ) -> bytes:
+        if len(plan) == 1:
+            return self._coe(address, plan[0], values[0])
+        ident = values[0]
+        if ident.error is not None:
+            self._arrays[address.index] = False  # No such parameter: read it as one.
+            raise self._refusal(ident.error, address, "read")
+        array = self._learn(address.index, ident)
+        target = pd.parameter_for(address.index, address.subindex, array=array)
+        return self._coe(address, target, values[1] if array else values[2])
+
+    async def _read_one(self, address: ObjectAddress) -> bytes | ServodeskError:
+        try:
+            return await self._read_object(address)
+        except ServodeskError as exc:
+            return exc
+
+    async def _write_object(self, address: ObjectAddress, data: bytes) -> None:
+        index, sub = address.index, address.subindex
+        if pd.needs_shape(index, sub) and index not in self._arrays:
+            await self._read_shape(address)
+        target = pd.parameter_for(index, sub, array=self._arrays.get(index, False))
+        if target.attribute == pd.ATTR_DESCRIPTION:
+            # CoE sub 0 of an array: its number of elements, a description element that
+            # PROFIdrive does not let a client change (error 07h).
+            raise self._refusal(0x07, address, "write")
+        fmt = self._formats.get((target.pnu, target.subindex))
+        if fmt is None:
+            fmt = await self._learn_format(address, target)
+        try:
+            values = pd.from_coe(fmt, data)
+        except ValueError:
+            raise ValidationError(
+                f"write {address}: {len(data)} bytes are no value of the parameter's format "
+                f"{fmt:02X}h (P{target.pnu}.{target.subindex})",
+                field="value",
+                hint="give a value of the object's data type",
+            ) from None
+        resp = await self._parameters(pd.REQUEST_CHANGE, [target], [values])
+        if resp.negative:
+            number = resp.values[0].error if resp.values else None
+            raise self._refusal(0x14 if number is None else number, address, "write")
+
+    async def _read_shape(self, address: ObjectAddress) -> None:
+        resp = await self._parameters(
+            pd.REQUEST_READ, [pd.ParameterAddress(address.index, pd.DESC_ID, pd.ATTR_DESCRIPTION)]
+        )
+        ident = resp.values[0]
+        if ident.error is not None:
+            raise self._refusal(ident.error, address, "write")
+        self._learn(address.index, ident)
+
+    async def _learn_format(self, address: ObjectAddress, target: pd.ParameterAddress) -> int:
+        """The element's format: from a read of it, or (a write-only parameter) from the
+        identifier's data type."""
+        resp = await self._parameters(
+            pd.REQUEST_READ,
+            [target, pd.ParameterAddress(target.pnu, pd.DESC_ID, pd.ATTR_DESCRIPTION)],
+        )
+        value, ident = resp.values
+        if value.error is None:
+            fmt = value.format
+        elif ident.error is None:
+            fmt = int.from_bytes(ident.data[:2], "big") & 0xFF
+        else:
+            raise self._refusal(ident.error, address, "write")
+        self._formats[(target.pnu, target.subindex)] = fmt
+        return fmt
+
+    def _learn(self, index: int, ident: pd.Values) -> bool:
+        array = bool(int.from_bytes(ident.data[:2], "big") & pd.ID_ARRAY)
+        self._arrays[index] = array
+        return array
+
+    def _coe(self, address: ObjectAddress, target: pd.ParameterAddress, v: pd.Values) -> bytes:
+        if v.error is not None:
+            raise self._refusal(v.error, address, "read")
+        if target.attribute == pd.ATTR_DESCRIPTION:
+            # The number of elements, as CoE sub 0 holds it (UNSIGNED8).
+            n = int.from_bytes(v.data[:2], "big")
+            return bytes((min(n, 255),))
+        if v.format not in pd.FORMAT_SIZES or v.format in (pd.FMT_ZERO, pd.FMT_ERROR):
+            raise LinkError(
+                f"read {address}: the drive answered format {v.format:02X}h",
+                hint="the device may not implement PROFIdrive parameter access as servodesk "
+                "expects (docs/profinet.md)",
+            )
+        self._formats[(target.pnu, target.subindex)] = v.format
+        return pd.to_coe(v)
+
+    def _refusal(self, number: int, address: ObjectAddress, op: str) -> ObjectAccessError:
+        meaning = pd.error_text(number)
+        return ObjectAccessError(
+            f"{op} {address} refused by the drive: {meaning} (PROFIdrive error {number:02X}h)",
+            code=number,
+            meaning=meaning,
+            protocol="profidrive",
+            address=str(address),
+            hint=_HINTS.get(number),
+        )
+
+    # Parameter requests over record 0xB02E -----------------------------------------------
+
+    async def _parameters(
+        self,
+        request_id: int,
+        addresses: Sequence[pd.ParameterAddress],
+        values: Sequence[pd.Values] = (),
+    ) -> pd.Response:
+        self._reference = reference = self._reference % 255 + 1
+        request = pd.build_request(
+            pd.Request(reference, request_id, self.params.node_id, tuple(addresses), tuple(values))
+        )
+        await self._record(pnio.OP_WRITE, pnio.INDEX_PARAMETER_ACCESS, request)
+        deadline = time.monotonic() + self.request_timeout
+        while True:
+            try:
+                data = await self._record(pnio.OP_READ, pnio.INDEX_PARAMETER_ACCESS, pd.MAX_BYTES)
+                break
+            except _NotReady:
+                # PROFIdrive: the drive has not finished the request; read again.
+                if time.monotonic() > deadline:
+                    raise LinkTimeoutError(
+                        f"the drive at {self.host} has no parameter response after "
+                        f"{self.request_timeout:g} s"
+                    ) from None
+                await asyncio.sleep(NOT_READY_POLL_S)
+        try:
+            resp = pd.parse_response(data)
+        except pd.ProfidriveFrameError as exc:
+            raise LinkError(
+                f"the drive's parameter response is malformed: {exc}",
+                hint="the device may not implement PROFIdrive parameter access (docs/profinet.md)",
+            ) from exc
+        if resp.reference != reference:
+            raise LinkError(
+                f"the drive answered request {resp.reference}, not {reference}",
+                hint="another supervisor may use the drive's parameter access channel (it has "
+                "one, 004 §20.1.2)",
+            )
+        if resp.response_id & ~pd.NEGATIVE != request_id:
+            raise LinkError(f"the drive answered response ID {resp.response_id:02X}h")
+        if resp.count != len(addresses) or (
+            len(resp.values) != len(addresses) and (resp.negative or request_id == pd.REQUEST_READ)
+        ):
+            if resp.negative and resp.values and resp.values[0].error == 0x19:
+                raise NotFoundError(
+                    f"the drive at {self.host} has no drive object {self.params.node_id}",
+                    hint="the node id is the DO-ID: 1 on the LECSN-T (P975.7)",
+                )
+            raise LinkError(
+                f"the drive answered {resp.count} parameters for {len(addresses)}",
+                hint="the device may not implement PROFIdrive parameter access (docs/profinet.md)",
+            )
+        if resp.negative and all(v.error == 0x19 for v in resp.values):
+            raise NotFoundError(
+                f"the drive at {self.host} has no drive object {self.params.node_id} "
+                f"(PROFIdrive error 19h)",
+                hint="the node id is the DO-ID: 1 on the LECSN-T (P975.7)",
+            )
+        return resp
+
+    async def _read_im0(self) -> pnio.Im0:
+        data = await self._record(pnio.OP_READ, pnio.INDEX_IM0, 256, slot=0)
+        try:
+            return pnio.parse_im0(data)
+        except pnio.PnioFrameError as exc:
+            raise ObjectAccessError(
+                f"the device's I&M0 is malformed: {exc}",
+                code=0,
+                meaning="I&M0 malformed",
+                protocol="pnio",
+            ) from exc
+
+    async def _record(
+        self, op: int, index: int, data_or_length: bytes | int, *, slot: int = DRIVE_SLOT
+    ) -> bytes:
+        """Write a record (bytes) or read one (the most bytes to take); the record read."""
+        self._record_seq = (self._record_seq + 1) & 0xFFFF
+        where = pnio.RecordAddress(slot, DRIVE_SUBSLOT, index)
+        if isinstance(data_or_length, bytes):
+            head = pnio.RecordHeader(self._record_seq, self._ar_uuid, where, len(data_or_length))
+            args = pnio.record_request(pnio.BLOCK_WRITE_REQ, head) + data_or_length
+            expected = pnio.BLOCK_WRITE_RES
+        else:
+            head = pnio.RecordHeader(self._record_seq, self._ar_uuid, where, data_or_length)
+            args = pnio.record_request(pnio.BLOCK_READ_REQ, head)
+            expected = pnio.BLOCK_READ_RES
+        status, blocks = await self._rpc(op, args)
+        if status:
+            code1, code2 = (status >> 8) & 0xFF, status & 0xFF
+            decode = (status >> 16) & 0xFF
+            if (decode, code1, code2) == _AR_UNKNOWN:
+                raise _ArLost
+            if decode == pnio.DECODE_PNIORW and code1 == 0xB5:
+                raise _NotReady
+            text = pnio.status_text(status)
+            if decode == pnio.DECODE_PNIORW and code1 in (0xB0, 0xB2):
+                raise NotFoundError(
+                    f"the device at {self.host} has no record {index:04X}h at slot {slot} "
+                    f"subslot {DRIVE_SUBSLOT} ({text})",
+                    hint="the device may not be a PROFIdrive drive (docs/profinet.md)",
+                )
+            raise ObjectAccessError(
+                f"the device refused the {text} (PNIOStatus {status:08X}h)",
+                code=status,
+                meaning=text,
+                protocol="pnio",
+            )
+        try:
+            _head, record = pnio.parse_record_header(blocks, expected)
+        except pnio.PnioFrameError as exc:
+            raise LinkError(f"the device's record response is malformed: {exc}") from exc
+        return record
+
+    async def _with_ar(self, fn: Callable[..., Awaitable[T]], *args: Any) -> T:
+        """``fn(*args)``; where the device no longer knows the AR, set one up again and
+        try once more (a parameter request is a whole write and read, so nothing of it was
+        carried out twice)."""
+        try:
+            return await fn(*args)
+        except _ArLost:
+            await self._reconnect()
+        try:
+            return await fn(*args)
+        except _ArLost:
+            raise LinkError(
+                f"the device at {self.host} dropped servodesk's AR again just after it was set up",
+                hint="another client may take the device's ARs; check the IO controller",
+            ) from None
+
+    # RPC -------------------------------------------------------------------------------
+
+    def _packet(self, opnum: int, args: bytes, args_max: int) -> bytes:
+        return pnio.build_rpc(
+            pnio.RpcPacket(
+                ptype=pnio.PTYPE_REQUEST,
+                opnum=opnum,
+                object_uuid=pnio.object_uuid(0, 0),
+                interface=pnio.DEVICE_INTERFACE,
+                activity=self._activity,
+                seqnum=self._seqnum,
+                body=pnio.request_body(args, args_max),
+                server_boot=self._server_boot,
+            )
+        )
+
+    def _match(self, frame: bytes) -> tuple[int, bytes] | None:
+        """(PNIOStatus, blocks) of the response to the call in progress; None for a datagram
+        that is not it."""
+        try:
+            packet = pnio.parse_rpc(frame)
+        except pnio.PnioFrameError:
+            self.stale += 1
+            return None
+        if packet.activity != self._activity or packet.seqnum != self._seqnum:
+            self.stale += 1
+            return None
+        if packet.ptype in (pnio.PTYPE_FAULT, pnio.PTYPE_REJECT):
+            raise LinkError(
+                f"the device at {self.host} rejected the RPC call "
+                f"(status {packet.body[:4].hex() or 'none'})",
+                hint="the device may not be a PROFINET IO device, or not accept a supervisor "
+                "AR (docs/profinet.md)",
+            )
+        if packet.ptype != pnio.PTYPE_RESPONSE:
+            self.stale += 1  # working / no-call: the answer is still to come
+            return None
+        self._server_boot = packet.server_boot
+        try:
+            return pnio.parse_response_body(packet.body, little=packet.little)
+        except pnio.PnioFrameError as exc:
+            raise LinkError(f"the device's RPC response is malformed: {exc}") from exc
+
+    async def _rpc(self, opnum: int, args: bytes) -> tuple[int, bytes]:
+        sock = self._sock
+        if sock is None:
+            raise LinkError("the PROFINET socket is closed", hint="open the session again")
+        loop = asyncio.get_running_loop()
+        timeout = self.request_timeout
+        self._seqnum = (self._seqnum + 1) & 0xFFFFFFFF
+        datagram = self._packet(opnum, args, pnio.MAX_DATAGRAM)
+        for _ in range(SENDS):
+            try:
+                await loop.sock_sendall(sock, datagram)
+                # asyncio.timeout, not wait_for: no task per request.
+                async with asyncio.timeout(timeout):
+                    while True:
+                        got = self._match(await loop.sock_recv(sock, 65535))
+                        if got is not None:
+                            return got
+            except TimeoutError:
+                continue
+            except ConnectionRefusedError as exc:
+                raise self._nobody(exc) from exc
+        raise LinkTimeoutError(
+            f"no PNIO answer from {self.host}:{self.port} within {timeout:g} s ({SENDS} sends)"
+        )
+
+    def _call_blocking(self, sock: socket.socket, opnum: int, args: bytes) -> tuple[int, bytes]:
+        self._seqnum = (self._seqnum + 1) & 0xFFFFFFFF
+        datagram = self._packet(opnum, args, pnio.MAX_DATAGRAM)
+        for _ in range(SENDS):
+            try:
+                sock.send(datagram)
+                deadline = time.monotonic() + (sock.gettimeout() or 1.0)
+                while True:
+                    sock.settimeout(max(0.001, deadline - time.monotonic()))
+                    got = self._match(sock.recv(65535))
+                    if got is not None:
+                        return got
+            except TimeoutError:
+                continue
+            except ConnectionRefusedError as exc:
+                raise self._nobody(exc) from exc
+        raise NotFoundError(
+            f"no PROFINET device answers at udp {self.host}:{self.port} "
+            f"(no answer to {SENDS} connect requests)",
+            hint="check the device's IP address and that it is powered and on this network",
+        )
+
+    def _nobody(self, exc: OSError) -> NotFoundError:
+        return NotFoundError(
+            f"nothing answers PNIO-CM at udp {self.host}:{self.port} "
+            f"({errno.errorcode.get(exc.errno or 0, exc)})",
+            hint="check the device's IP address and port (34964), and that it is powered",
+        )
+
+    def _connect_blocking(self) -> None:
+        """Set up the supervisor AR (blocking; in the worker thread that opens the link)."""
+        sock = self._sock
+        assert sock is not None
+        self._ar_uuid = uuid.uuid4()
+        self._session_key = (self._session_key + 1) & 0xFFFF
+        args = pnio.ar_block_req(
+            pnio.ArRequest(
+                ar_uuid=self._ar_uuid,
+                session_key=self._session_key,
+                initiator_mac=bytes(6),
+                initiator_object=pnio.object_uuid(0, 0),
+                station_name=INITIATOR_NAME,
+            )
+        )
+        status, blocks = self._call_blocking(sock, pnio.OP_CONNECT, args)
+        self._check_connect(status, blocks)
+
+    def _check_connect(self, status: int, blocks: bytes) -> None:
+        if status:
+            raise ConflictError(
+                f"the device at {self.host} refused the supervisor AR: "
+                f"{pnio.status_text(status)} (PNIOStatus {status:08X}h)",
+                hint="the device may allow no further AR now; close other supervisors' "
+                "sessions, or check that it accepts a supervisor AR with device access",
+            )
+        try:
+            ar_uuid, _key = pnio.parse_ar_block_res(pnio.one_block(blocks, pnio.BLOCK_AR_RES))
+        except pnio.PnioFrameError as exc:
+            raise LinkError(f"the device's connect response is malformed: {exc}") from exc
+        if ar_uuid != self._ar_uuid:
+            raise LinkError("the device answered the connect for another AR")
+
+    async def _reconnect(self) -> None:
+        self.reconnects += 1
+        self._ar_uuid = uuid.uuid4()
+        self._session_key = (self._session_key + 1) & 0xFFFF
+        args = pnio.ar_block_req(
+            pnio.ArRequest(
+                ar_uuid=self._ar_uuid,
+                session_key=self._session_key,
+                initiator_mac=bytes(6),
+                initiator_object=pnio.object_uuid(0, 0),
+                station_name=INITIATOR_NAME,
+            )
+        )
+        status, blocks = await self._rpc(pnio.OP_CONNECT, args)
+        self._check_connect(status, blocks)
+
+
+class _NotReady(Exception):
+    """PNIORW B5h on reading 0xB02E: the parameter response is not there yet."""
+
+
+#: What a user can do about the common PROFIdrive errors.
+_HINTS: dict[int, str] = {
+    0x00: "the drive has no such parameter; check the index against the profile (P980 lists "
+    "the drive's parameters)",
+    0x01: "the parameter is read-only",
+    0x02: "the value is outside the parameter's range",
+    0x03: "check the subindex: PNU subindex = CoE subindex - 1 (004 §20.1.5)",
+    0x04: "the parameter has no subindexes; use subindex 0",
+    0x05: "the value's data type does not match the parameter's",
+    0x07: "the number of entries of an array cannot be changed over PROFIdrive",
+    0x11: "the drive refuses this in its present state (e.g. servo on, or the master in RUN)",
+    0xFF: "the parameter is write-only; it cannot be read back",
+}
