@@ -58,6 +58,18 @@ def test_serve_sim_opens_the_lecsn_over_profinet_and_moves_it(channel, tmp_path)
         r = client.put(f"/api/v1/sessions/{SID}/objects/0x6081:00", json={"value": 4321}, headers=A)
         assert r.status_code == 200, r.text
         assert drive.read(0x6081) == 4321
+        # Many objects read at once (the Parameters page, a backup) go in one parameter
+        # request of up to 39 parameters: a record write and a record read, where one at a
+        # time takes two per object (72 here).
+        device = sim.profinet[0]
+        many = [f"0x{i:04X}:00" for i in (0x6041, 0x6064, 0x606C, 0x6081, 0x6083, 0x6084)] * 6
+        client.post(f"/api/v1/sessions/{SID}/read", json={"addresses": many})  # learn shapes
+        before = device.answered
+        r = client.post(f"/api/v1/sessions/{SID}/read", json={"addresses": many})
+        calls = device.answered - before
+        assert r.status_code == 200 and all("value" in x for x in r.json()["results"]), r.text
+        assert calls < 12, f"{calls} RPC calls for 36 objects"  # 2, and the state poll's
+
         # A read-only object is refused from the profile before anything is sent.
         r = client.put(f"/api/v1/sessions/{SID}/objects/0x6041:00", json={"value": 0}, headers=A)
         assert r.status_code == 400 and r.json()["protocol"] == "profile", r.text

@@ -16,7 +16,7 @@ import pytest
 
 from servodesk.domain.address import ObjectAddress as A
 from servodesk.domain.profile_loader import ProfileCatalog
-from servodesk.errors import NotFoundError, ObjectAccessError, ValidationError
+from servodesk.errors import LinkTimeoutError, NotFoundError, ObjectAccessError, ValidationError
 from servodesk.links.base import LinkParams
 from servodesk.links.profinet_link import ProfinetLink
 from servodesk.sim.engine import SimulatedDrive
@@ -184,6 +184,26 @@ async def test_a_device_that_forgot_the_ar_is_connected_again(
     device._state.ars.clear()  # the device restarted
     assert await link.read(A(0x6041)) == device.drive.read_bytes(0x6041, 0)
     assert link.reconnects == 1 and device.ars == 1
+
+
+async def test_a_device_that_went_away_times_out_and_is_found_again_after_its_restart(
+    catalog: ProfileCatalog,
+) -> None:
+    drive = SimulatedDrive(catalog.get("lecsn-t"), 1)
+    first = ProfinetDevice(drive).start()
+    host, port = first.address
+    lk = ProfinetLink(params(f"{host}:{port}", timeout=0.2))
+    await lk.open()
+    try:
+        await lk.write(A(0x6081), (1234).to_bytes(4, "little"))
+        first.stop()  # Power off: nothing answers (or the port is closed).
+        with pytest.raises((LinkTimeoutError, NotFoundError)):
+            await lk.read(A(0x6081))
+        with ProfinetDevice(drive, host, port) as second:  # Powered again, no AR known.
+            assert await lk.read(A(0x6081)) == (1234).to_bytes(4, "little")
+            assert lk.reconnects == 1 and second.ars == 1
+    finally:
+        await lk.close()
 
 
 class _LossyProxy:

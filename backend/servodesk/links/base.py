@@ -165,11 +165,16 @@ class ObjectAccess(ABC):
     ) -> None: ...
 
     async def read_many(self, addresses: Sequence[ObjectAddress]) -> list[bytes | ServodeskError]:
-        """Read several objects; a failed one yields its error instead of stopping the rest."""
+        """Read several objects; a refused one yields its error in its place and the rest go
+        on. A link error (no answer, the bus is gone) ends the reads: the remaining ones
+        would only time out too. A fieldbus that reads several objects in one request (the
+        PROFINET link) overrides this."""
         out: list[bytes | ServodeskError] = []
         for a in addresses:
             try:
                 out.append(await self.read(a))
+            except LinkError:
+                raise
             except ServodeskError as exc:
                 out.append(exc)
         return out

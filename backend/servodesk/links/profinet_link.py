@@ -186,6 +186,8 @@ class ProfinetLink(DriveLink):
             if chunk and (a is None or size + n > pd.MAX_PARAMETERS):
                 try:
                     out += await self._acall(self._with_ar, self._read_batch, chunk)
+                except LinkError:
+                    raise  # As ObjectAccess.read_many: the rest would time out too.
                 except ServodeskError as exc:
                     out += [exc] * len(chunk)
                 chunk, size = [], 0
@@ -598,9 +600,14 @@ class ProfinetLink(DriveLink):
         """Set up the supervisor AR (blocking; in the worker thread that opens the link)."""
         sock = self._sock
         assert sock is not None
+        status, blocks = self._call_blocking(sock, pnio.OP_CONNECT, self._new_ar())
+        self._check_connect(status, blocks)
+
+    def _new_ar(self) -> bytes:
+        """The connect request of a new supervisor AR (a new ARUUID and session key)."""
         self._ar_uuid = uuid.uuid4()
         self._session_key = (self._session_key + 1) & 0xFFFF
-        args = pnio.ar_block_req(
+        return pnio.ar_block_req(
             pnio.ArRequest(
                 ar_uuid=self._ar_uuid,
                 session_key=self._session_key,
@@ -609,8 +616,6 @@ class ProfinetLink(DriveLink):
                 station_name=INITIATOR_NAME,
             )
         )
-        status, blocks = self._call_blocking(sock, pnio.OP_CONNECT, args)
-        self._check_connect(status, blocks)
 
     def _check_connect(self, status: int, blocks: bytes) -> None:
         if status:
@@ -629,18 +634,7 @@ class ProfinetLink(DriveLink):
 
     async def _reconnect(self) -> None:
         self.reconnects += 1
-        self._ar_uuid = uuid.uuid4()
-        self._session_key = (self._session_key + 1) & 0xFFFF
-        args = pnio.ar_block_req(
-            pnio.ArRequest(
-                ar_uuid=self._ar_uuid,
-                session_key=self._session_key,
-                initiator_mac=bytes(6),
-                initiator_object=pnio.object_uuid(0, 0),
-                station_name=INITIATOR_NAME,
-            )
-        )
-        status, blocks = await self._rpc(pnio.OP_CONNECT, args)
+        status, blocks = await self._rpc(pnio.OP_CONNECT, self._new_ar())
         self._check_connect(status, blocks)
 
 

@@ -22,8 +22,6 @@ number, a client's resend) with the response it sent before, without carrying it
 from __future__ import annotations
 
 import logging
-import socket
-import threading
 import uuid
 from dataclasses import dataclass, field
 
@@ -33,6 +31,7 @@ from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType
 from servodesk.domain.profile import ObjectSpec, ObjectType
 from servodesk.sim.engine import SimAbort, SimulatedDrive
+from servodesk.sim.udp_server import UdpServer
 
 log = logging.getLogger(__name__)
 
@@ -86,8 +85,10 @@ class _State:
     answered: dict[uuid.UUID, _Cache] = field(default_factory=dict)
 
 
-class ProfinetDevice:
+class ProfinetDevice(UdpServer):
     """A UDP PNIO-CM server for one drive; ``start()`` binds, ``channel`` tells where."""
+
+    name = "pnio-device"
 
     def __init__(
         self,
@@ -97,91 +98,20 @@ class ProfinetDevice:
         *,
         serial: str | None = None,
     ) -> None:
+        super().__init__(host, port)
         self.drive = drive
-        self._host = host
-        self._port = port
-        self._sock: socket.socket | None = None
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
         self._state = _State()
         self.mac = bytes.fromhex("020000") + drive.node_id.to_bytes(3, "big")
         im = drive.profile.quirk("im0", {}) or {}
         self._im = im
         self.serial = serial or str(drive.profile.simulation.serial_number or drive.node_id)
-        #: Requests answered, frames dropped and resends answered from the cache.
-        self.answered = 0
-        self.dropped = 0
+        #: Resends answered from the cache.
         self.resends = 0
-
-    @property
-    def address(self) -> tuple[str, int]:
-        if self._sock is None:
-            raise RuntimeError("the device is not started")
-        host, port = self._sock.getsockname()[:2]
-        return str(host), int(port)
-
-    @property
-    def channel(self) -> str:
-        host, port = self.address
-        return f"{host}:{port}"
 
     @property
     def ars(self) -> int:
         """Application relations open now."""
         return len(self._state.ars)
-
-    def start(self) -> ProfinetDevice:
-        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        try:
-            sock.bind((self._host, self._port))
-        except OSError:
-            sock.close()
-            raise
-        sock.settimeout(0.05)  # Wake up this often to see whether to stop.
-        self._sock = sock
-        self._thread = threading.Thread(target=self._serve, name="pnio-device", daemon=True)
-        self._thread.start()
-        log.info("PROFINET device %s on udp %s", self.drive.profile.id, self.channel)
-        return self
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
-            self._thread = None
-        if self._sock is not None:
-            self._sock.close()
-            self._sock = None
-
-    def __enter__(self) -> ProfinetDevice:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
-
-    def _serve(self) -> None:
-        sock = self._sock
-        assert sock is not None
-        while not self._stop.is_set():
-            try:
-                frame, peer = sock.recvfrom(65535)
-            except TimeoutError:
-                continue
-            except OSError:
-                return  # Closed.
-            try:
-                answer = self.answer(frame)
-            except Exception:  # A bug here must not stop the device.
-                log.exception("PNIO request not answered")
-                answer = None
-            if answer is None:
-                self.dropped += 1
-                continue
-            self.answered += 1  # Before it is sent: the client may look right after.
-            try:
-                sock.sendto(answer, peer)
-            except OSError:
-                log.debug("PNIO answer to %s not sent", peer, exc_info=True)
 
     # RPC -------------------------------------------------------------------------------
 

@@ -19,18 +19,20 @@ What it answers, and how (docs/slmp.md):
 from __future__ import annotations
 
 import logging
-import socket
-import threading
 from collections.abc import Mapping
 
 from servodesk.domain import slmp
 from servodesk.sim.engine import SimAbort, SimulatedDrive
+from servodesk.sim.udp_server import UdpServer
 
 log = logging.getLogger(__name__)
 
 
-class SlmpStation:
+class SlmpStation(UdpServer):
     """A UDP SLMP server for up to four axes; ``start()`` binds, ``address`` tells where."""
+
+    name = "slmp-station"
+    max_datagram = slmp.MAX_FRAME
 
     def __init__(
         self, axes: Mapping[int, SimulatedDrive], host: str = "127.0.0.1", port: int = 0
@@ -38,81 +40,8 @@ class SlmpStation:
         for axis in axes:
             if not 0 <= axis <= 3:
                 raise ValueError(f"axis {axis} is outside 0..3 (X, Y, Z, U)")
+        super().__init__(host, port)
         self.axes = dict(axes)
-        self._host = host
-        self._port = port
-        self._sock: socket.socket | None = None
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
-        #: Requests answered and frames dropped (tests and logs).
-        self.answered = 0
-        self.dropped = 0
-
-    @property
-    def address(self) -> tuple[str, int]:
-        if self._sock is None:
-            raise RuntimeError("the station is not started")
-        host, port = self._sock.getsockname()[:2]
-        return str(host), int(port)
-
-    @property
-    def channel(self) -> str:
-        """``host:port``, the link's channel."""
-        host, port = self.address
-        return f"{host}:{port}"
-
-    def start(self) -> SlmpStation:
-        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        try:
-            sock.bind((self._host, self._port))
-        except OSError:
-            sock.close()
-            raise
-        sock.settimeout(0.05)  # Wake up this often to see whether to stop.
-        self._sock = sock
-        self._thread = threading.Thread(target=self._serve, name="slmp-station", daemon=True)
-        self._thread.start()
-        log.info("SLMP station on udp %s (axes %s)", self.channel, sorted(self.axes))
-        return self
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
-            self._thread = None
-        if self._sock is not None:
-            self._sock.close()
-            self._sock = None
-
-    def __enter__(self) -> SlmpStation:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
-
-    def _serve(self) -> None:
-        sock = self._sock
-        assert sock is not None
-        while not self._stop.is_set():
-            try:
-                frame, peer = sock.recvfrom(slmp.MAX_FRAME)
-            except TimeoutError:
-                continue
-            except OSError:
-                return  # Closed.
-            try:
-                answer = self.answer(frame)
-            except Exception:  # A bug here must not stop the station.
-                log.exception("SLMP request not answered")
-                answer = None
-            if answer is None:
-                self.dropped += 1
-                continue
-            try:
-                sock.sendto(answer, peer)
-                self.answered += 1
-            except OSError:
-                log.debug("SLMP answer to %s not sent", peer, exc_info=True)
 
     def answer(self, frame: bytes) -> bytes | None:
         """The response to one request frame; None for a frame that is dropped."""

@@ -13,4 +13,8 @@ describe('nmtTitle', () => {
     expect(nmtTitle('unknown', 'cclink-ie-tsn')).toContain('manager');
     expect(nmtTitle('unknown', 'canopen')).toContain('1017h');
   });
+  it('says PROFINET has no NMT and whose the state is', () => {
+    expect(nmtTitle('unknown', 'profinet')).toMatch(/^No NMT on PROFINET/);
+    expect(nmtTitle('unknown', 'profinet')).toContain('IO controller');
+  });
 });
