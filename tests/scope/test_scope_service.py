@@ -669,3 +669,24 @@ async def test_normal_mode_rearms_after_each_capture(fresh: Rig) -> None:
     assert rig.scope.captures - before == 2
     assert windows[0]["trigger_time"] < windows[1]["trigger_time"]
     assert st["state"] == "idle"
+
+
+async def test_channels_polled_over_profinet_are_sampled_together(fresh: Rig) -> None:
+    # The LECSN-T over PROFINET: its link reads several objects in one PROFIdrive request,
+    # so the scope samples the due channels together, at one time stamp each round.
+    rig = fresh
+    await put_channels(
+        rig,
+        [
+            {"id": 0, "session": LECSN, "address": "0x6041:00", "source": "sdo"},
+            {"id": 1, "session": LECSN, "address": "0x6064:00", "source": "sdo"},
+        ],
+    )
+    await run(rig, "start")
+    await asyncio.sleep(0.5)
+    await run(rig, "stop")
+    t0, v0 = samples(rig, 0)
+    t1, _ = samples(rig, 1)
+    assert len(t0) > 100, len(t0)  # hundreds of samples per second over loopback UDP
+    assert np.array_equal(t0, t1)  # one request, one time stamp
+    assert not np.isnan(v0).any()

@@ -77,6 +77,8 @@ class ProfinetLink(DriveLink):
 
     fieldbus = "profinet"
     sends_nmt = False
+    #: :meth:`read_many` reads several objects in one request (the scope samples together).
+    reads_many_at_once = True
     #: Why there is no cyclic process data here (links/cyclic.py ``transport_for``).
     no_cyclic = (
         "a PROFINET IO device exchanges its telegram with the IO controller that set it up "
