@@ -70,6 +70,14 @@ def test_serve_sim_opens_the_lecsn_over_profinet_and_moves_it(channel, tmp_path)
         assert r.status_code == 200 and all("value" in x for x in r.json()["results"]), r.text
         assert calls < 12, f"{calls} RPC calls for 36 objects"  # 2, and the state poll's
 
+        # The drive's state (statusword, mode, position, velocity, error code) in one
+        # request too: the session polls it up to 20 times a second.
+        before = device.answered
+        r = client.get(f"/api/v1/sessions/{SID}/state")
+        calls = device.answered - before
+        assert r.status_code == 200 and r.json()["statusword"] is not None, r.text
+        assert calls < 8, f"{calls} RPC calls for the state"  # 2, and the poll's; was 10
+
         # A read-only object is refused from the profile before anything is sent.
         r = client.put(f"/api/v1/sessions/{SID}/objects/0x6041:00", json={"value": 0}, headers=A)
         assert r.status_code == 400 and r.json()["protocol"] == "profile", r.text

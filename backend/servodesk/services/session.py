@@ -468,17 +468,42 @@ class Session:
 
     # CiA 402 state -------------------------------------------------------------------------
 
+    async def _state_values(self) -> list[int | None]:
+        """Statusword, mode display, position, velocity and error code. A statusword that
+        cannot be read raises; the others are None then. A link that reads several objects in
+        one request (PROFINET) reads them in one."""
+        wanted = [
+            (STATUSWORD, DataType.UNSIGNED16),
+            (MODE_DISPLAY, DataType.INTEGER8),
+            (POSITION, DataType.INTEGER32),
+            (VELOCITY, DataType.INTEGER32),
+            (ERROR_CODE, DataType.UNSIGNED16),
+        ]
+        if not getattr(self.link, "reads_many_at_once", False):
+            sw = await self._read_int(*wanted[0])
+            return [sw, *[await self._opt(a, dt) for a, dt in wanted[1:]]]
+        # As _read_int: an object the profile lacks is not asked for.
+        asked = [(a, dt) for a, dt in wanted if self.profile.spec(a) or not self.profile.variables]
+        raws = dict(zip(asked, await self.link.read_many([a for a, _ in asked]), strict=True))
+        out: list[int | None] = []
+        for a, dt in wanted:
+            raw = raws.get((a, dt))
+            if isinstance(raw, ServodeskError):
+                if a == STATUSWORD:
+                    raise raw
+                raw = None
+            spec = self.profile.spec(a)
+            v = codec(spec.data_type if spec else dt).decode(raw) if raw is not None else None
+            out.append(int(v) if isinstance(v, int | bool) else None)
+        return out
+
     async def drive_state(self) -> DriveState:
-        sw = await self._read_int(STATUSWORD, DataType.UNSIGNED16)
+        sw, mode, pos, vel, err = await self._state_values()
         if sw is None:
             raise DriveStateError(
                 f"profile {self.profile.id} has no statusword (6041h)",
                 hint="this drive is not a CiA 402 axis",
             )
-        mode = await self._opt(MODE_DISPLAY, DataType.INTEGER8)
-        pos = await self._opt(POSITION, DataType.INTEGER32)
-        vel = await self._opt(VELOCITY, DataType.INTEGER32)
-        err = await self._opt(ERROR_CODE, DataType.UNSIGNED16)
         state = cia402.decode_state(sw)
         error = None
         if err:
