@@ -78,6 +78,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         finally:
             await manager.close_all()
             backup_service.store.close()
+            from servodesk.services.tuning_own import shutdown_design_pool
+
+            shutdown_design_pool()
             if state.sim is not None:
                 state.sim.stop()
                 state.sim = None

@@ -35,10 +35,13 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import ctypes
 import functools
 import logging
 import math
 import multiprocessing
+import signal
+import sys
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
@@ -1634,6 +1637,20 @@ def _round(x: np.ndarray) -> list[float]:
 
 
 _POOL: ProcessPoolExecutor | None = None
+#: prctl(2) option: the signal a process gets when the thread that started it ends.
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent() -> None:
+    """In the worker (Linux): end with the server, however the server ends. A server killed
+    outright (SIGKILL, or a stop that timed out waiting for a long search) left the worker
+    and its resource tracker running for good."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+    except (OSError, AttributeError):
+        log.debug("tuning worker: prctl(PR_SET_PDEATHSIG) not available")
 
 
 def _design_pool() -> ProcessPoolExecutor:
@@ -1641,8 +1658,26 @@ def _design_pool() -> ProcessPoolExecutor:
     the server has bus threads a fork would copy in whatever state they are)."""
     global _POOL
     if _POOL is None:
-        _POOL = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+        _POOL = ProcessPoolExecutor(
+            1, mp_context=multiprocessing.get_context("spawn"), initializer=_die_with_parent
+        )
     return _POOL
+
+
+def shutdown_design_pool() -> None:
+    """Stop the gain search worker now (the server stops): a search in progress is
+    abandoned (its tuning was stopped with the sessions) rather than waited for."""
+    global _POOL
+    pool, _POOL = _POOL, None
+    if pool is None:
+        return
+    # ProcessPoolExecutor has no public way to end a busy worker (Python 3.11).
+    workers = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for w in workers:
+        w.terminate()
+    for w in workers:
+        w.join(2.0)
 
 
 async def _quietly(aw: Any) -> None:
