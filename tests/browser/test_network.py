@@ -86,6 +86,10 @@ def test_ctmm04x_is_reached_by_slmp_on_axis_x(page: Page) -> None:
     expect(page.get_by_test_id("network-interface")).to_have_text("slmp")
     expect(page.get_by_test_id("network-link-name")).to_have_text("cclink-ie-tsn")
     expect(page.get_by_test_id("network-axis")).to_have_text("X (node id 1, multidrop 0)")
+    # The header names the node as the fieldbus does: the station's axis.
+    expect(page.locator(".drive-meta")).to_have_attribute(
+        "title", re.compile(r"^axis X · cclink-ie-tsn · slmp:127\.0\.0\.1:\d+$")
+    )
     expect(page.get_by_test_id("network-channel")).to_have_text(re.compile(r"^127\.0\.0\.1:\d+$"))
     expect(page.get_by_test_id("network-nmt")).to_have_attribute(
         "title", re.compile(r"manager's command \(003 §3-3\)")

@@ -120,7 +120,9 @@ def test_the_drive_state_stays_whole_in_the_header_on_a_laptop_screen(
     expect(name).to_have_attribute(
         "title", "MR-J4-TM (SMC LECSN-T servo amplifier (LEC-S-NP PROFINET))"
     )
-    expect(page.locator(".drive-meta")).to_have_attribute("title", re.compile(r"^node 1 · "))
+    expect(page.locator(".drive-meta")).to_have_attribute(
+        "title", re.compile(r"^DO-ID 1 · profinet · ")
+    )
 
 
 def test_the_open_sessions_fit_a_laptop_screen(page: Page) -> None:
@@ -242,7 +244,7 @@ def test_an_ethercat_line_is_opened_from_the_connect_page(page: Page) -> None:
         page.get_by_test_id("open-session").click()
         page.wait_for_url(re.compile(r"#/overview/hiwin-e-1"))
         expect(page.locator(".drive-meta")).to_have_attribute(
-            "title", f"node 1 · ethercat · ethercat:{pair.master}"
+            "title", f"slave 1 · ethercat · ethercat:{pair.master}"
         )
         page.goto("/#/network/hiwin-e-1")
         expect(page.get_by_test_id("network-link-name")).to_have_text("ethercat")

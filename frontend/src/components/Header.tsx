@@ -3,6 +3,7 @@
  * a drive switcher, and the WebSocket connection indicator.
  */
 import type { SessionInfo } from '../api';
+import { nodeLabel } from '../lib/network';
 import { useObservable } from '../state/observable';
 import { navigate, useRoute } from '../state/router';
 import { liveSession, sessions, socketStatus } from '../state/store';
@@ -37,7 +38,7 @@ function DriveTitle({ session }: { session: SessionInfo }) {
   const liveState = useObservable(liveSession(session.id)).state;
   const state = liveState?.state ?? session.state;
   const name = session.identity.device_name || session.profile_name;
-  const meta = `node ${session.node_id} · ${session.fieldbus} · ${session.interface}:${session.channel}`;
+  const meta = `${nodeLabel(session.interface, session.node_id)} · ${session.fieldbus} · ${session.interface}:${session.channel}`;
   return (
     <div className="drive-title">
       <span className="drive-name" data-testid="header-drive-name" title={name === session.profile_name ? name : `${name} (${session.profile_name})`}>

@@ -1,6 +1,6 @@
 import { describe, expect, it } from 'vitest';
 import type { NetworkLedInfo, ObjectInfo, ProfileDetail } from '../api/types';
-import { ledGroups, networkAddresses, networkRows, slmpAxis, slmpAxisLabel } from './network';
+import { ledGroups, networkAddresses, networkRows, nodeLabel, slmpAxis, slmpAxisLabel } from './network';
 
 function obj(address: string, access = 'ro'): ObjectInfo {
   const [idx, sub] = address.slice(2).split(':');
@@ -84,5 +84,16 @@ describe('ledGroups', () => {
     const g = ledGroups([led('NS', 'off'), led('MS', 'off'), led('NS', 'green on')]);
     expect(g.map((x) => x.led)).toEqual(['NS', 'MS']);
     expect(g[0]?.states.map((s) => s.state)).toEqual(['off', 'green on']);
+  });
+});
+
+describe('nodeLabel', () => {
+  it("names the node as the session's fieldbus does", () => {
+    expect(nodeLabel('slmp', 2)).toBe('axis Y');
+    expect(nodeLabel('slmp', 9)).toBe('axis ? (node id 9)');
+    expect(nodeLabel('profinet', 1)).toBe('DO-ID 1');
+    expect(nodeLabel('ethercat', 3)).toBe('slave 3');
+    expect(nodeLabel('virtual', 5)).toBe('node 5');
+    expect(nodeLabel('socketcan', 12)).toBe('node 12');
   });
 });

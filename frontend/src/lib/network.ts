@@ -22,6 +22,15 @@ export function slmpAxisLabel(nodeId: number): string {
   return axis ? `${axis} (node id ${nodeId}, multidrop ${nodeId - 1})` : `no axis (node id ${nodeId})`;
 }
 
+/** How a session's node is named on its fieldbus: "axis X" (SLMP), "DO-ID 1" (PROFINET, the
+ * drive object), "slave 1" (EtherCAT, position + 1), else "node 5" (CANopen). */
+export function nodeLabel(iface: string, nodeId: number): string {
+  if (iface === 'slmp') return `axis ${slmpAxis(nodeId) ?? `? (node id ${nodeId})`}`;
+  if (iface === 'profinet') return `DO-ID ${nodeId}`;
+  if (iface === 'ethercat') return `slave ${nodeId}`;
+  return `node ${nodeId}`;
+}
+
 /** One object of the profile's network section with the profile's entry for it (null: the
  * profile does not list it, which the backend's check_profile refuses; kept for an old one). */
 export interface NetworkRow {
