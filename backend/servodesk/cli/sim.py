@@ -1,4 +1,5 @@
-"""``servodesk sim``: one simulated CiA 402 drive on a CAN bus, as a standalone process.
+"""``servodesk sim``: one simulated CiA 402 drive as a standalone process, on a CAN bus or
+its own fieldbus.
 
 Other programs (servodesk itself, a PLC, plain python-canopen code) talk to it over the bus:
 ``servodesk sim --profile cia402-generic --node-id 5 --interface udp_multicast
@@ -37,9 +38,10 @@ from servodesk.errors import ServodeskError
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = subparsers.add_parser(
         "sim",
-        help="run one simulated drive on a CAN bus",
-        description="Serve one simulated CiA 402 drive (CANopen device) on a python-can bus "
-        "until interrupted.",
+        help="run one simulated drive (CAN bus, SLMP station, PROFINET device, EtherCAT slave)",
+        description="Serve one simulated CiA 402 drive until interrupted: a CANopen device on a "
+        "python-can bus, or with --interface slmp / profinet / ethercat an SLMP station axis, a "
+        "PROFINET IO device or an EtherCAT slave.",
     )
     p.add_argument("--profile", default="cia402-generic", help="device profile id")
     p.add_argument("--node-id", type=int, default=1, help="CANopen node id (1..127)")

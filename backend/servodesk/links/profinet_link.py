@@ -65,6 +65,10 @@ BLOCK_BYTES = 232
 NOT_READY_POLL_S = 0.002
 
 _AR_UNKNOWN = (pnio.DECODE_PNIO, pnio.CMRPC, 0x05)
+#: The object UUID servodesk addresses (instance 1; the LECSN-T's device ID is not
+#: documented, docs/profinet.md), made once: a UUID from text costs more than the rest of
+#: building a datagram.
+_OBJECT_UUID = pnio.object_uuid(0, 0)
 T = TypeVar("T")
 
 
@@ -508,7 +512,7 @@ class ProfinetLink(DriveLink):
             pnio.RpcPacket(
                 ptype=pnio.PTYPE_REQUEST,
                 opnum=opnum,
-                object_uuid=pnio.object_uuid(0, 0),
+                object_uuid=_OBJECT_UUID,
                 interface=pnio.DEVICE_INTERFACE,
                 activity=self._activity,
                 seqnum=self._seqnum,
@@ -614,7 +618,7 @@ class ProfinetLink(DriveLink):
                 ar_uuid=self._ar_uuid,
                 session_key=self._session_key,
                 initiator_mac=bytes(6),
-                initiator_object=pnio.object_uuid(0, 0),
+                initiator_object=_OBJECT_UUID,
                 station_name=INITIATOR_NAME,
             )
         )
