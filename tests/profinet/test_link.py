@@ -11,11 +11,12 @@ import asyncio
 import socket
 import threading
 from collections.abc import AsyncIterator, Iterator
+from pathlib import Path
 
 import pytest
 
 from servodesk.domain.address import ObjectAddress as A
-from servodesk.domain.profile_loader import ProfileCatalog
+from servodesk.domain.profile_loader import ProfileCatalog, default_profile_dirs
 from servodesk.errors import LinkTimeoutError, NotFoundError, ObjectAccessError, ValidationError
 from servodesk.links.base import LinkParams
 from servodesk.links.profinet_link import ProfinetLink
@@ -145,6 +146,38 @@ async def test_read_many_packs_up_to_39_parameters_per_request(
     assert isinstance(got[2], ObjectAccessError) and got[2].code == 0x00
     assert got[3] == (10000).to_bytes(4, "little")  # 6081h's default
     assert all(isinstance(g, bytes) for i, g in enumerate(got) if i % 4 != 2)
+
+
+LONG_TEXT = "".join(chr(ord("a") + i % 26) for i in range(600))
+
+
+@pytest.fixture
+def long_text_device(tmp_path: Path) -> Iterator[ProfinetDevice]:
+    """A drive with a 600-character string: more than one 240-byte response holds."""
+    (tmp_path / "long-text").mkdir()
+    (tmp_path / "long-text" / "profile.yaml").write_text(
+        "id: long-text\nname: Long text drive\nvendor: test\nfieldbus: profinet\n"
+        "extends: cia402-generic\nidentity: {vendor_id: 0x12345678}\n"
+        "objects:\n- index: 0x2100\n  name: Long text\n  data_type: VISIBLE_STRING\n"
+        f"  access: ro\n  default: {LONG_TEXT}\n"
+    )
+    profile = ProfileCatalog(default_profile_dirs([tmp_path])).get("long-text")
+    with ProfinetDevice(SimulatedDrive(profile, 1)) as dev:
+        yield dev
+
+
+async def test_a_value_longer_than_one_response_is_read_in_blocks(
+    long_text_device: ProfinetDevice,
+) -> None:
+    lk = ProfinetLink(params(long_text_device.channel))
+    await lk.open()
+    try:
+        assert await lk.read(A(0x2100)) == LONG_TEXT.encode()
+        got = await lk.read_many([A(0x6041), A(0x2100), A(0x6041)])
+        assert got[1] == LONG_TEXT.encode()
+        assert got[0] == got[2] == long_text_device.drive.read_bytes(0x6041, 0)
+    finally:
+        await lk.close()
 
 
 async def test_a_drive_object_that_is_not_there_is_not_found(device: ProfinetDevice) -> None:

@@ -229,12 +229,6 @@ class ProfinetLink(DriveLink):
 
     async def _read_object(self, address: ObjectAddress) -> bytes:
         (result,) = await self._read_batch([address])
-        if (
-            isinstance(result, ObjectAccessError)
-            and result.protocol == "profidrive"
-            and result.code == 0x15
-        ):
-            return await self._read_blocks(address)
         if isinstance(result, ServodeskError):
             raise result
         return result
@@ -269,8 +263,14 @@ class ProfinetLink(DriveLink):
             try:
                 out.append(self._decode(a, plan, values))
             except ServodeskError as exc:
-                out.append(exc)
+                out.append(exc if not _too_long(exc) else await self._read_one_in_blocks(a))
         return out
+
+    async def _read_one_in_blocks(self, address: ObjectAddress) -> bytes | ServodeskError:
+        try:
+            return await self._read_blocks(address)
+        except ServodeskError as exc:
+            return exc
 
     def _decode(
         self, address: ObjectAddress, plan: list[pd.ParameterAddress], values: Sequence[pd.Values]
@@ -642,6 +642,11 @@ class ProfinetLink(DriveLink):
         self.reconnects += 1
         status, blocks = await self._rpc(pnio.OP_CONNECT, self._new_ar())
         self._check_connect(status, blocks)
+
+
+def _too_long(exc: ServodeskError) -> bool:
+    """PROFIdrive error 15h: the value does not fit one response (read it in blocks)."""
+    return isinstance(exc, ObjectAccessError) and exc.protocol == "profidrive" and exc.code == 0x15
 
 
 class _NotReady(Exception):
