@@ -223,6 +223,12 @@ def test_a_profinet_drive_is_opened_by_its_address_and_do_id(page: Page) -> None
     page.goto("/#/pdo/lecsn-t-1")
     expect(page.get_by_test_id("pdo-cyclic-unavailable")).to_contain_text("GSD file")
     expect(page.get_by_test_id("pdo-cyclic-start")).to_be_disabled()
+    # The telegram is the IO controller's to set up: the layout is edited and exported here,
+    # not written.
+    expect(page.get_by_test_id("pdo-apply-blocked")).to_contain_text("IO controller")
+    page.get_by_test_id("pdo-telegram-select").select_option("102")
+    expect(page.get_by_test_id("pdo-review")).to_be_disabled()
+    expect(page.get_by_test_id("pdo-apply-blocked")).to_contain_text("Not written from here")
 
 
 def test_an_ethercat_line_is_opened_from_the_connect_page(page: Page) -> None:

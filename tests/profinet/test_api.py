@@ -121,6 +121,14 @@ def test_serve_sim_opens_the_lecsn_over_profinet_and_moves_it(channel, tmp_path)
         # The PDO page still shows the telegram the drive holds (read over PROFINET).
         view = client.get(f"/api/v1/sessions/{SID}/pdo").json()
         assert view["telegram"] == 1
+        # ... and says why it is not written from here; an apply is refused before anything
+        # is read or written (the IO controller sets the telegram up).
+        assert "GSD file" in view["apply_unavailable"]
+        r = client.post(f"/api/v1/sessions/{SID}/pdo/apply", json={"telegram": 102}, headers=A)
+        assert r.status_code == 409 and "GSD file" in r.json()["hint"], r.text
+        assert drive.read(0x039A) == 1
+        generic = client.get("/api/v1/sessions/cia402-generic-1/pdo").json()
+        assert generic["apply_unavailable"] is None
         # No NMT: a restore of the defaults with a reset is refused before anything changes.
         velocity = drive.read(0x6081)
         r = client.post(

@@ -83,6 +83,12 @@ class ProfinetLink(DriveLink):
     sends_nmt = False
     #: :meth:`read_many` reads several objects in one request (the scope samples together).
     reads_many_at_once = True
+    #: Why servodesk does not write the process data mapping here (services/pdo.py).
+    mapping_owner = (
+        "the telegram and its mapping are chosen in the IO controller's configuration tool "
+        "with the GSD file (004 §20.1.1); a supervisor does not write them. Edit and export "
+        "the layout here for that tool"
+    )
     #: Why there is no cyclic process data here (links/cyclic.py ``transport_for``).
     no_cyclic = (
         "a PROFINET IO device exchanges its telegram with the IO controller that set it up "

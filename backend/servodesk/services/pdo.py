@@ -206,6 +206,7 @@ async def view(
         ),
         "telegram": config.telegram,
         "nmt_state": nmt,
+        "apply_unavailable": getattr(session.link, "mapping_owner", None),
         "problems": [problem_dict(p) for p in (problems or [])],
     }
 
@@ -335,6 +336,15 @@ async def apply(
     session: Session, body: dict[str, Any], *, dry_run: bool, client: str | None = None
 ) -> dict[str, Any]:
     """Apply a ``PdoLayout``: the ``ApplyReport`` of docs/pdo.md."""
+    owner: str | None = getattr(session.link, "mapping_owner", None)
+    if owner is not None and not dry_run:
+        # PROFINET: the IO controller sets the telegram up from the GSD file; refused before
+        # anything is read or written.
+        raise ConflictError(
+            f"servodesk does not write the process data mapping of {session.id} over "
+            f"{session.link.fieldbus}",
+            hint=owner,
+        )
     lock = _lock(session)
     if lock.locked():
         raise ConflictError(

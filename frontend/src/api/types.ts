@@ -830,6 +830,9 @@ export interface PdoView {
   assignment: PdoAssignment | null;
   telegram: number | null;
   nmt_state: string | null;
+  /** Why the session's link does not write the mapping (PROFINET: the IO controller's), or
+   * null. The layout can still be edited, checked and exported. */
+  apply_unavailable?: string | null;
   problems: PdoProblem[];
 }
 

@@ -294,7 +294,8 @@ export function PdoPage({ sid }: PageProps) {
   };
 
   let blocked: string | null = null;
-  if (readOnly) blocked = `This family's mapping is fixed and cannot be written${view.rules.section ? ` (${view.rules.section})` : ''}.`;
+  if (view.apply_unavailable) blocked = `Not written from here: ${view.apply_unavailable}.`;
+  else if (readOnly) blocked = `This family's mapping is fixed and cannot be written${view.rules.section ? ` (${view.rules.section})` : ''}.`;
   else if (!dirty) blocked = 'Nothing to apply: the editor shows what the drive has.';
   else if (check.state === 'checking' || check.state === 'idle') blocked = 'Checking the mapping…';
   else if (check.state === 'failed') blocked = 'The mapping could not be checked.';
