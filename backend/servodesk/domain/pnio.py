@@ -22,7 +22,7 @@ import struct
 import uuid
 from dataclasses import dataclass
 
-from servodesk.errors import ValidationError
+from servodesk.domain.udp_channel import parse_host_port
 
 #: The UDP port of the PNIO-CM RPC server of every PROFINET IO device.
 RPC_PORT = 34964
@@ -210,23 +210,30 @@ def parse_rpc(frame: bytes) -> RpcPacket:
 # NDR heads of the PNIO request and response bodies ---------------------------------------
 
 
-def request_body(args: bytes, args_maximum: int, *, little: bool = True) -> bytes:
-    """ArgsMaximum, ArgsLength, then the conformant array head (maximum count, offset 0,
-    actual count) and the blocks."""
-    o = "<" if little else ">"
+def _ndr(first: int, args: bytes, args_maximum: int, little: bool) -> bytes:
+    """The NDR head (``first``, ArgsLength, conformant array: maximum count, offset 0, actual
+    count) and the blocks. ``first`` is ArgsMaximum in a request, PNIOStatus in a response."""
     n = len(args)
-    return struct.pack(f"{o}IIIII", args_maximum, n, args_maximum, 0, n) + args
+    return struct.pack(f"{'<' if little else '>'}IIIII", first, n, args_maximum, 0, n) + args
+
+
+def _parse_ndr(body: bytes, what: str, little: bool) -> tuple[int, bytes]:
+    if len(body) < 20:
+        raise PnioFrameError(f"the PNIO {what} body is shorter than its NDR head (20 bytes)")
+    first, n, _maxc, offset, actual = struct.unpack_from(f"{'<' if little else '>'}IIIII", body)
+    if actual != n or offset != 0 or len(body) < 20 + n:
+        raise PnioFrameError(f"the NDR head announces {n} argument bytes, {len(body) - 20} follow")
+    return first, body[20 : 20 + n]
+
+
+def request_body(args: bytes, args_maximum: int, *, little: bool = True) -> bytes:
+    """ArgsMaximum, ArgsLength, then the conformant array head and the blocks."""
+    return _ndr(args_maximum, args, args_maximum, little)
 
 
 def parse_request_body(body: bytes, *, little: bool = True) -> tuple[int, bytes]:
     """(ArgsMaximum, the blocks)."""
-    o = "<" if little else ">"
-    if len(body) < 20:
-        raise PnioFrameError("the PNIO request body is shorter than its NDR head (20 bytes)")
-    args_max, n, _maxc, offset, actual = struct.unpack_from(f"{o}IIIII", body)
-    if actual != n or offset != 0 or len(body) < 20 + n:
-        raise PnioFrameError(f"the NDR head announces {n} argument bytes, {len(body) - 20} follow")
-    return args_max, body[20 : 20 + n]
+    return _parse_ndr(body, "request", little)
 
 
 def pnio_status(code: int = 0, decode: int = 0, code1: int = 0, code2: int = 0) -> int:
@@ -235,20 +242,12 @@ def pnio_status(code: int = 0, decode: int = 0, code1: int = 0, code2: int = 0) 
 
 
 def response_body(status: int, args: bytes, args_maximum: int, *, little: bool = True) -> bytes:
-    o = "<" if little else ">"
-    n = len(args)
-    return struct.pack(f"{o}IIIII", status, n, args_maximum, 0, n) + args
+    return _ndr(status, args, args_maximum, little)
 
 
 def parse_response_body(body: bytes, *, little: bool = True) -> tuple[int, bytes]:
     """(PNIOStatus, the blocks)."""
-    o = "<" if little else ">"
-    if len(body) < 20:
-        raise PnioFrameError("the PNIO response body is shorter than its NDR head (20 bytes)")
-    status, n, _maxc, _offset, actual = struct.unpack_from(f"{o}IIIII", body)
-    if actual != n or len(body) < 20 + n:
-        raise PnioFrameError(f"the NDR head announces {n} argument bytes, {len(body) - 20} follow")
-    return status, body[20 : 20 + n]
+    return _parse_ndr(body, "response", little)
 
 
 def status_text(status: int) -> str:
@@ -505,20 +504,9 @@ def parse_im0(data: bytes) -> Im0:
 def parse_channel(channel: str, *, server: bool = False) -> tuple[str, int]:
     """``host`` or ``host:port`` -> (host, port); the port defaults to 34964. A server may
     take port 0 (any free port)."""
-    host, sep, port_text = channel.strip().rpartition(":")
-    if not sep:
-        host, port_text = channel.strip(), str(RPC_PORT)
-    hint = "give the device's address as host or host:port, e.g. 192.168.0.10 or 127.0.0.1:34964"
-    if not host:
-        raise ValidationError(f"channel {channel!r} names no host", field="channel", hint=hint)
-    try:
-        port = int(port_text)
-    except ValueError:
-        raise ValidationError(
-            f"channel {channel!r}: port {port_text!r} is not a number", field="channel", hint=hint
-        ) from None
-    if not (0 if server else 1) <= port <= 65535:
-        raise ValidationError(
-            f"channel {channel!r}: port {port} is outside 1..65535", field="channel", hint=hint
-        )
-    return host, port
+    return parse_host_port(
+        channel,
+        default_port=RPC_PORT,
+        hint="give the device's address as host or host:port, e.g. 192.168.0.10 or 127.0.0.1:34964",
+        server=server,
+    )

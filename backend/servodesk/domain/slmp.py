@@ -35,7 +35,7 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass
 
-from servodesk.errors import ValidationError
+from servodesk.domain.udp_channel import parse_host_port
 
 #: 4E frame subheaders (request, response).
 SUBHEADER_REQUEST = b"\x54\x00"
@@ -227,25 +227,11 @@ def refused_abort_code(data: bytes) -> int | None:
 
 
 def parse_channel(channel: str, *, server: bool = False) -> tuple[str, int]:
-    """``host`` or ``host:port`` -> (host, port); :class:`ValidationError` naming the fault.
-    A ``server`` may ask for port 0: any free port."""
-    host, sep, port_text = channel.strip().rpartition(":")
-    if not sep:
-        host, port_text = channel.strip(), str(DEFAULT_PORT)
-    if not host:
-        raise ValidationError(
-            f"channel {channel!r} names no host",
-            field="channel",
-            hint=f"give the station's address as host:port, e.g. 192.168.0.250:{DEFAULT_PORT}",
-        )
-    try:
-        port = int(port_text)
-    except ValueError:
-        port = -1
-    if not (0 if server else 1) <= port <= 65535:
-        raise ValidationError(
-            f"channel {channel!r}: port {port_text!r} is not a number in 1..65535",
-            field="channel",
-            hint=f"give the station's address as host:port, e.g. 192.168.0.250:{DEFAULT_PORT}",
-        )
-    return host, port
+    """``host`` or ``host:port`` -> (host, port), port 5010 by default; :class:`ValidationError`
+    naming the fault. A ``server`` may ask for port 0: any free port."""
+    return parse_host_port(
+        channel,
+        default_port=DEFAULT_PORT,
+        hint=f"give the station's address as host:port, e.g. 192.168.0.250:{DEFAULT_PORT}",
+        server=server,
+    )

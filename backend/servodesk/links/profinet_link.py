@@ -422,23 +422,18 @@ class ProfinetLink(DriveLink):
             )
         if resp.response_id & ~pd.NEGATIVE != request_id:
             raise LinkError(f"the drive answered response ID {resp.response_id:02X}h")
-        if resp.count != len(addresses) or (
-            len(resp.values) != len(addresses) and (resp.negative or request_id == pd.REQUEST_READ)
-        ):
-            if resp.negative and resp.values and resp.values[0].error == 0x19:
-                raise NotFoundError(
-                    f"the drive at {self.host} has no drive object {self.params.node_id}",
-                    hint="the node id is the DO-ID: 1 on the LECSN-T (P975.7)",
-                )
-            raise LinkError(
-                f"the drive answered {resp.count} parameters for {len(addresses)}",
-                hint="the device may not implement PROFIdrive parameter access (docs/profinet.md)",
-            )
-        if resp.negative and all(v.error == 0x19 for v in resp.values):
+        if resp.negative and resp.values and all(v.error == 0x19 for v in resp.values):
             raise NotFoundError(
                 f"the drive at {self.host} has no drive object {self.params.node_id} "
                 f"(PROFIdrive error 19h)",
                 hint="the node id is the DO-ID: 1 on the LECSN-T (P975.7)",
+            )
+        if resp.count != len(addresses) or (
+            len(resp.values) != len(addresses) and (resp.negative or request_id == pd.REQUEST_READ)
+        ):
+            raise LinkError(
+                f"the drive answered {resp.count} parameters for {len(addresses)}",
+                hint="the device may not implement PROFIdrive parameter access (docs/profinet.md)",
             )
         return resp
 
