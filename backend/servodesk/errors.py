@@ -153,9 +153,10 @@ class ObjectAccessError(ServodeskError):
         out = super().to_dict()
         out.update(
             code=self.code,
-            # A PROFIdrive error number is one byte (004 §20.4.2); the others are 32-bit.
+            # A PROFIdrive error number (004 §20.4.2) and a DCP BlockError are one byte;
+            # the others are 32-bit.
             code_hex=f"0x{self.code:02X}"
-            if self.protocol == "profidrive"
+            if self.protocol in ("profidrive", "dcp")
             else f"0x{self.code:08X}",
             meaning=self.meaning,
             protocol=self.protocol,

@@ -37,6 +37,10 @@ class Settings(BaseSettings):
     #: open it with the EtherCAT link (pysoem). Needs root or CAP_NET_ADMIN / CAP_NET_RAW; off,
     #: or where the pair cannot be made, the twin is a CANopen node (docs/ethercat.md).
     sim_ethercat: bool = False
+    #: The PROFINET twin (LECSN-T) also answers DCP on one end of a veth pair, so that the
+    #: Connect page's DCP search finds it on the other end (named in the session's note) and
+    #: can set its station name and IP address. Needs root or CAP_NET_ADMIN / CAP_NET_RAW.
+    sim_dcp: bool = False
     #: Extra profile directories, searched before the shipped profiles (os.pathsep list).
     profile_dirs: str = ""
     #: Where backups, the audit log and the store live.

@@ -146,6 +146,11 @@ def test_drag_into_tpdo_apply_and_see_it_live(pdo_page: Page) -> None:
     page = pdo_page
     card = page.get_by_test_id("pdo-card-TPDO1")
     expect(card).to_be_visible()
+    # A CANopen drive's NMT state heads the page, with what it rests on (this twin sends no
+    # heartbeat: unknown until servodesk sends an NMT command).
+    nmt = page.get_by_test_id("pdo-nmt")
+    expect(nmt).to_contain_text("NMT")
+    expect(nmt).to_have_attribute("title", re.compile(r"^NMT state"))
     # TPDO1 starts with the statusword only (16 of 64 bits).
     expect(page.get_by_test_id("pdo-TPDO1-budget")).to_have_attribute("data-used", "16")
     expect(page.get_by_test_id("pdo-TPDO1-entry-1")).to_have_count(0)

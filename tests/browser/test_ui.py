@@ -9,6 +9,7 @@ read-only object.
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import pytest
 from playwright.sync_api import Page, expect
@@ -222,6 +223,9 @@ def test_a_profinet_drive_is_opened_by_its_address_and_do_id(page: Page) -> None
     # Its PDO page says there is no cyclic data for a supervisor, before anyone presses Start.
     page.goto("/#/pdo/lecsn-t-1")
     expect(page.get_by_test_id("pdo-cyclic-unavailable")).to_contain_text("GSD file")
+    # PROFINET has no NMT: the header does not show "NMT unknown".
+    expect(page.get_by_test_id("pdo-summary")).to_contain_text("big-endian")
+    expect(page.get_by_test_id("pdo-summary")).not_to_contain_text("NMT")
     expect(page.get_by_test_id("pdo-cyclic-start")).to_be_disabled()
     # The telegram is the IO controller's to set up: the layout is edited and exported here,
     # not written.
@@ -229,6 +233,80 @@ def test_a_profinet_drive_is_opened_by_its_address_and_do_id(page: Page) -> None
     page.get_by_test_id("pdo-telegram-select").select_option("102")
     expect(page.get_by_test_id("pdo-review")).to_be_disabled()
     expect(page.get_by_test_id("pdo-apply-blocked")).to_contain_text("Not written from here")
+
+
+def test_a_new_profinet_drive_is_found_named_addressed_and_opened_by_dcp(page: Page) -> None:
+    # A LECSN-T twin answering DCP on one end of a veth pair (this test's process); the
+    # server searches the other end, gives the drive a name and an address, and opens it
+    # there (docs/profinet.md, "DCP").
+    from servodesk.domain.profile_loader import ProfileCatalog
+    from servodesk.sim.engine import SimulatedDrive
+    from servodesk.sim.profinet_device import ProfinetDevice
+    from servodesk.sim.veth import create_veth
+
+    with (
+        create_veth("sdu") as pair,
+        ProfinetDevice(SimulatedDrive(ProfileCatalog().get("lecsn-t"), 1)) as device,
+    ):
+        device.serve_dcp(pair.slave, manage_addresses=True)
+        mac = Path(f"/sys/class/net/{pair.slave}/address").read_text().strip()
+        page.goto("/#/connect")
+        expect(page.get_by_test_id("dcp-panel")).to_have_count(0)  # CAN: no DCP
+        page.get_by_test_id("bus-interface").select_option("profinet")
+        page.get_by_test_id("dcp-nic").fill(pair.master)
+        page.get_by_test_id("dcp-search").click()
+        row = page.get_by_test_id(f"dcp-device-{mac}")
+        expect(row.get_by_test_id("dcp-name")).to_have_text("lecsn-t-1")
+        expect(row.get_by_test_id("dcp-ip")).to_contain_text("127.0.0.1/255.255.255.0")
+        expect(row).to_contain_text("010Ch / 0010h")
+
+        row.get_by_test_id("dcp-flash").click()
+        expect(page.get_by_test_id("notice-info").last).to_contain_text(f"LED of {mac} flashing")
+        assert device.station.flashes == 1
+
+        row.get_by_test_id("dcp-edit").click()
+        page.get_by_test_id("dcp-edit-name").fill("Press-2")
+        expect(page.get_by_test_id("dcp-edit-error")).to_contain_text("lower case only")
+        expect(page.get_by_test_id("dcp-edit-set")).to_be_disabled()
+        page.get_by_test_id("dcp-edit-name").fill("press-2")
+        page.get_by_test_id("dcp-edit-ip").fill("10.79.0.5")
+        page.get_by_test_id("dcp-edit-set").click()
+        expect(row.get_by_test_id("dcp-name")).to_have_text("press-2")
+        expect(row.get_by_test_id("dcp-ip")).to_contain_text("10.79.0.5/255.255.255.0")
+        assert device.station.name_of_station == "press-2"
+
+        # The address goes into the form; the twin serves on its own port, not 34964.
+        row.get_by_test_id("dcp-use").click()
+        expect(page.get_by_test_id("bus-channel")).to_have_value("10.79.0.5")
+        page.get_by_test_id("bus-channel").fill(f"10.79.0.5:{device.port}")
+        page.get_by_test_id("open-session").click()
+        page.wait_for_url(re.compile(r"#/overview/lecsn-t-"))
+        sid = page.url.rsplit("/", 1)[1]
+        assert device.ars == 1
+
+        # In operation (the session's AR) the drive refuses a new address, and says why.
+        page.goto("/#/connect")
+        page.get_by_test_id("bus-interface").select_option("profinet")
+        page.get_by_test_id("dcp-nic").fill(pair.master)
+        page.get_by_test_id("dcp-search").click()
+        row.get_by_test_id("dcp-edit").click()
+        page.get_by_test_id("dcp-edit-ip").fill("10.79.0.6")
+        page.get_by_test_id("dcp-edit-set").click()
+        notice = page.get_by_test_id("notice-error")
+        expect(notice).to_contain_text("in operation")
+        expect(notice).to_contain_text("close servodesk's session")
+        notice.get_by_role("button", name="Dismiss").click()
+        page.get_by_test_id(f"session-close-{sid}").click()
+        expect(page.get_by_test_id(f"session-row-{sid}")).to_have_count(0)
+
+        # Reset to factory, option 8: no name, no address, nothing to open.
+        row.get_by_test_id("dcp-reset").click()
+        page.get_by_test_id("dcp-reset-mode-8").check()
+        page.get_by_test_id("dcp-reset-dialog-confirm").click()
+        expect(row.get_by_test_id("dcp-name")).to_have_text("no name")
+        expect(row.get_by_test_id("dcp-ip")).to_have_text("no address")
+        expect(row.get_by_test_id("dcp-use")).to_be_disabled()
+        assert device.station.resets == [8]
 
 
 def test_an_ethercat_line_is_opened_from_the_connect_page(page: Page) -> None:

@@ -328,3 +328,25 @@ def test_a_wrong_interface_or_node_is_refused_before_anything_is_sent() -> None:
         ProfinetLink(params("127.0.0.1", node_id=0))
     with pytest.raises(ValidationError, match="port"):
         ProfinetLink(params("127.0.0.1:99999"))
+
+
+async def test_the_device_keeps_resend_answers_for_its_recent_clients_only(
+    device: ProfinetDevice,
+) -> None:
+    # Each session is a client activity of its own; a long-running device must not keep an
+    # answer for every client it ever had (it did: the cache grew by one per session).
+    from servodesk.sim.profinet_device import RESEND_CACHE
+
+    for _ in range(RESEND_CACHE + 6):
+        lk = ProfinetLink(params(device.channel))
+        await lk.open()
+        await lk.close()
+    assert device.cached_activities == RESEND_CACHE
+    # And a new client is served as before.
+    lk = ProfinetLink(params(device.channel))
+    await lk.open()
+    try:
+        assert await lk.read(A(0x6041)) is not None
+    finally:
+        await lk.close()
+    assert device.cached_activities == RESEND_CACHE

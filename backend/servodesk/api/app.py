@@ -18,6 +18,7 @@ from servodesk.api.auth import TokenMiddleware
 from servodesk.api.deps import AppState
 from servodesk.api.routes import (
     backups,
+    dcp,
     motion,
     operation,
     pdo,
@@ -97,6 +98,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     errors.install(app)
     app.include_router(system.router, prefix="/api/v1")
     app.include_router(sessions.router, prefix="/api/v1")
+    app.include_router(dcp.router, prefix="/api/v1")
     app.include_router(backups.router, prefix="/api/v1")
     app.include_router(ws_router, prefix="/api/v1")
     app.include_router(operation.router, prefix="/api/v1")

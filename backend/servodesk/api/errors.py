@@ -43,6 +43,10 @@ def status_for(exc: ServodeskError) -> int:
             if exc.code in profidrive.MISSING:
                 return 404
             return 409 if exc.code in profidrive.STATE else 400
+        if exc.protocol == "dcp":
+            # DCP BlockError (docs/profinet.md): 5 set not possible by local reasons, 6 in
+            # operation: the device's state, not the request, is in the way.
+            return 409 if exc.code in (5, 6) else 400
         if exc.protocol == "pnio":
             return 502  # The device refused the record access itself (docs/profinet.md).
         if exc.code in _MISSING_ABORTS:

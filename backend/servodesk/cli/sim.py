@@ -14,6 +14,11 @@ answering PNIO-CM record access (PROFIdrive parameter access) on that UDP port (
 the DO-ID; docs/profinet.md):
 ``servodesk sim --profile lecsn-t --interface profinet --channel 127.0.0.1:34964``.
 
+``--dcp NIC`` (with ``--interface profinet``) makes the device also answer PROFINET DCP on that
+network interface, e.g. the device end of a veth pair: ``servodesk dcp identify`` on the other
+end finds it, and an address set there must be one of the host's for PNIO-CM to follow it
+(needs root or CAP_NET_RAW).
+
 ``--interface ethercat --channel NIC`` serves the drive as slave 1 of a simulated EtherCAT line
 on that network interface (CoE SDO; docs/ethercat.md), e.g. the slave end of a veth pair:
 ``servodesk sim --profile hiwin-e --interface ethercat --channel veth-s`` (needs root or
@@ -32,7 +37,7 @@ import sys
 import threading
 from types import FrameType
 
-from servodesk.errors import ServodeskError
+from servodesk.errors import ServodeskError, ValidationError
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -68,6 +73,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         metavar="FILE",
         help="TOML plant file: motor, load, compliance, noise, loop rate (docs/tuning.md)",
     )
+    p.add_argument(
+        "--dcp",
+        default=None,
+        metavar="NIC",
+        help="with --interface profinet: also answer PROFINET DCP on this network interface",
+    )
     p.set_defaults(func=run)
 
 
@@ -92,6 +103,20 @@ def run(args: argparse.Namespace) -> int:
             serials=[args.serial],
             plant=plant,
         )
+        dcp_nic: str | None = getattr(args, "dcp", None)
+        if dcp_nic is not None:
+            if not bus.profinet:
+                bus.stop()
+                raise ValidationError(
+                    "--dcp answers DCP for a PROFINET device",
+                    field="dcp",
+                    hint="add --interface profinet --channel HOST:PORT",
+                )
+            try:
+                bus.profinet[0].serve_dcp(dcp_nic)
+            except ServodeskError:
+                bus.stop()
+                raise
     except ServodeskError as exc:
         print(f"servodesk sim: error: {exc.message}", file=sys.stderr)
         if exc.hint:
@@ -106,6 +131,8 @@ def run(args: argparse.Namespace) -> int:
             f"{node} on {interface}:{channel}; Ctrl+C stops",
             flush=True,
         )
+        if getattr(args, "dcp", None):
+            print(f"servodesk sim: answering PROFINET DCP on {args.dcp}", flush=True)
         if plant is not None:
             kind = "rigid" if plant.rigid else f"resonance {plant.resonance_hz:g} Hz"
             print(

@@ -7,7 +7,9 @@ which answers PNIO-CM record access on a UDP port of 127.0.0.1 (``SERVODESK_SIM_
 and is opened over the PROFINET link (docs/profinet.md). With ``SERVODESK_SIM_ETHERCAT=1`` the
 EtherCAT one (the HIWIN E) is a slave of a simulated line behind a veth pair, opened with the
 EtherCAT link (pysoem); where the pair cannot be made (no root) it stays a CANopen node, and
-the log and its session's note say why (docs/ethercat.md).
+the log and its session's note say why (docs/ethercat.md). With ``SERVODESK_SIM_DCP=1`` the
+PROFINET twin also answers DCP behind a veth pair, whose other end its session's note names
+(docs/profinet.md, "DCP").
 """
 
 from __future__ import annotations
@@ -56,6 +58,15 @@ async def start_simulation(
         except ServodeskError as exc:
             no_ethercat = f"{exc.message} ({exc.hint})" if exc.hint else exc.message
             log.warning("the EtherCAT twin stays on CANopen: %s", no_ethercat)
+    dcp_pair, no_dcp = None, None
+    if settings.sim_dcp and settings.sim_profinet:
+        from servodesk.sim.veth import create_veth
+
+        try:
+            dcp_pair = await asyncio.to_thread(create_veth, "sddcp")
+        except ServodeskError as exc:
+            no_dcp = f"{exc.message} ({exc.hint})" if exc.hint else exc.message
+            log.warning("the PROFINET twin answers no DCP: %s", no_dcp)
     sim = await asyncio.to_thread(
         SimulatedBus.start,
         drives=drives,
@@ -66,6 +77,7 @@ async def start_simulation(
         slmp_channel=settings.sim_slmp or None,
         profinet_channel=settings.sim_profinet or None,
         ethercat=veth,
+        dcp=dcp_pair,
     )
     for drive in sim.drives:
         pid, node = drive.profile.id, drive.node_id
@@ -77,6 +89,12 @@ async def start_simulation(
             session = await manager.open(params, pid, fieldbus=fieldbus, simulated=True)
             if no_ethercat is not None and drive.profile.fieldbus == "ethercat":
                 session.note = f"{session.note} SERVODESK_SIM_ETHERCAT: {no_ethercat}"
+            if fieldbus == "profinet" and (dcp_pair is not None or no_dcp is not None):
+                session.note = (
+                    f"{session.note} DCP: search network interface {dcp_pair.master}."
+                    if dcp_pair is not None
+                    else f"{session.note} SERVODESK_SIM_DCP: {no_dcp}"
+                ).strip()
         except Exception:
             log.exception("could not open the simulated %s drive (node %d)", pid, node)
     return sim

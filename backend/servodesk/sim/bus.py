@@ -80,6 +80,7 @@ class SimulatedBus:
         line: EthercatSlaveProcess | None = None,
         veth: VethPair | None = None,
         profinet: Sequence[ProfinetDevice] = (),
+        dcp: VethPair | None = None,
     ) -> None:
         self.network = network
         self.devices = devices
@@ -95,6 +96,9 @@ class SimulatedBus:
         self.veth = veth
         #: The simulated PROFINET IO devices, one drive each.
         self.profinet = list(profinet)
+        #: The veth pair whose slave end the first PROFINET device answers DCP on (deleted
+        #: at stop); a DCP client searches its ``master`` end.
+        self.dcp = dcp
         self.runner = runner
         self.interface = interface
         self.channel = channel
@@ -113,8 +117,11 @@ class SimulatedBus:
         slmp_channel: str | None = None,
         ethercat: VethPair | None = None,
         profinet_channel: str | None = None,
+        dcp: VethPair | None = None,
     ) -> SimulatedBus:
-        """Start the drives; raises ValidationError / NotFoundError / LinkError."""
+        """Start the drives; raises ValidationError / NotFoundError / LinkError. With
+        ``dcp`` (a veth pair the bus then owns) the first PROFINET device also answers DCP
+        on its slave end and takes the addresses set there (docs/profinet.md)."""
         catalog = catalog or ProfileCatalog()
         seen: set[int] = set()
         sims: list[SimulatedDrive] = []
@@ -192,6 +199,8 @@ class SimulatedBus:
             # was given is deleted then too (it owns it from here on).
             if ethercat is not None:
                 undo.callback(ethercat.delete)
+            if dcp is not None:
+                undo.callback(dcp.delete)
             ecat_line = None
             if on_line:
                 assert line_nic is not None
@@ -230,6 +239,9 @@ class SimulatedBus:
                         ) from exc
                     undo.callback(pn_dev.stop)
                     devices_pn.append(pn_dev)
+                if dcp is not None:
+                    # One device per interface: it answers with the interface's MAC.
+                    devices_pn[0].serve_dcp(dcp.slave, manage_addresses=True)
             network = cls._connect(interface, channel, bitrate) if on_can else None
             undo.pop_all()
         devices: list[SimCanopenDevice] = []
@@ -256,6 +268,7 @@ class SimulatedBus:
             ecat_line,
             ethercat,
             devices_pn,
+            dcp,
         )
 
     @staticmethod
@@ -312,9 +325,11 @@ class SimulatedBus:
             pn.stop()
         if self.line is not None:
             self.line.stop()
-        if self.veth is not None:
+        for pair in (self.veth, self.dcp):
+            if pair is None:
+                continue
             try:
-                self.veth.delete()
+                pair.delete()
             except Exception:  # Best effort: the pair may be gone with its namespace.
                 log.debug("veth pair not deleted", exc_info=True)
         for dev in self.devices:

@@ -692,6 +692,13 @@ class SimulatedDrive:
             self._reset_runtime()
             # Position restarts from the encoder (homing offset is lost).
 
+    def factory_reset(self) -> None:
+        """Every stored value forgotten, then a power cycle: the defaults apply (a PROFINET
+        reset to factory in mode 8, 004 §20.4.5)."""
+        with self._lock:
+            self._nv.clear()
+        self.reset_node()
+
     def reset_communication(self) -> None:
         """Communication reset: the 1000h-1FFFh parameters get their stored values."""
         with self._lock:

@@ -16,7 +16,14 @@ PNU subindex = CoE subindex - 1). A refusal is answered with the PROFIdrive erro
 004 §20.4.2 that matches the drive's reason.
 
 Like a device's RPC server, it answers a repeated request (the same activity and sequence
-number, a client's resend) with the response it sent before, without carrying it out twice.
+number, a client's resend) with the response it sent before, without carrying it out twice
+(for the last :data:`RESEND_CACHE` client activities).
+
+:meth:`ProfinetDevice.serve_dcp` also answers DCP on a network interface
+(sim/profinet_dcp.py): a station name or IP address set there is the device's, and the
+PNIO-CM server moves to the new address (with ``manage_addresses``, the twin gives the
+interface that address first); a reset to factory leaves it without an address until one is
+set (004 §20.4.5).
 """
 
 from __future__ import annotations
@@ -30,11 +37,16 @@ from servodesk.domain import profidrive as pd
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType
 from servodesk.domain.profile import ObjectSpec, ObjectType
+from servodesk.errors import LinkError
 from servodesk.sim.engine import SimAbort, SimulatedDrive
+from servodesk.sim.profinet_dcp import DcpResponder, DcpStation, interface_mac
 from servodesk.sim.udp_server import UdpServer
+from servodesk.sim.veth import add_address, delete_address
 
 log = logging.getLogger(__name__)
 
+#: Client activities whose last response is kept for a resend.
+RESEND_CACHE = 64
 #: Where the PROFIdrive drive object is (the parameter access record's slot and subslot).
 DRIVE_SLOT = 1
 DRIVE_SUBSLOT = 1
@@ -107,6 +119,104 @@ class ProfinetDevice(UdpServer):
         self.serial = serial or str(drive.profile.simulation.serial_number or drive.node_id)
         #: Resends answered from the cache.
         self.resends = 0
+        dcp_id = drive.profile.quirk("dcp", {}) or {}
+        self.station = DcpStation(
+            vendor_id=int(dcp_id.get("vendor_id", 0)),
+            device_id=int(dcp_id.get("device_id", 0)),
+            type_of_station=str(dcp_id.get("type_of_station", drive.profile.name)),
+            name_of_station=str(dcp_id.get("station_name", "")),
+        )
+        self._dcp: DcpResponder | None = None
+        self._dcp_ifname: str | None = None
+        self._addresses: list[str] = []  # given to the DCP interface by this twin
+        self._parked_port: int | None = None  # the port while the device has no address
+
+    # DCP -------------------------------------------------------------------------------
+
+    def serve_dcp(self, ifname: str, *, manage_addresses: bool = False) -> DcpResponder:
+        """Answer DCP on ``ifname`` (the device end of a veth pair, or a NIC) with the
+        interface's MAC. The station's IP is where PNIO-CM is served. With
+        ``manage_addresses`` an address set by DCP is first given to ``ifname`` (/32), so that
+        the host reaches the twin there; otherwise it must be one of the host's already."""
+        if self._sock is not None:
+            self.station.ip = self.address[0]
+            self.station.netmask = "255.255.255.0" if self.station.ip != "0.0.0.0" else "0.0.0.0"
+        self._dcp_ifname = ifname if manage_addresses else None
+        responder = DcpResponder(
+            self.station,
+            interface_mac(ifname),
+            busy=lambda: bool(self._state.ars),
+            on_ip=self._take_ip,
+            on_factory=self._factory,
+        )
+        self._dcp = responder.start(ifname)
+        return responder
+
+    @property
+    def dcp_mac(self) -> bytes | None:
+        """The MAC this device answers DCP with (None: no DCP)."""
+        return self._dcp.mac if self._dcp is not None else None
+
+    @property
+    def port(self) -> int | None:
+        """The UDP port of its PNIO-CM server (kept while it has no address)."""
+        return self.address[1] if self._sock is not None else self._parked_port
+
+    def _take_ip(self, ip: str) -> bool:
+        """Serve PNIO-CM at ``ip`` from now on (0.0.0.0: nowhere); False when the address
+        cannot be taken."""
+        if ip == "0.0.0.0":
+            if self._sock is not None:
+                self._parked_port = self.address[1]
+                super().stop()
+                self._stop.clear()
+            return True
+        if self._dcp_ifname is not None and ip not in self._addresses:
+            try:
+                add_address(self._dcp_ifname, ip)
+            except LinkError as exc:
+                if "File exists" not in exc.message:  # already the host's
+                    log.info("DCP address %s not taken: %s", ip, exc.message)
+                    return False
+            else:
+                self._addresses.append(ip)
+        if self._sock is None and self._parked_port is not None:
+            self._host, self._port = ip, self._parked_port
+            try:
+                self.start()
+            except OSError:
+                return False
+            self._parked_port = None
+            return True
+        return self.rebind(ip)
+
+    def _factory(self, mode: int) -> None:
+        """Reset to factory (004 §20.4.5): mode 8 also forgets every stored parameter; both
+        reset the drive like a power cycle."""
+        self._state.ars.clear()
+        if mode == 8:
+            self.drive.factory_reset()
+        else:
+            self.drive.reset_node()
+
+    def stop(self) -> None:
+        if self._dcp is not None:
+            self._dcp.stop()
+            self._dcp = None
+        super().stop()
+        if self._dcp_ifname is not None:
+            for ip in self._addresses:
+                try:
+                    delete_address(self._dcp_ifname, ip)
+                except LinkError:
+                    log.debug("address %s not removed", ip, exc_info=True)
+        self._addresses.clear()
+
+    @property
+    def cached_activities(self) -> int:
+        """Client activities whose last response is kept for a resend (at most
+        :data:`RESEND_CACHE`)."""
+        return len(self._state.answered)
 
     @property
     def ars(self) -> int:
@@ -143,7 +253,11 @@ class ProfinetDevice(UdpServer):
                 little=req.little,
             )
         )
-        self._state.answered[req.activity] = _Cache(req.seqnum, datagram)
+        answered = self._state.answered
+        answered.pop(req.activity, None)  # to the end: the oldest activity goes first
+        answered[req.activity] = _Cache(req.seqnum, datagram)
+        while len(answered) > RESEND_CACHE:
+            del answered[next(iter(answered))]
         return datagram
 
     def _call(self, req: pnio.RpcPacket) -> tuple[int, int, bytes]:

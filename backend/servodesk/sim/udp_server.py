@@ -77,6 +77,27 @@ class UdpServer(ABC):
             self._sock.close()
             self._sock = None
 
+    def rebind(self, host: str) -> bool:
+        """Serve on ``host`` from now on, at the same port (a device whose address was
+        changed, e.g. by DCP); False, still serving where it was, when ``host`` cannot be
+        bound."""
+        if self._sock is None:
+            self._host = host
+            return True
+        old_host, port = self.address
+        UdpServer.stop(self)  # the socket only: a subclass's stop() may end more
+        self._stop.clear()
+        self._host, self._port = host, port
+        try:
+            self.start()
+        except OSError:
+            log.info("%s: cannot bind %s:%d, staying on %s", self.name, host, port, old_host)
+            self._host = old_host
+            self._stop.clear()
+            self.start()
+            return False
+        return True
+
     def __enter__(self) -> Self:
         return self.start()
 

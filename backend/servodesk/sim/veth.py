@@ -88,3 +88,18 @@ def create_veth(prefix: str = "sdk") -> VethPair:
         pair.delete()
         raise
     return pair
+
+
+def add_address(ifname: str, ip: str) -> None:
+    """Give ``ifname`` the address ``ip`` alone (/32: no route to a subnet is added), as a
+    simulated device on that end takes an address set by DCP (sim/profinet_dcp.py)."""
+    _ip("addr", "add", f"{ip}/32", "dev", ifname)
+
+
+def delete_address(ifname: str, ip: str) -> None:
+    """Remove an address :func:`add_address` gave; gone already is fine."""
+    try:
+        _ip("addr", "del", f"{ip}/32", "dev", ifname, missing_ok=True)
+    except LinkError as exc:
+        if "Cannot assign" not in exc.message and "not found" not in exc.message.lower():
+            raise

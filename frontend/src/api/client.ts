@@ -8,6 +8,10 @@
 import { getToken } from './auth';
 import type {
   ApiErrorBody,
+  DcpDone,
+  DcpIdentifyRequest,
+  DcpIdentifyResult,
+  DcpSetRequest,
   DriveState,
   Health,
   ObjectValue,
@@ -131,6 +135,13 @@ export const api = {
   health: () => request<Health>('Check the server', 'GET', '/health'),
   profiles: () => request<ProfileSummary[]>('Load the drive profiles', 'GET', '/profiles'),
   scan: (req: ScanRequest) => request<ScanResult>('Scan the bus', 'POST', '/bus/scan', req),
+  dcpIdentify: (req: DcpIdentifyRequest) =>
+    request<DcpIdentifyResult>(`Search ${req.nic} for PROFINET devices`, 'POST', '/dcp/identify', req),
+  dcpSet: (req: DcpSetRequest) => request<DcpDone>(`Set ${req.mac}`, 'POST', '/dcp/set', req),
+  dcpSignal: (nic: string, mac: string) =>
+    request<DcpDone>(`Flash the LED of ${mac}`, 'POST', '/dcp/signal', { nic, mac }),
+  dcpReset: (nic: string, mac: string, mode: 2 | 8) =>
+    request<DcpDone>(`Reset ${mac} to factory`, 'POST', '/dcp/reset', { nic, mac, mode }),
   sessions: () => request<SessionInfo[]>('List the sessions', 'GET', '/sessions'),
   openSession: (req: SessionRequest) =>
     request<SessionInfo>(`Open node ${req.node_id} on ${req.interface}`, 'POST', '/sessions', req),

@@ -32,6 +32,11 @@
 export type {
   ApiErrorBody,
   BusInterface,
+  DcpDevice,
+  DcpDone,
+  DcpIdentifyRequest,
+  DcpIdentifyResult,
+  DcpSetRequest,
   DeviceDescriptionFormat,
   GroupInfo,
   NetworkInfo,

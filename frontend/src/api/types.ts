@@ -97,6 +97,53 @@ export interface ScanResult {
   nodes: ScanNode[];
 }
 
+/** POST /dcp/identify: the PROFINET devices on a network interface (docs/profinet.md, DCP). */
+export interface DcpIdentifyRequest {
+  nic: string;
+  timeout?: number;
+  name_of_station?: string | null;
+}
+
+export interface DcpDevice {
+  mac: string;
+  /** "" when the device has none (its Network Status LED: red single flash, 004 §20.2.3). */
+  name_of_station: string | null;
+  ip: string | null;
+  netmask: string | null;
+  gateway: string | null;
+  ip_origin: 'not set' | 'static' | 'dhcp' | null;
+  ip_conflict: boolean;
+  vendor_id: number | null;
+  device_id: number | null;
+  type_of_station: string | null;
+  roles: string[];
+  instance: number | null;
+  /** The open PROFINET session at this device's IP address, if any. */
+  session_id: string | null;
+  /** The channel to open a session with: its IP address (with the port where it is not
+   * 34964, as for serve --sim's twin); null without an address. */
+  channel: string | null;
+}
+
+export interface DcpIdentifyResult {
+  nic: string;
+  devices: DcpDevice[];
+  malformed: number;
+}
+
+export interface DcpSetRequest {
+  nic: string;
+  mac: string;
+  name_of_station?: string | null;
+  ip?: { ip: string; netmask: string; gateway: string } | null;
+  permanent?: boolean;
+}
+
+export interface DcpDone {
+  mac: string;
+  done: string[];
+}
+
 export interface Identity {
   vendor_id: number | null;
   product_code: number | null;

@@ -1,5 +1,5 @@
 import { describe, expect, it } from 'vitest';
-import { nmtTitle } from './nmt';
+import { hasNmt, nmtTitle } from './nmt';
 
 describe('nmtTitle', () => {
   it('says why the state is unknown', () => {
@@ -16,5 +16,14 @@ describe('nmtTitle', () => {
   it('says PROFINET has no NMT and whose the state is', () => {
     expect(nmtTitle('unknown', 'profinet')).toMatch(/^No NMT on PROFINET/);
     expect(nmtTitle('unknown', 'profinet')).toContain('IO controller');
+  });
+});
+
+describe('hasNmt', () => {
+  it('is false where the link has no NMT to show', () => {
+    expect(hasNmt('canopen')).toBe(true);
+    expect(hasNmt('ethercat')).toBe(true);
+    expect(hasNmt('profinet')).toBe(false);
+    expect(hasNmt('cclink-ie-tsn')).toBe(false);
   });
 });

@@ -23,3 +23,9 @@ export function nmtTitle(state: string | null | undefined, link?: string | null)
   }
   return `NMT state ${state}: from the drive's last heartbeat, or from the NMT command servodesk sent since (CiA 301 §7.3.2).`;
 }
+
+/** Whether a session on ``link`` has an NMT state to show: not over SLMP (the station's
+ * manager owns it) or PROFINET (none; the IO controller owns the communication state). */
+export function hasNmt(link: string | null | undefined): boolean {
+  return link !== 'cclink-ie-tsn' && link !== 'profinet';
+}

@@ -6,11 +6,13 @@
  * interface reaches an EtherCAT line through SOEM: the channel is the network interface, the
  * node id the slave's position + 1 (docs/ethercat.md). The profinet interface reaches a
  * PROFIdrive drive (LECSN-T) by PNIO-CM record access over UDP: the channel is its IP address
- * (port 34964 unless given), the node id its DO-ID (docs/profinet.md).
+ * (port 34964 unless given), the node id its DO-ID (docs/profinet.md); the DCP panel finds
+ * PROFINET devices on a network interface and sets their station name and IP address.
  */
 import { type FormEvent, useEffect, useState } from 'react';
 import type { ProfileSummary, ScanNode, SessionInfo, SessionInterface, SessionRequest } from '../api';
 import { api } from '../api/client';
+import { DcpPanel } from '../components/DcpPanel';
 import { StatePill } from '../components/StatePill';
 import { toHex } from '../lib/format';
 import { SLMP_AXES, slmpAxisLabel } from '../lib/network';
@@ -70,6 +72,16 @@ function formatBitrate(b: number | null): string {
 
 function hexOrDash(v: number | null | undefined): string {
   return v === null || v === undefined ? '—' : toHex(v, 'UNSIGNED32');
+}
+
+/** The interface serve --sim's PROFINET twin answers DCP behind (its session's note says
+ * "DCP: search network interface X."), to start the DCP search there. */
+function dcpNicFromNotes(list: SessionInfo[] | null): string | null {
+  for (const s of list ?? []) {
+    const m = /DCP: search network interface (\S+?)\./.exec(s.note ?? '');
+    if (m) return m[1] ?? null;
+  }
+  return null;
 }
 
 interface BusForm {
@@ -314,7 +326,7 @@ export function ConnectPage() {
                   : ethercat
                     ? 'Opening the session finds the line (SOEM config_init): enter the interface and the slave'
                     : profinet
-                      ? 'PROFINET devices are found by DCP, which servodesk does not send: enter the IP address'
+                      ? 'PROFINET devices are found by DCP: search a network interface below, or enter the IP address'
                       : undefined
               }
             >
@@ -331,6 +343,17 @@ export function ConnectPage() {
           )}
         </form>
       </section>
+
+      {profinet && (
+        <DcpPanel
+          key={dcpNicFromNotes(list) ?? 'eth1'}
+          defaultNic={dcpNicFromNotes(list) ?? 'eth1'}
+          onUse={(channel) => {
+            set('channel', channel);
+            set('nodeId', '1');
+          }}
+        />
+      )}
 
       {scan !== null && (
         <section className="card">

@@ -56,6 +56,7 @@ import '../components/pdo/pdo.css';
 import { FailureBox } from '../components/FailureBox';
 import { type Failure, failureOf } from '../lib/codes';
 import { Observable } from '../state/observable';
+import { hasNmt, nmtTitle } from '../lib/nmt';
 import { useSessionInfo, useSessionProfile } from '../state/profileCache';
 import type { PageProps } from './registry';
 import './dataPages.css';
@@ -341,7 +342,12 @@ export function PdoPage({ sid }: PageProps) {
           {KIND_TEXT[kind]}
           <span className="h2-side small muted">
             {view.rules.section ?? ''}
-            {view.nmt_state ? ` · NMT ${view.nmt_state}` : ''} · {view.byte_order === 'big' ? 'big-endian' : 'little-endian'}
+            {view.nmt_state && hasNmt(info?.link) ? (
+              <span title={nmtTitle(view.nmt_state, info?.link)} data-testid="pdo-nmt">{` · NMT ${view.nmt_state}`}</span>
+            ) : (
+              ''
+            )}{' '}
+            · {view.byte_order === 'big' ? 'big-endian' : 'little-endian'}
           </span>
         </h2>
         {readOnly && (

@@ -1,0 +1,200 @@
+"""DCP on a network interface: find the PROFINET devices on its segment, set a device's
+station name or IP address, flash its LED, reset it to factory settings (docs/profinet.md).
+
+Frames are built and parsed by :mod:`servodesk.domain.dcp`; this module sends them on a raw
+AF_PACKET socket (EtherType 8892h), which needs root or CAP_NET_RAW, as the EtherCAT link
+does. The calls block (a scan waits for its whole time-out); the API runs them in a thread.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import random
+import select
+import socket
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from servodesk.domain import dcp
+from servodesk.errors import LinkError, NotFoundError, ObjectAccessError, ValidationError
+
+#: How long one Set waits for its answer, and how often it is sent (the same Xid: a device
+#: that set the value and whose answer was lost sets it again, which changes nothing).
+SET_TIMEOUT_S = 1.0
+SET_ATTEMPTS = 3
+
+
+@dataclass(frozen=True, slots=True)
+class Scan:
+    """The devices that answered an Identify, and the answers that could not be read."""
+
+    devices: list[dcp.Device]
+    malformed: int = 0
+
+
+def open_socket(nic: str) -> socket.socket:
+    """A raw socket for DCP frames on ``nic``; LinkError / NotFoundError with what to do."""
+    if not nic or "/" in nic or len(nic) > 15:
+        raise ValidationError(
+            f"{nic!r} is not a network interface name",
+            field="nic",
+            hint="give the interface the drives are on, as `ip link` lists it (e.g. eth1)",
+        )
+    if not os.path.exists(f"/sys/class/net/{nic}"):
+        raise NotFoundError(
+            f"no network interface {nic!r}",
+            hint="list the interfaces with `ip link`; give the one the drives are cabled to",
+        )
+    try:
+        sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(dcp.ETHERTYPE))
+    except PermissionError as exc:
+        raise LinkError(
+            f"cannot open a raw socket for PROFINET DCP on {nic}: {exc}",
+            hint="DCP is layer 2 (raw Ethernet frames): run as root or give CAP_NET_RAW",
+        ) from exc
+    try:
+        sock.bind((nic, dcp.ETHERTYPE))
+    except OSError as exc:
+        sock.close()
+        if exc.errno == errno.ENODEV:
+            raise NotFoundError(f"no network interface {nic!r}") from exc
+        raise LinkError(f"cannot bind a DCP socket to {nic!r}: {exc}") from exc
+    return sock
+
+
+class DcpClient:
+    """A DCP client on one network interface (a context manager)."""
+
+    def __init__(self, nic: str) -> None:
+        self.nic = nic
+        self._sock = open_socket(nic)
+        self.mac: bytes = self._sock.getsockname()[4][:6]
+
+    def close(self) -> None:
+        self._sock.close()
+
+    def __enter__(self) -> DcpClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # Services --------------------------------------------------------------------------
+
+    def identify(self, timeout: float, *, name: str | None = None) -> Scan:
+        """Every device that answers an Identify within ``timeout`` seconds (or the one
+        named ``name``), in the order of their station names and MACs."""
+        xid = random.getrandbits(32)
+        req = dcp.identify_request(
+            self.mac, xid, response_delay=dcp.response_delay_factor(timeout), name=name
+        )
+        self._send(req.encode())
+        found: dict[str, dcp.Device] = {}
+        malformed = 0
+
+        def take(p: dcp.Packet) -> bool:
+            nonlocal malformed
+            if p.frame_id != dcp.FRAME_IDENTIFY_RESPONSE or p.xid != xid:
+                return False
+            try:
+                dev = dcp.device_from(p)
+            except dcp.MalformedFrame:
+                malformed += 1
+                return False
+            found.setdefault(dev.mac, dev)
+            return False  # keep listening until the time-out: every device may answer
+
+        self._receive(time.monotonic() + timeout, take)
+        devices = sorted(found.values(), key=lambda d: (d.name_of_station or "~", d.mac))
+        return Scan(devices, malformed)
+
+    def set(self, mac: bytes, blocks: tuple[dcp.Block, ...]) -> list[dcp.Ack]:
+        """Send a Set of ``blocks`` to ``mac`` and return its acknowledgements;
+        ObjectAccessError (protocol "dcp") when the device refuses a block, NotFoundError
+        when nothing answers."""
+        xid = random.getrandbits(32)
+        frame = dcp.set_request(mac, self.mac, xid, blocks).encode()
+        answer: list[dcp.Packet] = []
+
+        def take(p: dcp.Packet) -> bool:
+            if p.frame_id != dcp.FRAME_GET_SET or p.service_id != dcp.SERVICE_SET:
+                return False
+            if p.xid != xid or p.src != mac or p.service_type == dcp.TYPE_REQUEST:
+                return False
+            answer.append(p)
+            return True
+
+        for _ in range(SET_ATTEMPTS):
+            self._send(frame)
+            if self._receive(time.monotonic() + SET_TIMEOUT_S, take):
+                break
+        else:
+            raise NotFoundError(
+                f"no device with MAC {dcp.mac_text(mac)} answers DCP on {self.nic}",
+                hint="search the interface again (Identify) and take the MAC from the answer",
+            )
+        reply = answer[0]
+        if reply.service_type != dcp.TYPE_SUCCESS:
+            raise ObjectAccessError(
+                f"{dcp.mac_text(mac)} does not support this DCP Set "
+                f"(ServiceType {reply.service_type})",
+                code=dcp.TYPE_NOT_SUPPORTED,
+                meaning="request not supported",
+                protocol="dcp",
+            )
+        try:
+            result = dcp.acks(reply)
+        except dcp.MalformedFrame as exc:
+            raise LinkError(f"{dcp.mac_text(mac)} answered a malformed DCP Set: {exc}") from exc
+        for ack in result:
+            if ack.error:
+                raise ObjectAccessError(
+                    f"{dcp.mac_text(mac)} refused {dcp.block_name(ack.option, ack.suboption)}: "
+                    f"{ack.meaning}",
+                    code=ack.error,
+                    meaning=ack.meaning,
+                    protocol="dcp",
+                    hint=_HINTS.get(ack.error),
+                )
+        return result
+
+    # Socket ----------------------------------------------------------------------------
+
+    def _send(self, frame: bytes) -> None:
+        try:
+            self._sock.send(frame)
+        except OSError as exc:
+            if exc.errno == errno.ENETDOWN:
+                raise LinkError(
+                    f"{self.nic} is down", hint=f"bring it up (`ip link set {self.nic} up`)"
+                ) from exc
+            raise LinkError(f"cannot send a DCP frame on {self.nic}: {exc}") from exc
+
+    def _receive(self, deadline: float, take: Callable[[dcp.Packet], bool]) -> bool:
+        """Hand each DCP frame arriving before ``deadline`` to ``take`` until it returns
+        True (then True); False at the deadline. Frames this socket sent itself, and frames
+        that are not DCP, are skipped."""
+        while (left := deadline - time.monotonic()) > 0:
+            ready, _, _ = select.select([self._sock], [], [], left)
+            if not ready:
+                break
+            data, addr = self._sock.recvfrom(2048)
+            if addr[2] == socket.PACKET_OUTGOING:
+                continue
+            try:
+                packet = dcp.parse(data)
+            except dcp.MalformedFrame:
+                continue
+            if take(packet):
+                return True
+        return False
+
+
+_HINTS = {
+    5: "the device keeps this setting for a reason of its own (a rotary switch or DHCP sets "
+    "the address: on the LECSN-T SW2/SW3 other than 00h, 004 §20.1.3)",
+    6: "the device is in data exchange with its IO controller: stop the controller's "
+    "connection (or close servodesk's session on it) and set it again",
+}

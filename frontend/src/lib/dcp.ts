@@ -1,0 +1,20 @@
+/**
+ * PROFINET station names (DCP NameOfStation, IEC 61158-6-10), checked as the server checks
+ * them (domain/dcp.py check_name_of_station) so that the Set button says what is wrong before
+ * anything is sent; the server's answer names the rule as well.
+ */
+
+/** Why ``name`` is not a valid station name, or null ("" is "not changed"). */
+export function nameProblem(name: string): string | null {
+  if (name === '') return null;
+  if (name !== name.toLowerCase()) return 'lower case only';
+  if (name.length > 240) return 'at most 240 characters';
+  for (const label of name.split('.')) {
+    if (!/^[a-z0-9]([a-z0-9-]{0,61}[a-z0-9])?$/.test(label)) {
+      return `"${label}": 1-63 of a-z, 0-9 and '-', no '-' at either end`;
+    }
+  }
+  if (/^port-\d{3}(-\d{5})?$/.test(name.split('.')[0] ?? '')) return 'port-xyz names are reserved';
+  if (/^\d+\.\d+\.\d+\.\d+$/.test(name)) return 'an IP address is not a name';
+  return null;
+}
