@@ -284,6 +284,18 @@ def test_a_new_profinet_drive_is_found_named_addressed_and_opened_by_dcp(page: P
         sid = page.url.rsplit("/", 1)[1]
         assert device.ars == 1
 
+        # Its Network page reads the name and address back over DCP, as the card's web
+        # server shows them; PROFINET has no NMT state to show.
+        page.goto(f"/#/network/{sid}")
+        expect(page.get_by_test_id("network-nmt")).to_have_text("none (PROFINET)")
+        page.get_by_test_id("network-dcp-nic").fill(pair.master)
+        page.get_by_test_id("network-dcp-read").click()
+        expect(page.get_by_test_id("network-dcp-name")).to_have_text("press-2")
+        expect(page.get_by_test_id("network-dcp-ip")).to_have_text("10.79.0.5 (static)")
+        page.get_by_test_id("network-dcp-nic").fill("nope0")
+        page.get_by_test_id("network-dcp-read").click()
+        expect(page.get_by_test_id("network-dcp-failure")).to_contain_text("no network interface")
+
         # In operation (the session's AR) the drive refuses a new address, and says why.
         page.goto("/#/connect")
         page.get_by_test_id("bus-interface").select_option("profinet")

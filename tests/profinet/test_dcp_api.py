@@ -43,7 +43,7 @@ def test_find_rename_readdress_and_open_a_session_there(app: tuple[TestClient, A
     client, sim = app
     nic = sim.dcp.master
     info = client.get(f"/api/v1/sessions/{SID}").json()
-    assert f"DCP: search network interface {nic}." in info["note"]
+    assert info["note"] == f"DCP: search network interface {nic}."  # and nothing before it
     r = client.post("/api/v1/dcp/identify", json={"nic": nic, "timeout": 0.3})
     assert r.status_code == 200, r.text
     [dev] = r.json()["devices"]

@@ -41,6 +41,10 @@ def simulated_drives(catalog: ProfileCatalog, only: str = "") -> list[tuple[str,
     return [(pid, n + 1) for n, pid in enumerate(ordered)]
 
 
+def _add_note(session: Any, text: str) -> None:
+    session.note = f"{session.note} {text}" if session.note else text
+
+
 async def start_simulation(
     settings: Settings, catalog: ProfileCatalog, manager: SessionManager
 ) -> Any:
@@ -88,13 +92,11 @@ async def start_simulation(
         try:
             session = await manager.open(params, pid, fieldbus=fieldbus, simulated=True)
             if no_ethercat is not None and drive.profile.fieldbus == "ethercat":
-                session.note = f"{session.note} SERVODESK_SIM_ETHERCAT: {no_ethercat}"
-            if fieldbus == "profinet" and (dcp_pair is not None or no_dcp is not None):
-                session.note = (
-                    f"{session.note} DCP: search network interface {dcp_pair.master}."
-                    if dcp_pair is not None
-                    else f"{session.note} SERVODESK_SIM_DCP: {no_dcp}"
-                ).strip()
+                _add_note(session, f"SERVODESK_SIM_ETHERCAT: {no_ethercat}")
+            if fieldbus == "profinet" and dcp_pair is not None:
+                _add_note(session, f"DCP: search network interface {dcp_pair.master}.")
+            elif fieldbus == "profinet" and no_dcp is not None:
+                _add_note(session, f"SERVODESK_SIM_DCP: {no_dcp}")
         except Exception:
             log.exception("could not open the simulated %s drive (node %d)", pid, node)
     return sim

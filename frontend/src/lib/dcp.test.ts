@@ -1,5 +1,5 @@
 import { describe, expect, it } from 'vitest';
-import { nameProblem } from './dcp';
+import { dcpNicFromNote, nameProblem } from './dcp';
 
 describe('nameProblem', () => {
   it('accepts the names PROFINET allows', () => {
@@ -15,5 +15,13 @@ describe('nameProblem', () => {
     expect(nameProblem('x'.repeat(64))).toContain('1-63');
     expect(nameProblem('port-001')).toBe('port-xyz names are reserved');
     expect(nameProblem('192.168.0.1')).toBe('an IP address is not a name');
+  });
+});
+
+describe('dcpNicFromNote', () => {
+  it("finds the twin's interface in its session's note", () => {
+    expect(dcpNicFromNote('LECSN-T twin. DCP: search network interface sddcp123x1m.')).toBe('sddcp123x1m');
+    expect(dcpNicFromNote('no DCP here')).toBeNull();
+    expect(dcpNicFromNote(null)).toBeNull();
   });
 });

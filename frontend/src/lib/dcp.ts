@@ -18,3 +18,10 @@ export function nameProblem(name: string): string | null {
   if (/^\d+\.\d+\.\d+\.\d+$/.test(name)) return 'an IP address is not a name';
   return null;
 }
+
+/** The interface serve --sim's PROFINET twin answers DCP behind: its session's note says
+ * "DCP: search network interface X." (SERVODESK_SIM_DCP=1). */
+export function dcpNicFromNote(note: string | null | undefined): string | null {
+  const m = /DCP: search network interface (\S+?)\./.exec(note ?? '');
+  return m ? (m[1] ?? null) : null;
+}

@@ -14,6 +14,7 @@ import type { ProfileSummary, ScanNode, SessionInfo, SessionInterface, SessionRe
 import { api } from '../api/client';
 import { DcpPanel } from '../components/DcpPanel';
 import { StatePill } from '../components/StatePill';
+import { dcpNicFromNote } from '../lib/dcp';
 import { toHex } from '../lib/format';
 import { SLMP_AXES, slmpAxisLabel } from '../lib/network';
 import { nmtTitle } from '../lib/nmt';
@@ -74,12 +75,11 @@ function hexOrDash(v: number | null | undefined): string {
   return v === null || v === undefined ? '—' : toHex(v, 'UNSIGNED32');
 }
 
-/** The interface serve --sim's PROFINET twin answers DCP behind (its session's note says
- * "DCP: search network interface X."), to start the DCP search there. */
+/** The interface serve --sim's PROFINET twin answers DCP behind, from its session's note. */
 function dcpNicFromNotes(list: SessionInfo[] | null): string | null {
   for (const s of list ?? []) {
-    const m = /DCP: search network interface (\S+?)\./.exec(s.note ?? '');
-    if (m) return m[1] ?? null;
+    const nic = dcpNicFromNote(s.note);
+    if (nic) return nic;
   }
   return null;
 }

@@ -8,13 +8,14 @@
  * refuses shows the refusal in its row); and the LED decode the manual gives.
  */
 import { useCallback, useEffect, useMemo, useRef, useState } from 'react';
-import type { NetworkInfo, ObjectValue, SessionInfo } from '../api';
+import type { DcpDevice, NetworkInfo, ObjectValue, SessionInfo } from '../api';
 import { api } from '../api/client';
 import { FailureBox } from '../components/FailureBox';
 import { type Failure, failureOf, failureOfBody } from '../lib/codes';
 import { canonicalAddress, formatPnu } from '../lib/dictionary';
 import { type LedGroup, type NetworkRow, ledGroups, networkAddresses, networkRows, slmpAxisLabel } from '../lib/network';
-import { nmtTitle } from '../lib/nmt';
+import { dcpNicFromNote } from '../lib/dcp';
+import { hasNmt, nmtTitle } from '../lib/nmt';
 import { decText, engineeringText, enumText, hexText, isObjectValue } from '../lib/values';
 import { useSessionInfo, useSessionProfile } from '../state/profileCache';
 import './dataPages.css';
@@ -78,7 +79,7 @@ function LinkCard({ session }: { session: SessionInfo }) {
           <tr>
             <th>NMT state</th>
             <td className="mono" data-testid="network-nmt" title={nmtTitle(session.nmt_state, session.link)}>
-              {session.nmt_state}
+              {hasNmt(session.link) ? session.nmt_state : profinet ? 'none (PROFINET)' : 'not read (SLMP)'}
             </td>
           </tr>
         </tbody>
@@ -89,6 +90,113 @@ function LinkCard({ session }: { session: SessionInfo }) {
           {session.note}
         </div>
       )}
+    </section>
+  );
+}
+
+/** The drive's station name and IP suite as it reports them over DCP (the card web server's
+ * "Network configuration" page shows the same, 004 §20.7): found among the devices answering
+ * on a network interface by this session's address. */
+function DcpCard({ session }: { session: SessionInfo }) {
+  const [nic, setNic] = useState(dcpNicFromNote(session.note) ?? 'eth1');
+  const [found, setFound] = useState<{ dev: DcpDevice | null; n: number } | null>(null);
+  const [fail, setFail] = useState<Failure | null>(null);
+  const [busy, setBusy] = useState(false);
+
+  async function read() {
+    setBusy(true);
+    setFail(null);
+    try {
+      const res = await api.dcpIdentify({ nic: nic.trim(), timeout: 1.0 });
+      // By the session the server matched (IP and port), else by the IP address alone: a
+      // device whose PNIO-CM port is not 34964 is matched by its address on the segment.
+      const host = session.channel.replace(/:\d+$/, '');
+      const dev = res.devices.find((d) => d.session_id === session.id) ?? res.devices.find((d) => d.ip === host) ?? null;
+      setFound({ dev, n: res.devices.length });
+    } catch (e) {
+      setFound(null);
+      setFail(failureOf(e, `Search ${nic.trim()} by DCP`));
+    } finally {
+      setBusy(false);
+    }
+  }
+
+  const d = found?.dev;
+  return (
+    <section className="card" data-testid="network-dcp">
+      <h2>
+        Station name and address <span className="h2-side muted">DCP · 004 §20.1.3</span>
+      </h2>
+      <form
+        className="network-dcp-form"
+        onSubmit={(e) => {
+          e.preventDefault();
+          void read();
+        }}
+      >
+        <input
+          data-testid="network-dcp-nic"
+          className="mono"
+          aria-label="Network interface"
+          title="The network interface the drive is cabled to, as `ip link` names it"
+          value={nic}
+          onChange={(e) => setNic(e.target.value)}
+          spellCheck={false}
+        />
+        <button type="submit" data-testid="network-dcp-read" disabled={busy || nic.trim() === ''}>
+          {busy ? 'Searching…' : 'Read by DCP'}
+        </button>
+      </form>
+      {fail && <FailureBox f={fail} testid="network-dcp-failure" />}
+      {found && !d && (
+        <p className="muted" data-testid="network-dcp-missing">
+          None of the {found.n} device(s) answering on {nic} is at this session&apos;s address.
+        </p>
+      )}
+      {d && (
+        <table className="kv" data-testid="network-dcp-table">
+          <tbody>
+            <tr>
+              <th>Station name</th>
+              <td className="mono" data-testid="network-dcp-name">
+                {d.name_of_station || <span className="badge badge-warn">not set</span>}
+              </td>
+            </tr>
+            <tr>
+              <th>MAC address</th>
+              <td className="mono">{d.mac}</td>
+            </tr>
+            <tr>
+              <th>IP address</th>
+              <td className="mono" data-testid="network-dcp-ip">
+                {d.ip} <span className="muted">({d.ip_origin})</span>
+                {d.ip_conflict && <span className="badge badge-bad">address conflict</span>}
+              </td>
+            </tr>
+            <tr>
+              <th>Subnet mask</th>
+              <td className="mono">{d.netmask}</td>
+            </tr>
+            <tr>
+              <th>Gateway</th>
+              <td className="mono">{d.gateway}</td>
+            </tr>
+            <tr>
+              <th title="PROFINET vendor ID / device ID (the GSDML file's)">Vendor / device ID</th>
+              <td className="mono">
+                {d.vendor_id?.toString(16).toUpperCase().padStart(4, '0')}h / {d.device_id?.toString(16).toUpperCase().padStart(4, '0')}h
+              </td>
+            </tr>
+            <tr>
+              <th>Type</th>
+              <td>{d.type_of_station}</td>
+            </tr>
+          </tbody>
+        </table>
+      )}
+      <p className="muted small">
+        Changed from the Connect page (PROFINET devices): the drive refuses a new name or address while this session is open.
+      </p>
     </section>
   );
 }
@@ -289,7 +397,14 @@ export function NetworkPage({ sid }: PageProps) {
   return (
     <div className="stack network-page">
       <div className="network-top">
-        <LinkCard session={info} />
+        {info.interface === 'profinet' ? (
+          <div className="stack">
+            <LinkCard session={info} />
+            <DcpCard session={info} />
+          </div>
+        ) : (
+          <LinkCard session={info} />
+        )}
         {objectsCard ??
           (network ? (
             <AddressingCard network={network} />
