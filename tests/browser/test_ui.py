@@ -334,10 +334,13 @@ def test_an_ethercat_line_is_opened_from_the_connect_page(page: Page) -> None:
         page.goto("/#/connect")
         page.get_by_test_id("bus-interface").select_option("ethercat")
         expect(page.get_by_test_id("bus-bitrate")).to_be_disabled()
-        expect(page.get_by_test_id("scan-bus")).to_be_disabled()
         page.get_by_test_id("bus-channel").fill(pair.master)
-        page.get_by_test_id("bus-node-id").fill("1")
-        page.get_by_test_id("open-session").click()
+        # Scan finds the line's slave with its identity and profile; Open opens it there.
+        page.get_by_test_id("scan-bus").click()
+        slave = page.get_by_test_id("scan-node-1")
+        expect(slave).to_contain_text("hiwin-e")
+        expect(page.get_by_test_id("scan-results")).to_contain_text("Slave")
+        slave.get_by_test_id("scan-open-1").click()
         page.wait_for_url(re.compile(r"#/overview/hiwin-e-1"))
         expect(page.locator(".drive-meta")).to_have_attribute(
             "title", f"slave 1 · ethercat · ethercat:{pair.master}"

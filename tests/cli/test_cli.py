@@ -103,3 +103,44 @@ def test_a_data_directory_that_cannot_be_made_is_an_error_not_a_traceback(
     assert code == 2 and "cannot use the data directory" in err, err
     assert "SERVODESK_DATA_DIR" in err and "Traceback" not in err
     assert not out.exists()
+
+
+def test_scan_lists_the_nodes_of_a_can_bus_with_their_profiles(
+    capsys: pytest.CaptureFixture[str],
+    channel: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from servodesk.sim.bus import SimulatedBus
+
+    monkeypatch.setenv("SERVODESK_DATA_DIR", str(tmp_path))
+    with SimulatedBus.start(drives=[("cia402-generic", 1), ("smartris", 3)], channel=channel):
+        code, out, err = run(capsys, "scan", "--channel", channel, "--json")
+        assert code == 0, err
+        nodes = json.loads(out)["nodes"]
+        assert [(n["node_id"], n["profile_id"]) for n in nodes] == [
+            (1, "cia402-generic"),
+            (3, "smartris"),
+        ]
+        code, out, _ = run(capsys, "scan", "--channel", channel)
+        assert code == 0
+        assert "node   3" in out and "profile smartris" in out and "vendor_id " in out
+    code, _, err = run(capsys, "scan", "--channel", f"{channel}-empty", "--wait", "0.1")
+    assert code == 0 and "no node answered" in err
+
+
+@pytest.mark.parametrize(
+    ("argv", "text"),
+    [
+        (["--interface", "profinet"], "dcp identify"),
+        (["--interface", "slmp"], "slmp has no scan"),
+        (["--interface", "nope"], "unknown interface 'nope'"),
+        (["--wait", "9"], "outside 0.05-3 s"),
+        (["--interface", "ethercat", "--channel", "sdnothere0"], "no network interface"),
+    ],
+)
+def test_scan_refuses_what_it_cannot_scan(
+    capsys: pytest.CaptureFixture[str], argv: list[str], text: str
+) -> None:
+    code, _, err = run(capsys, "scan", *argv)
+    assert code == 2 and text in err and "Traceback" not in err, err

@@ -78,6 +78,23 @@ def test_api_opens_a_session_on_an_ethercat_slave(
         assert r.status_code == 409 and "sends no NMT reset" in r.json()["message"], r.text
         assert line.drives[1].read(0x6081) == 777
 
+        # A scan of the line lists both slaves with their identity and profile; the one with
+        # a session keeps it, and the scan leaves that session working.
+        r = client.post("/api/v1/bus/scan", json={"interface": "ethercat", "channel": veth.master})
+        assert r.status_code == 200, r.text
+        nodes = r.json()["nodes"]
+        assert [(n["node_id"], n["profile_id"], n["session_id"]) for n in nodes] == [
+            (1, "hiwin-e", None),
+            (2, "hiwin-e", sid),
+        ]
+        assert nodes[0]["device_name"] == "HIWIN E series EtherCAT drive"
+        r = client.get(f"/api/v1/sessions/{sid}/objects/0x6081:00")
+        assert r.status_code == 200 and r.json()["value"] == 777, r.text
+        r = client.post("/api/v1/bus/scan", json={"interface": "ethercat", "channel": "sdnothere0"})
+        assert r.status_code == 404 and "no network interface" in r.text, r.text
+        r = client.post("/api/v1/bus/scan", json={"interface": "profinet", "channel": "x"})
+        assert r.status_code == 422 and "/dcp/identify" in r.text, r.text
+
         r = open_(channel=veth.master, node_id=3)
         assert r.status_code == 404 and "no EtherCAT slave at position 3" in r.text, r.text
         r = open_(channel="sdnothere0", node_id=1)
@@ -127,6 +144,11 @@ def test_sim_process_state_requests_and_backup(
                     await link.nmt("reset")
 
         asyncio.run(states())
+
+        # servodesk scan lists the line's slave with its profile.
+        assert main(["scan", "--interface", "ethercat", "--channel", veth.master, "--json"]) == 0
+        nodes = json.loads(capsys.readouterr().out)["nodes"]
+        assert [(n["node_id"], n["profile_id"]) for n in nodes] == [(1, "hiwin-e")]
 
         node = ["--interface", "ethercat", "--channel", veth.master, "--node-id", "1"]
         out = tmp_path / "hiwin.json"

@@ -169,9 +169,28 @@ class BusParams(BaseModel):
 
 
 class ScanRequest(BusParams):
-    """A scan of a CAN bus (SDO upload of 1000h to every node)."""
+    """A scan of a CAN bus (SDO upload of 1000h to every node), or of an EtherCAT line
+    (``interface`` ``ethercat``, ``channel`` the network interface: the slaves SOEM's
+    config_init finds, node id = position + 1)."""
 
+    interface: str = Field(
+        default="virtual",
+        description="python-can interface (virtual, udp_multicast, socketcan, pcan, ...) or "
+        "ethercat",
+        json_schema_extra={"enum": [*_CAN_ENUM, "ethercat"]},
+    )
     timeout: float = Field(default=0.5, ge=0.05, le=3.0, description="Seconds to wait for answers")
+
+    @field_validator("interface")
+    @classmethod
+    def _known_interface(cls, v: str) -> str:
+        if v != "ethercat" and v not in _CAN_INTERFACES:
+            raise ValueError(
+                f"unknown interface; python-can has {', '.join(_CAN_INTERFACES)}, and "
+                "ethercat scans an EtherCAT line (slmp and profinet have no scan: PROFINET "
+                "devices are found by DCP, POST /dcp/identify)"
+            )
+        return v
 
 
 class IdentityOut(BaseModel):

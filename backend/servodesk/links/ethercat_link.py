@@ -33,6 +33,7 @@ from __future__ import annotations
 import os
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -103,6 +104,15 @@ def _release_master(channel: str, shared: _Master) -> None:
             del _masters[channel]
             with shared.lock:
                 shared.master.close()
+
+
+def hold_line(channel: str) -> tuple[int, Callable[[], None]]:
+    """How many slaves the line on ``channel`` has (SOEM's ``config_init``, or the count of
+    the master the open links share), and the call that lets the master go again: the line
+    stays configured in between, so that the slaves' links opened meanwhile (a scan reading
+    their identities) do not configure it once each."""
+    shared = _open_master(channel)
+    return shared.slaves, lambda: _release_master(channel, shared)
 
 
 def _configure(channel: str) -> tuple[Any, int]:

@@ -182,13 +182,34 @@ class SessionManager:
     async def scan(
         self, interface: str, channel: str, bitrate: int | None, timeout: float
     ) -> list[dict[str, Any]]:
-        """Nodes on a CAN bus with their identity and the profile that matches them."""
+        """Nodes on a CAN bus, or the slaves of an EtherCAT line, with their identity and the
+        profile that matches them (an open session's node keeps its session's identity)."""
         from servodesk.links import canopen_link
 
         base = LinkParams(
             interface=interface, channel=channel, bitrate=bitrate, timeout=self.sdo_timeout
         )
-        ids = await asyncio.to_thread(canopen_link.scan, base, timeout)
+        release = None
+        if interface == "ethercat":
+            from servodesk.links import ethercat_link
+
+            # The line as SOEM's config_init found it, kept configured while the slaves'
+            # identities are read (the links of open sessions share the same master).
+            count, release = await asyncio.to_thread(ethercat_link.hold_line, channel)
+            ids = list(range(1, count + 1))
+            link_type: type[DriveLink] = ethercat_link.EthercatLink
+        else:
+            ids = await asyncio.to_thread(canopen_link.scan, base, timeout)
+            link_type = canopen_link.CanopenLink
+        try:
+            return await self._identify_nodes(base, ids, link_type)
+        finally:
+            if release is not None:
+                release()
+
+    async def _identify_nodes(
+        self, base: LinkParams, ids: list[int], link_type: type[DriveLink]
+    ) -> list[dict[str, Any]]:
         open_nodes = {
             s.link.params.node_id: s
             for s in self.all()
@@ -199,11 +220,11 @@ class SessionManager:
             if node_id in open_nodes:
                 ident = open_nodes[node_id].identity
             else:
-                link = canopen_link.CanopenLink(
+                link = link_type(
                     LinkParams(
-                        interface=interface,
-                        channel=channel,
-                        bitrate=bitrate,
+                        interface=base.interface,
+                        channel=base.channel,
+                        bitrate=base.bitrate,
                         node_id=node_id,
                         timeout=self.sdo_timeout,
                     )

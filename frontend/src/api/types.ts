@@ -73,7 +73,9 @@ export type BusInterface =
 export type SessionInterface = BusInterface | 'slmp' | 'profinet' | 'ethercat';
 
 export interface ScanRequest {
-  interface: BusInterface;
+  /** A python-can interface, or ethercat: the slaves of the line on the network interface
+   * given as channel (node id = position + 1). */
+  interface: BusInterface | 'ethercat';
   channel: string;
   bitrate: number | null;
   timeout: number;

@@ -4,8 +4,8 @@
  * interface reaches a CC-Link IE TSN station (CTMM04x) by SLMP over UDP: the channel is its
  * host:port, the node id its axis + 1, and there is no scan (docs/slmp.md). The ethercat
  * interface reaches an EtherCAT line through SOEM: the channel is the network interface, the
- * node id the slave's position + 1 (docs/ethercat.md). The profinet interface reaches a
- * PROFIdrive drive (LECSN-T) by PNIO-CM record access over UDP: the channel is its IP address
+ * node id the slave's position + 1, and Scan lists the line's slaves (docs/ethercat.md). The
+ * profinet interface reaches a PROFIdrive drive (LECSN-T) by PNIO-CM record access over UDP: the channel is its IP address
  * (port 34964 unless given), the node id its DO-ID (docs/profinet.md); the DCP panel finds
  * PROFINET devices on a network interface and sets their station name and IP address.
  */
@@ -141,7 +141,7 @@ export function ConnectPage() {
   }
 
   async function doScan() {
-    if (form.interface === 'slmp' || form.interface === 'ethercat' || form.interface === 'profinet') return; // Button disabled.
+    if (form.interface === 'slmp' || form.interface === 'profinet') return; // Button disabled.
     const iface = form.interface;
     setBusy('scan');
     setScan(null);
@@ -319,12 +319,12 @@ export function ConnectPage() {
               type="button"
               data-testid="scan-bus"
               onClick={() => void doScan()}
-              disabled={busy !== null || ethernet}
+              disabled={busy !== null || slmp || profinet}
               title={
                 slmp
                   ? 'SLMP has no scan: enter the station and the axis, then open the session'
                   : ethercat
-                    ? 'Opening the session finds the line (SOEM config_init): enter the interface and the slave'
+                    ? 'Find the slaves of the line on this network interface (SOEM config_init) and read their identity'
                     : profinet
                       ? 'PROFINET devices are found by DCP: search a network interface below, or enter the IP address'
                       : undefined
@@ -358,12 +358,12 @@ export function ConnectPage() {
       {scan !== null && (
         <section className="card">
           <h2>
-            Nodes on {form.interface}:{form.channel} <span className="muted">({scan.length})</span>
+            {ethercat ? 'Slaves' : 'Nodes'} on {form.interface}:{form.channel} <span className="muted">({scan.length})</span>
           </h2>
           <table className="grid" data-testid="scan-results">
             <thead>
               <tr>
-                <th>Node</th>
+                <th>{ethercat ? 'Slave' : 'Node'}</th>
                 <th>Vendor id</th>
                 <th>Product code</th>
                 <th>Revision</th>
