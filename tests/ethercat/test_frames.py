@@ -103,10 +103,15 @@ def test_sii_image_layout() -> None:
     general = img[0x88 : 0x88 + 4 + 32]
     assert general[:4] == H("1e001000")
     assert general[4 + 3] == 1 and general[4 + 5] == ec.COE_DETAILS_SDO  # Name 1; SDO
-    syncm = img[0xAC : 0xAC + 4 + 16]
-    assert syncm == H("2900080000108000260001018010800022000102")
-    assert img[0xC0:] == H("ffff")
-    assert struct.unpack_from("<H", img, 0x7C)[0] == 1  # 194 bytes: 2 KBit - 1
+    syncm = img[0xAC : 0xAC + 4 + 32]
+    # SM0 / SM1 the mailboxes; SM2 / SM3 the process data at 1100h / 1400h, length 0 (the
+    # master sizes them from 1C12h / 1C13h), control 64h / 20h, types 3 / 4.
+    assert syncm == H("290010000010800026000101801080002200010200110000640001030014000020000104")
+    assert img[0xD0:] == H("ffff")
+    assert struct.unpack_from("<H", img, 0x7C)[0] == 1  # 210 bytes: 2 KBit - 1
+    # A slave without process data offers the mailbox SMs only.
+    bare = ec.sii_image(ec.SiiInfo(1, 2, 3, 4, "AB", outputs_start=None, inputs_start=None))
+    assert bare[0xAC : 0xAC + 4 + 16] == H("2900080000108000260001018010800022000102")
 
 
 def test_crc8_of_the_configuration_area() -> None:
@@ -191,7 +196,7 @@ def test_al_state_machine_refuses_what_it_does_not_support(line: EthercatSlaveSi
     _one(line, Datagram.physical(Cmd.FPWR, 2, fp, ec.Reg.SM0, sm))
     control(0x0002)
     assert (slave.al_state, slave.al_status_code) == (2, 0)
-    control(0x0004)  # SAFE-OP: no process data here.
+    control(0x0008)  # OP straight from PRE-OP: through SAFE-OP only (ETG.1000.6 §6.4.1).
     assert (slave.al_state, slave.al_status_code) == (2, 0x0011)
     status = _one(line, Datagram.physical(Cmd.FPRD, 3, fp, ec.Reg.AL_STATUS, bytes(6))).data
     assert status == H("120000001100")  # PRE-OP with the error flag, code 0011h
@@ -199,6 +204,45 @@ def test_al_state_machine_refuses_what_it_does_not_support(line: EthercatSlaveSi
     assert (slave.al_state, slave.al_status_code) == (2, 0x0013)
     control(0x0012)
     assert (slave.al_state, slave.al_status_code) == (2, 0)
+    # SM2 enabled at another address than the SII's 1100h: invalid output configuration.
+    _one(line, Datagram.physical(Cmd.FPWR, 4, fp, ec.Reg.SM0 + 16, H("00120400640001ff")))
+    control(0x0004)
+    assert (slave.al_state, slave.al_status_code) == (2, 0x001D)
+    _one(line, Datagram.physical(Cmd.FPWR, 5, fp, ec.Reg.SM0 + 16, H("0011040064000000")))
+    control(0x0014)  # SAFE-OP, acknowledging: SM2 off, nothing mapped, accepted.
+    assert (slave.al_state, slave.al_status_code) == (4, 0)
+    control(0x0008)
+    assert (slave.al_state, slave.al_status_code) == (8, 0)
+    control(0x0002)  # Back to PRE-OP.
+    assert (slave.al_state, slave.al_status_code) == (2, 0)
+
+
+def test_process_data_through_the_fmmus(line: EthercatSlaveSim) -> None:
+    # What SOEM's config_map programs for a slave with 2 output and 2 input bytes: SM2 at
+    # 1100h, SM3 at 1400h, FMMU0 logical 10000h -> 1100h (write), FMMU1 10002h -> 1400h (read).
+    slave = line.slaves[0]
+    fp = slave.station_address
+    seen: list[bytes | None] = []
+    before = slave.on_cycle
+    slave.on_cycle = seen.append
+    try:
+        sms = H("00110200640001000014020020000100")
+        _one(line, Datagram.physical(Cmd.FPWR, 1, fp, ec.Reg.SM0 + 16, sms))
+        fmmus = H("0000010002000007001100020100000002000100020000070014000101000000")
+        _one(line, Datagram.physical(Cmd.FPWR, 2, fp, ec.Reg.FMMU0, fmmus))
+        slave.set_inputs(b"\x34\x12\xff")  # cut to SM3's two bytes
+        back = _one(line, Datagram(Cmd.LRW, 3, 0x10000, H("cdab0000")))
+        # Read (inputs) counts 1, write (outputs) 2; the other slave has no FMMU.
+        assert back.wkc == 3
+        assert back.data == H("cdab3412")
+        assert bytes(slave.mem[0x1100:0x1102]) == H("cdab")
+        assert seen == [None]  # Not OP: the outputs are not handed to the firmware.
+        assert _one(line, Datagram(Cmd.LRD, 4, 0x10002, bytes(2))).data == H("3412")
+        assert _one(line, Datagram(Cmd.LWR, 5, 0x10000, H("0102"))).wkc == 1
+        assert _one(line, Datagram(Cmd.LRD, 6, 0x20000, bytes(2))).wkc == 0  # unmapped
+    finally:
+        slave.on_cycle = before
+        _one(line, Datagram.physical(Cmd.FPWR, 7, fp, ec.Reg.FMMU0, bytes(32)))
 
 
 def test_frames_that_are_no_ethercat_are_dropped(line: EthercatSlaveSim) -> None:

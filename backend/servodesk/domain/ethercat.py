@@ -420,10 +420,16 @@ COE_DETAILS_SDO = 0x01
 #: SyncManager types in the SyncM category.
 SM_TYPE_MAILBOX_OUT = 1
 SM_TYPE_MAILBOX_IN = 2
+SM_TYPE_OUTPUTS = 3
+SM_TYPE_INPUTS = 4
 #: SM control bytes SOEM programs for mailboxes (ethercatconfig.c EC_DEFAULTMBXSM0/1):
 #: mailbox mode, ECAT writes (SM0) / reads (SM1), ECAT and PDI interrupts.
 SM_CONTROL_MAILBOX_OUT = 0x26
 SM_CONTROL_MAILBOX_IN = 0x22
+#: Process data SyncManagers: buffered (3-buffer) mode, ECAT writes SM2 (outputs) and reads
+#: SM3 (inputs), with the PDI interrupt (the ESI ControlByte most slaves give: 64h / 20h).
+SM_CONTROL_OUTPUTS = 0x64
+SM_CONTROL_INPUTS = 0x20
 
 
 def crc8_sii(data: bytes) -> int:
@@ -448,6 +454,10 @@ class SiiInfo:
     name: str
     mailbox_out: tuple[int, int] = (0x1000, 128)  # SM0: offset, size (master -> slave)
     mailbox_in: tuple[int, int] = (0x1080, 128)  # SM1: offset, size (slave -> master)
+    #: SM2 / SM3 start addresses of the process data (their lengths come from the PDO
+    #: assignment the master reads over CoE, 1C12h / 1C13h); None: no process data.
+    outputs_start: int | None = 0x1100
+    inputs_start: int | None = 0x1400
 
 
 def _u32(v: int, what: str) -> bytes:
@@ -500,6 +510,24 @@ def sii_image(info: SiiInfo) -> bytes:
         SM_ACTIVATE_ENABLE,
         SM_TYPE_MAILBOX_IN,
     )
+    if info.outputs_start is not None and info.inputs_start is not None:
+        # SM2 / SM3 with length 0: the master sizes them from the PDO assignment (ETG.2010
+        # SyncM category; SOEM's ecx_map_sm takes their start, control and enable from here).
+        syncm += struct.pack(
+            "<HHBBBBHHBBBB",
+            info.outputs_start,
+            0,
+            SM_CONTROL_OUTPUTS,
+            0,
+            SM_ACTIVATE_ENABLE,
+            SM_TYPE_OUTPUTS,
+            info.inputs_start,
+            0,
+            SM_CONTROL_INPUTS,
+            0,
+            SM_ACTIVATE_ENABLE,
+            SM_TYPE_INPUTS,
+        )
     body = (
         category(CAT_STRINGS, strings)
         + category(CAT_GENERAL, bytes(general))

@@ -61,7 +61,7 @@ def no_cyclic_reason(link: object) -> str | None:
     """Why ``link`` carries no cyclic process data; None when it does."""
     from servodesk.links.canopen_link import CanopenLink
 
-    if isinstance(link, CanopenLink):
+    if isinstance(link, CanopenLink) or getattr(link, "fieldbus", None) == "ethercat":
         return None
     reason: str | None = getattr(link, "no_cyclic", None)
     return reason or f"the {getattr(link, 'fieldbus', '?')} link has no cyclic process data"
@@ -76,6 +76,12 @@ def transport_for(link: object) -> CyclicTransport:
         from servodesk.links.canopen_cyclic import CanopenCyclic
 
         return CanopenCyclic(link.network)
+    if getattr(link, "fieldbus", None) == "ethercat":
+        from servodesk.links.ethercat_cyclic import EthercatCyclic
+        from servodesk.links.ethercat_link import EthercatLink
+
+        assert isinstance(link, EthercatLink)
+        return EthercatCyclic(link)
     raise ConflictError(
         f"the {getattr(link, 'fieldbus', '?')} link has no cyclic process data",
         hint=no_cyclic_reason(link),

@@ -12,10 +12,14 @@ its mailbox SyncManagers programmed, and PRE-OPERATIONAL is requested, where CoE
 to several slaves on one interface share one SOEM master (one per interface: a second
 ``config_init`` would reset the line under the first), and their requests take turns.
 
+Cyclic process data (links/ethercat_cyclic.py): ``start`` (the PDO page's cyclic data)
+maps the line's process data with SOEM's ``config_map`` (the PDO assignment 1C12h / 1C13h and
+mapping read over CoE, SM2 / SM3 and the FMMUs programmed), requests SAFE-OP, exchanges one
+cycle, then requests OP; every cycle is then one LRW of the line's process data image.
+
 What this link does not do (docs/ethercat.md):
 
-- Cyclic process data (PDO mapping, SAFE-OP/OP with FMMUs, distributed clocks): servodesk
-  reaches the drive's objects by SDO, as on the other fieldbuses without a cyclic transport.
+- Distributed clocks: the cycle is SOEM's free run, paced by servodesk's cycle thread.
 - NMT: EtherCAT has none; ``preop`` and ``stop`` (INIT) and ``start`` (OP) are AL state
   requests (AL control 0120h), which the slave may refuse with an AL status code: the refusal
   is a ConflictError carrying it. ``reset`` and ``reset_comm`` are refused.
@@ -60,6 +64,9 @@ except ImportError as exc:  # pragma: no cover - pysoem is a dependency
 INTERFACE = "ethercat"
 #: AL states (ETG.1000.6 §6.4.1, AL status bits 0-3) by name, and back.
 AL_STATES = {0x01: "init", 0x02: "preop", 0x03: "boot", 0x04: "safeop", 0x08: "op"}
+AL_SAFEOP, AL_OP = 0x04, 0x08
+#: How long one process data exchange waits for its frame to come back (µs).
+PROCESS_DATA_TIMEOUT_US = 2000
 #: The AL state each command of DriveLink.nmt requests.
 NMT_AL_STATES = {"preop": 0x02, "stop": 0x01, "start": 0x08}
 #: Largest object servodesk reads in one SDO upload (pysoem's buffer).
@@ -80,6 +87,12 @@ class _Master:
     slaves: int
     lock: threading.Lock = field(default_factory=threading.Lock)
     users: int = 0
+    #: config_map has run: the slaves' input / output images exist.
+    mapped: bool = False
+    #: The cyclic transports' receivers, by identifier (180h + node: that slave's inputs).
+    receivers: dict[int, list[Callable[[bytes, float], None]]] = field(default_factory=dict)
+    #: Outputs to send, by slave position (0-based).
+    outputs: dict[int, bytes] = field(default_factory=dict)
 
 
 _masters: dict[str, _Master] = {}
@@ -165,11 +178,6 @@ class EthercatLink(DriveLink):
     #: No NMT reset (EtherCAT has none): a restore of the defaults with a reset is refused
     #: before anything is restored (services/session.py), not left half done.
     sends_nmt = False
-    #: Why there is no cyclic process data here (links/cyclic.py ``transport_for``).
-    no_cyclic = (
-        "servodesk's EtherCAT link reaches the drive's objects by CoE SDO; it maps no "
-        "process data (no SAFE-OP/OP, no distributed clocks)"
-    )
 
     def __init__(self, params: LinkParams) -> None:
         if params.interface != INTERFACE:
@@ -272,6 +280,34 @@ class EthercatLink(DriveLink):
         self._state = (now, name)
         return name
 
+    def _map_process_data(self, shared: _Master, slave: Any) -> None:
+        """Before OP (ETG.1000.6 §6.4.1): the process data mapped (SOEM's config_map reads
+        the PDO assignment over CoE and programs SM2 / SM3 and the FMMUs), SAFE-OP, and one
+        exchange, so that the slave has valid outputs when OP is requested."""
+        with shared.lock:
+            shared.master.read_state()
+            if int(slave.state) & 0x0F in (AL_SAFEOP, AL_OP):
+                return
+            try:
+                shared.master.config_map()
+            except Exception as exc:
+                raise LinkError(
+                    f"mapping the process data of {self.params.channel!r} failed: {exc}"
+                ) from exc
+            shared.mapped = True
+            slave.state = AL_SAFEOP
+            slave.write_state()
+            reached = int(slave.state_check(AL_SAFEOP, STATE_TIMEOUT_US)) & 0x0F
+            if reached != AL_SAFEOP:
+                code = int(slave.al_status)
+                raise ConflictError(
+                    f"the EtherCAT slave refused SAFE-OP: AL status code 0x{code:04X} "
+                    f"{pysoem.al_status_code_to_string(code)}",
+                    hint="check the PDO assignment (1C12h / 1C13h) on the PDO page",
+                )
+            shared.master.send_processdata()
+            shared.master.receive_processdata(PROCESS_DATA_TIMEOUT_US)
+
     def _nmt(self, command: str) -> None:
         target = NMT_AL_STATES.get(command)
         if target is None:
@@ -282,6 +318,8 @@ class EthercatLink(DriveLink):
             )
         shared, slave = self._master()
         self._state = None
+        if target == AL_OP:
+            self._map_process_data(shared, slave)
         with shared.lock:
             slave.state = target
             slave.write_state()

@@ -1,12 +1,18 @@
-"""The ESC side of simulated EtherCAT slaves: registers, SII, AL states and the mailbox.
+"""The ESC side of simulated EtherCAT slaves: registers, SII, AL states, mailbox and process
+data.
 
 An :class:`EscSlave` is what the EtherCAT slave controller of a drive answers on the wire
 (ESC datasheet section II register names; ETG.1000.4 / ETG.1000.6 / ETG.2010): its memory
 with the registers SOEM's ``ecx_config_init`` uses, the EEPROM interface to an SII image,
-the AL state machine (INIT and PRE-OPERATIONAL; the rest refused with an AL status code) and
-the mailbox on SM0 (master -> slave) / SM1 (slave -> master). CoE requests are handed to a
-CoE server (:class:`servodesk.sim.ethercat_slave.CoeServer`, the drive's firmware) and its
-answers loaded into SM1. An :class:`EscLine` passes each datagram of a frame along the
+the AL state machine (INIT, PRE-OPERATIONAL, SAFE-OPERATIONAL, OPERATIONAL; BOOT refused with
+an AL status code), the mailbox on SM0 (master -> slave) / SM1 (slave -> master) and the
+process data on SM2 (outputs) / SM3 (inputs), reached by logical datagrams (LRD / LWR / LRW)
+through the FMMUs the master programs (ESC datasheet section I, "FMMU"). CoE requests are
+handed to a CoE server (:class:`servodesk.sim.ethercat_slave.CoeServer`, the drive's
+firmware) and its answers loaded into SM1. Each process data exchange is handed to
+:attr:`EscSlave.on_cycle` with the outputs (in OPERATIONAL), and the firmware puts the next
+inputs into SM3 with :meth:`EscSlave.set_inputs` (ETG.1000.6 §5.3: SM3 is read by the
+master, written by the PDI). An :class:`EscLine` passes each datagram of a frame along the
 slaves and answers frames from a raw socket, in a thread or in a process of its own
 (:func:`child_main`). Nothing here imports the drive simulation, so that process starts
 light.
@@ -103,6 +109,17 @@ class EscSlave:
         self.coe: Callable[[bytes], None] = lambda data: None
         #: Called when the mailbox is reset (INIT, SM1 disabled): transfers in progress end.
         self.on_reset: Callable[[], None] = lambda: None
+        #: Called with the outputs (SM2) after each process data exchange that reached this
+        #: slave (None outside OPERATIONAL, where the outputs are not taken: ETG.1000.6
+        #: §6.4.1); the firmware answers with set_inputs.
+        self.on_cycle: Callable[[bytes | None], None] = lambda outputs: None
+        #: Called with the new AL state after a transition.
+        self.on_state: Callable[[int], None] = lambda state: None
+        #: Process data exchanges that reached this slave (tests).
+        self.cycles = 0
+        #: The PDO configuration the firmware mirrors here (key index << 8 | sub: value),
+        #: answered to SDO uploads at once (see cached_upload).
+        self.od_cache: dict[int, bytes] = {}
 
     # ESC memory ---------------------------------------------------------------------
 
@@ -176,8 +193,11 @@ class EscSlave:
     # AL state machine (ETG.1000.6 §6.4) -----------------------------------------------
 
     def _set_al(self, state: int, code: int) -> None:
+        before = self.mem[Reg.AL_STATUS] & 0x0F
         struct.pack_into("<H", self.mem, Reg.AL_STATUS, state | (ec.AL_ERROR if code else 0))
         struct.pack_into("<H", self.mem, Reg.AL_STATUS_CODE, code)
+        if state != before and hasattr(self, "on_state"):
+            self.on_state(state)
 
     def _al_control(self, control: int) -> None:
         requested, ack = control & 0x0F, control & ec.AL_ACK
@@ -194,13 +214,38 @@ class EscSlave:
                 self._set_al(state, 0x0016)  # Invalid mailbox configuration
         elif requested == AlState.BOOT:
             self._set_al(state, 0x0013)  # Bootstrap not supported
-        elif requested in (AlState.SAFEOP, AlState.OP):
-            # No process data: SAFE-OP needs SM2/SM3 and the FMMUs mapped (ETG.1000.6).
-            self._set_al(state, 0x0011)  # Invalid requested state change
+        elif requested == AlState.SAFEOP:
+            # ETG.1000.6 §6.4.1: SAFE-OP from PRE-OP (or back from OP), with the process
+            # data SyncManagers programmed as the SII offers them.
+            if state not in (AlState.PREOP, AlState.SAFEOP, AlState.OP):
+                self._set_al(state, 0x0011)  # Invalid requested state change
+            elif not self._process_data_config_ok():
+                self._set_al(state, 0x001D)  # Invalid output configuration
+            else:
+                self._set_al(AlState.SAFEOP, 0)
+        elif requested == AlState.OP:
+            if state not in (AlState.SAFEOP, AlState.OP):
+                self._set_al(state, 0x0011)  # OP only from SAFE-OP
+            else:
+                self._set_al(AlState.OP, 0)
         elif requested == 0 and ack:
             self._set_al(state, 0)  # Acknowledge only: the error indication is cleared.
         else:
             self._set_al(state, 0x0012)  # Unknown requested state
+
+    def _process_data_config_ok(self) -> bool:
+        """SM2 / SM3, where programmed, at the SII's start addresses and directions."""
+        for n, start, control in (
+            (2, self.sii.outputs_start, ec.SM_CONTROL_OUTPUTS),
+            (3, self.sii.inputs_start, ec.SM_CONTROL_INPUTS),
+        ):
+            s_, length, on = self._sm(n)
+            if not on or not length:
+                continue  # Not used by this mapping.
+            base = Reg.SM0 + ec.SM_SIZE * n
+            if start is None or s_ != start or self.mem[base + 4] & 0x0C != control & 0x0C:
+                return False
+        return True
 
     def _mailbox_config_ok(self) -> bool:
         s0, l0, on0 = self._sm(0)
@@ -302,6 +347,54 @@ class EscSlave:
             return
         self.coe(mbx.data)
 
+    # Process data (FMMUs, SM2 / SM3) --------------------------------------------------
+
+    def fmmus(self) -> list[tuple[int, int, int, int]]:
+        """The active FMMUs: (logical start, length, physical start, type: 1 read, 2 write).
+        Byte granularity: SOEM maps whole bytes (start bit 0, stop bit 7)."""
+        out: list[tuple[int, int, int, int]] = []
+        for n in range(FMMUS):
+            base = Reg.FMMU0 + 16 * n
+            log_start, length, _, _, phys, _, kind, active = struct.unpack_from(
+                "<IHBBHBBB", self.mem, base
+            )
+            if active & 1 and length:
+                out.append((log_start, length, phys, kind))
+        return out
+
+    def logical(self, cmd: int, start: int, data: bytearray) -> int:
+        """A logical datagram at ``start`` through this slave's FMMUs: inputs copied into
+        ``data`` (LRD, LRW), outputs taken from it (LWR, LRW); the working counter's
+        increment (ETG.1000.4 §5.4.3: read 1, write 1, LRW write 2)."""
+        n = len(data)
+        read = wrote = False
+        for lstart, length, phys, kind in self.fmmus():
+            lo, hi = max(start, lstart), min(start + n, lstart + length)
+            if lo >= hi or phys + (hi - lstart) > len(self.mem):
+                continue
+            at, p = lo - start, phys + (lo - lstart)
+            if kind & 1 and cmd in (Cmd.LRD, Cmd.LRW):
+                data[at : at + hi - lo] = self.mem[p : p + hi - lo]
+                read = True
+            if kind & 2 and cmd in (Cmd.LWR, Cmd.LRW):
+                self.mem[p : p + hi - lo] = data[at : at + hi - lo]
+                wrote = True
+        if not (read or wrote):
+            return 0
+        self.cycles += 1
+        s2, l2, on2 = self._sm(2)
+        outputs = (
+            bytes(self.mem[s2 : s2 + l2]) if on2 and l2 and self.al_state == AlState.OP else None
+        )
+        self.on_cycle(outputs)
+        return (1 if read else 0) + ((2 if cmd == Cmd.LRW else 1) if wrote else 0)
+
+    def set_inputs(self, data: bytes) -> None:
+        """The firmware's inputs into SM3 (cut or zero-padded to its length)."""
+        s3, l3, on3 = self._sm(3)
+        if on3 and l3:
+            self.mem[s3 : s3 + l3] = data[:l3].ljust(l3, b"\x00")
+
     def answer(self, data: bytes | None) -> None:
         """The CoE server's answer to a request (None: it sends none, as after an abort from
         the master); dropped when the mailbox was switched off meanwhile."""
@@ -338,8 +431,16 @@ class EscLine:
     def datagram(self, d: ec.Datagram) -> None:
         """Pass one datagram along the line: each slave reads, writes and counts."""
         cmd = d.cmd
-        if cmd in (Cmd.NOP, Cmd.LRD, Cmd.LWR, Cmd.LRW) or cmd > Cmd.FRMW:
-            return  # No FMMU maps logical addresses: no slave is addressed.
+        if cmd in (Cmd.LRD, Cmd.LWR, Cmd.LRW):
+            data_l = bytearray(d.data)
+            wkc_l = d.wkc
+            for slave in self.slaves:
+                wkc_l += slave.logical(cmd, d.address, data_l)
+            d.data = bytes(data_l)
+            d.wkc = wkc_l & 0xFFFF
+            return
+        if cmd == Cmd.NOP or cmd > Cmd.FRMW:
+            return
         adp, ado = d.adp, d.ado
         data = d.data
         wkc = d.wkc
@@ -419,6 +520,10 @@ class EscLine:
                             return
                         if kind == "coe":
                             self.slaves[index].answer(data)
+                        elif kind == "inputs":
+                            self.slaves[index].set_inputs(data)
+                        elif kind == "od":
+                            self.slaves[index].od_cache = data
                     elif not self._receive(sock, ifname, stop):
                         return
         finally:
@@ -494,14 +599,54 @@ def child_main(fd: int) -> None:
         return
     line = EscLine([EscSlave(s, last=i == len(siis) - 1) for i, s in enumerate(siis)])
     for i, slave in enumerate(line.slaves):
-        slave.coe = functools.partial(_forward, pdi, "coe", i)
+        slave.coe = functools.partial(_coe, pdi, i, slave)
         slave.on_reset = functools.partial(_forward, pdi, "reset", i, None)
+        slave.on_cycle = functools.partial(_forward, pdi, "cycle", i)
+        slave.on_state = functools.partial(_forward_state, pdi, i)
     pdi.send(("ready", None, None))
     try:
         line.serve(sock, ifname, threading.Event(), pdi)
     finally:
         sock.close()
         pdi.close()
+
+
+def cached_upload(cache: dict[int, bytes], data: bytes) -> bytes | None:
+    """The CoE answer to an SDO upload of a value of at most 4 bytes that ``cache`` holds,
+    or None (forward the request to the firmware).
+
+    SOEM reads the PDO configuration (1C00h, 1C12h / 1C13h, the assigned PDOs' entries) by
+    SDO inside ``ecx_config_map_group``, and pysoem's ``config_map`` holds the GIL while it
+    runs: a CoE server in the master's process cannot answer it. The drive's firmware
+    therefore mirrors those objects into the ESC process whenever they change, as a slave's
+    firmware keeps its object dictionary next to its mailbox."""
+    if len(data) < 10 or data[2] >> 5 != 2 or data[2] & ec.SDO_COMPLETE_ACCESS:
+        return None
+    try:
+        sdo = ec.parse_sdo(data)
+    except ec.EthercatFrameError:
+        return None
+    value = cache.get(sdo.index << 8 | sdo.subindex)
+    if value is None or len(value) > 4:
+        return None
+    command = ec.SDO_UPLOAD_EXPEDITED | ((4 - len(value)) << 2)
+    response = ec.Sdo(
+        ec.CoeService.SDO_RESPONSE, command, sdo.index, sdo.subindex, value.ljust(4, b"\x00")
+    )
+    return ec.build_sdo(response)
+
+
+def _coe(pdi: Connection, index: int, slave: EscSlave, data: bytes) -> None:
+    answer = cached_upload(slave.od_cache, data)
+    if answer is not None:
+        slave.answer(answer)
+    else:
+        _forward(pdi, "coe", index, data)
+
+
+def _forward_state(pdi: Connection, index: int, state: int) -> None:
+    with contextlib.suppress(OSError):
+        pdi.send(("state", index, state))
 
 
 def _forward(pdi: Connection, kind: str, index: int, data: bytes | None) -> None:

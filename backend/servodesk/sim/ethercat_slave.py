@@ -3,11 +3,13 @@
 A line of slaves answers real EtherCAT frames on one interface (the slave end of a veth pair,
 :mod:`servodesk.sim.veth`): each slave is an ESC (:class:`~servodesk.sim.esc.EscSlave`:
 registers, SII EEPROM built from the drive's identity 1018h and device name 1008h, AL states
-INIT and PRE-OPERATIONAL, the mailbox on SM0 / SM1) whose CoE requests a :class:`CoeServer`
-answers from the drive: SDO upload and download, expedited, normal and segmented, and SDO
-abort with the drive's CiA 301 abort code. There is no process data, no distributed clocks,
-and SAFE-OPERATIONAL, OPERATIONAL and BOOTSTRAP are refused with an AL status code
-(docs/ethercat.md).
+INIT to OPERATIONAL, the mailbox on SM0 / SM1, process data on SM2 / SM3 through the FMMUs)
+whose CoE requests a :class:`CoeServer` answers from the drive: SDO upload and download,
+expedited, normal and segmented, and SDO abort with the drive's CiA 301 abort code. Its
+process data is the drive's :class:`ProcessDataServer`: the RxPDO assigned in 1C12h taken
+from SM2 in OPERATIONAL, the TxPDO assigned in 1C13h put into SM3 from SAFE-OPERATIONAL on
+(HIWIN 000 §2.8), each exchange answered with the inputs of the next. No distributed clocks;
+BOOTSTRAP is refused with an AL status code (docs/ethercat.md).
 
 Two ways to run a line:
 
@@ -23,6 +25,8 @@ Two ways to run a line:
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import logging
 import os
 import socket
@@ -35,10 +39,12 @@ from pathlib import Path
 
 import servodesk
 from servodesk.domain import ethercat as ec
+from servodesk.domain.ethercat import AlState
 from servodesk.errors import LinkError
 from servodesk.sim import esc
 from servodesk.sim.engine import SimAbort, SimulatedDrive
 from servodesk.sim.esc import EscLine, EscSlave
+from servodesk.sim.pdo import PdoEngine
 
 log = logging.getLogger(__name__)
 
@@ -201,6 +207,82 @@ class CoeServer:
         return ec.sdo_segment(toggle | (ec.SDO_LAST_SEGMENT if last else 0), part)
 
 
+#: The drive's CiA 402 "NMT state" names for the AL states (its PDO mapping objects are
+#: writable in "preop" only, HIWIN 000 §2.8.1).
+_AL_TO_NMT = {
+    AlState.INIT: "init",
+    AlState.PREOP: "preop",
+    AlState.SAFEOP: "safeop",
+    AlState.OP: "operational",
+}
+
+
+class ProcessDataServer:
+    """The process data of one drive behind its ESC: what the firmware does with SM2 and SM3.
+
+    The drive's :class:`~servodesk.sim.pdo.PdoEngine` (kind ``ethercat``) knows the assigned
+    PDOs and packs them; here each process data exchange applies the outputs (OPERATIONAL
+    only) and samples the TxPDO for the next exchange, handed to ``push``."""
+
+    def __init__(
+        self,
+        drive: SimulatedDrive,
+        push: Callable[[bytes], None],
+        mirror: Callable[[dict[int, bytes]], None] | None = None,
+    ) -> None:
+        self.drive = drive
+        self._push = push
+        self._mirror = mirror
+        self._tx_id = 0x180 + drive.node_id
+        self._rx_id = 0x200 + drive.node_id
+        self.engine = PdoEngine(drive, self._send, lambda code: None)
+        drive.on_write(self._written)
+        self._config = [
+            (a.index, a.subindex)
+            for a in drive.profile.variables
+            if _pdo_config(a.index) and drive.has_object(a.index, a.subindex)
+        ]
+        self.mirror()
+
+    def _written(self, index: int, sub: int, value: object) -> None:
+        self.engine.on_object_written(index)
+        if _pdo_config(index):
+            self.mirror()
+
+    def mirror(self) -> None:
+        """Hand the PDO configuration objects to the ESC process (esc.cached_upload)."""
+        if self._mirror is None:
+            return
+        cache: dict[int, bytes] = {}
+        for index, sub in self._config:
+            with contextlib.suppress(SimAbort):
+                cache[index << 8 | sub] = self.drive.read_bytes(index, sub)
+        self._mirror(cache)
+
+    def _send(self, can_id: int, data: bytes, fd: bool, extended: bool) -> None:
+        if can_id == self._tx_id:
+            self._push(data)
+
+    def state(self, al: int) -> None:
+        """The ESC's AL state changed: the drive's state, and whether PDOs are exchanged."""
+        self.drive.nmt_state = _AL_TO_NMT.get(AlState(al & 0x0F), "preop")
+        self.engine.set_operational(al & 0x0F in (AlState.SAFEOP, AlState.OP))
+        if al & 0x0F in (AlState.SAFEOP, AlState.OP):
+            self.cycle(None)  # SM3 holds valid inputs from the first exchange on.
+
+    def cycle(self, outputs: bytes | None) -> None:
+        """One process data exchange: apply ``outputs``, then sample the next inputs."""
+        if outputs is not None:
+            self.engine.on_frame(self._rx_id, outputs, False)
+        self.engine.on_sync()
+        self.engine.flush()
+
+
+def _pdo_config(index: int) -> bool:
+    """1C00h (SM types), 1C10h-1C2Fh (PDO assignment), 1600h-17FFh / 1A00h-1BFFh (mapping)."""
+    return index == 0x1C00 or 0x1C10 <= index <= 0x1C2F or 0x1600 <= index <= 0x1BFF
+
+
 def _servers(drives: Sequence[SimulatedDrive], mailbox_size: int) -> list[CoeServer]:
     if not drives:
         raise ValueError("an EtherCAT line needs at least one slave")
@@ -220,9 +302,14 @@ class EthercatSlaveSim:
             EscSlave(sii_from_drive(s.drive, mailbox_size), last=i == n - 1)
             for i, s in enumerate(self.servers)
         ]
+        self.process_data: list[ProcessDataServer] = []
         for slave, server in zip(self.slaves, self.servers, strict=True):
             slave.coe = _answer_now(slave, server)
             slave.on_reset = server.reset
+            pd = ProcessDataServer(server.drive, slave.set_inputs)
+            slave.on_cycle = pd.cycle
+            slave.on_state = pd.state
+            self.process_data.append(pd)
         self.line = EscLine(self.slaves)
         self._sock: socket.socket | None = None
         self._thread: threading.Thread | None = None
@@ -291,12 +378,22 @@ class EthercatSlaveProcess:
         self.ifname = ifname
         self.servers = _servers(drives, mailbox_size)
         self._siis = [sii_from_drive(s.drive, mailbox_size) for s in self.servers]
+        self.process_data = [
+            ProcessDataServer(
+                s.drive,
+                functools.partial(self._push, "inputs", i),
+                functools.partial(self._push, "od", i),
+            )
+            for i, s in enumerate(self.servers)
+        ]
         self._proc: subprocess.Popen[bytes] | None = None
         self._pdi: Connection | None = None
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         #: CoE requests answered (tests and logs).
         self.requests = 0
+        #: The serve thread and the drive thread (inputs) both send to the ESC process.
+        self._send_lock = threading.Lock()
 
     @property
     def drives(self) -> list[SimulatedDrive]:
@@ -342,6 +439,8 @@ class EthercatSlaveProcess:
             _end(proc)
             raise
         self._proc, self._pdi = proc, pdi
+        for pd in self.process_data:
+            pd.mirror()  # Before the master's first config_map reads it.
         self._thread = threading.Thread(target=self._serve, name="ethercat-coe", daemon=True)
         self._thread.start()
         log.info(
@@ -365,12 +464,26 @@ class EthercatSlaveProcess:
             if kind == "reset":
                 server.reset()
                 continue
+            if kind == "cycle":
+                self.process_data[index].cycle(data)
+                continue
+            if kind == "state":
+                self.process_data[index].state(int(data))
+                continue
             answer = server.handle(data)
             self.requests += 1
             try:
-                pdi.send(("coe", index, answer))
+                with self._send_lock:
+                    pdi.send(("coe", index, answer))
             except OSError:
                 return
+
+    def _push(self, kind: str, index: int, data: object) -> None:
+        pdi = getattr(self, "_pdi", None)  # None until started
+        if pdi is None:
+            return
+        with self._send_lock, contextlib.suppress(OSError):
+            pdi.send((kind, index, data))
 
     def stop(self) -> None:
         self._stop.set()

@@ -1,0 +1,130 @@
+"""Cyclic process data over EtherCAT: SOEM maps the HIWIN twin's assigned PDOs (read over CoE
+from 1C12h / 1C13h), takes it to SAFE-OP and OP, and exchanges its inputs and outputs with
+one LRW per cycle through the ESC's FMMUs (docs/ethercat.md, "Process data")."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pysoem
+import pytest
+from fastapi.testclient import TestClient
+
+from servodesk.api.app import create_app
+from servodesk.domain.profile_loader import ProfileCatalog
+from servodesk.settings import Settings
+from servodesk.sim.engine import SimulatedDrive
+from servodesk.sim.ethercat_slave import EthercatSlaveProcess
+from servodesk.sim.runner import SimRunner
+from servodesk.sim.veth import VethPair
+from tests.operation.support import headers
+
+pytestmark = pytest.mark.timeout(90)
+A = headers("A")
+SID = "hiwin-e-1"
+
+
+def test_soem_maps_the_assigned_pdos_and_exchanges_them_in_op(veth: VethPair) -> None:
+    drive = SimulatedDrive(ProfileCatalog().get("hiwin-e"), 1)
+    runner = SimRunner([drive])  # steps the drive in real time, as SimulatedBus does
+    runner.start()
+    with EthercatSlaveProcess([drive], veth.slave):
+        m = pysoem.Master()
+        m.always_release_gil = True
+        m.open(veth.master)
+        try:
+            assert m.config_init(release_gil=True) == 1
+            # The sizes SOEM read over CoE: the PDOs assigned in 1C12h / 1C13h.
+            assert m.config_map() == 13 + 23
+            s = m.slaves[0]
+            assert (len(s.output), len(s.input)) == (13, 23)
+            s.state = pysoem.SAFEOP_STATE
+            s.write_state()
+            assert s.state_check(pysoem.SAFEOP_STATE, 500_000) == pysoem.SAFEOP_STATE
+            m.send_processdata()
+            assert m.receive_processdata(2000) == m.expected_wkc == 3  # LRW: read 1 + write 2
+            s.state = pysoem.OP_STATE
+            s.write_state()
+            assert s.state_check(pysoem.OP_STATE, 500_000) == pysoem.OP_STATE
+            # 1600h starts with the controlword (6040h): Shutdown, then Switch on.
+            for cw in (0x06, 0x07):
+                s.output = cw.to_bytes(2, "little") + bytes(11)
+                deadline = time.monotonic() + 2
+                while time.monotonic() < deadline:
+                    m.send_processdata()
+                    m.receive_processdata(2000)
+                    if drive.read(0x6040) == cw:
+                        break
+                    time.sleep(0.002)
+                assert drive.read(0x6040) == cw
+            time.sleep(0.02)
+            m.send_processdata()
+            m.receive_processdata(2000)
+            # 1A00h carries the statusword (6041h) at bytes 2-3: "Switched on" (23h).
+            assert int.from_bytes(s.input[2:4], "little") & 0x6F == 0x23
+            assert drive.nmt_state == "operational"
+        finally:
+            m.close()
+            runner.stop()
+
+
+@pytest.fixture
+def app(channel: str, tmp_path: Path) -> Iterator[tuple[TestClient, Any]]:
+    s = Settings(
+        sim=True,
+        sim_channel=channel,
+        sim_profiles="hiwin-e",
+        sim_ethercat=True,
+        data_dir=tmp_path,
+        deadman_ms=1000,
+        viewer_port=0,
+    )
+    application = create_app(s)
+    with TestClient(application) as client:
+        yield client, application.state.servodesk.sim
+
+
+def test_the_pdo_page_runs_cyclic_data_over_ethercat(app: tuple[TestClient, Any]) -> None:
+    client, sim = app
+    drive = sim.drives[0]
+    info = client.get(f"/api/v1/sessions/{SID}").json()
+    assert info["link"] == "ethercat"
+    status = client.get(f"/api/v1/sessions/{SID}/pdo/cyclic").json()
+    assert status["unavailable"] is None
+    client.post(f"/api/v1/sessions/{SID}/control", json={"action": "take"}, headers=A)
+    r = client.post(
+        f"/api/v1/sessions/{SID}/pdo/cyclic",
+        json={"sync_period_ms": 2, "outputs": True},
+        headers=A,
+    )
+    assert r.status_code == 200, r.text
+    assert client.get(f"/api/v1/sessions/{SID}/state").json()["nmt_state"] == "op"
+    # The inputs arrive every cycle: the statusword and the position as the drive has them.
+    deadline = time.monotonic() + 5
+    status: dict[str, Any] = {}
+    while time.monotonic() < deadline:
+        status = client.get(f"/api/v1/sessions/{SID}/pdo/cyclic").json()
+        if status["tx_pdos"] and status["tx_pdos"][0]["count"] > 50:
+            break
+        time.sleep(0.05)
+    assert status["running"] and status["tx_pdos"][0]["count"] > 50, status
+    values = status["values"]
+    assert values["0x6041:00"]["value"] == drive.statusword
+    # Outputs: the controlword through the RxPDO switches the drive on.
+    for cw in (0x06, 0x07):
+        r = client.put(
+            f"/api/v1/sessions/{SID}/pdo/cyclic/outputs",
+            json={"values": {"0x6040:00": cw}},
+            headers=A,
+        )
+        assert r.status_code == 200, r.text
+        deadline = time.monotonic() + 3
+        while drive.read(0x6040) != cw and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert drive.read(0x6040) == cw
+    r = client.delete(f"/api/v1/sessions/{SID}/pdo/cyclic", headers=A)
+    assert r.status_code == 200, r.text
+    assert client.get(f"/api/v1/sessions/{SID}/state").json()["nmt_state"] == "preop"
