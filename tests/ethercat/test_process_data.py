@@ -125,6 +125,17 @@ def test_the_pdo_page_runs_cyclic_data_over_ethercat(app: tuple[TestClient, Any]
         while drive.read(0x6040) != cw and time.monotonic() < deadline:
             time.sleep(0.01)
         assert drive.read(0x6040) == cw
+    # The scope records the TxPDO's statusword at the cycle rate (source pdo).
+    r = client.put(
+        "/api/v1/scope/channels",
+        json={"channels": [{"id": 0, "session": SID, "address": "0x6041:00", "source": "pdo"}]},
+    )
+    assert r.status_code == 200 and r.json()["channels"][0]["source"] == "pdo", r.text
+    assert client.post("/api/v1/scope/run", json={"action": "start"}).status_code == 200
+    time.sleep(0.5)
+    st = client.post("/api/v1/scope/run", json={"action": "stop"}).json()
+    ch = st["channels"][0]
+    assert ch["samples"] > 100 and ch["rate_hz"] == pytest.approx(500, rel=0.3), ch
     r = client.delete(f"/api/v1/sessions/{SID}/pdo/cyclic", headers=A)
     assert r.status_code == 200, r.text
     assert client.get(f"/api/v1/sessions/{SID}/state").json()["nmt_state"] == "preop"
