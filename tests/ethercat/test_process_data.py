@@ -95,6 +95,22 @@ def test_the_pdo_page_runs_cyclic_data_over_ethercat(app: tuple[TestClient, Any]
     status = client.get(f"/api/v1/sessions/{SID}/pdo/cyclic").json()
     assert status["unavailable"] is None
     client.post(f"/api/v1/sessions/{SID}/control", json={"action": "take"}, headers=A)
+    r = client.put(f"/api/v1/sessions/{SID}/objects/0x6040:00", json={"value": 6}, headers=A)
+    assert r.status_code == 200, r.text
+    # Inputs only: SAFE-OP, where the slave ignores the output image (in OP a zero image
+    # would command controlword 0 every cycle).
+    r = client.post(
+        f"/api/v1/sessions/{SID}/pdo/cyclic",
+        json={"sync_period_ms": 2, "outputs": False},
+        headers=A,
+    )
+    assert r.status_code == 200, r.text
+    assert client.get(f"/api/v1/sessions/{SID}/state").json()["nmt_state"] == "safeop"
+    time.sleep(0.3)
+    status = client.get(f"/api/v1/sessions/{SID}/pdo/cyclic").json()
+    assert status["tx_pdos"][0]["count"] > 50, status
+    assert drive.read(0x6040) == 6
+    # Outputs on: OP, the image starting from the drive's present values.
     r = client.post(
         f"/api/v1/sessions/{SID}/pdo/cyclic",
         json={"sync_period_ms": 2, "outputs": True},
@@ -102,6 +118,8 @@ def test_the_pdo_page_runs_cyclic_data_over_ethercat(app: tuple[TestClient, Any]
     )
     assert r.status_code == 200, r.text
     assert client.get(f"/api/v1/sessions/{SID}/state").json()["nmt_state"] == "op"
+    time.sleep(0.2)
+    assert drive.read(0x6040) == 6
     # The inputs arrive every cycle: the statusword and the position as the drive has them.
     deadline = time.monotonic() + 5
     status: dict[str, Any] = {}

@@ -29,6 +29,8 @@ class EthercatCyclic(CyclicTransport):
     def __init__(self, link: EthercatLink) -> None:
         self._shared, _ = link._master()
         self._channel = link.params.channel
+        # A new exchange starts without the outputs of the last one (it may run inputs only).
+        self._shared.outputs.pop(link.params.node_id - 1, None)
         #: Cycles whose working counter fell short (a slave did not take part).
         self.missed = 0
 

@@ -67,8 +67,9 @@ AL_STATES = {0x01: "init", 0x02: "preop", 0x03: "boot", 0x04: "safeop", 0x08: "o
 AL_SAFEOP, AL_OP = 0x04, 0x08
 #: How long one process data exchange waits for its frame to come back (µs).
 PROCESS_DATA_TIMEOUT_US = 2000
-#: The AL state each command of DriveLink.nmt requests.
-NMT_AL_STATES = {"preop": 0x02, "stop": 0x01, "start": 0x08}
+#: The AL state each command of DriveLink.nmt requests ("safeop": inputs only, see
+#: EthercatLink.inputs_only_command).
+NMT_AL_STATES = {"preop": 0x02, "stop": 0x01, "safeop": 0x04, "start": 0x08}
 #: Largest object servodesk reads in one SDO upload (pysoem's buffer).
 READ_BUFFER = 4096
 #: How long a state request waits for the slave to get there (µs, SOEM's unit).
@@ -178,6 +179,11 @@ class EthercatLink(DriveLink):
     #: No NMT reset (EtherCAT has none): a restore of the defaults with a reset is refused
     #: before anything is restored (services/session.py), not left half done.
     sends_nmt = False
+    #: The state for cyclic data with the outputs off (services/pdo.py start_cyclic):
+    #: SAFE-OP, where the slave sends its inputs and ignores the output image (ETG.1000.6
+    #: §6.4.1). In OP an EtherCAT slave takes the outputs of every cycle, and an output image
+    #: nobody fills would command controlword 0.
+    inputs_only_command = "safeop"
 
     def __init__(self, params: LinkParams) -> None:
         if params.interface != INTERFACE:
@@ -314,11 +320,11 @@ class EthercatLink(DriveLink):
             raise ConflictError(
                 f"EtherCAT has no NMT command {command!r}",
                 hint="EtherCAT drives change state by AL control requests: "
-                "preop, stop (INIT) and start (OP)",
+                "preop, stop (INIT), safeop and start (OP)",
             )
         shared, slave = self._master()
         self._state = None
-        if target == AL_OP:
+        if target in (AL_SAFEOP, AL_OP):
             self._map_process_data(shared, slave)
         with shared.lock:
             slave.state = target

@@ -487,7 +487,10 @@ async def start_cyclic(session: Session, sync_period_ms: float, outputs: bool) -
     before = previous.nmt_before if previous is not None else await _nmt_state(session)
     # Sent even when the node is believed OPERATIONAL: NMT is unconfirmed and the belief can
     # be a heartbeat old, while "start" to an OPERATIONAL node changes nothing (CiA 301 §7.3.2.2.1).
-    await session.link.nmt("start")
+    # With the outputs off, a link whose slaves take the outputs of every cycle in their
+    # operational state (EtherCAT) goes to its inputs-only state instead (SAFE-OP).
+    command = "start" if outputs else getattr(session.link, "inputs_only_command", "start")
+    await session.link.nmt(command)
     await asyncio.sleep(NMT_SETTLE_S)
     ex = CyclicExchange(session, transport, config, period=period, outputs=outputs, image=image)
     ex.nmt_before = before
