@@ -34,7 +34,6 @@ state reads "unknown" and a state request times out.
 
 from __future__ import annotations
 
-import os
 import threading
 import time
 from collections.abc import Callable
@@ -52,6 +51,7 @@ from servodesk.errors import (
     ValidationError,
 )
 from servodesk.links.base import DriveLink, Identity, LinkParams, object_identity
+from servodesk.nic import check_name, require
 
 try:
     import pysoem
@@ -130,22 +130,12 @@ def hold_line(channel: str) -> tuple[int, Callable[[], None]]:
 
 
 def _configure(channel: str) -> tuple[Any, int]:
-    # Linux's dev_valid_name: 1-15 characters, not "." or "..", no "/", ":" or white space.
-    if (
-        not 0 < len(channel) <= 15
-        or channel in (".", "..")
-        or any(c in "/:" or c.isspace() for c in channel)
-    ):
-        raise ValidationError(
-            f"{channel!r} is no network interface name",
-            field="channel",
-            hint="give the interface the EtherCAT line is plugged into, e.g. eth1",
-        )
-    if not os.path.exists(f"/sys/class/net/{channel}"):
-        raise NotFoundError(
-            f"no network interface {channel!r}",
-            hint="list the interfaces with `ip link`; the EtherCAT line's NIC is the channel",
-        )
+    check_name(
+        channel,
+        field="channel",
+        hint="give the interface the EtherCAT line is plugged into, e.g. eth1",
+    )
+    require(channel, hint="the EtherCAT line's NIC is the channel")
     master = pysoem.Master()
     # The SDO calls release the GIL, so a slave simulated in this process can answer.
     master.always_release_gil = True

@@ -9,7 +9,6 @@ does. The calls block (a scan waits for its whole time-out); the API runs them i
 from __future__ import annotations
 
 import errno
-import os
 import random
 import select
 import socket
@@ -18,7 +17,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from servodesk.domain import dcp
-from servodesk.errors import LinkError, NotFoundError, ObjectAccessError, ValidationError
+from servodesk.errors import LinkError, NotFoundError, ObjectAccessError
+from servodesk.nic import check_name, open_raw, require
 
 #: How long one Set waits for its answer, and how often it is sent (the same Xid: a device
 #: that set the value and whose answer was lost sets it again, which changes nothing).
@@ -36,32 +36,18 @@ class Scan:
 
 def open_socket(nic: str) -> socket.socket:
     """A raw socket for DCP frames on ``nic``; LinkError / NotFoundError with what to do."""
-    if not nic or "/" in nic or len(nic) > 15:
-        raise ValidationError(
-            f"{nic!r} is not a network interface name",
-            field="nic",
-            hint="give the interface the drives are on, as `ip link` lists it (e.g. eth1)",
-        )
-    if not os.path.exists(f"/sys/class/net/{nic}"):
-        raise NotFoundError(
-            f"no network interface {nic!r}",
-            hint="list the interfaces with `ip link`; give the one the drives are cabled to",
-        )
-    try:
-        sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(dcp.ETHERTYPE))
-    except PermissionError as exc:
-        raise LinkError(
-            f"cannot open a raw socket for PROFINET DCP on {nic}: {exc}",
-            hint="DCP is layer 2 (raw Ethernet frames): run as root or give CAP_NET_RAW",
-        ) from exc
-    try:
-        sock.bind((nic, dcp.ETHERTYPE))
-    except OSError as exc:
-        sock.close()
-        if exc.errno == errno.ENODEV:
-            raise NotFoundError(f"no network interface {nic!r}") from exc
-        raise LinkError(f"cannot bind a DCP socket to {nic!r}: {exc}") from exc
-    return sock
+    check_name(
+        nic,
+        field="nic",
+        hint="give the interface the drives are on, as `ip link` lists it (e.g. eth1)",
+    )
+    require(nic, hint="give the one the drives are cabled to")
+    return open_raw(
+        nic,
+        dcp.ETHERTYPE,
+        what="PROFINET DCP",
+        permission_hint="DCP is layer 2 (raw Ethernet frames): run as root or give CAP_NET_RAW",
+    )
 
 
 class DcpClient:

@@ -34,7 +34,8 @@ from multiprocessing.connection import Connection
 
 from servodesk.domain import ethercat as ec
 from servodesk.domain.ethercat import AlState, Cmd, Reg
-from servodesk.errors import LinkError
+from servodesk.errors import LinkError, NotFoundError
+from servodesk.nic import open_raw
 
 log = logging.getLogger(__name__)
 
@@ -562,22 +563,16 @@ def open_socket(ifname: str) -> socket.socket:
     """A raw AF_PACKET socket for EtherType 88A4h on ``ifname`` (non-blocking); LinkError
     when the interface is missing or the process may not (root or CAP_NET_RAW)."""
     try:
-        sock = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(ec.ETHERTYPE))
-    except PermissionError as exc:
+        sock = open_raw(
+            ifname,
+            ec.ETHERTYPE,
+            what="EtherCAT",
+            permission_hint="the simulated EtherCAT slave needs root or CAP_NET_RAW",
+        )
+    except NotFoundError as exc:
         raise LinkError(
-            f"cannot open a raw socket for EtherCAT on {ifname}: {exc}",
-            hint="the simulated EtherCAT slave needs root or CAP_NET_RAW",
+            exc.message, hint="give the slave end of a veth pair (servodesk.sim.veth) or a NIC"
         ) from exc
-    try:
-        sock.bind((ifname, ec.ETHERTYPE))
-    except OSError as exc:
-        sock.close()
-        if exc.errno == errno.ENODEV:
-            raise LinkError(
-                f"no network interface {ifname!r}",
-                hint="give the slave end of a veth pair (servodesk.sim.veth) or a NIC",
-            ) from exc
-        raise LinkError(f"cannot bind to {ifname!r}: {exc}") from exc
     sock.setblocking(False)
     return sock
 
