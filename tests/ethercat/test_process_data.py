@@ -4,6 +4,7 @@ one LRW per cycle through the ESC's FMMUs (docs/ethercat.md, "Process data")."""
 
 from __future__ import annotations
 
+import asyncio
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -15,6 +16,8 @@ from fastapi.testclient import TestClient
 
 from servodesk.api.app import create_app
 from servodesk.domain.profile_loader import ProfileCatalog
+from servodesk.links.base import LinkParams
+from servodesk.links.ethercat_link import EthercatLink
 from servodesk.settings import Settings
 from servodesk.sim.engine import SimulatedDrive
 from servodesk.sim.ethercat_slave import EthercatSlaveProcess
@@ -66,8 +69,49 @@ def test_soem_maps_the_assigned_pdos_and_exchanges_them_in_op(veth: VethPair) ->
             # 1A00h carries the statusword (6041h) at bytes 2-3: "Switched on" (23h).
             assert int.from_bytes(s.input[2:4], "little") & 0x6F == 0x23
             assert drive.nmt_state == "operational"
+
+            # Enable, then stop the cycles: after the SyncManager watchdog (100 ms, the ESC's
+            # reset value) the slave falls back to SAFE-OP with AL status 001Bh, and the
+            # drive, whose power stage was on, faults with FF49h (AL.FB1): the axis stops.
+            s.output = (0x0F).to_bytes(2, "little") + bytes(11)
+            deadline = time.monotonic() + 2
+            while drive.statusword & 0x6F != 0x27 and time.monotonic() < deadline:
+                m.send_processdata()
+                m.receive_processdata(2000)
+                time.sleep(0.002)
+            assert drive.statusword & 0x6F == 0x27  # Operation enabled
+            time.sleep(0.4)
+            m.read_state()
+            assert (s.state, s.al_status) == (pysoem.SAFEOP_STATE | 0x10, 0x001B)
+            assert drive.error_code == 0xFF49 and drive.statusword & 0x08  # Fault
+            assert drive.nmt_state == "safeop"
         finally:
             m.close()
+            runner.stop()
+
+
+def test_a_state_request_acknowledges_the_watchdog_error(veth: VethPair) -> None:
+    # The link after a SyncManager watchdog: Start (OP) works at once, the error indication
+    # acknowledged on the way (HIWIN 000 §3.2.1), rather than being refused with 001Bh.
+    drive = SimulatedDrive(ProfileCatalog().get("hiwin-e"), 1)
+    runner = SimRunner([drive])
+    runner.start()
+    with EthercatSlaveProcess([drive], veth.slave):
+
+        async def run() -> None:
+            link = EthercatLink(
+                LinkParams(interface="ethercat", channel=veth.master, node_id=1, timeout=0.5)
+            )
+            async with link:
+                await link.nmt("start")
+                assert await link.network_state() == "op"
+                await asyncio.sleep(0.4)  # no cycles: the watchdog
+                await link.nmt("start")
+                assert await link.network_state() == "op"
+
+        try:
+            asyncio.run(run())
+        finally:
             runner.stop()
 
 

@@ -80,6 +80,8 @@ class Reg(IntEnum):
     AL_STATUS = 0x0130  # AL status (2)
     AL_STATUS_CODE = 0x0134  # AL status code (2)
     PDI_CONTROL = 0x0140  # PDI control
+    WATCHDOG_DIVIDER = 0x0400  # watchdog divider (2): units of 40 ns, + 2
+    WATCHDOG_PROCESS_DATA = 0x0420  # SyncManager watchdog time (2), in divider units
     EEPROM_CONFIG = 0x0500  # EEPROM configuration
     EEPROM_PDI_ACCESS = 0x0501  # EEPROM PDI access state
     EEPROM_CONTROL = 0x0502  # EEPROM control/status (2)

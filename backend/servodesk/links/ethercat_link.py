@@ -314,6 +314,15 @@ class EthercatLink(DriveLink):
             )
         shared, slave = self._master()
         self._state = None
+        with shared.lock:
+            shared.master.read_state()
+            now = int(slave.state)
+            if now & 0x10:
+                # An error indication (e.g. 001Bh, the SyncManager watchdog) blocks every
+                # request until it is acknowledged (ETG.1000.6 §6.4.1, AL control bit 4): the
+                # user asking for a state is that acknowledgement (HIWIN 000 §3.2.1 step 2).
+                slave.state = (now & 0x0F) | 0x10
+                slave.write_state()
         if target in (AL_SAFEOP, AL_OP):
             self._map_process_data(shared, slave)
         with shared.lock:

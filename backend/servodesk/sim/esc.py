@@ -28,6 +28,7 @@ import selectors
 import socket
 import struct
 import threading
+import time
 from collections import deque
 from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection
@@ -99,6 +100,13 @@ class EscSlave:
         dl |= 0x0400 if last else 0x0020 | 0x0800
         struct.pack_into("<H", m, Reg.DL_STATUS, dl)
         m[Reg.PDI_CONTROL] = PDI_TYPE
+        # The ESC's reset values: divider 2498 (100 µs) and 1000 of them, a 100 ms SyncManager
+        # watchdog (ESC datasheet 0x0400 / 0x0420), which the master may change or switch off
+        # (0).
+        struct.pack_into("<H", m, Reg.WATCHDOG_DIVIDER, 2498)
+        struct.pack_into("<H", m, Reg.WATCHDOG_PROCESS_DATA, 1000)
+        #: When the outputs (SM2) were last written, for the watchdog (monotonic seconds).
+        self._outputs_at: float | None = None
         self._set_al(AlState.INIT, 0)
         #: Mailbox responses waiting for SM1 (the oldest is in SM1 while it is full).
         self._outbox: deque[bytes] = deque()
@@ -114,8 +122,8 @@ class EscSlave:
         #: slave (None outside OPERATIONAL, where the outputs are not taken: ETG.1000.6
         #: §6.4.1); the firmware answers with set_inputs.
         self.on_cycle: Callable[[bytes | None], None] = lambda outputs: None
-        #: Called with the new AL state after a transition.
-        self.on_state: Callable[[int], None] = lambda state: None
+        #: Called with the new AL state and the AL status code after a transition.
+        self.on_state: Callable[[int, int], None] = lambda state, code: None
         #: Process data exchanges that reached this slave (tests).
         self.cycles = 0
         #: The PDO configuration the firmware mirrors here (key index << 8 | sub: value),
@@ -198,7 +206,7 @@ class EscSlave:
         struct.pack_into("<H", self.mem, Reg.AL_STATUS, state | (ec.AL_ERROR if code else 0))
         struct.pack_into("<H", self.mem, Reg.AL_STATUS_CODE, code)
         if state != before and hasattr(self, "on_state"):
-            self.on_state(state)
+            self.on_state(state, code)
 
     def _al_control(self, control: int) -> None:
         requested, ack = control & 0x0F, control & ec.AL_ACK
@@ -383,12 +391,42 @@ class EscSlave:
         if not (read or wrote):
             return 0
         self.cycles += 1
+        if wrote:
+            self._outputs_at = time.monotonic()
         s2, l2, on2 = self._sm(2)
         outputs = (
             bytes(self.mem[s2 : s2 + l2]) if on2 and l2 and self.al_state == AlState.OP else None
         )
         self.on_cycle(outputs)
         return (1 if read else 0) + ((2 if cmd == Cmd.LRW else 1) if wrote else 0)
+
+    def watchdog_s(self) -> float:
+        """The SyncManager watchdog time in seconds (0: off)."""
+        divider, count = (
+            struct.unpack_from("<H", self.mem, Reg.WATCHDOG_DIVIDER)[0],
+            struct.unpack_from("<H", self.mem, Reg.WATCHDOG_PROCESS_DATA)[0],
+        )
+        return float(count * (divider + 2) * 40e-9)
+
+    def check_watchdog(self, now: float) -> bool:
+        """In OP with outputs mapped: when no process data wrote them for the watchdog time,
+        the slave falls back to SAFE-OP with the error flag and AL status code 001Bh
+        (SyncManager watchdog; HIWIN 000 §2.10 table 2.10.1: "O, S -> S + E"); True then."""
+        if self.al_state != AlState.OP:
+            self._outputs_at = None
+            return False
+        _, l2, on2 = self._sm(2)
+        limit = self.watchdog_s()
+        if not (on2 and l2) or limit <= 0:
+            return False
+        if self._outputs_at is None:
+            self._outputs_at = now  # Watched from the first check in OP on.
+            return False
+        if now - self._outputs_at <= limit:
+            return False
+        self._outputs_at = None
+        self._set_al(AlState.SAFEOP, 0x001B)
+        return True
 
     def set_inputs(self, data: bytes) -> None:
         """The firmware's inputs into SM3 (cut or zero-padded to its length)."""
@@ -512,7 +550,10 @@ class EscLine:
             sel.register(pdi.fileno(), selectors.EVENT_READ, "pdi")
         try:
             while not stop.is_set():
-                for key, _ in sel.select(0.05):
+                now = time.monotonic()
+                for slave in self.slaves:
+                    slave.check_watchdog(now)
+                for key, _ in sel.select(0.01):
                     if key.data == "pdi":
                         assert pdi is not None
                         try:
@@ -639,9 +680,9 @@ def _coe(pdi: Connection, index: int, slave: EscSlave, data: bytes) -> None:
         _forward(pdi, "coe", index, data)
 
 
-def _forward_state(pdi: Connection, index: int, state: int) -> None:
+def _forward_state(pdi: Connection, index: int, state: int, code: int) -> None:
     with contextlib.suppress(OSError):
-        pdi.send(("state", index, state))
+        pdi.send(("state", index, (state, code)))
 
 
 def _forward(pdi: Connection, kind: str, index: int, data: bytes | None) -> None:

@@ -236,6 +236,10 @@ class ProcessDataServer:
         self._tx_id = 0x180 + drive.node_id
         self._rx_id = 0x200 + drive.node_id
         self.engine = PdoEngine(drive, self._send, lambda code: None)
+        fault = drive.profile.quirk("sm_watchdog_fault")
+        self._watchdog_fault: int | None = (
+            int(fault, 0) if isinstance(fault, str) else fault if isinstance(fault, int) else None
+        )
         drive.on_write(self._written)
         self._config = [
             (a.index, a.subindex)
@@ -263,12 +267,22 @@ class ProcessDataServer:
         if can_id == self._tx_id:
             self._push(data)
 
-    def state(self, al: int) -> None:
-        """The ESC's AL state changed: the drive's state, and whether PDOs are exchanged."""
+    def state(self, al: int, code: int = 0) -> None:
+        """The ESC's AL state changed: the drive's state, and whether PDOs are exchanged. A
+        SyncManager watchdog (001Bh) is the fieldbus fault of the profile's
+        ``sm_watchdog_fault`` quirk when the drive's power stage was on: the process data it
+        moved by stopped (HIWIN: FF49h, AL.FB1)."""
         self.drive.nmt_state = _AL_TO_NMT.get(AlState(al & 0x0F), "preop")
         self.engine.set_operational(al & 0x0F in (AlState.SAFEOP, AlState.OP))
+        if code == 0x001B and self._watchdog_fault is not None and self._powered():
+            self.drive.raise_fault(self._watchdog_fault)
         if al & 0x0F in (AlState.SAFEOP, AlState.OP):
             self.cycle(None)  # SM3 holds valid inputs from the first exchange on.
+
+    def _powered(self) -> bool:
+        # Statusword bits 0-2 (ready, switched on, operation enabled) all set: CiA 402
+        # "Operation enabled" or a quick stop in progress; bit 3 clear (no fault yet).
+        return self.drive.statusword & 0x0F == 0x07
 
     def cycle(self, outputs: bytes | None) -> None:
         """One process data exchange: apply ``outputs``, then sample the next inputs."""
@@ -468,7 +482,8 @@ class EthercatSlaveProcess:
                 self.process_data[index].cycle(data)
                 continue
             if kind == "state":
-                self.process_data[index].state(int(data))
+                state, code = data
+                self.process_data[index].state(int(state), int(code))
                 continue
             answer = server.handle(data)
             self.requests += 1
