@@ -65,9 +65,16 @@ def test_find_rename_readdress_and_open_a_session_there(app: tuple[TestClient, A
     r = client.post(
         "/api/v1/dcp/set",
         json={"nic": nic, "mac": mac.upper(), "name_of_station": "press-2-axis1", "ip": new},
+        headers={"X-Servodesk-Client": "tab-7"},
     )
     assert r.status_code == 200, r.text
     assert r.json() == {"mac": mac, "done": ["name_of_station", "ip"]}
+    # Both changes are in the audit log (the refused one before is not).
+    audit = [a for a in client.get("/api/v1/audit").json() if a["session"] == f"dcp:{nic}"]
+    assert sorted((a["address"], a["new_value"], a["client"], a["drive_key"]) for a in audit) == [
+        ("dcp:ip", "10.78.0.5/255.255.255.0 gateway 0.0.0.0", "tab-7", f"profinet:{mac}"),
+        ("dcp:name_of_station", "press-2-axis1", "tab-7", f"profinet:{mac}"),
+    ]
     [dev] = client.post("/api/v1/dcp/identify", json={"nic": nic, "timeout": 0.2}).json()["devices"]
     assert (dev["name_of_station"], dev["ip"], dev["session_id"]) == (
         "press-2-axis1",
@@ -87,6 +94,9 @@ def test_find_rename_readdress_and_open_a_session_there(app: tuple[TestClient, A
     r = client.post("/api/v1/dcp/signal", json={"nic": nic, "mac": mac})
     assert r.status_code == 200 and r.json()["done"] == ["signal"]
     assert sim.profinet[0].station.flashes == 1
+    # Flashing the LED changes nothing on the device: no audit entry.
+    audit = [a for a in client.get("/api/v1/audit").json() if a["session"] == f"dcp:{nic}"]
+    assert len(audit) == 2
 
 
 #: (path, body, status, field, text of the error)

@@ -2,17 +2,20 @@
 address, flash a device's LED, reset it to factory settings (docs/profinet.md, "DCP").
 
 DCP is layer 2: the calls open a raw socket on the interface (root or CAP_NET_RAW) and block
-for their time-out, so they run in a thread.
+for their time-out, so they run in a thread. A name, an address or a reset the device
+acknowledged goes to the audit log (``GET /audit``), with the X-Servodesk-Client header.
 """
 
 from __future__ import annotations
 
 import asyncio
 import logging
+import time
 from dataclasses import asdict
 
 from fastapi import APIRouter
 
+from servodesk.api.control_deps import ClientHeader
 from servodesk.api.deps import StateDep
 from servodesk.api.schemas import (
     ERROR_RESPONSES,
@@ -97,7 +100,15 @@ async def dcp_identify(body: DcpIdentifyRequest, state: StateDep) -> DcpIdentify
     )
 
 
-async def _set(body: DcpDeviceRequest, blocks: tuple[dcp.Block, ...]) -> list[dcp.Ack]:
+async def _set(
+    body: DcpDeviceRequest,
+    blocks: tuple[dcp.Block, ...],
+    state: StateDep,
+    client_id: str | None,
+    values: dict[tuple[int, int], str],
+) -> list[dcp.Ack]:
+    """Send the Set; what the device acknowledged goes to the audit log (session
+    ``dcp:<nic>``, drive ``profinet:<mac>``, address ``dcp:<what>``), as parameter writes do."""
     mac = dcp.mac_bytes(body.mac)
 
     def run() -> list[dcp.Ack]:
@@ -106,6 +117,24 @@ async def _set(body: DcpDeviceRequest, blocks: tuple[dcp.Block, ...]) -> list[dc
 
     acks = await asyncio.to_thread(run)
     log.info("DCP set on %s %s: %s", body.nic, body.mac, [(a.option, a.suboption) for a in acks])
+    data = {(b.option, b.suboption): b.data for b in blocks}
+    now = time.time()
+    for a in acks:
+        key = (a.option, a.suboption)
+        if key not in values:
+            continue  # The LED signal changes nothing on the device.
+        state.backups.store.add_audit(
+            {
+                "time": now,
+                "client": client_id or "unknown",
+                "session": f"dcp:{body.nic}",
+                "drive_key": f"profinet:{dcp.mac_text(mac)}",
+                "address": f"dcp:{_DONE[key]}",
+                "name": dcp.BLOCK_NAMES[key].removeprefix("the ").removeprefix("a "),
+                "new_raw_hex": data.get(key, b"").hex(),
+                "new_value": values[key],
+            }
+        )
     return acks
 
 
@@ -127,31 +156,41 @@ def _done(mac: str, acks: list[dcp.Ack]) -> DcpDone:
 
 
 @router.post("/set", operation_id="dcp_set")
-async def dcp_set(body: DcpSetRequest) -> DcpDone:
+async def dcp_set(
+    body: DcpSetRequest, state: StateDep, x_servodesk_client: ClientHeader = None
+) -> DcpDone:
     """Set a device's station name and / or IP suite (checked before anything is sent)."""
     blocks: list[dcp.Block] = []
+    values: dict[tuple[int, int], str] = {}
+    suffix = "" if body.permanent else " (until power off)"
     if body.name_of_station is not None:
         name = dcp.check_name_of_station(body.name_of_station)
         blocks.append(dcp.name_block(name, permanent=body.permanent))
+        values[(dcp.OPT_DEVICE, dcp.SUB_NAME_OF_STATION)] = name + suffix
     if body.ip is not None:
         ip, mask, gw = dcp.check_ip_suite(body.ip.ip, body.ip.netmask, body.ip.gateway)
         blocks.append(dcp.ip_block(ip, mask, gw, permanent=body.permanent))
+        values[(dcp.OPT_IP, dcp.SUB_IP)] = f"{ip}/{mask} gateway {gw}{suffix}"
     if not blocks:
         raise ValidationError(
             "nothing to set", hint="give name_of_station, ip (ip, netmask, gateway) or both"
         )
-    return _done(body.mac, await _set(body, tuple(blocks)))
+    return _done(body.mac, await _set(body, tuple(blocks), state, x_servodesk_client, values))
 
 
 @router.post("/signal", operation_id="dcp_signal")
-async def dcp_signal(body: DcpDeviceRequest) -> DcpDone:
+async def dcp_signal(body: DcpDeviceRequest, state: StateDep) -> DcpDone:
     """Flash the device's LED (the LECSN-T's Network Status LED blinks green, 004 §20.2.3)."""
-    return _done(body.mac, await _set(body, (dcp.signal_block(),)))
+    return _done(body.mac, await _set(body, (dcp.signal_block(),), state, None, {}))
 
 
 @router.post("/reset", operation_id="dcp_reset")
-async def dcp_reset(body: DcpResetRequest) -> DcpDone:
+async def dcp_reset(
+    body: DcpResetRequest, state: StateDep, x_servodesk_client: ClientHeader = None
+) -> DcpDone:
     """Reset to factory (004 §20.4.5): the station name becomes "" and the IP 0.0.0.0; mode 8
     also restores the drive's parameters. The device is unreachable until it gets an
     address again."""
-    return _done(body.mac, await _set(body, (dcp.reset_to_factory_block(body.mode),)))
+    values = {(dcp.OPT_CONTROL, dcp.SUB_RESET_TO_FACTORY): f"option {body.mode}"}
+    blocks = (dcp.reset_to_factory_block(body.mode),)
+    return _done(body.mac, await _set(body, blocks, state, x_servodesk_client, values))
