@@ -23,7 +23,7 @@ from servodesk.sim.engine import SimulatedDrive
 from servodesk.sim.ethercat_slave import EthercatSlaveProcess
 from servodesk.sim.runner import SimRunner
 from servodesk.sim.veth import VethPair
-from tests.operation.support import headers
+from tests.operation.support import Heartbeats, headers, take_and_enable, wait_motion
 
 pytestmark = pytest.mark.timeout(90)
 A = headers("A")
@@ -201,3 +201,46 @@ def test_the_pdo_page_runs_cyclic_data_over_ethercat(app: tuple[TestClient, Any]
     r = client.delete(f"/api/v1/sessions/{SID}/pdo/cyclic", headers=A)
     assert r.status_code == 200, r.text
     assert client.get(f"/api/v1/sessions/{SID}/state").json()["nmt_state"] == "preop"
+
+
+def test_cyclic_set_points_move_the_axis_through_the_output_image(
+    app: tuple[TestClient, Any],
+) -> None:
+    # The Operation page's csp generator with cyclic data on: the target position (607Ah,
+    # mapped in the assigned RxPDO) goes to the drive in the EtherCAT output image.
+    client, sim = app
+    drive = sim.drives[0]
+    view = client.get(f"/api/v1/sessions/{SID}/pdo").json()
+    rx = next(p for p in view["pdos"] if p["direction"] == "rx" and p["active"])
+    assert "0x607A:00" in [e["address"] for e in rx["entries"]]
+    take_and_enable(client, SID, "A")
+    r = client.post(
+        f"/api/v1/sessions/{SID}/pdo/cyclic",
+        json={"sync_period_ms": 2, "outputs": True},
+        headers=A,
+    )
+    assert r.status_code == 200, r.text
+    with client.websocket_connect("/api/v1/ws?client=A") as ws:
+        beats = Heartbeats(ws, SID)
+        try:
+            start = drive.position
+            seen: list[int] = []
+            drive.on_cycle(lambda: seen.append(drive.position - start))
+            body = {"mode": "csp", "waveform": "sine", "amplitude": 20000, "frequency": 2}
+            r = client.post(
+                f"/api/v1/sessions/{SID}/motion/cyclic", json={**body, "duration": 0.5}, headers=A
+            )
+            assert r.status_code == 200, r.text
+            # The output image carries the set-points (the cyclic data's RX values).
+            image: list[int] = []
+            end = time.monotonic() + 5
+            while client.get(f"/api/v1/sessions/{SID}/motion").json()["active"]:
+                assert time.monotonic() < end
+                values = client.get(f"/api/v1/sessions/{SID}/pdo/cyclic").json()["values"]
+                image.append(int(values["0x607A:00"]["value"]) - start)
+            assert wait_motion(client, SID)["state"] == "done"
+        finally:
+            beats.stop()
+    assert max(seen) > 15_000 and min(seen) < -15_000
+    assert max(image) > 10_000 and min(image) < -10_000
+    client.delete(f"/api/v1/sessions/{SID}/pdo/cyclic", headers=A)
