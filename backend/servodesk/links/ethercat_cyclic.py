@@ -18,6 +18,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from servodesk.links.cyclic import CyclicTransport
+from servodesk.links.ethercat_link import PROCESS_DATA_TIMEOUT_US
 
 if TYPE_CHECKING:
     from servodesk.links.ethercat_link import EthercatLink
@@ -59,8 +60,6 @@ class EthercatCyclic(CyclicTransport):
 
     def send_sync(self, counter: int | None = None) -> None:
         """One process data cycle of the line; each subscribed slave's inputs handed on."""
-        from servodesk.links.ethercat_link import PROCESS_DATA_TIMEOUT_US
-
         shared = self._shared
         with shared.lock:
             if not shared.mapped:

@@ -205,7 +205,8 @@ class SessionManager:
             return await self._identify_nodes(base, ids, link_type)
         finally:
             if release is not None:
-                release()
+                # The last user of the line closes the SOEM master: not on the event loop.
+                await asyncio.to_thread(release)
 
     async def _identify_nodes(
         self, base: LinkParams, ids: list[int], link_type: type[DriveLink]

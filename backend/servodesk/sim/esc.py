@@ -107,7 +107,6 @@ class EscSlave:
         struct.pack_into("<H", m, Reg.WATCHDOG_PROCESS_DATA, 1000)
         #: When the outputs (SM2) were last written, for the watchdog (monotonic seconds).
         self._outputs_at: float | None = None
-        self._set_al(AlState.INIT, 0)
         #: Mailbox responses waiting for SM1 (the oldest is in SM1 while it is full).
         self._outbox: deque[bytes] = deque()
         self._last_response: bytes | None = None
@@ -129,6 +128,7 @@ class EscSlave:
         #: The PDO configuration the firmware mirrors here (key index << 8 | sub: value),
         #: answered to SDO uploads at once (see cached_upload).
         self.od_cache: dict[int, bytes] = {}
+        self._set_al(AlState.INIT, 0)
 
     # ESC memory ---------------------------------------------------------------------
 
@@ -205,7 +205,7 @@ class EscSlave:
         before = self.mem[Reg.AL_STATUS] & 0x0F
         struct.pack_into("<H", self.mem, Reg.AL_STATUS, state | (ec.AL_ERROR if code else 0))
         struct.pack_into("<H", self.mem, Reg.AL_STATUS_CODE, code)
-        if state != before and hasattr(self, "on_state"):
+        if state != before:
             self.on_state(state, code)
 
     def _al_control(self, control: int) -> None:

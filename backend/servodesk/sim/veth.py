@@ -16,9 +16,10 @@ import subprocess
 from dataclasses import dataclass
 
 from servodesk.errors import LinkError, ValidationError
+from servodesk.nic import NAME_MAX
 
-#: Longest interface name: IFNAMSIZ (16) less the terminating NUL.
-IFNAME_MAX = 15
+#: Longest interface name (servodesk.nic: IFNAMSIZ less the terminating NUL).
+IFNAME_MAX = NAME_MAX
 _counter = itertools.count(1)
 
 

@@ -10,7 +10,7 @@ import type { DcpDevice } from '../api';
 import { api } from '../api/client';
 import { notify, notifyError } from '../state/notify';
 import { navigate } from '../state/router';
-import { nameProblem } from '../lib/dcp';
+import { hex4, nameProblem } from '../lib/dcp';
 import { ConfirmDialog } from './ConfirmDialog';
 
 interface EditForm {
@@ -20,10 +20,6 @@ interface EditForm {
   netmask: string;
   gateway: string;
   permanent: boolean;
-}
-
-function hex4(v: number | null): string {
-  return v === null ? '—' : `${v.toString(16).toUpperCase().padStart(4, '0')}h`;
 }
 
 export function DcpPanel({ defaultNic, onUse }: { defaultNic: string; onUse: (channel: string) => void }) {

@@ -1,5 +1,5 @@
 import { describe, expect, it } from 'vitest';
-import { dcpNicFromNote, nameProblem } from './dcp';
+import { dcpNicFromNote, hex4, nameProblem } from './dcp';
 
 describe('nameProblem', () => {
   it('accepts the names PROFINET allows', () => {
@@ -23,5 +23,12 @@ describe('dcpNicFromNote', () => {
     expect(dcpNicFromNote('LECSN-T twin. DCP: search network interface sddcp123x1m.')).toBe('sddcp123x1m');
     expect(dcpNicFromNote('no DCP here')).toBeNull();
     expect(dcpNicFromNote(null)).toBeNull();
+  });
+});
+
+describe('hex4', () => {
+  it('writes IDs as the GSDML does', () => {
+    expect(hex4(0x010c)).toBe('010Ch');
+    expect(hex4(null)).toBe('—');
   });
 });

@@ -25,3 +25,8 @@ export function dcpNicFromNote(note: string | null | undefined): string | null {
   const m = /DCP: search network interface (\S+?)\./.exec(note ?? '');
   return m ? (m[1] ?? null) : null;
 }
+
+/** A PROFINET vendor or device ID as the GSDML writes it: 4 hex digits and "h" ("—": none). */
+export function hex4(v: number | null | undefined): string {
+  return v === null || v === undefined ? '—' : `${v.toString(16).toUpperCase().padStart(4, '0')}h`;
+}

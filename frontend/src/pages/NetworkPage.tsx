@@ -14,7 +14,7 @@ import { FailureBox } from '../components/FailureBox';
 import { type Failure, failureOf, failureOfBody } from '../lib/codes';
 import { canonicalAddress, formatPnu } from '../lib/dictionary';
 import { type LedGroup, type NetworkRow, ledGroups, networkAddresses, networkRows, slmpAxisLabel } from '../lib/network';
-import { dcpNicFromNote } from '../lib/dcp';
+import { dcpNicFromNote, hex4 } from '../lib/dcp';
 import { hasNmt, nmtTitle } from '../lib/nmt';
 import { decText, engineeringText, enumText, hexText, isObjectValue } from '../lib/values';
 import { useSessionInfo, useSessionProfile } from '../state/profileCache';
@@ -184,7 +184,7 @@ function DcpCard({ session }: { session: SessionInfo }) {
             <tr>
               <th title="PROFINET vendor ID / device ID (the GSDML file's)">Vendor / device ID</th>
               <td className="mono">
-                {d.vendor_id?.toString(16).toUpperCase().padStart(4, '0')}h / {d.device_id?.toString(16).toUpperCase().padStart(4, '0')}h
+                {hex4(d.vendor_id)} / {hex4(d.device_id)}
               </td>
             </tr>
             <tr>
