@@ -20,7 +20,7 @@ from servodesk.domain import dcp
 from servodesk.domain.address import ObjectAddress as A
 from servodesk.domain.profile_loader import ProfileCatalog
 from servodesk.errors import LinkError, NotFoundError, ObjectAccessError, ValidationError
-from servodesk.links import profinet_dcp
+from servodesk.links import profinet_dcp, profinet_link
 from servodesk.links.base import LinkParams
 from servodesk.links.profinet_dcp import DcpClient
 from servodesk.links.profinet_link import ProfinetLink
@@ -132,6 +132,25 @@ async def test_a_drive_with_an_open_session_refuses_a_new_address(
         assert device.station.ip == "127.0.0.1"
     finally:
         await link.close()
+
+
+async def test_a_client_that_died_without_release_blocks_dcp_only_until_its_ar_times_out(
+    pair: VethPair, device: ProfinetDevice, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # A supervisor whose process was killed leaves its AR open; the device drops it after
+    # the AR's activity time-out (here 1 s), and a new address is then accepted.
+    monkeypatch.setattr(profinet_link, "ACTIVITY_TIMEOUT_FACTOR", 10)
+    crashed = ProfinetLink(_params(device.channel))
+    await crashed.open()  # and never closed: no Release reaches the device
+    new_ip = (dcp.ip_block("10.77.0.7", "255.255.255.0", "0.0.0.0"),)
+    with DcpClient(pair.master) as client:
+        mac = dcp.mac_bytes(client.identify(0.2).devices[0].mac)
+        with pytest.raises(ObjectAccessError) as info:
+            await asyncio.to_thread(client.set, mac, new_ip)
+        assert (info.value.protocol, info.value.code) == ("dcp", 6)
+        await asyncio.sleep(1.1)
+        assert [a.error for a in await asyncio.to_thread(client.set, mac, new_ip)] == [0]
+    assert device.station.ip == "10.77.0.7" and device.ars == 0
 
 
 async def test_reset_to_factory_leaves_the_drive_without_an_address_until_one_is_set(

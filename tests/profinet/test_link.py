@@ -17,7 +17,14 @@ import pytest
 
 from servodesk.domain.address import ObjectAddress as A
 from servodesk.domain.profile_loader import ProfileCatalog, default_profile_dirs
-from servodesk.errors import LinkTimeoutError, NotFoundError, ObjectAccessError, ValidationError
+from servodesk.errors import (
+    ConflictError,
+    LinkTimeoutError,
+    NotFoundError,
+    ObjectAccessError,
+    ValidationError,
+)
+from servodesk.links import profinet_link
 from servodesk.links.base import LinkParams
 from servodesk.links.profinet_link import ProfinetLink
 from servodesk.sim.engine import SimulatedDrive
@@ -217,6 +224,40 @@ async def test_a_device_that_forgot_the_ar_is_connected_again(
     device._state.ars.clear()  # the device restarted
     assert await link.read(A(0x6041)) == device.drive.read_bytes(0x6041, 0)
     assert link.reconnects == 1 and device.ars == 1
+
+
+async def test_an_idle_ar_times_out_on_the_device_and_the_next_access_sets_it_up_again(
+    device: ProfinetDevice, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # CMInitiatorActivityTimeoutFactor 5: the device drops the AR after 0.5 s without a
+    # record read or write (IEC 61158-6-10 CMSM).
+    monkeypatch.setattr(profinet_link, "ACTIVITY_TIMEOUT_FACTOR", 5)
+    lk = ProfinetLink(params(device.channel))
+    await lk.open()
+    try:
+        for _ in range(10):  # 1 s of reads 0.1 s apart: each one restarts the time-out
+            await lk.read(A(0x6041))
+            await asyncio.sleep(0.1)
+        assert (device.ars, lk.reconnects) == (1, 0)
+        await asyncio.sleep(0.7)
+        assert device.ars == 0  # silent for longer than 0.5 s: dropped
+        assert await lk.read(A(0x6041)) == device.drive.read_bytes(0x6041, 0)
+        assert (device.ars, lk.reconnects) == (1, 1)
+    finally:
+        await lk.close()
+    assert device.ars == 0
+
+
+@pytest.mark.parametrize("factor", [0, 1001])
+async def test_an_activity_time_out_outside_0_1_to_100_s_is_refused(
+    device: ProfinetDevice, monkeypatch: pytest.MonkeyPatch, factor: int
+) -> None:
+    monkeypatch.setattr(profinet_link, "ACTIVITY_TIMEOUT_FACTOR", factor)
+    lk = ProfinetLink(params(device.channel))
+    with pytest.raises(ConflictError, match="refused the supervisor AR") as info:
+        await lk.open()
+    assert "PNIOStatus DB81010Ah" in info.value.message  # ARBlockReq field 10
+    assert device.ars == 0
 
 
 async def test_a_device_that_went_away_times_out_and_is_found_again_after_its_restart(

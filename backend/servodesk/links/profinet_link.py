@@ -59,6 +59,12 @@ DRIVE_SLOT = 1
 DRIVE_SUBSLOT = 1
 #: The station name servodesk gives as the AR's initiator.
 INITIATOR_NAME = "servodesk"
+#: The AR's CMInitiatorActivityTimeoutFactor (x 100 ms): a device drops a supervisor AR
+#: after this long without a record read or write (IEC 61158-6-10 CMSM). An open session
+#: polls the statusword at 20 Hz, so its AR lives as long as it does; one whose servodesk
+#: died without a Release stops blocking the drive's DCP changes 10 s later. An AR that
+#: timed out while idle is set up again by the next access (``_with_ar``).
+ACTIVITY_TIMEOUT_FACTOR = 100
 #: Bytes per block of a string longer than one response: 4 + 2 + 232 = 238 of 240 bytes.
 BLOCK_BYTES = 232
 #: How long to wait for a parameter response that is not ready yet (PNIORW B5h), per poll.
@@ -621,6 +627,7 @@ class ProfinetLink(DriveLink):
                 initiator_mac=bytes(6),
                 initiator_object=_OBJECT_UUID,
                 station_name=INITIATOR_NAME,
+                timeout_factor=ACTIVITY_TIMEOUT_FACTOR,
             )
         )
 

@@ -24,11 +24,18 @@ number, a client's resend) with the response it sent before, without carrying it
 PNIO-CM server moves to the new address (with ``manage_addresses``, the twin gives the
 interface that address first); a reset to factory leaves it without an address until one is
 set (004 §20.4.5).
+
+An AR whose client falls silent is dropped: the device's CM supervises the initiator's
+activity (the ARBlockReq's CMInitiatorActivityTimeoutFactor x 100 ms, restarted by every
+record read and write) until the AR exchanges IO data, which a supervisor AR with device access
+never does (IEC 61158-6-10 CMSM; so p-net's ``pf_cmsm.c``). A client that died without a
+Release thus stops blocking DCP name and address changes once that time has passed.
 """
 
 from __future__ import annotations
 
 import logging
+import time
 import uuid
 from dataclasses import dataclass, field
 
@@ -54,6 +61,11 @@ DRIVE_SUBSLOT = 1
 DO_ID = 1
 #: Supervisor ARs one device keeps at a time.
 MAX_ARS = 4
+#: The CMInitiatorActivityTimeoutFactor an ARBlockReq may give (x 100 ms: 0.1-100 s).
+ACTIVITY_FACTOR_RANGE = (1, 1000)
+#: Field number of CMInitiatorActivityTimeoutFactor in the ARBlockReq (PNIO ErrorCode2 of a
+#: connect refused for it).
+FIELD_ACTIVITY_FACTOR = 0x0A
 
 #: The PROFIdrive error number a PROFIdrive device answers for each reason the drive model
 #: gives (its CiA 301 abort code).
@@ -79,6 +91,10 @@ ERROR_FOR_ABORT: dict[int, int] = {
 @dataclass(slots=True)
 class _Ar:
     session_key: int
+    #: Seconds without a record read or write after which the device drops the AR.
+    timeout_s: float
+    #: time.monotonic() of the AR's last connect, read or write.
+    last: float
     #: The parameter response waiting to be read from 0xB02E.
     pending: bytes | None = None
 
@@ -145,7 +161,7 @@ class ProfinetDevice(UdpServer):
         responder = DcpResponder(
             self.station,
             interface_mac(ifname),
-            busy=lambda: bool(self._state.ars),
+            busy=lambda: self.ars > 0,
             on_ip=self._take_ip,
             on_factory=self._factory,
         )
@@ -221,7 +237,16 @@ class ProfinetDevice(UdpServer):
     @property
     def ars(self) -> int:
         """Application relations open now."""
+        self._expire()
         return len(self._state.ars)
+
+    def _expire(self) -> None:
+        """Drop the ARs whose initiator has been silent for its activity time-out."""
+        now = time.monotonic()
+        ars = self._state.ars
+        for key in [k for k, ar in ars.items() if now - ar.last > ar.timeout_s]:
+            log.info("AR %s timed out (no record access for %.1f s)", key, ars[key].timeout_s)
+            del ars[key]
 
     # RPC -------------------------------------------------------------------------------
 
@@ -238,6 +263,7 @@ class ProfinetDevice(UdpServer):
         if cached is not None and cached.seqnum == req.seqnum:
             self.resends += 1
             return cached.datagram
+        self._expire()
         status, args_max, blocks = self._call(req)
         body = pnio.response_body(status, blocks, args_max, little=req.little)
         datagram = pnio.build_rpc(
@@ -297,9 +323,14 @@ class ProfinetDevice(UdpServer):
         # cyclic data come with it (the twin has no IO data to exchange; docs/profinet.md).
         if ar.ar_type != pnio.AR_TYPE_SUPERVISOR or not ar.properties & 0x100:
             raise _Refused(pnio.DECODE_PNIO, 0x01, 0x04)  # faulty ARBlockReq: ARType
+        low, high = ACTIVITY_FACTOR_RANGE
+        if not low <= ar.timeout_factor <= high:
+            raise _Refused(pnio.DECODE_PNIO, 0x01, FIELD_ACTIVITY_FACTOR)  # faulty ARBlockReq
         if ar.ar_uuid not in self._state.ars and len(self._state.ars) >= MAX_ARS:
             raise _Refused(pnio.DECODE_PNIO, pnio.CMRPC, 0x04)  # no AR resources
-        self._state.ars[ar.ar_uuid] = _Ar(ar.session_key)
+        self._state.ars[ar.ar_uuid] = _Ar(
+            ar.session_key, timeout_s=0.1 * ar.timeout_factor, last=time.monotonic()
+        )
         return pnio.ar_block_res(ar.ar_type, ar.ar_uuid, ar.session_key, self.mac)
 
     def _release(self, args: bytes) -> bytes:
@@ -362,6 +393,7 @@ class ProfinetDevice(UdpServer):
         ar = self._state.ars.get(head.ar_uuid)
         if ar is None:
             raise _Refused(pnio.DECODE_PNIO, pnio.CMRPC, 0x05)  # AR UUID unknown
+        ar.last = time.monotonic()  # the initiator is active: its time-out starts again
         return ar
 
     def im0(self, slot: int) -> bytes:
