@@ -22,6 +22,7 @@ from servodesk.benchmarks.tuning import (
     ORACLE_SEARCH_RUNS,
     SimIO,
     build_drive,
+    default_plants,
     exact_model,
     measure,
     oracle_gains,
@@ -355,6 +356,19 @@ def test_a_runner_up_must_settle_clearly_sooner_on_the_axis_to_replace_the_model
     spec = PlantSpec(inertia_ratio=3.0, resonance_hz=400.0)
     result, _drive = asyncio.run(tune(spec, "high", 3))
     assert measure(spec, _gains(result))["settling_10_s"] < 0.016
+
+
+def test_a_try_that_settles_only_in_the_noise_does_not_replace_the_models_pick() -> None:
+    # A load 30 x the motor behind a 100 Hz shaft as the benchmark tunes it (noise seed 1).
+    # At rest the 5 ms mean of its error jitters by 14-45 counts RMS, so on the axis no try
+    # settles to +-10 counts: the model's winner "settled" in 785 ms on one move (the other
+    # not at all, which made its try infinite) and a runner-up in 785 / 783 ms, crossings of
+    # the band a few milliseconds before the watch ended. The runner-up settles in 480 ms on
+    # the true plant, the model's winner in 384 ms. A settling in the last 0.1 s of the watch
+    # is none, and a move that does not settle counts as its watch (TRY_SETTLED_HOLD_S).
+    spec = dict(default_plants())["R30-100Hz"]
+    result, _drive = asyncio.run(tune(spec, "high", 1))
+    assert measure(spec, _gains(result))["settling_10_s"] < 0.40
 
 
 def test_the_feed_forward_the_variations_miss_is_found_on_the_model() -> None:

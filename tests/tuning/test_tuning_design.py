@@ -174,6 +174,22 @@ def test_smoothed_settling_sees_through_jitter_but_not_a_slow_approach() -> None
     assert smoothed_settling(t, 1000.0, pos + 30.0, 0.1) == math.inf
 
 
+def test_a_settling_the_record_ends_within_holds_out_counts_as_not_settled() -> None:
+    # A try on a heavy axis: its 5 ms mean jitters by about +-15 counts at rest, so its last
+    # crossing of +-10 counts is wherever the noise put it, a few ms before the record ends.
+    rate = 16000.0
+    t = np.arange(int(0.8 * rate)) / rate
+    rng = np.random.default_rng(3)
+    slow = np.convolve(rng.standard_normal(len(t) + 400), np.ones(400) / 20.0, "valid")[: len(t)]
+    pos = 1000.0 + 15.0 * slow / np.std(slow)
+    last_noise = smoothed_settling(t, 1000.0, pos, 0.1)
+    assert 0.6 < last_noise < math.inf  # the plain rule reads that as settled
+    assert smoothed_settling(t, 1000.0, pos, 0.1, hold_s=0.1) == math.inf
+    # A real settling, 0.35 s before the end, stands.
+    calm = 1000.0 + np.where(t < 0.3, 500.0, 0.0)
+    assert smoothed_settling(t, 1000.0, calm, 0.1, hold_s=0.1) == pytest.approx(0.205, abs=0.001)
+
+
 def test_linear_move_settles_with_the_design() -> None:
     plant = PlantModel(JM, 3 * JM)
     d = design_gains(plant, RATE)

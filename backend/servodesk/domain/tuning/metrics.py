@@ -177,12 +177,14 @@ class MoveMetrics:
         return (self.settling_10_s, self.settling_100_s, self.fe_rms_counts)
 
 
-def _settling(t: FloatArray, err: FloatArray, band: float, t_end: float) -> float:
+def _settling(
+    t: FloatArray, err: FloatArray, band: float, t_end: float, hold_s: float = 0.0
+) -> float:
     out = np.nonzero(np.abs(err) > band)[0]
     if len(out) == 0:
         return 0.0
     last = int(out[-1])
-    if last == len(err) - 1:
+    if last == len(err) - 1 or float(t[-1]) - float(t[last]) < hold_s:
         return math.inf
     return max(0.0, float(t[last]) - t_end)
 
@@ -194,9 +196,12 @@ def smoothed_settling(
     t_end: float,
     band: float = 10.0,
     window_s: float = 0.005,
+    hold_s: float = 0.0,
 ) -> float:
     """Settling time to ``+-band`` counts of the position error's trailing mean over
-    ``window_s``: what a noisy axis shows of the settling that its noise hides.
+    ``window_s``: what a noisy axis shows of the settling that its noise hides. ``hold_s``:
+    the mean must stay inside the band for at least that long before the record ends, or the
+    axis did not settle within it (inf).
 
     With torque noise a compliant axis jitters by 5-30 counts RMS at rest under any gains, so
     the plain +-10 count settling is the end of every record. Averaged over 5 ms, the jitter
@@ -213,7 +218,7 @@ def smoothed_settling(
     c = np.concatenate(([0.0], np.cumsum(err)))
     k = np.arange(1, len(err) + 1)
     lo = np.maximum(0, k - n)
-    return _settling(tt, (c[k] - c[lo]) / (k - lo), band, t_end)
+    return _settling(tt, (c[k] - c[lo]) / (k - lo), band, t_end, hold_s)
 
 
 def move_metrics(
