@@ -355,6 +355,27 @@ def test_an_ethercat_line_is_opened_from_the_connect_page(page: Page) -> None:
         expect(page.get_by_test_id("pdo-cyclic-state")).to_have_attribute("data-running", "true")
         live = page.get_by_test_id("pdo-live-TxPDO 1A00h-0x6041:00")
         expect(live).to_have_attribute("data-raw", re.compile(r"^\d+$"), timeout=5_000)
+        expect(page.get_by_test_id("pdo-cyclic-sync-text")).to_have_text(" · SYNC every 10 ms")
+        page.get_by_test_id("pdo-cyclic-stop").click()
+        expect(page.get_by_test_id("pdo-cyclic-state")).to_have_attribute("data-running", "false")
+        # DC: the drive's SYNC0 from the distributed clocks, at a cycle it takes (HIWIN 000
+        # §2.5: 250 µs steps); one it does not take is named before anything is sent.
+        page.get_by_test_id("pdo-cyclic-sync").select_option("dc")
+        period = page.get_by_test_id("pdo-cyclic-period")
+        period.fill("1.1")
+        period.press("Tab")
+        expect(page.get_by_test_id("pdo-cyclic-cycle-problem")).to_contain_text(
+            "0.25 ms steps from 0.25 ms to 4 ms"
+        )
+        expect(page.get_by_test_id("pdo-cyclic-start")).to_be_disabled()
+        period.fill("1.25")
+        period.press("Tab")
+        expect(page.get_by_test_id("pdo-cyclic-cycle-problem")).to_have_count(0)
+        page.get_by_test_id("pdo-cyclic-start").click()
+        expect(page.get_by_test_id("pdo-cyclic-sync-text")).to_have_text(
+            " · DC SYNC0 every 1.25 ms"
+        )
+        expect(live).to_have_attribute("data-raw", re.compile(r"^\d+$"), timeout=5_000)
         page.get_by_test_id("pdo-cyclic-stop").click()
         expect(page.get_by_test_id("pdo-cyclic-state")).to_have_attribute("data-running", "false")
         page.goto("/#/connect")

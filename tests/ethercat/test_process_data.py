@@ -90,6 +90,77 @@ def test_soem_maps_the_assigned_pdos_and_exchanges_them_in_op(veth: VethPair) ->
             runner.stop()
 
 
+def _until(ok: Any, timeout: float = 2.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not ok():
+        assert time.monotonic() < deadline, "not within the time-out"
+        time.sleep(0.005)
+
+
+#: Seconds from 1970 to 2000, where EtherCAT's system time starts.
+EPOCH_2000 = 946_684_800
+
+
+def test_soem_sets_up_the_distributed_clocks_and_sync0_at_a_cycle_the_drive_takes(
+    veth: VethPair,
+) -> None:
+    drive = SimulatedDrive(ProfileCatalog().get("hiwin-e"), 1)
+    runner = SimRunner([drive])
+    runner.start()
+    with EthercatSlaveProcess([drive], veth.slave):
+        m = pysoem.Master()
+        m.always_release_gil = True
+        m.open(veth.master)
+        try:
+            assert m.config_init(release_gil=True) == 1
+            # SOEM's ecx_configdc: the ESC reports DC, its receive times are latched and its
+            # system time offset set, so that its clock reads the master's (ns since 2000).
+            assert m.config_dc()
+            s = m.slaves[0]
+            system = int.from_bytes(s._fprd(0x0910, 8, 2000), "little")
+            assert abs(system / 1e9 - (time.time() - EPOCH_2000)) < 0.5
+            time.sleep(0.05)
+            later = int.from_bytes(s._fprd(0x0910, 8, 2000), "little")
+            assert 0.04 < (later - system) / 1e9 < 0.5  # and it runs
+            # HIWIN 000 §2.5: SYNC0 in 250 µs steps from 250 µs to 4 ms. 300 µs is refused at
+            # SAFE-OP (which config_map requests) with AL status 0035h (invalid sync cycle
+            # time).
+            s.dc_sync(True, 300_000)
+            assert m.config_map() == 13 + 23
+            assert s.state_check(pysoem.SAFEOP_STATE, 500_000) == pysoem.PREOP_STATE
+            m.read_state()
+            assert (s.state, s.al_status) == (pysoem.PREOP_STATE | 0x10, 0x0035)
+            s.state = pysoem.PREOP_STATE | 0x10  # acknowledge
+            s.write_state()
+            # 1 ms is taken: the drive reports DC mode with that cycle (1C32h / 1C33h) and
+            # sets the interpolation period from it (60C2h: 10 x 10^-4 s, HIWIN 000 §3.2).
+            s.dc_sync(True, 1_000_000)
+            s.state = pysoem.SAFEOP_STATE
+            s.write_state()
+            assert s.state_check(pysoem.SAFEOP_STATE, 500_000) == pysoem.SAFEOP_STATE
+            _until(lambda: drive.read(0x1C32, 1) == 2)  # the ESC process tells the drive
+            assert (drive.read(0x1C32, 1), drive.read(0x1C32, 2)) == (2, 1_000_000)
+            assert (drive.read(0x1C33, 1), drive.read(0x1C33, 2)) == (2, 1_000_000)
+            assert (drive.read(0x60C2, 1), drive.read(0x60C2, 2)) == (10, -4)
+            # Each exchange now carries the drift control datagram (FRMW of the system time):
+            # the master's DC time is the slave's clock.
+            m.send_processdata()
+            assert m.receive_processdata(2000) == m.expected_wkc
+            assert abs(m.dc_time / 1e9 - (time.time() - EPOCH_2000)) < 0.5
+            # Back to FreeRun: SYNC0 off in PRE-OP, and SAFE-OP says so.
+            s.state = pysoem.PREOP_STATE
+            s.write_state()
+            s.state_check(pysoem.PREOP_STATE, 500_000)
+            s.dc_sync(False, 0)
+            s.state = pysoem.SAFEOP_STATE
+            s.write_state()
+            assert s.state_check(pysoem.SAFEOP_STATE, 500_000) == pysoem.SAFEOP_STATE
+            _until(lambda: drive.read(0x1C32, 1) == 0)
+        finally:
+            m.close()
+            runner.stop()
+
+
 def test_a_state_request_acknowledges_the_watchdog_error(veth: VethPair) -> None:
     # The link after a SyncManager watchdog: Start (OP) works at once, the error indication
     # acknowledged on the way (HIWIN 000 §3.2.1), rather than being refused with 001Bh.
@@ -201,6 +272,54 @@ def test_the_pdo_page_runs_cyclic_data_over_ethercat(app: tuple[TestClient, Any]
     r = client.delete(f"/api/v1/sessions/{SID}/pdo/cyclic", headers=A)
     assert r.status_code == 200, r.text
     assert client.get(f"/api/v1/sessions/{SID}/state").json()["nmt_state"] == "preop"
+
+
+def test_the_pdo_page_runs_cyclic_data_in_dc_mode(app: tuple[TestClient, Any]) -> None:
+    client, sim = app
+    drive = sim.drives[0]
+    status = client.get(f"/api/v1/sessions/{SID}/pdo/cyclic").json()
+    assert status["sync_modes"] == ["freerun", "dc"]
+    assert status["dc_cycle_ns"] == [250_000, 4_000_000, 250_000]
+    client.post(f"/api/v1/sessions/{SID}/control", json={"action": "take"}, headers=A)
+    url = f"/api/v1/sessions/{SID}/pdo/cyclic"
+    # A period that is no SYNC0 cycle of the drive is refused before anything is sent.
+    r = client.post(url, json={"sync_period_ms": 1.1, "sync": "dc"}, headers=A)
+    assert r.status_code == 400, r.text
+    assert r.json()["field"] == "sync_period_ms" and "0.25 ms steps" in r.json()["message"]
+    assert client.get(f"/api/v1/sessions/{SID}/state").json()["nmt_state"] == "preop"
+    r = client.post(url, json={"sync_period_ms": 1.25, "sync": "dc"}, headers=A)
+    assert r.status_code == 200, r.text
+    assert r.json()["sync"] == "dc"
+    assert client.get(f"/api/v1/sessions/{SID}/state").json()["nmt_state"] == "safeop"
+    _until(lambda: drive.read(0x1C32, 1) == 2)
+    assert (drive.read(0x1C32, 1), drive.read(0x1C32, 2)) == (2, 1_250_000)
+    assert (drive.read(0x60C2, 1), drive.read(0x60C2, 2)) == (125, -5)
+    time.sleep(0.3)
+    status = client.get(url).json()
+    assert status["running"] and status["sync"] == "dc"
+    assert status["tx_pdos"][0]["count"] > 100, status
+    # Restarted in FreeRun while running: back through PRE-OP, SYNC0 off.
+    r = client.post(url, json={"sync_period_ms": 2}, headers=A)
+    assert r.status_code == 200, r.text
+    assert r.json()["sync"] == "freerun"
+    _until(lambda: drive.read(0x1C32, 1) == 0)
+    assert client.delete(url, headers=A).status_code == 200
+
+
+def test_dc_is_refused_where_there_are_no_distributed_clocks(tmp_path: Path) -> None:
+    # A CANopen session: the request names what is wrong before anything is sent.
+    s = Settings(sim=True, sim_profiles="smartris", data_dir=tmp_path, viewer_port=0)
+    with TestClient(create_app(s)) as client:
+        sid = client.get("/api/v1/sessions").json()[0]["id"]
+        assert client.get(f"/api/v1/sessions/{sid}/pdo/cyclic").json()["sync_modes"] == ["freerun"]
+        client.post(f"/api/v1/sessions/{sid}/control", json={"action": "take"}, headers=A)
+        r = client.post(
+            f"/api/v1/sessions/{sid}/pdo/cyclic",
+            json={"sync_period_ms": 1, "sync": "dc"},
+            headers=A,
+        )
+        assert r.status_code == 400, r.text
+        assert r.json()["field"] == "sync" and "EtherCAT" in r.json()["message"]
 
 
 def test_cyclic_set_points_move_the_axis_through_the_output_image(

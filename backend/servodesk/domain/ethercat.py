@@ -89,6 +89,22 @@ class Reg(IntEnum):
     EEPROM_DATA = 0x0508  # EEPROM data (8)
     FMMU0 = 0x0600  # FMMU 0..15, 16 bytes each
     SM0 = 0x0800  # SyncManager 0..15, 8 bytes each
+    DC_RECEIVE_TIME = 0x0900  # receive time port 0..3 (4 each); a write latches them
+    DC_SYSTEM_TIME = 0x0910  # system time (8): local time + offset; written: drift control
+    DC_RECEIVE_TIME_PU = 0x0918  # receive time of the processing unit (8)
+    DC_SYSTEM_TIME_OFFSET = 0x0920  # system time offset (8)
+    DC_SYSTEM_TIME_DELAY = 0x0928  # system time delay (4)
+    DC_CYCLIC_UNIT_CONTROL = 0x0980  # cyclic unit control
+    DC_ACTIVATION = 0x0981  # bit 0 cyclic operation, bit 1 SYNC0, bit 2 SYNC1
+    DC_START_TIME = 0x0990  # start time of cyclic operation (8)
+    DC_SYNC0_CYCLE = 0x09A0  # SYNC0 cycle time (4, ns)
+
+
+#: ESC features (0x0008) bit 2: distributed clocks; bit 3: 64-bit DC.
+FEATURE_DC = 0x0004
+FEATURE_DC64 = 0x0008
+#: DC activation (0x0981): cyclic operation with SYNC0, the only mode servodesk's slaves take.
+DC_ACTIVATE_SYNC0 = 0x03
 
 
 #: SyncManager register layout (ESC datasheet 0x0800+8n): start (2), length (2), control,
@@ -460,6 +476,9 @@ class SiiInfo:
     #: assignment the master reads over CoE, 1C12h / 1C13h); None: no process data.
     outputs_start: int | None = 0x1100
     inputs_start: int | None = 0x1400
+    #: The SYNC0 cycle times the slave takes (min, max, step; ns), as its ESI's DC element
+    #: offers them (not part of the SII image); None: no distributed clocks.
+    dc_cycle_ns: tuple[int, int, int] | None = None
 
 
 def _u32(v: int, what: str) -> bytes:

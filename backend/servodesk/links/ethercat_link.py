@@ -64,7 +64,7 @@ except ImportError as exc:  # pragma: no cover - pysoem is a dependency
 INTERFACE = "ethercat"
 #: AL states (ETG.1000.6 §6.4.1, AL status bits 0-3) by name, and back.
 AL_STATES = {0x01: "init", 0x02: "preop", 0x03: "boot", 0x04: "safeop", 0x08: "op"}
-AL_SAFEOP, AL_OP = 0x04, 0x08
+AL_PREOP, AL_SAFEOP, AL_OP = 0x02, 0x04, 0x08
 #: How long one process data exchange waits for its frame to come back (µs).
 PROCESS_DATA_TIMEOUT_US = 2000
 #: The AL state each command of DriveLink.nmt requests ("safeop": inputs only, see
@@ -94,6 +94,8 @@ class _Master:
     receivers: dict[int, list[Callable[[bytes, float], None]]] = field(default_factory=dict)
     #: Outputs to send, by slave position (0-based).
     outputs: dict[int, bytes] = field(default_factory=dict)
+    #: config_dc has run (the slaves' clocks set and their delays measured).
+    dc: bool = False
 
 
 _masters: dict[str, _Master] = {}
@@ -174,6 +176,9 @@ class EthercatLink(DriveLink):
     #: §6.4.1). In OP an EtherCAT slave takes the outputs of every cycle, and an output image
     #: nobody fills would command controlword 0.
     inputs_only_command = "safeop"
+    #: How cyclic data may be synchronised (:meth:`configure_sync`): FreeRun, the slave's own
+    #: cycle, or DC, its SYNC0 event from the distributed clocks (ETG.1020; HIWIN 000 §2.5).
+    sync_modes = ("freerun", "dc")
 
     def __init__(self, params: LinkParams) -> None:
         if params.interface != INTERFACE:
@@ -192,6 +197,23 @@ class EthercatLink(DriveLink):
         self._shared: _Master | None = None
         self._slave: Any = None
         self._state: tuple[float, str] | None = None
+        #: The synchronisation the next SAFE-OP request configures, and the one in force:
+        #: (mode, SYNC0 cycle in ns).
+        self._sync: tuple[str, int] = ("freerun", 0)
+        self._applied: tuple[str, int] = ("freerun", 0)
+
+    def configure_sync(self, mode: str, period_s: float) -> None:
+        """Synchronise the slave's process data by ``mode`` ("freerun" or "dc", SYNC0 every
+        ``period_s``) from its next transition to SAFE-OP; a slave already in SAFE-OP or OP
+        with another synchronisation goes back to PRE-OP first (the DC registers are set in
+        PRE-OP, ETG.1020). The slave checks the cycle (AL status 0035h)."""
+        if mode not in self.sync_modes:
+            raise ValidationError(
+                f"EtherCAT has no synchronisation {mode!r}",
+                field="sync",
+                hint="use freerun or dc",
+            )
+        self._sync = (mode, round(period_s * 1e9) if mode == "dc" else 0)
 
     # Hooks -------------------------------------------------------------------------
 
@@ -277,13 +299,22 @@ class EthercatLink(DriveLink):
         return name
 
     def _map_process_data(self, shared: _Master, slave: Any) -> None:
-        """Before OP (ETG.1000.6 §6.4.1): the process data mapped (SOEM's config_map reads
-        the PDO assignment over CoE and programs SM2 / SM3 and the FMMUs), SAFE-OP, and one
-        exchange, so that the slave has valid outputs when OP is requested."""
+        """Before OP (ETG.1000.6 §6.4.1): the synchronisation asked (:meth:`configure_sync`),
+        the process data mapped (SOEM's config_map reads the PDO assignment over CoE and
+        programs SM2 / SM3 and the FMMUs), SAFE-OP, and one exchange, so that the slave has
+        valid outputs when OP is requested."""
         with shared.lock:
             shared.master.read_state()
             if int(slave.state) & 0x0F in (AL_SAFEOP, AL_OP):
-                return
+                if self._applied == self._sync:
+                    return
+                # Another synchronisation: its registers are written in PRE-OP.
+                slave.state = AL_PREOP
+                slave.write_state()
+                slave.state_check(AL_PREOP, STATE_TIMEOUT_US)
+            # The DC registers first: SOEM's config_map requests SAFE-OP itself, where the
+            # slave checks its synchronisation.
+            self._set_sync(shared, slave)
             try:
                 shared.master.config_map()
             except Exception as exc:
@@ -296,13 +327,41 @@ class EthercatLink(DriveLink):
             reached = int(slave.state_check(AL_SAFEOP, STATE_TIMEOUT_US)) & 0x0F
             if reached != AL_SAFEOP:
                 code = int(slave.al_status)
+                # Acknowledged, so that the next request is not blocked by the indication.
+                slave.state = AL_PREOP | 0x10
+                slave.write_state()
+                mode, cycle = self._sync
+                hint = (
+                    f"the drive does not take a SYNC0 cycle of {cycle / 1e6:g} ms: choose "
+                    "another period, or FreeRun"
+                    if mode == "dc" and code in (0x0030, 0x0035)
+                    else "check the PDO assignment (1C12h / 1C13h) on the PDO page"
+                )
                 raise ConflictError(
                     f"the EtherCAT slave refused SAFE-OP: AL status code 0x{code:04X} "
                     f"{pysoem.al_status_code_to_string(code)}",
-                    hint="check the PDO assignment (1C12h / 1C13h) on the PDO page",
+                    hint=hint,
                 )
+            self._applied = self._sync
             shared.master.send_processdata()
             shared.master.receive_processdata(PROCESS_DATA_TIMEOUT_US)
+
+    def _set_sync(self, shared: _Master, slave: Any) -> None:
+        """The DC registers for the synchronisation asked (SOEM's ``ecx_configdc`` once per
+        line: system time offsets and propagation delays; ``ecx_dcsync0``: the SYNC0 start
+        time and cycle, activation 0981h), or SYNC0 off for FreeRun."""
+        mode, cycle = self._sync
+        if mode == "dc":
+            if not shared.dc:
+                if not shared.master.config_dc():
+                    raise ConflictError(
+                        f"no slave on {self.params.channel!r} has distributed clocks",
+                        hint="start cyclic data in FreeRun",
+                    )
+                shared.dc = True
+            slave.dc_sync(True, cycle)
+        elif self._applied[0] == "dc" or shared.dc:
+            slave.dc_sync(False, 0)
 
     def _nmt(self, command: str) -> None:
         target = NMT_AL_STATES.get(command)

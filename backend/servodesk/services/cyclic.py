@@ -157,6 +157,8 @@ class CyclicExchange:
         self.config = config
         self.period = period
         self.outputs = outputs
+        #: How the drive synchronises to the exchange: "freerun" or "dc" (EtherCAT SYNC0).
+        self.sync = "freerun"
         self.started_at = 0.0
         self._producer: SyncProducer | None = None
         self._sync0 = 0
@@ -345,6 +347,7 @@ class CyclicExchange:
         return {
             "running": self.running,
             "sync_period_ms": round(self.period * 1000, 3),
+            "sync": self.sync,
             "outputs": self.outputs,
             "syncs": self.syncs,
             "rx_pdos": [chan(c, True) for c in self.rx],

@@ -394,7 +394,7 @@ async def apply(
         report["duration_s"] = round(time.monotonic() - t0, 3)
         if restart is not None:
             with contextlib.suppress(ServodeskError):
-                await start_cyclic(session, restart[0] * 1000, restart[1])
+                await start_cyclic(session, restart[0] * 1000, restart[1], restart[2])
         session._progress(
             "pdo",
             1.0,
@@ -444,17 +444,71 @@ def cyclic_of(session: Session) -> CyclicExchange | None:
     return ex
 
 
-def stop_cyclic_now(session: Session) -> tuple[float, bool] | None:
-    """Stop the exchange; returns (period, outputs) when it ran, to restart it later."""
+def stop_cyclic_now(session: Session) -> tuple[float, bool, str] | None:
+    """Stop the exchange; returns (period, outputs, sync) when it ran, to restart it later."""
     ex = cyclic_of(session)
     if ex is None:
         return None
     ex.stop()
     session.cyclic = None
-    return ex.period, ex.outputs
+    return ex.period, ex.outputs, ex.sync
 
 
-async def start_cyclic(session: Session, sync_period_ms: float, outputs: bool) -> dict[str, Any]:
+def sync_modes(session: Session) -> list[str]:
+    """How the session's cyclic data may be synchronised: "freerun" always; "dc" where the
+    link has distributed clocks (EtherCAT) and the profile says which SYNC0 cycles the drive
+    takes (quirk ``dc_cycle_time_ns``)."""
+    modes = list(getattr(session.link, "sync_modes", ("freerun",)))
+    if "dc" in modes and dc_cycles(session) is None:
+        modes.remove("dc")
+    return modes
+
+
+def dc_cycles(session: Session) -> tuple[int, int, int] | None:
+    """(min, max, step) of the SYNC0 cycle the drive takes, in ns (the profile's
+    ``dc_cycle_time_ns``); None where it says nothing."""
+    q = session.profile.quirk("dc_cycle_time_ns")
+    if not isinstance(q, dict):
+        return None
+    return int(q["min"]), int(q["max"]), int(q["step"])
+
+
+def _check_sync(session: Session, sync: str, period: float) -> None:
+    """Refuse a synchronisation the link or the drive does not offer, and a DC cycle the
+    profile says the drive does not take, before anything is sent."""
+    if sync == "freerun":
+        return
+    if sync != "dc":
+        raise ValidationError(
+            f"sync {sync!r} is not a synchronisation", field="sync", hint="use freerun or dc"
+        )
+    if "dc" not in getattr(session.link, "sync_modes", ("freerun",)):
+        raise ValidationError(
+            f"DC synchronisation is EtherCAT's; this session's link is "
+            f"{session.link.params.interface}",
+            field="sync",
+            hint="use freerun",
+        )
+    cycles = dc_cycles(session)
+    if cycles is None:
+        raise ConflictError(
+            f"the {session.profile.name} profile names no SYNC0 cycle the drive takes",
+            hint="use freerun",
+        )
+    low, high, step = cycles
+    ns = round(period * 1e9)
+    if not low <= ns <= high or ns % step:
+        raise ValidationError(
+            f"sync_period_ms {period * 1000:g} is not a SYNC0 cycle the drive takes: "
+            f"{step / 1e6:g} ms steps from {low / 1e6:g} to {high / 1e6:g} ms",
+            field="sync_period_ms",
+            hint="choose a multiple of the step within the range (the profile's dc_cycle_time_ns)",
+        )
+
+
+async def start_cyclic(
+    session: Session, sync_period_ms: float, outputs: bool, sync: str = "freerun"
+) -> dict[str, Any]:
     period = sync_period_ms / 1000.0
     if not MIN_PERIOD <= period <= MAX_PERIOD:
         raise ValidationError(
@@ -462,6 +516,7 @@ async def start_cyclic(session: Session, sync_period_ms: float, outputs: bool) -
             f"{MIN_PERIOD * 1000:g}..{MAX_PERIOD * 1000:g}",
             field="sync_period_ms",
         )
+    _check_sync(session, sync, period)
     transport = transport_for(session.link)
     config = await read_config(session)
     if not config.active(pdomod.Direction.TX) and not config.active(pdomod.Direction.RX):
@@ -490,32 +545,37 @@ async def start_cyclic(session: Session, sync_period_ms: float, outputs: bool) -
     # With the outputs off, a link whose slaves take the outputs of every cycle in their
     # operational state (EtherCAT) goes to its inputs-only state instead (SAFE-OP).
     command = "start" if outputs else getattr(session.link, "inputs_only_command", "start")
+    configure = getattr(session.link, "configure_sync", None)
+    if configure is not None:
+        configure(sync, period)
     await session.link.nmt(command)
     await asyncio.sleep(NMT_SETTLE_S)
     ex = CyclicExchange(session, transport, config, period=period, outputs=outputs, image=image)
+    ex.sync = sync
     ex.nmt_before = before
     ex.start()
     session.cyclic = ex
-    return ex.status()
+    return _with_offer(session, ex.status())
 
 
 async def stop_cyclic(session: Session) -> dict[str, Any]:
     ex = cyclic_of(session)
     stop_cyclic_now(session)
     if ex is None:
-        return idle_status()
+        return _with_offer(session, idle_status())
     if ex.nmt_before in ("preop", "unknown", "bootup"):
         with contextlib.suppress(ServodeskError):
             await session.link.nmt("preop")
     status = ex.status()
     status["running"] = False
-    return status
+    return _with_offer(session, status)
 
 
 def idle_status() -> dict[str, Any]:
     return {
         "running": False,
         "sync_period_ms": None,
+        "sync": None,
         "outputs": False,
         "syncs": 0,
         "rx_pdos": [],
@@ -531,7 +591,16 @@ def cyclic_status(session: Session) -> dict[str, Any]:
     ex = cyclic_of(session)
     out = ex.status() if ex is not None else idle_status()
     out["unavailable"] = no_cyclic_reason(session.link)
-    return out
+    return _with_offer(session, out)
+
+
+def _with_offer(session: Session, status: dict[str, Any]) -> dict[str, Any]:
+    """``status`` with what the session offers: its synchronisations and the drive's
+    SYNC0 cycles (the PDO page shows the choice from any answer, start and stop too)."""
+    status["sync_modes"] = sync_modes(session)
+    cycles = dc_cycles(session) if "dc" in status["sync_modes"] else None
+    status["dc_cycle_ns"] = list(cycles) if cycles is not None else None
+    return status
 
 
 def set_outputs(session: Session, values: dict[str, Any]) -> dict[str, Any]:

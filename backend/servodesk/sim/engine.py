@@ -604,6 +604,15 @@ class SimulatedDrive:
         """The specification of an object, or :class:`SimAbort` as the bus would answer."""
         return self._lookup(index, subindex)
 
+    def set_status(self, index: int, subindex: int, value: Value) -> None:
+        """Set an object the device itself keeps, read-only ones too (the sync mode an
+        EtherCAT slave takes from its ESC's DC registers, 1C32h / 1C33h); nothing is checked
+        but that the object exists."""
+        with self._lock:
+            spec = self._lookup(index, subindex)
+            self._values[_key(spec.index, spec.subindex)] = value
+            self._refresh()
+
     def set_inputs(self, bits: int) -> None:
         """Set the digital inputs (60FDh) the drive reports."""
         with self._lock:

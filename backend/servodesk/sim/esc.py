@@ -3,7 +3,9 @@ data.
 
 An :class:`EscSlave` is what the EtherCAT slave controller of a drive answers on the wire
 (ESC datasheet section II register names; ETG.1000.4 / ETG.1000.6 / ETG.2010): its memory
-with the registers SOEM's ``ecx_config_init`` uses, the EEPROM interface to an SII image,
+with the registers SOEM's ``ecx_config_init`` uses, the distributed clocks' system time and
+SYNC0 registers (``ecx_configdc``, ``ecx_dcsync0``; the SYNC0 cycle checked at SAFE-OP), the
+EEPROM interface to an SII image,
 the AL state machine (INIT, PRE-OPERATIONAL, SAFE-OPERATIONAL, OPERATIONAL; BOOT refused with
 an AL status code), the mailbox on SM0 (master -> slave) / SM1 (slave -> master) and the
 process data on SM2 (outputs) / SM3 (inputs), reached by logical datagrams (LRD / LWR / LRW)
@@ -69,6 +71,11 @@ _READ_ONLY = frozenset(
 )
 
 
+#: The DC registers only the ESC writes (receive times, system time, processing unit's
+#: receive time): a master's write there is not stored.
+_DC_LATCHED = frozenset(range(Reg.DC_RECEIVE_TIME, Reg.DC_SYSTEM_TIME_OFFSET))
+
+
 def _or(a: bytes, b: bytes) -> bytes:
     return bytes(x | y for x, y in zip(a, b, strict=True))
 
@@ -91,7 +98,13 @@ class EscSlave:
         m[Reg.TYPE] = ESC_TYPE
         m[Reg.FMMUS], m[Reg.SYNCMANAGERS], m[Reg.RAM_SIZE] = FMMUS, SYNCMANAGERS, RAM_KB
         m[Reg.PORT_DESCRIPTOR] = PORT_DESCRIPTOR
-        # ESC features (0x0008): no distributed clocks (bit 2 clear), so SOEM sets hasdc 0.
+        # ESC features (0x0008): distributed clocks, 64 bit (bits 2 and 3), where the slave
+        # takes a SYNC0 cycle; otherwise none, and SOEM sets hasdc 0.
+        if sii.dc_cycle_ns is not None:
+            struct.pack_into("<H", m, Reg.FEATURES, ec.FEATURE_DC | ec.FEATURE_DC64)
+        self._last = last
+        #: The local clock's zero (monotonic ns): the DC local time counts from power-on.
+        self._clock0 = time.monotonic_ns()
         # DL status (0x0110): PDI operational (bit 0), link on port 0 (bit 4) with
         # communication (bits 8-9 = 10b: loop open, communication established); port 1 the
         # same when another slave follows, else closed (loop, bits 10-11 = 01b); ports 2 and
@@ -123,6 +136,9 @@ class EscSlave:
         self.on_cycle: Callable[[bytes | None], None] = lambda outputs: None
         #: Called with the new AL state and the AL status code after a transition.
         self.on_state: Callable[[int, int], None] = lambda state, code: None
+        #: Called on entering SAFE-OP with the synchronisation the master configured: (0, 0)
+        #: FreeRun, (2, SYNC0 cycle in ns) DC (the values of 1C32h:01 / :02, ETG.1020).
+        self.on_sync: Callable[[int, int], None] = lambda mode, cycle_ns: None
         #: Process data exchanges that reached this slave (tests).
         self.cycles = 0
         #: The PDO configuration the firmware mirrors here (key index << 8 | sub: value),
@@ -166,6 +182,12 @@ class EscSlave:
         sm1_status = Reg.SM0 + ec.SM_SIZE + ec.SM_STATUS
         if in_mailbox and not self.mem[sm1_status] & ec.SM_STATUS_MAILBOX_FULL:
             return None
+        if (
+            self.sii.dc_cycle_ns is not None
+            and ado < Reg.DC_SYSTEM_TIME + 8
+            and end > Reg.DC_SYSTEM_TIME
+        ):
+            struct.pack_into("<Q", self.mem, Reg.DC_SYSTEM_TIME, self.system_time_ns())
         data = bytes(self.mem[ado:end])
         if in_mailbox and end >= s1 + l1:
             # Reading the buffer's last byte frees it (ESC datasheet, mailbox mode).
@@ -187,10 +209,17 @@ class EscSlave:
                 self._mailbox(bytes(self.mem[s0 : s0 + l0]))
             return True
         kept = {a: self.mem[a] for a in _READ_ONLY if ado <= a < end}
+        if self.sii.dc_cycle_ns is not None:
+            # The receive times and the system time are the ESC's: a write to 0x0900 latches
+            # the receive times, one to the system time is the master's drift control (ESC
+            # datasheet section I, "Distributed clocks"), neither is stored.
+            kept.update({a: self.mem[a] for a in _DC_LATCHED if ado <= a < end})
         old_repeat = self.mem[Reg.SM0 + ec.SM_SIZE + ec.SM_ACTIVATE] & ec.SM_ACTIVATE_REPEAT
         self.mem[ado:end] = data
         for a, v in kept.items():
             self.mem[a] = v
+        if self.sii.dc_cycle_ns is not None and ado <= Reg.DC_RECEIVE_TIME < end:
+            self._latch_receive_times()
         if ado <= Reg.AL_CONTROL < end:
             self._al_control(self.mem[Reg.AL_CONTROL])
         if ado <= Reg.EEPROM_CONTROL + 1 and end > Reg.EEPROM_CONTROL:
@@ -198,6 +227,45 @@ class EscSlave:
         if ado < Reg.SM0 + 2 * ec.SM_SIZE and end > Reg.SM0:
             self._sm_changed(old_repeat)
         return True
+
+    # Distributed clocks (ESC datasheet section I, "Distributed clocks") -----------------
+
+    def local_time_ns(self) -> int:
+        """The ESC's local clock: ns since power-on."""
+        return time.monotonic_ns() - self._clock0
+
+    def system_time_ns(self) -> int:
+        """The DC system time: the local time plus the offset the master wrote (0x0920),
+        modulo 2^64."""
+        offset = int(struct.unpack_from("<Q", self.mem, Reg.DC_SYSTEM_TIME_OFFSET)[0])
+        return (self.local_time_ns() + offset) & 0xFFFF_FFFF_FFFF_FFFF
+
+    def _latch_receive_times(self) -> None:
+        """The frame that wrote 0x0900 arrived now at port 0; it came back through port 1
+        from the slaves behind (a fixed 500 ns here) where there are any. SOEM's
+        ``ecx_configdc`` computes the offsets and propagation delays from these."""
+        t = self.local_time_ns()
+        struct.pack_into("<I", self.mem, Reg.DC_RECEIVE_TIME, t & 0xFFFFFFFF)
+        back = 0 if self._last else (t + 500) & 0xFFFFFFFF
+        struct.pack_into("<I", self.mem, Reg.DC_RECEIVE_TIME + 4, back)
+        struct.pack_into("<Q", self.mem, Reg.DC_RECEIVE_TIME_PU, t)
+
+    def _sync_code(self) -> tuple[int, int, int]:
+        """(AL status code, sync mode, SYNC0 cycle ns) of the DC configuration at the
+        request of SAFE-OP (ETG.1020, 1C32h): FreeRun when cyclic operation is off; SYNC0
+        alone, at a cycle the slave takes, for DC mode; otherwise 0030h (invalid DC SYNC
+        configuration) or 0035h (invalid sync cycle time)."""
+        act = self.mem[Reg.DC_ACTIVATION]
+        if not act & 0x01:
+            return 0, 0, 0
+        dc = self.sii.dc_cycle_ns
+        if dc is None or act & 0x07 != ec.DC_ACTIVATE_SYNC0:
+            return 0x0030, 0, 0
+        cycle = int(struct.unpack_from("<I", self.mem, Reg.DC_SYNC0_CYCLE)[0])
+        low, high, step = dc
+        if not low <= cycle <= high or cycle % step:
+            return 0x0035, 0, 0
+        return 0, 2, cycle
 
     # AL state machine (ETG.1000.6 §6.4) -----------------------------------------------
 
@@ -230,6 +298,13 @@ class EscSlave:
                 self._set_al(state, 0x0011)  # Invalid requested state change
             elif not self._process_data_config_ok():
                 self._set_al(state, 0x001D)  # Invalid output configuration
+            elif state == AlState.PREOP:
+                code, mode, cycle = self._sync_code()
+                if code:
+                    self._set_al(state, code)
+                else:
+                    self.on_sync(mode, cycle)
+                    self._set_al(AlState.SAFEOP, 0)
             else:
                 self._set_al(AlState.SAFEOP, 0)
         elif requested == AlState.OP:
@@ -639,6 +714,7 @@ def child_main(fd: int) -> None:
         slave.on_reset = functools.partial(_forward, pdi, "reset", i, None)
         slave.on_cycle = functools.partial(_forward, pdi, "cycle", i)
         slave.on_state = functools.partial(_forward_state, pdi, i)
+        slave.on_sync = functools.partial(_forward_sync, pdi, i)
     pdi.send(("ready", None, None))
     try:
         line.serve(sock, ifname, threading.Event(), pdi)
@@ -683,6 +759,11 @@ def _coe(pdi: Connection, index: int, slave: EscSlave, data: bytes) -> None:
 def _forward_state(pdi: Connection, index: int, state: int, code: int) -> None:
     with contextlib.suppress(OSError):
         pdi.send(("state", index, (state, code)))
+
+
+def _forward_sync(pdi: Connection, index: int, mode: int, cycle_ns: int) -> None:
+    with contextlib.suppress(OSError):
+        pdi.send(("sync", index, (mode, cycle_ns)))
 
 
 def _forward(pdi: Connection, kind: str, index: int, data: bytes | None) -> None:

@@ -69,6 +69,9 @@ def sii_from_drive(drive: SimulatedDrive, mailbox_size: int) -> ec.SiiInfo:
         name = drive.read_bytes(0x1008, 0).decode("ascii", "replace").rstrip("\x00")
     except SimAbort:
         name = drive.profile.name
+    # The SYNC0 cycles the profile says the drive takes (HIWIN 000 §2.5, 1C32h:02 range).
+    dc = drive.profile.quirk("dc_cycle_time_ns")
+    dc_cycle = (int(dc["min"]), int(dc["max"]), int(dc["step"])) if isinstance(dc, dict) else None
     return ec.SiiInfo(
         vendor_id=u32(0x1018, 1),
         product_code=u32(0x1018, 2),
@@ -77,6 +80,7 @@ def sii_from_drive(drive: SimulatedDrive, mailbox_size: int) -> ec.SiiInfo:
         name=name,
         mailbox_out=(MAILBOX_START, mailbox_size),
         mailbox_in=(MAILBOX_START + mailbox_size, mailbox_size),
+        dc_cycle_ns=dc_cycle,
     )
 
 
@@ -279,6 +283,23 @@ class ProcessDataServer:
         if al & 0x0F in (AlState.SAFEOP, AlState.OP):
             self.cycle(None)  # SM3 holds valid inputs from the first exchange on.
 
+    def sync(self, mode: int, cycle_ns: int) -> None:
+        """The synchronisation the master configured, as the slave reports it (ETG.1020):
+        1C32h / 1C33h :01 the mode (0 FreeRun, 2 DC SYNC0), :02 the SYNC0 cycle in DC mode,
+        and in DC mode the interpolation time period 60C2h from that cycle (HIWIN 000 §3.2:
+        "set from the communication cycle", 1 ms = 10 x 10^-4 s; 250 and 500 µs with index
+        -5)."""
+        drive = self.drive
+        for index in (0x1C32, 0x1C33):
+            if drive.has_object(index, 1):
+                drive.set_status(index, 1, mode)
+            if mode and drive.has_object(index, 2):
+                drive.set_status(index, 2, cycle_ns)
+        if mode and drive.has_object(0x60C2, 1) and drive.has_object(0x60C2, 2):
+            value, index = interpolation_period(cycle_ns)
+            drive.set_status(0x60C2, 1, value)
+            drive.set_status(0x60C2, 2, index)
+
     def _powered(self) -> bool:
         # Statusword bits 0-2 (ready, switched on, operation enabled) all set: CiA 402
         # "Operation enabled" or a quick stop in progress; bit 3 clear (no fault yet).
@@ -290,6 +311,19 @@ class ProcessDataServer:
             self.engine.on_frame(self._rx_id, outputs, False)
         self.engine.on_sync()
         self.engine.flush()
+
+
+def interpolation_period(cycle_ns: int) -> tuple[int, int]:
+    """60C2h :01 / :02 (value x 10^index s) for a communication cycle: HIWIN 000 §3.2's
+    table (250 / 500 µs -> 25 / 50 with -5; 1 / 2 / 4 ms -> 10 / 20 / 40 with -4), and for the
+    cycles it leaves out the first index that gives the cycle exactly in an UNSIGNED8 (1.25 ms
+    -> 125 with -5), else the nearest at -4."""
+    first = -5 if cycle_ns < 1_000_000 else -4
+    for index in (first, -5, -6):
+        unit = 10 ** (9 + index)
+        if cycle_ns % unit == 0 and cycle_ns // unit <= 0xFF:
+            return cycle_ns // unit, index
+    return min(0xFF, round(cycle_ns / 100_000)), -4
 
 
 def _pdo_config(index: int) -> bool:
@@ -323,6 +357,7 @@ class EthercatSlaveSim:
             pd = ProcessDataServer(server.drive, slave.set_inputs)
             slave.on_cycle = pd.cycle
             slave.on_state = pd.state
+            slave.on_sync = pd.sync
             self.process_data.append(pd)
         self.line = EscLine(self.slaves)
         self._sock: socket.socket | None = None
@@ -484,6 +519,10 @@ class EthercatSlaveProcess:
             if kind == "state":
                 state, code = data
                 self.process_data[index].state(int(state), int(code))
+                continue
+            if kind == "sync":
+                mode, cycle = data
+                self.process_data[index].sync(int(mode), int(cycle))
                 continue
             answer = server.handle(data)
             self.requests += 1

@@ -1011,6 +1011,8 @@ export interface PdoLiveValue {
 export interface PdoCyclicStatus {
   running: boolean;
   sync_period_ms: number | null;
+  /** How the drive synchronises to the exchange while it runs (null when stopped). */
+  sync?: 'freerun' | 'dc' | null;
   outputs: boolean;
   rx_pdos: PdoRate[];
   tx_pdos: PdoRate[];
@@ -1022,11 +1024,17 @@ export interface PdoCyclicStatus {
   /** Why the session's link carries no cyclic data (a CC-Link IE TSN station over SLMP
    * exchanges it with its manager only); null or absent when it does. */
   unavailable?: string | null;
+  /** The synchronisations the session offers: "freerun", and "dc" on an EtherCAT drive whose
+   * profile names its SYNC0 cycles. */
+  sync_modes?: ('freerun' | 'dc')[];
+  /** The SYNC0 cycles the drive takes: [min, max, step] in ns (null without DC). */
+  dc_cycle_ns?: number[] | null;
 }
 
 export interface PdoCyclicRequest {
   sync_period_ms: number;
   outputs: boolean;
+  sync?: 'freerun' | 'dc';
 }
 
 export type PdoExportFormat = 'csv' | 'dcf' | 'esi' | 'json';

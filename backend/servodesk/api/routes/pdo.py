@@ -64,6 +64,9 @@ class CyclicRequest(BaseModel):
     model_config = _BODY
     sync_period_ms: float = Field(default=10.0, ge=1.0, le=1000.0)
     outputs: bool = False
+    #: "dc": the drive's SYNC0 event from the distributed clocks at the period (EtherCAT
+    #: drives whose profile names the cycles they take); "freerun": its own cycle.
+    sync: Literal["freerun", "dc"] = "freerun"
 
 
 class OutputsRequest(BaseModel):
@@ -159,7 +162,9 @@ async def pdo_cyclic_status(sid: str, state: StateDep) -> dict[str, Any]:
 async def pdo_cyclic_start(
     sid: str, body: CyclicRequest, state: StateDep, client: WriteControl
 ) -> dict[str, Any]:
-    return await pdosvc.start_cyclic(state.manager.get(sid), body.sync_period_ms, body.outputs)
+    return await pdosvc.start_cyclic(
+        state.manager.get(sid), body.sync_period_ms, body.outputs, body.sync
+    )
 
 
 @router.delete("/sessions/{sid}/pdo/cyclic", operation_id="pdo_cyclic_stop")

@@ -8,6 +8,7 @@ import { useCallback, useEffect, useState } from 'react';
 import { pdoApi } from '../../api/pdo';
 import type { ErrorInfo, PdoCyclicStatus, PdoRate } from '../../api/types';
 import { type Failure, failureOf } from '../../lib/codes';
+import { type SyncMode, dcCycleProblem, syncText } from '../../lib/sync';
 import { type Observable, useObservable } from '../../state/observable';
 import { FailureBox } from '../FailureBox';
 import { NumberBox, decimalParser } from './fields';
@@ -48,6 +49,7 @@ export function CyclicPanel({
 }) {
   const [status, setStatus] = useState<PdoCyclicStatus | null>(null);
   const [period, setPeriod] = useState(DEFAULT_PERIOD_MS);
+  const [sync, setSync] = useState<SyncMode>('freerun');
   const [busy, setBusy] = useState(false);
   const [failure, setFailure] = useState<Failure | null>(null);
   const l = useObservable(live);
@@ -83,14 +85,15 @@ export function CyclicPanel({
 
   useEffect(() => {
     if (status?.running && status.sync_period_ms) setPeriod(status.sync_period_ms);
-    // Only when the server's period changes, not on every poll.
-  }, [status?.running, status?.sync_period_ms]);
+    if (status?.running && status.sync) setSync(status.sync);
+    // Only when the server's period or sync changes, not on every poll.
+  }, [status?.running, status?.sync_period_ms, status?.sync]);
 
   async function start() {
     setBusy(true);
     setFailure(null);
     try {
-      got(await pdoApi.startCyclic(sid, { sync_period_ms: period, outputs: false }));
+      got(await pdoApi.startCyclic(sid, { sync_period_ms: period, outputs: false, sync }));
     } catch (e) {
       setFailure(failureOf(e, 'Start cyclic data', errors));
     } finally {
@@ -110,7 +113,9 @@ export function CyclicPanel({
     }
   }
 
-  const periodChanged = running && status?.sync_period_ms !== period;
+  const offersDc = status?.sync_modes?.includes('dc') ?? false;
+  const periodChanged = running && (status?.sync_period_ms !== period || (status?.sync ?? 'freerun') !== sync);
+  const cycleProblem = sync === 'dc' ? dcCycleProblem(period, status?.dc_cycle_ns) : null;
   const unavailable = status?.unavailable ?? null;
   const rates = [...(status?.rx_pdos ?? []), ...(status?.tx_pdos ?? [])];
   return (
@@ -136,20 +141,32 @@ export function CyclicPanel({
           <NumberBox
             value={period}
             onChange={setPeriod}
-            parse={decimalParser(1, 1000, 1)}
+            parse={decimalParser(1, 1000, 2)}
             testid="pdo-cyclic-period"
             label="SYNC period in ms"
             width={60}
-            title="1 ms to 1000 ms"
+            title="1 ms to 1000 ms (0.01 ms steps; DC SYNC0: the drive's cycles)"
           />
           ms
         </label>
+        {offersDc && (
+          <label
+            className="pdo-inline small muted"
+            title="FreeRun: the drive runs its own cycle and takes the data as it comes. DC: the EtherCAT distributed clocks fire the drive's SYNC0 at the period, and the drive samples and applies the data on it (ETG.1020; HIWIN 000 §2.5)."
+          >
+            Sync
+            <select value={sync} onChange={(e) => setSync(e.target.value as SyncMode)} data-testid="pdo-cyclic-sync">
+              <option value="freerun">FreeRun</option>
+              <option value="dc">DC SYNC0</option>
+            </select>
+          </label>
+        )}
         {!running && (
           <button
             type="button"
             className="go"
-            disabled={busy || unavailable !== null}
-            title={unavailable ?? undefined}
+            disabled={busy || unavailable !== null || cycleProblem !== null}
+            title={unavailable ?? cycleProblem ?? undefined}
             onClick={() => void start()}
             data-testid="pdo-cyclic-start"
           >
@@ -157,8 +174,14 @@ export function CyclicPanel({
           </button>
         )}
         {running && periodChanged && (
-          <button type="button" disabled={busy} onClick={() => void start()} data-testid="pdo-cyclic-reconfigure">
-            Use {period} ms
+          <button
+            type="button"
+            disabled={busy || cycleProblem !== null}
+            title={cycleProblem ?? undefined}
+            onClick={() => void start()}
+            data-testid="pdo-cyclic-reconfigure"
+          >
+            Use {period} ms{offersDc ? (sync === 'dc' ? ' DC' : ' FreeRun') : ''}
           </button>
         )}
         {running && (
@@ -169,13 +192,21 @@ export function CyclicPanel({
         {status && (
           <span className="small" data-testid="pdo-cyclic-stats">
             <span className="mono">{status.frames_per_s.toFixed(0)}</span> frames/s
-            {status.sync_period_ms ? <> · SYNC every {status.sync_period_ms} ms</> : null} ·{' '}
+            {syncText(status.sync, status.sync_period_ms) ? (
+              <span data-testid="pdo-cyclic-sync-text"> · {syncText(status.sync, status.sync_period_ms)}</span>
+            ) : null}{' '}
+            ·{' '}
             <span className={status.decode_errors ? 'pdo-over-text' : ''}>
               <span className="mono">{status.decode_errors}</span> decode errors
             </span>
           </span>
         )}
       </div>
+      {cycleProblem !== null && (
+        <div className="bk-warn small" data-testid="pdo-cyclic-cycle-problem">
+          {period} ms is no SYNC0 cycle of this drive: {cycleProblem}.
+        </div>
+      )}
       {unavailable !== null ? (
         <div className="bk-warn small" data-testid="pdo-cyclic-unavailable">
           No cyclic data on this link: {unavailable}.
