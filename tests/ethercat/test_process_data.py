@@ -16,6 +16,7 @@ from fastapi.testclient import TestClient
 
 from servodesk.api.app import create_app
 from servodesk.domain.profile_loader import ProfileCatalog
+from servodesk.errors import ConflictError
 from servodesk.links.base import LinkParams
 from servodesk.links.ethercat_link import EthercatLink
 from servodesk.settings import Settings
@@ -179,6 +180,38 @@ def test_a_state_request_acknowledges_the_watchdog_error(veth: VethPair) -> None
                 await asyncio.sleep(0.4)  # no cycles: the watchdog
                 await link.nmt("start")
                 assert await link.network_state() == "op"
+
+        try:
+            asyncio.run(run())
+        finally:
+            runner.stop()
+
+
+def test_a_sync0_cycle_the_drive_refuses_is_a_conflict_with_its_al_status_code(
+    veth: VethPair,
+) -> None:
+    # What the link says when the drive itself refuses the cycle (a unit whose cycles differ
+    # from its profile's): the AL status code, what to do, and the error acknowledged, so
+    # that FreeRun works at once.
+    drive = SimulatedDrive(ProfileCatalog().get("hiwin-e"), 1)
+    runner = SimRunner([drive])
+    runner.start()
+    with EthercatSlaveProcess([drive], veth.slave):
+
+        async def run() -> None:
+            link = EthercatLink(
+                LinkParams(interface="ethercat", channel=veth.master, node_id=1, timeout=0.5)
+            )
+            async with link:
+                link.configure_sync("dc", 0.0011)
+                with pytest.raises(ConflictError) as info:
+                    await link.nmt("safeop")
+                assert "0x0035" in info.value.message
+                assert info.value.hint and "SYNC0 cycle of 1.1 ms" in info.value.hint
+                link.configure_sync("freerun", 0.001)
+                await link.nmt("safeop")
+                assert await link.network_state() == "safeop"
+                assert drive.read(0x1C32, 1) == 0
 
         try:
             asyncio.run(run())
