@@ -339,6 +339,65 @@ def test_the_pdo_page_runs_cyclic_data_in_dc_mode(app: tuple[TestClient, Any]) -
     assert client.delete(url, headers=A).status_code == 200
 
 
+def test_cyclic_data_starts_again_and_again_and_on_each_new_mapping(
+    app: tuple[TestClient, Any],
+) -> None:
+    # An engineer starts and stops cyclic data many times in a session and tries the drive's
+    # PDO presets one after the other. SOEM's config_map takes the next free FMMUs each time
+    # it runs, so until the link mapped a line once per configuration the fourth start found
+    # none: working counter 0, no inputs.
+    client, _sim = app
+    url = f"/api/v1/sessions/{SID}/pdo/cyclic"
+    client.post(f"/api/v1/sessions/{SID}/control", json={"action": "take"}, headers=A)
+
+    def run_once() -> dict[str, Any]:
+        r = client.post(url, json={"sync_period_ms": 2}, headers=A)
+        assert r.status_code == 200, r.text
+        status: dict[str, Any] = {}
+        deadline = time.monotonic() + 3
+        while time.monotonic() < deadline:
+            status = client.get(url).json()
+            if status["tx_pdos"] and status["tx_pdos"][0]["count"] > 20:
+                break
+            time.sleep(0.02)
+        assert status["tx_pdos"][0]["count"] > 20, status
+        assert client.delete(url, headers=A).status_code == 200
+        return status
+
+    for _ in range(5):
+        run_once()
+    templates = client.get(f"/api/v1/sessions/{SID}/pdo/templates").json()
+    assert len(templates) >= 3
+    for t in templates:
+        body = client.post(f"/api/v1/sessions/{SID}/pdo/templates/{t['id']}").json()
+        layout = {
+            "pdos": [
+                {
+                    "direction": p["direction"],
+                    "number": p["number"],
+                    "entries": [
+                        {"index": e["index"], "subindex": e["subindex"], "bits": e["bits"]}
+                        for e in p["entries"]
+                    ],
+                }
+                for p in body["pdos"]
+            ],
+            "telegram": body["telegram"],
+            "assignment": body["assignment"],
+        }
+        r = client.post(f"/api/v1/sessions/{SID}/pdo/apply", json=layout, headers=A)
+        assert r.status_code == 200 and r.json()["ok"], r.text
+        tx = [
+            f"0x{e['index']:04X}:{e['subindex']:02X}"
+            for p in body["pdos"]
+            if p["direction"] == "tx" and p["active"]
+            for e in p["entries"]
+            if not e["padding"]
+        ]
+        values = run_once()["values"]
+        assert set(tx) <= set(values), (t["id"], tx, sorted(values))
+
+
 def test_dc_is_refused_where_there_are_no_distributed_clocks(tmp_path: Path) -> None:
     # A CANopen session: the request names what is wrong before anything is sent.
     s = Settings(sim=True, sim_profiles="smartris", data_dir=tmp_path, viewer_port=0)

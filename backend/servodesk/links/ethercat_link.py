@@ -88,8 +88,11 @@ class _Master:
     slaves: int
     lock: threading.Lock = field(default_factory=threading.Lock)
     users: int = 0
-    #: config_map has run: the slaves' input / output images exist.
+    #: config_map has run and no PDO assignment or mapping was written since: the slaves'
+    #: input / output images and FMMUs stand.
     mapped: bool = False
+    #: config_map has run on this configuration of the line (config_init) before.
+    was_mapped: bool = False
     #: The cyclic transports' receivers, by identifier (180h + node: that slave's inputs).
     receivers: dict[int, list[Callable[[bytes, float], None]]] = field(default_factory=dict)
     #: Outputs to send, by slave position (0-based).
@@ -160,6 +163,12 @@ def _configure(channel: str) -> tuple[Any, int]:
             hint="check the cable to the first slave's IN port and that the drive is powered",
         )
     return master, found
+
+
+def _pdo_configuration(index: int) -> bool:
+    """The PDO assignment (1C10h-1C2Fh) and mapping (1600h-17FFh, 1A00h-1BFFh) objects,
+    whose change changes the process data images (ETG.1020)."""
+    return 0x1C10 <= index <= 0x1C2F or 0x1600 <= index <= 0x1BFF
 
 
 class EthercatLink(DriveLink):
@@ -259,6 +268,8 @@ class EthercatLink(DriveLink):
                 slave.sdo_write(address.index, address.subindex, bytes(data), release_gil=True)
             except Exception as exc:
                 raise self._failed(exc, address, "write") from exc
+            if _pdo_configuration(address.index):
+                shared.mapped = False  # The images change: config_map again before SAFE-OP.
 
     def _timeout_us(self) -> int:
         return max(1000, round(self.request_timeout * 1e6))
@@ -312,16 +323,24 @@ class EthercatLink(DriveLink):
                 slave.state = AL_PREOP
                 slave.write_state()
                 slave.state_check(AL_PREOP, STATE_TIMEOUT_US)
+            if not shared.mapped and shared.was_mapped:
+                # SOEM maps a line once per configuration: each config_map takes the next
+                # free FMMUs of every slave (ecx_config_map_group, FMMUunused), and a third or
+                # fourth mapping finds none and maps nothing (working counter 0). A new
+                # mapping therefore starts from a new configuration of the line (INIT, the SII
+                # read again, PRE-OP), which also resets SOEM's distributed clocks.
+                self._reconfigure(shared)
             # The DC registers first: SOEM's config_map requests SAFE-OP itself, where the
             # slave checks its synchronisation.
             self._set_sync(shared, slave)
-            try:
-                shared.master.config_map()
-            except Exception as exc:
-                raise LinkError(
-                    f"mapping the process data of {self.params.channel!r} failed: {exc}"
-                ) from exc
-            shared.mapped = True
+            if not shared.mapped:
+                try:
+                    shared.master.config_map()
+                except Exception as exc:
+                    raise LinkError(
+                        f"mapping the process data of {self.params.channel!r} failed: {exc}"
+                    ) from exc
+                shared.mapped = shared.was_mapped = True
             slave.state = AL_SAFEOP
             slave.write_state()
             reached = int(slave.state_check(AL_SAFEOP, STATE_TIMEOUT_US)) & 0x0F
@@ -345,6 +364,23 @@ class EthercatLink(DriveLink):
             self._applied = self._sync
             shared.master.send_processdata()
             shared.master.receive_processdata(PROCESS_DATA_TIMEOUT_US)
+
+    def _reconfigure(self, shared: _Master) -> None:
+        """SOEM's config_init again (the line's slaves back to INIT, then PRE-OP)."""
+        try:
+            found = int(shared.master.config_init(release_gil=True))
+        except Exception as exc:
+            raise LinkError(f"configuring {self.params.channel!r} again failed: {exc}") from exc
+        if found < self.params.node_id:
+            raise NotFoundError(
+                f"slave {self.params.node_id} is no longer on {self.params.channel!r} "
+                f"({found} found)",
+                hint="check the line's cabling and that the drive is powered",
+            )
+        shared.slaves = found
+        shared.dc = False
+        shared.was_mapped = False
+        self._applied = ("freerun", 0)
 
     def _set_sync(self, shared: _Master, slave: Any) -> None:
         """The DC registers for the synchronisation asked (SOEM's ``ecx_configdc`` once per
