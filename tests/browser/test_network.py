@@ -105,15 +105,19 @@ def test_ctmm04x_is_reached_by_slmp_on_axis_x(page: Page) -> None:
 
 
 def test_a_refused_object_says_so_in_its_row(page: Page) -> None:
-    # The HIWIN twin has no data for 1C32h:01 (the synchronisation type follows the master's
-    # DC configuration, 000 §2.5): its row carries the drive's refusal, the others their value.
+    # The HIWIN twin has no data for 10F1h:02 (the sync error counter limit: 000 §3.1 gives
+    # no default): its row carries the drive's refusal, the others their value, among them
+    # the synchronisation type, FreeRun until a master sets up SYNC0 (000 §2.5).
     page.set_viewport_size({"width": 1280, "height": 800})
     page.goto("/#/network/hiwin-e-2")
-    refused = page.get_by_test_id("network-row-0x1C32:01").get_by_test_id("network-refused")
+    refused = page.get_by_test_id("network-row-0x10F1:02").get_by_test_id("network-refused")
     expect(refused).to_contain_text("0x08000024")
     expect(refused).to_contain_text("No data available")
     cycle = page.get_by_test_id("network-row-0x1C32:02").get_by_test_id("network-value")
     expect(cycle).to_have_text(re.compile(r"^\d+ ns$"))
+    sync = page.get_by_test_id("network-row-0x1C32:01")
+    expect(sync.get_by_test_id("network-value")).to_have_text("0")
+    expect(sync).to_contain_text("FreeRun")
     expect(page.get_by_test_id("notice-error")).to_have_count(0)
     assert _fits(page)
 

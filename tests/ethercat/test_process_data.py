@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +25,7 @@ from servodesk.sim.ethercat_slave import EthercatSlaveProcess
 from servodesk.sim.runner import SimRunner
 from servodesk.sim.veth import VethPair
 from tests.operation.support import Heartbeats, headers, take_and_enable, wait_motion
+from tests.pdo.support import layout_of
 
 pytestmark = pytest.mark.timeout(90)
 A = headers("A")
@@ -162,9 +163,9 @@ def test_soem_sets_up_the_distributed_clocks_and_sync0_at_a_cycle_the_drive_take
             runner.stop()
 
 
-def test_a_state_request_acknowledges_the_watchdog_error(veth: VethPair) -> None:
-    # The link after a SyncManager watchdog: Start (OP) works at once, the error indication
-    # acknowledged on the way (HIWIN 000 §3.2.1), rather than being refused with 001Bh.
+def _with_link(veth: VethPair, body: Callable[[EthercatLink, SimulatedDrive], Any]) -> None:
+    """``await body(link, drive)``: servodesk's link to a HIWIN twin, slave 1 of the line on
+    ``veth`` (its ESC in a process of its own, the drive stepped in real time)."""
     drive = SimulatedDrive(ProfileCatalog().get("hiwin-e"), 1)
     runner = SimRunner([drive])
     runner.start()
@@ -175,16 +176,25 @@ def test_a_state_request_acknowledges_the_watchdog_error(veth: VethPair) -> None
                 LinkParams(interface="ethercat", channel=veth.master, node_id=1, timeout=0.5)
             )
             async with link:
-                await link.nmt("start")
-                assert await link.network_state() == "op"
-                await asyncio.sleep(0.4)  # no cycles: the watchdog
-                await link.nmt("start")
-                assert await link.network_state() == "op"
+                await body(link, drive)
 
         try:
             asyncio.run(run())
         finally:
             runner.stop()
+
+
+def test_a_state_request_acknowledges_the_watchdog_error(veth: VethPair) -> None:
+    # The link after a SyncManager watchdog: Start (OP) works at once, the error indication
+    # acknowledged on the way (HIWIN 000 §3.2.1), rather than being refused with 001Bh.
+    async def body(link: EthercatLink, drive: SimulatedDrive) -> None:
+        await link.nmt("start")
+        assert await link.network_state() == "op"
+        await asyncio.sleep(0.4)  # no cycles: the watchdog
+        await link.nmt("start")
+        assert await link.network_state() == "op"
+
+    _with_link(veth, body)
 
 
 def test_a_sync0_cycle_the_drive_refuses_is_a_conflict_with_its_al_status_code(
@@ -193,30 +203,18 @@ def test_a_sync0_cycle_the_drive_refuses_is_a_conflict_with_its_al_status_code(
     # What the link says when the drive itself refuses the cycle (a unit whose cycles differ
     # from its profile's): the AL status code, what to do, and the error acknowledged, so
     # that FreeRun works at once.
-    drive = SimulatedDrive(ProfileCatalog().get("hiwin-e"), 1)
-    runner = SimRunner([drive])
-    runner.start()
-    with EthercatSlaveProcess([drive], veth.slave):
+    async def body(link: EthercatLink, drive: SimulatedDrive) -> None:
+        link.configure_sync("dc", 0.0011)
+        with pytest.raises(ConflictError) as info:
+            await link.nmt("safeop")
+        assert "0x0035" in info.value.message
+        assert info.value.hint and "SYNC0 cycle of 1.1 ms" in info.value.hint
+        link.configure_sync("freerun", 0.001)
+        await link.nmt("safeop")
+        assert await link.network_state() == "safeop"
+        assert drive.read(0x1C32, 1) == 0
 
-        async def run() -> None:
-            link = EthercatLink(
-                LinkParams(interface="ethercat", channel=veth.master, node_id=1, timeout=0.5)
-            )
-            async with link:
-                link.configure_sync("dc", 0.0011)
-                with pytest.raises(ConflictError) as info:
-                    await link.nmt("safeop")
-                assert "0x0035" in info.value.message
-                assert info.value.hint and "SYNC0 cycle of 1.1 ms" in info.value.hint
-                link.configure_sync("freerun", 0.001)
-                await link.nmt("safeop")
-                assert await link.network_state() == "safeop"
-                assert drive.read(0x1C32, 1) == 0
-
-        try:
-            asyncio.run(run())
-        finally:
-            runner.stop()
+    _with_link(veth, body)
 
 
 @pytest.fixture
@@ -370,22 +368,7 @@ def test_cyclic_data_starts_again_and_again_and_on_each_new_mapping(
     assert len(templates) >= 3
     for t in templates:
         body = client.post(f"/api/v1/sessions/{SID}/pdo/templates/{t['id']}").json()
-        layout = {
-            "pdos": [
-                {
-                    "direction": p["direction"],
-                    "number": p["number"],
-                    "entries": [
-                        {"index": e["index"], "subindex": e["subindex"], "bits": e["bits"]}
-                        for e in p["entries"]
-                    ],
-                }
-                for p in body["pdos"]
-            ],
-            "telegram": body["telegram"],
-            "assignment": body["assignment"],
-        }
-        r = client.post(f"/api/v1/sessions/{SID}/pdo/apply", json=layout, headers=A)
+        r = client.post(f"/api/v1/sessions/{SID}/pdo/apply", json=layout_of(body), headers=A)
         assert r.status_code == 200 and r.json()["ok"], r.text
         tx = [
             f"0x{e['index']:04X}:{e['subindex']:02X}"

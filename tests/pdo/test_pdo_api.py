@@ -28,6 +28,7 @@ from servodesk.domain import pdo as pdomod
 from servodesk.domain.address import ObjectAddress
 from servodesk.settings import Settings
 from servodesk.sim.engine import SimAbort
+from tests.pdo.support import layout_of
 
 pytestmark = pytest.mark.asyncio(loop_scope="module")
 
@@ -204,22 +205,7 @@ async def test_every_template_applies_verifies_and_goes_on_the_bus(rig: Rig, fam
         assert proposal.status_code == 200, proposal.text
         body = proposal.json()
         assert not body["problems"], (t["id"], body["problems"])
-        layout = {
-            "pdos": [
-                {
-                    "direction": p["direction"],
-                    "number": p["number"],
-                    "entries": [
-                        {"index": e["index"], "subindex": e["subindex"], "bits": e["bits"]}
-                        for e in p["entries"]
-                    ],
-                }
-                for p in body["pdos"]
-            ],
-            "telegram": body["telegram"],
-            "assignment": body["assignment"],
-        }
-        r = await rig.client.post(f"/api/v1/sessions/{s}/pdo/apply", json=layout)
+        r = await rig.client.post(f"/api/v1/sessions/{s}/pdo/apply", json=layout_of(body))
         assert r.status_code == 200, r.text
         rep = r.json()
         assert rep["ok"] and rep["verified"], (t["id"], rep["error"], rep["failed_step"])
