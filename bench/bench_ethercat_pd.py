@@ -11,7 +11,10 @@ In alternating rounds within one process:
 
 Then ``paced_1ms``: the cyclic exchange's own cycle thread (services/cyclic.py SyncProducer)
 at a 1 ms period for ``--seconds``: cycles per second, median and 99th percentile interval
-between the inputs' arrivals. Needs root. Prints a summary, or JSON with ``--json``.
+between the inputs' arrivals. Then the same slave in DC mode (SYNC0 at 1 ms, docs/ethercat.md
+"Synchronisation": each exchange also carries the drift control datagram, FRMW of the system
+time): ``servodesk_dc`` in alternating rounds with FreeRun ones of the same process, its
+ratio to them, and ``paced_1ms_dc``. Needs root. Prints a summary, or JSON with ``--json``.
 
     python bench/bench_ethercat_pd.py [--rounds 5] [--seconds 1.0] [--json]
 """
@@ -62,6 +65,7 @@ def ours(transport: EthercatCyclic, seconds: float) -> float:
 def paced(transport: EthercatCyclic, seconds: float, period: float = 0.001) -> dict[str, float]:
     """The cycle loop of services/cyclic.py SyncProducer, on its own, at ``period``."""
     arrivals: list[float] = []
+    missed = transport.missed
     transport.subscribe(0x181, lambda data, t: arrivals.append(t))
     next_t = time.perf_counter()
     end = next_t + seconds
@@ -76,7 +80,7 @@ def paced(transport: EthercatCyclic, seconds: float, period: float = 0.001) -> d
         "cycles_per_s": len(arrivals) / seconds,
         "interval_median_ms": float(np.median(d) * 1000),
         "interval_p99_ms": float(np.percentile(d, 99) * 1000),
-        "missed_wkc": float(transport.missed),
+        "missed_wkc": float(transport.missed - missed),
     }
 
 
@@ -97,12 +101,24 @@ async def main(rounds: int, seconds: float) -> dict[str, Any]:
                     p_runs.append(plain(link, seconds))
                     s_runs.append(ours(transport, seconds))
                 pacing = paced(transport, seconds)
+                # DC SYNC0 at 1 ms, against FreeRun rounds taken alternately (the slave goes
+                # back to PRE-OP for each change of synchronisation).
+                f_runs, d_runs = [], []
+                for _ in range(rounds):
+                    for mode, runs in (("freerun", f_runs), ("dc", d_runs)):
+                        link.configure_sync(mode, 0.001)
+                        await link.nmt("start")
+                        runs.append(ours(transport, seconds))
+                link.configure_sync("dc", 0.001)
+                await link.nmt("start")
+                pacing_dc = paced(transport, seconds)
                 await link.nmt("preop")
             finally:
                 await link.close()
         finally:
             sim.stop()
     p, s = statistics.median(p_runs), statistics.median(s_runs)
+    f, d = statistics.median(f_runs), statistics.median(d_runs)
     return {
         "benchmark": "ethercat_process_data",
         "rounds": rounds,
@@ -112,6 +128,10 @@ async def main(rounds: int, seconds: float) -> dict[str, Any]:
         "servodesk": {"cycles_per_s": s, "us_per_cycle": 1e6 / s, "runs": s_runs},
         "ratio_servodesk_to_plain": s / p,
         "paced_1ms": pacing,
+        "servodesk_freerun": {"cycles_per_s": f, "us_per_cycle": 1e6 / f, "runs": f_runs},
+        "servodesk_dc": {"cycles_per_s": d, "us_per_cycle": 1e6 / d, "runs": d_runs},
+        "ratio_dc_to_freerun": d / f,
+        "paced_1ms_dc": pacing_dc,
     }
 
 
@@ -129,4 +149,9 @@ if __name__ == "__main__":
             f"plain pysoem {out['plain_pysoem']['cycles_per_s']:.0f} cycles/s, servodesk "
             f"{out['servodesk']['cycles_per_s']:.0f} cycles/s "
             f"(ratio {out['ratio_servodesk_to_plain']:.2f}); paced at 1 ms: {out['paced_1ms']}"
+        )
+        print(
+            f"DC SYNC0 {out['servodesk_dc']['cycles_per_s']:.0f} cycles/s, FreeRun "
+            f"{out['servodesk_freerun']['cycles_per_s']:.0f} (ratio "
+            f"{out['ratio_dc_to_freerun']:.2f}); paced at 1 ms in DC: {out['paced_1ms_dc']}"
         )
