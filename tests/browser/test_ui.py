@@ -259,6 +259,7 @@ def test_a_new_profinet_drive_is_found_named_addressed_and_opened_by_dcp(page: P
         expect(row.get_by_test_id("dcp-name")).to_have_text("lecsn-t-1")
         expect(row.get_by_test_id("dcp-ip")).to_contain_text("127.0.0.1/255.255.255.0")
         expect(row).to_contain_text("010Ch / 0010h")
+        expect(row.get_by_test_id("dcp-profile")).to_have_text("profile lecsn-t")
 
         row.get_by_test_id("dcp-flash").click()
         expect(page.get_by_test_id("notice-info").last).to_contain_text(f"LED of {mac} flashing")

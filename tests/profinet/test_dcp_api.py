@@ -51,6 +51,7 @@ def test_find_rename_readdress_and_open_a_session_there(app: tuple[TestClient, A
     assert (dev["name_of_station"], dev["ip"], dev["session_id"]) == ("lecsn-t-1", host, SID)
     assert dev["channel"] == info["channel"]  # the twin's free port, not 34964
     assert (dev["vendor_id"], dev["device_id"], dev["roles"]) == (0x010C, 0x0010, ["IO device"])
+    assert dev["profile_id"] == "lecsn-t"  # its vendor and device ID are the profile's
     mac = dev["mac"]
 
     # With servodesk's own session open the drive is in operation: 409 with what to do.
@@ -97,6 +98,28 @@ def test_find_rename_readdress_and_open_a_session_there(app: tuple[TestClient, A
     # Flashing the LED changes nothing on the device: no audit entry.
     audit = [a for a in client.get("/api/v1/audit").json() if a["session"] == f"dcp:{nic}"]
     assert len(audit) == 2
+
+
+def test_an_address_the_rotary_switches_set_is_refused_with_what_to_do(
+    app: tuple[TestClient, Any],
+) -> None:
+    # SW2/SW3 other than 00h set the LECSN-T's IP address (004 §20.1.3(4)): the device answers
+    # BlockError 5, and the hint is its profile's (the dcp quirk's refusals), not the link's.
+    client, sim = app
+    nic = sim.dcp.master
+    assert client.delete(f"/api/v1/sessions/{SID}").status_code == 204
+    sim.profinet[0].station.address_switch = 0x10
+    [dev] = client.post("/api/v1/dcp/identify", json={"nic": nic, "timeout": 0.2}).json()["devices"]
+    new = {"ip": "10.79.0.5", "netmask": "255.255.255.0"}
+    r = client.post("/api/v1/dcp/set", json={"nic": nic, "mac": dev["mac"], "ip": new})
+    assert r.status_code == 409, r.text
+    body = r.json()
+    assert (body["protocol"], body["code"]) == ("dcp", 5)
+    assert body["hint"].startswith("SMC LECSN-T servo amplifier"), body["hint"]
+    assert "SW2/SW3" in body["hint"] and "004 §20.1.3(4)" in body["hint"]
+    # The name is still the master's to set.
+    r = client.post("/api/v1/dcp/set", json={"nic": nic, "mac": dev["mac"], "name_of_station": "b"})
+    assert r.status_code == 200, r.text
 
 
 #: (path, body, status, field, text of the error)
@@ -157,12 +180,13 @@ def test_the_cli_finds_and_names_a_device_served_by_servodesk_sim() -> None:
             done = _cli("dcp", "identify", "--nic", pair.master, "--timeout", "0.3", "--json")
             assert done.returncode == 0, done.stderr
             [dev] = json.loads(done.stdout)["devices"]
-            assert dev["name_of_station"] == "lecsn-t-1"
+            assert (dev["name_of_station"], dev["profile_id"]) == ("lecsn-t-1", "lecsn-t")
             done = _cli("dcp", "set", "--nic", pair.master, "--mac", dev["mac"], "--name", "cell-3")
             assert done.returncode == 0, done.stderr
             assert "set station name cell-3" in done.stdout
             done = _cli("dcp", "identify", "--nic", pair.master, "--timeout", "0.3")
             assert done.returncode == 0 and "cell-3" in done.stdout, done.stdout
+            assert "profile lecsn-t" in done.stdout
             # Bad input: exit 2 with the rule, nothing sent.
             for args, text in (
                 (["set", "--mac", dev["mac"], "--name", "Cell"], "capital letters"),

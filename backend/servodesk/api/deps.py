@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Annotated, Any
 
 from fastapi import Depends, Request
@@ -24,6 +24,8 @@ class AppState:
     backups: BackupService
     restores: RestoreService
     sim: Any = None
+    #: The PROFINET vendor and device ID each MAC answered the last DCP Identify with.
+    dcp_seen: dict[str, tuple[int | None, int | None]] = field(default_factory=dict)
 
 
 def get_state(request: Request) -> AppState:

@@ -256,6 +256,10 @@ class DcpDeviceOut(BaseModel):
         description="The channel to open a session with (its IP address; with the port where "
         "it is not 34964, as for serve --sim's twin); null without an address"
     )
+    profile_id: str | None = Field(
+        default=None,
+        description="The profile whose dcp quirk names this vendor and device ID, if any",
+    )
 
 
 class DcpIdentifyOut(BaseModel):

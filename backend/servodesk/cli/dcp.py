@@ -83,8 +83,12 @@ def run_identify(args: argparse.Namespace) -> int:
         dcp.check_name_of_station(args.name)
     with DcpClient(args.nic) as client:
         scan = client.identify(args.timeout, name=args.name)
+    profiles = _profiles(scan.devices)
     if args.json:
-        out = {"nic": args.nic, "devices": [asdict(d) for d in scan.devices]}
+        out = {
+            "nic": args.nic,
+            "devices": [{**asdict(d), "profile_id": profiles.get(d.mac)} for d in scan.devices],
+        }
         out["malformed"] = scan.malformed
         print(json.dumps(out, indent=2))
         return 0
@@ -100,10 +104,29 @@ def run_identify(args: argparse.Namespace) -> int:
             f"{d.mac}  {d.name_of_station or '(no name)':24}  "
             f"{d.ip or '-'}/{d.netmask or '-'} gw {d.gateway or '-'} ({d.ip_origin or '-'})  "
             f"vendor/device {ids}  {d.type_of_station or ''}"
+            + (f"  profile {profiles[d.mac]}" if d.mac in profiles else "")
         )
     if scan.malformed:
         print(f"{scan.malformed} answer(s) could not be read", file=sys.stderr)
     return 0
+
+
+def _profiles(devices: list[dcp.Device]) -> dict[str, str]:
+    """MAC -> the profile whose ``dcp`` quirk names the device's vendor and device ID (the
+    profiles are loaded only when some device answered with them)."""
+    if not any(d.vendor_id is not None for d in devices):
+        return {}
+    from servodesk.cli.backup import _catalog
+    from servodesk.domain.profile_loader import default_profile_dirs
+    from servodesk.settings import Settings
+
+    catalog = _catalog(tuple(default_profile_dirs(Settings().profile_paths())))
+    out: dict[str, str] = {}
+    for d in devices:
+        p = catalog.match_dcp(d.vendor_id, d.device_id)
+        if p is not None:
+            out[d.mac] = p.id
+    return out
 
 
 def _send(args: argparse.Namespace, blocks: tuple[dcp.Block, ...], what: str) -> int:

@@ -430,3 +430,31 @@ class ProfileCatalog:
                 if best is None or score > best[0]:
                     best = (score, p)
         return best[1] if best else None
+
+    def match_dcp(self, vendor_id: int | None, device_id: int | None) -> DeviceProfile | None:
+        """The profile whose ``dcp`` quirk names this PROFINET vendor and device ID (what a
+        DCP Identify answers, the GSDML file's IDs)."""
+        if vendor_id is None or device_id is None:
+            return None
+        for p in self.all():
+            q = p.quirk("dcp")
+            if (
+                isinstance(q, dict)
+                and _int(q.get("vendor_id")) == vendor_id
+                and _int(q.get("device_id")) == device_id
+            ):
+                return p
+        return None
+
+
+def _int(v: object) -> int | None:
+    if isinstance(v, bool):
+        return None
+    if isinstance(v, int):
+        return v
+    if isinstance(v, str):
+        try:
+            return int(v, 0)
+        except ValueError:
+            return None
+    return None

@@ -179,8 +179,8 @@ class DcpClient:
 
 
 _HINTS = {
-    5: "the device keeps this setting for a reason of its own (a rotary switch or DHCP sets "
-    "the address: on the LECSN-T SW2/SW3 other than 00h, 004 §20.1.3)",
+    5: "the device keeps this setting for a reason of its own (an address switch or DHCP "
+    "sets it): see the drive's manual",
     6: "the device is in data exchange with its IO controller: stop the controller's "
     "connection (or close servodesk's session on it) and set it again",
 }

@@ -48,6 +48,10 @@ class DcpStation:
     flashes: int = 0
     #: Reset to factory modes carried out, in order.
     resets: list[int] = field(default_factory=list)
+    #: The address switches (the LECSN-T's axis rotary switches SW2/SW3): 00h lets the IO
+    #: controller (DCP) set the IP address; any other value sets it from the switches, and
+    #: a DCP Set of the IP suite is refused with BlockError 5 (004 §20.1.3(4)).
+    address_switch: int = 0
 
 
 def _ack_set(block: dcp.Block, error: int) -> dcp.Block:
@@ -190,6 +194,8 @@ class DcpResponder:
             return _ack_set(b, 5)
         qualifier, data = struct.unpack_from(">H", b.data)[0], b.data[2:]
         if key == (dcp.OPT_IP, dcp.SUB_IP):
+            if s.address_switch:
+                return _ack_set(b, 5)  # The switches set the address, not the master.
             if len(data) != 12:
                 return _ack_set(b, 5)
             suite = [str(ipaddress.IPv4Address(data[i : i + 4])) for i in (0, 4, 8)]

@@ -125,6 +125,8 @@ export interface DcpDevice {
   /** The channel to open a session with: its IP address (with the port where it is not
    * 34964, as for serve --sim's twin); null without an address. */
   channel: string | null;
+  /** The profile whose vendor and device ID these are (its `dcp` quirk), if any. */
+  profile_id?: string | null;
 }
 
 export interface DcpIdentifyResult {

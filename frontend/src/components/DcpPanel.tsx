@@ -186,7 +186,14 @@ export function DcpPanel({ defaultNic, onUse }: { defaultNic: string; onUse: (ch
                   <td className="mono">
                     {hex4(d.vendor_id)} / {hex4(d.device_id)}
                   </td>
-                  <td>{d.type_of_station ?? '—'}</td>
+                  <td>
+                    {d.type_of_station ?? '—'}
+                    {d.profile_id && (
+                      <div className="small muted" data-testid="dcp-profile" title="The profile whose vendor and device ID these are">
+                        profile {d.profile_id}
+                      </div>
+                    )}
+                  </td>
                   <td className="actions">
                     {d.session_id ? (
                       <button type="button" data-testid="dcp-go" onClick={() => navigate('overview', d.session_id)}>

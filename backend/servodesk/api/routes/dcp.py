@@ -30,7 +30,7 @@ from servodesk.api.schemas import (
 from servodesk.domain import dcp
 from servodesk.domain.pnio import RPC_PORT
 from servodesk.domain.udp_channel import parse_host_port
-from servodesk.errors import ServodeskError, ValidationError
+from servodesk.errors import ObjectAccessError, ServodeskError, ValidationError
 from servodesk.links.profinet_dcp import DcpClient
 
 router = APIRouter(prefix="/dcp", tags=["profinet"], responses=ERROR_RESPONSES)
@@ -83,6 +83,8 @@ async def dcp_identify(body: DcpIdentifyRequest, state: StateDep) -> DcpIdentify
     devices, malformed = await asyncio.to_thread(run)
     sessions = _sessions_by_address(state)
     ports = _simulated_ports(state)
+    for d in devices:
+        state.dcp_seen[d.mac] = (d.vendor_id, d.device_id)
     return DcpIdentifyOut(
         nic=body.nic,
         devices=[
@@ -92,12 +94,33 @@ async def dcp_identify(body: DcpIdentifyRequest, state: StateDep) -> DcpIdentify
                     "session_id": sessions.get((d.ip or "", ports.get(d.mac, RPC_PORT))),
                     "roles": list(d.roles),
                     "channel": _channel(d.ip, ports.get(d.mac)),
+                    "profile_id": _profile_id(state, d.vendor_id, d.device_id),
                 }
             )
             for d in devices
         ],
         malformed=malformed,
     )
+
+
+def _profile_id(state: StateDep, vendor_id: int | None, device_id: int | None) -> str | None:
+    p = state.catalog.match_dcp(vendor_id, device_id)
+    return p.id if p is not None else None
+
+
+def _with_profile_hint(state: StateDep, mac: str, exc: ObjectAccessError) -> ObjectAccessError:
+    """A device's DCP refusal (BlockError) with what its profile says to do about it
+    (the ``dcp`` quirk's ``refusals``), where the last Identify matched the MAC to one."""
+    ids = state.dcp_seen.get(mac)
+    profile = state.catalog.match_dcp(*ids) if ids is not None else None
+    quirk = profile.quirk("dcp") if profile is not None else None
+    refusals = quirk.get("refusals") if isinstance(quirk, dict) else None
+    hint = (
+        refusals.get(exc.code, refusals.get(str(exc.code))) if isinstance(refusals, dict) else None
+    )
+    if isinstance(hint, str) and profile is not None:
+        exc.hint = f"{profile.name}: {hint}"
+    return exc
 
 
 async def _set(
@@ -115,7 +138,12 @@ async def _set(
         with DcpClient(body.nic) as client:
             return client.set(mac, blocks)
 
-    acks = await asyncio.to_thread(run)
+    try:
+        acks = await asyncio.to_thread(run)
+    except ObjectAccessError as exc:
+        if exc.protocol != "dcp":
+            raise
+        raise _with_profile_hint(state, dcp.mac_text(mac), exc) from None
     log.info("DCP set on %s %s: %s", body.nic, body.mac, [(a.option, a.suboption) for a in acks])
     data = {(b.option, b.suboption): b.data for b in blocks}
     now = time.time()
