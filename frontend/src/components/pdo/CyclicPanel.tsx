@@ -137,7 +137,7 @@ export function CyclicPanel({
       </h2>
       <div className="bk-row">
         <label className="pdo-inline small muted">
-          SYNC period
+          {sync === 'dc' ? 'SYNC0 cycle' : 'SYNC period'}
           <NumberBox
             value={period}
             onChange={setPeriod}
