@@ -5,6 +5,7 @@ one LRW per cycle through the ESC's FMMUs (docs/ethercat.md, "Process data")."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -32,9 +33,12 @@ A = headers("A")
 SID = "hiwin-e-1"
 
 
-def test_soem_maps_the_assigned_pdos_and_exchanges_them_in_op(veth: VethPair) -> None:
+@contextlib.contextmanager
+def _soem(veth: VethPair) -> Iterator[tuple[Any, SimulatedDrive]]:
+    """A plain pysoem master on a line of one HIWIN twin (its ESC in a process of its own,
+    the drive stepped in real time, as SimulatedBus does), the line configured."""
     drive = SimulatedDrive(ProfileCatalog().get("hiwin-e"), 1)
-    runner = SimRunner([drive])  # steps the drive in real time, as SimulatedBus does
+    runner = SimRunner([drive])
     runner.start()
     with EthercatSlaveProcess([drive], veth.slave):
         m = pysoem.Master()
@@ -42,54 +46,59 @@ def test_soem_maps_the_assigned_pdos_and_exchanges_them_in_op(veth: VethPair) ->
         m.open(veth.master)
         try:
             assert m.config_init(release_gil=True) == 1
-            # The sizes SOEM read over CoE: the PDOs assigned in 1C12h / 1C13h.
-            assert m.config_map() == 13 + 23
-            s = m.slaves[0]
-            assert (len(s.output), len(s.input)) == (13, 23)
-            s.state = pysoem.SAFEOP_STATE
-            s.write_state()
-            assert s.state_check(pysoem.SAFEOP_STATE, 500_000) == pysoem.SAFEOP_STATE
-            m.send_processdata()
-            assert m.receive_processdata(2000) == m.expected_wkc == 3  # LRW: read 1 + write 2
-            s.state = pysoem.OP_STATE
-            s.write_state()
-            assert s.state_check(pysoem.OP_STATE, 500_000) == pysoem.OP_STATE
-            # 1600h starts with the controlword (6040h): Shutdown, then Switch on.
-            for cw in (0x06, 0x07):
-                s.output = cw.to_bytes(2, "little") + bytes(11)
-                deadline = time.monotonic() + 2
-                while time.monotonic() < deadline:
-                    m.send_processdata()
-                    m.receive_processdata(2000)
-                    if drive.read(0x6040) == cw:
-                        break
-                    time.sleep(0.002)
-                assert drive.read(0x6040) == cw
-            time.sleep(0.02)
-            m.send_processdata()
-            m.receive_processdata(2000)
-            # 1A00h carries the statusword (6041h) at bytes 2-3: "Switched on" (23h).
-            assert int.from_bytes(s.input[2:4], "little") & 0x6F == 0x23
-            assert drive.nmt_state == "operational"
-
-            # Enable, then stop the cycles: after the SyncManager watchdog (100 ms, the ESC's
-            # reset value) the slave falls back to SAFE-OP with AL status 001Bh, and the
-            # drive, whose power stage was on, faults with FF49h (AL.FB1): the axis stops.
-            s.output = (0x0F).to_bytes(2, "little") + bytes(11)
-            deadline = time.monotonic() + 2
-            while drive.statusword & 0x6F != 0x27 and time.monotonic() < deadline:
-                m.send_processdata()
-                m.receive_processdata(2000)
-                time.sleep(0.002)
-            assert drive.statusword & 0x6F == 0x27  # Operation enabled
-            time.sleep(0.4)
-            m.read_state()
-            assert (s.state, s.al_status) == (pysoem.SAFEOP_STATE | 0x10, 0x001B)
-            assert drive.error_code == 0xFF49 and drive.statusword & 0x08  # Fault
-            assert drive.nmt_state == "safeop"
+            yield m, drive
         finally:
             m.close()
             runner.stop()
+
+
+def test_soem_maps_the_assigned_pdos_and_exchanges_them_in_op(veth: VethPair) -> None:
+    with _soem(veth) as (m, drive):
+        # The sizes SOEM read over CoE: the PDOs assigned in 1C12h / 1C13h.
+        assert m.config_map() == 13 + 23
+        s = m.slaves[0]
+        assert (len(s.output), len(s.input)) == (13, 23)
+        s.state = pysoem.SAFEOP_STATE
+        s.write_state()
+        assert s.state_check(pysoem.SAFEOP_STATE, 500_000) == pysoem.SAFEOP_STATE
+        m.send_processdata()
+        assert m.receive_processdata(2000) == m.expected_wkc == 3  # LRW: read 1 + write 2
+        s.state = pysoem.OP_STATE
+        s.write_state()
+        assert s.state_check(pysoem.OP_STATE, 500_000) == pysoem.OP_STATE
+        # 1600h starts with the controlword (6040h): Shutdown, then Switch on.
+        for cw in (0x06, 0x07):
+            s.output = cw.to_bytes(2, "little") + bytes(11)
+            deadline = time.monotonic() + 2
+            while time.monotonic() < deadline:
+                m.send_processdata()
+                m.receive_processdata(2000)
+                if drive.read(0x6040) == cw:
+                    break
+                time.sleep(0.002)
+            assert drive.read(0x6040) == cw
+        time.sleep(0.02)
+        m.send_processdata()
+        m.receive_processdata(2000)
+        # 1A00h carries the statusword (6041h) at bytes 2-3: "Switched on" (23h).
+        assert int.from_bytes(s.input[2:4], "little") & 0x6F == 0x23
+        assert drive.nmt_state == "operational"
+
+        # Enable, then stop the cycles: after the SyncManager watchdog (100 ms, the ESC's
+        # reset value) the slave falls back to SAFE-OP with AL status 001Bh, and the
+        # drive, whose power stage was on, faults with FF49h (AL.FB1): the axis stops.
+        s.output = (0x0F).to_bytes(2, "little") + bytes(11)
+        deadline = time.monotonic() + 2
+        while drive.statusword & 0x6F != 0x27 and time.monotonic() < deadline:
+            m.send_processdata()
+            m.receive_processdata(2000)
+            time.sleep(0.002)
+        assert drive.statusword & 0x6F == 0x27  # Operation enabled
+        time.sleep(0.4)
+        m.read_state()
+        assert (s.state, s.al_status) == (pysoem.SAFEOP_STATE | 0x10, 0x001B)
+        assert drive.error_code == 0xFF49 and drive.statusword & 0x08  # Fault
+        assert drive.nmt_state == "safeop"
 
 
 def _until(ok: Any, timeout: float = 2.0) -> None:
@@ -106,61 +115,50 @@ EPOCH_2000 = 946_684_800
 def test_soem_sets_up_the_distributed_clocks_and_sync0_at_a_cycle_the_drive_takes(
     veth: VethPair,
 ) -> None:
-    drive = SimulatedDrive(ProfileCatalog().get("hiwin-e"), 1)
-    runner = SimRunner([drive])
-    runner.start()
-    with EthercatSlaveProcess([drive], veth.slave):
-        m = pysoem.Master()
-        m.always_release_gil = True
-        m.open(veth.master)
-        try:
-            assert m.config_init(release_gil=True) == 1
-            # SOEM's ecx_configdc: the ESC reports DC, its receive times are latched and its
-            # system time offset set, so that its clock reads the master's (ns since 2000).
-            assert m.config_dc()
-            s = m.slaves[0]
-            system = int.from_bytes(s._fprd(0x0910, 8, 2000), "little")
-            assert abs(system / 1e9 - (time.time() - EPOCH_2000)) < 0.5
-            time.sleep(0.05)
-            later = int.from_bytes(s._fprd(0x0910, 8, 2000), "little")
-            assert 0.04 < (later - system) / 1e9 < 0.5  # and it runs
-            # HIWIN 000 §2.5: SYNC0 in 250 µs steps from 250 µs to 4 ms. 300 µs is refused at
-            # SAFE-OP (which config_map requests) with AL status 0035h (invalid sync cycle
-            # time).
-            s.dc_sync(True, 300_000)
-            assert m.config_map() == 13 + 23
-            assert s.state_check(pysoem.SAFEOP_STATE, 500_000) == pysoem.PREOP_STATE
-            m.read_state()
-            assert (s.state, s.al_status) == (pysoem.PREOP_STATE | 0x10, 0x0035)
-            s.state = pysoem.PREOP_STATE | 0x10  # acknowledge
-            s.write_state()
-            # 1 ms is taken: the drive reports DC mode with that cycle (1C32h / 1C33h) and
-            # sets the interpolation period from it (60C2h: 10 x 10^-4 s, HIWIN 000 §3.2).
-            s.dc_sync(True, 1_000_000)
-            s.state = pysoem.SAFEOP_STATE
-            s.write_state()
-            assert s.state_check(pysoem.SAFEOP_STATE, 500_000) == pysoem.SAFEOP_STATE
-            _until(lambda: drive.read(0x1C32, 1) == 2)  # the ESC process tells the drive
-            assert (drive.read(0x1C32, 1), drive.read(0x1C32, 2)) == (2, 1_000_000)
-            assert (drive.read(0x1C33, 1), drive.read(0x1C33, 2)) == (2, 1_000_000)
-            assert (drive.read(0x60C2, 1), drive.read(0x60C2, 2)) == (10, -4)
-            # Each exchange now carries the drift control datagram (FRMW of the system time):
-            # the master's DC time is the slave's clock.
-            m.send_processdata()
-            assert m.receive_processdata(2000) == m.expected_wkc
-            assert abs(m.dc_time / 1e9 - (time.time() - EPOCH_2000)) < 0.5
-            # Back to FreeRun: SYNC0 off in PRE-OP, and SAFE-OP says so.
-            s.state = pysoem.PREOP_STATE
-            s.write_state()
-            s.state_check(pysoem.PREOP_STATE, 500_000)
-            s.dc_sync(False, 0)
-            s.state = pysoem.SAFEOP_STATE
-            s.write_state()
-            assert s.state_check(pysoem.SAFEOP_STATE, 500_000) == pysoem.SAFEOP_STATE
-            _until(lambda: drive.read(0x1C32, 1) == 0)
-        finally:
-            m.close()
-            runner.stop()
+    with _soem(veth) as (m, drive):
+        # SOEM's ecx_configdc: the ESC reports DC, its receive times are latched and its
+        # system time offset set, so that its clock reads the master's (ns since 2000).
+        assert m.config_dc()
+        s = m.slaves[0]
+        system = int.from_bytes(s._fprd(0x0910, 8, 2000), "little")
+        assert abs(system / 1e9 - (time.time() - EPOCH_2000)) < 0.5
+        time.sleep(0.05)
+        later = int.from_bytes(s._fprd(0x0910, 8, 2000), "little")
+        assert 0.04 < (later - system) / 1e9 < 0.5  # and it runs
+        # HIWIN 000 §2.5: SYNC0 in 250 µs steps from 250 µs to 4 ms. 300 µs is refused at
+        # SAFE-OP (which config_map requests) with AL status 0035h (invalid sync cycle
+        # time).
+        s.dc_sync(True, 300_000)
+        assert m.config_map() == 13 + 23
+        assert s.state_check(pysoem.SAFEOP_STATE, 500_000) == pysoem.PREOP_STATE
+        m.read_state()
+        assert (s.state, s.al_status) == (pysoem.PREOP_STATE | 0x10, 0x0035)
+        s.state = pysoem.PREOP_STATE | 0x10  # acknowledge
+        s.write_state()
+        # 1 ms is taken: the drive reports DC mode with that cycle (1C32h / 1C33h) and
+        # sets the interpolation period from it (60C2h: 10 x 10^-4 s, HIWIN 000 §3.2).
+        s.dc_sync(True, 1_000_000)
+        s.state = pysoem.SAFEOP_STATE
+        s.write_state()
+        assert s.state_check(pysoem.SAFEOP_STATE, 500_000) == pysoem.SAFEOP_STATE
+        _until(lambda: drive.read(0x1C32, 1) == 2)  # the ESC process tells the drive
+        assert (drive.read(0x1C32, 1), drive.read(0x1C32, 2)) == (2, 1_000_000)
+        assert (drive.read(0x1C33, 1), drive.read(0x1C33, 2)) == (2, 1_000_000)
+        assert (drive.read(0x60C2, 1), drive.read(0x60C2, 2)) == (10, -4)
+        # Each exchange now carries the drift control datagram (FRMW of the system time):
+        # the master's DC time is the slave's clock.
+        m.send_processdata()
+        assert m.receive_processdata(2000) == m.expected_wkc
+        assert abs(m.dc_time / 1e9 - (time.time() - EPOCH_2000)) < 0.5
+        # Back to FreeRun: SYNC0 off in PRE-OP, and SAFE-OP says so.
+        s.state = pysoem.PREOP_STATE
+        s.write_state()
+        s.state_check(pysoem.PREOP_STATE, 500_000)
+        s.dc_sync(False, 0)
+        s.state = pysoem.SAFEOP_STATE
+        s.write_state()
+        assert s.state_check(pysoem.SAFEOP_STATE, 500_000) == pysoem.SAFEOP_STATE
+        _until(lambda: drive.read(0x1C32, 1) == 0)
 
 
 def _with_link(veth: VethPair, body: Callable[[EthercatLink, SimulatedDrive], Any]) -> None:
