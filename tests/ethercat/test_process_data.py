@@ -25,7 +25,13 @@ from servodesk.sim.engine import SimulatedDrive
 from servodesk.sim.ethercat_slave import EthercatSlaveProcess
 from servodesk.sim.runner import SimRunner
 from servodesk.sim.veth import VethPair
-from tests.operation.support import Heartbeats, headers, take_and_enable, wait_motion
+from tests.operation.support import (
+    Heartbeats,
+    headers,
+    operation_app,
+    take_and_enable,
+    wait_motion,
+)
 from tests.pdo.support import layout_of
 
 pytestmark = pytest.mark.timeout(90)
@@ -217,18 +223,8 @@ def test_a_sync0_cycle_the_drive_refuses_is_a_conflict_with_its_al_status_code(
 
 @pytest.fixture
 def app(channel: str, tmp_path: Path) -> Iterator[tuple[TestClient, Any]]:
-    s = Settings(
-        sim=True,
-        sim_channel=channel,
-        sim_profiles="hiwin-e",
-        sim_ethercat=True,
-        data_dir=tmp_path,
-        deadman_ms=1000,
-        viewer_port=0,
-    )
-    application = create_app(s)
-    with TestClient(application) as client:
-        yield client, application.state.servodesk.sim
+    with operation_app(channel, tmp_path, "hiwin-e", sim_ethercat=True) as pair:
+        yield pair
 
 
 def test_the_pdo_page_runs_cyclic_data_over_ethercat(app: tuple[TestClient, Any]) -> None:

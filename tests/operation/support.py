@@ -85,9 +85,14 @@ def is_stop(word: int) -> bool:
 
 @contextmanager
 def operation_app(
-    channel: str, tmp_path: Any, profiles: str = "cia402-generic", deadman_ms: int = 1000
+    channel: str,
+    tmp_path: Any,
+    profiles: str = "cia402-generic",
+    deadman_ms: int = 1000,
+    **settings: Any,
 ) -> Iterator[tuple[TestClient, Any]]:
     """A TestClient on an app that simulates ``profiles``; yields (client, simulated bus).
+    ``settings``: further Settings fields (``sim_ethercat``, ``sim_dcp``, ...).
 
     Tests that are not about the dead-man give it a second, so that a starved heartbeat
     thread on a busy 2-core machine does not stop their motion.
@@ -99,6 +104,7 @@ def operation_app(
         data_dir=tmp_path,
         deadman_ms=deadman_ms,
         viewer_port=0,
+        **settings,
     )
     app = create_app(s)
     with TestClient(app) as client:

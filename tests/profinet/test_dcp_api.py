@@ -15,9 +15,8 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
-from servodesk.api.app import create_app
-from servodesk.settings import Settings
 from servodesk.sim.veth import create_veth
+from tests.operation.support import operation_app
 
 pytestmark = pytest.mark.timeout(90)
 SID = "lecsn-t-1"
@@ -26,17 +25,8 @@ MAC = "00:30:11:0a:0b:0c"
 
 @pytest.fixture
 def app(channel: str, tmp_path: Path) -> Iterator[tuple[TestClient, Any]]:
-    s = Settings(
-        sim=True,
-        sim_channel=channel,
-        sim_profiles="lecsn-t",
-        sim_dcp=True,
-        data_dir=tmp_path,
-        viewer_port=0,
-    )
-    application = create_app(s)
-    with TestClient(application) as client:
-        yield client, application.state.servodesk.sim
+    with operation_app(channel, tmp_path, "lecsn-t", sim_dcp=True) as pair:
+        yield pair
 
 
 def test_find_rename_readdress_and_open_a_session_there(app: tuple[TestClient, Any]) -> None:

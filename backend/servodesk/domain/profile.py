@@ -853,6 +853,14 @@ class DeviceProfile(BaseModel):
                 return q.value
         return default
 
+    def dc_cycles_ns(self) -> tuple[int, int, int] | None:
+        """(min, max, step) of the SYNC0 cycle the drive takes, in ns (quirk
+        ``dc_cycle_time_ns``; HIWIN 000 §2.5); None where the profile names none."""
+        q = self.quirk("dc_cycle_time_ns")
+        if not isinstance(q, dict):
+            return None
+        return int(q["min"]), int(q["max"]), int(q["step"])
+
     def error(self, table: str, code: int) -> ErrorEntry | None:
         return self._errors.get((table, code))
 

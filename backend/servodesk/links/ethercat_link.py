@@ -396,7 +396,7 @@ class EthercatLink(DriveLink):
                     )
                 shared.dc = True
             slave.dc_sync(True, cycle)
-        elif self._applied[0] == "dc" or shared.dc:
+        elif shared.dc:
             slave.dc_sync(False, 0)
 
     def _nmt(self, command: str) -> None:

@@ -459,18 +459,9 @@ def sync_modes(session: Session) -> list[str]:
     link has distributed clocks (EtherCAT) and the profile says which SYNC0 cycles the drive
     takes (quirk ``dc_cycle_time_ns``)."""
     modes = list(getattr(session.link, "sync_modes", ("freerun",)))
-    if "dc" in modes and dc_cycles(session) is None:
+    if "dc" in modes and session.profile.dc_cycles_ns() is None:
         modes.remove("dc")
     return modes
-
-
-def dc_cycles(session: Session) -> tuple[int, int, int] | None:
-    """(min, max, step) of the SYNC0 cycle the drive takes, in ns (the profile's
-    ``dc_cycle_time_ns``); None where it says nothing."""
-    q = session.profile.quirk("dc_cycle_time_ns")
-    if not isinstance(q, dict):
-        return None
-    return int(q["min"]), int(q["max"]), int(q["step"])
 
 
 def _check_sync(session: Session, sync: str, period: float) -> None:
@@ -489,7 +480,7 @@ def _check_sync(session: Session, sync: str, period: float) -> None:
             field="sync",
             hint="use freerun",
         )
-    cycles = dc_cycles(session)
+    cycles = session.profile.dc_cycles_ns()
     if cycles is None:
         raise ConflictError(
             f"the {session.profile.name} profile names no SYNC0 cycle the drive takes",
@@ -598,7 +589,7 @@ def _with_offer(session: Session, status: dict[str, Any]) -> dict[str, Any]:
     """``status`` with what the session offers: its synchronisations and the drive's
     SYNC0 cycles (the PDO page shows the choice from any answer, start and stop too)."""
     status["sync_modes"] = sync_modes(session)
-    cycles = dc_cycles(session) if "dc" in status["sync_modes"] else None
+    cycles = session.profile.dc_cycles_ns() if "dc" in status["sync_modes"] else None
     status["dc_cycle_ns"] = list(cycles) if cycles is not None else None
     return status
 

@@ -69,9 +69,6 @@ def sii_from_drive(drive: SimulatedDrive, mailbox_size: int) -> ec.SiiInfo:
         name = drive.read_bytes(0x1008, 0).decode("ascii", "replace").rstrip("\x00")
     except SimAbort:
         name = drive.profile.name
-    # The SYNC0 cycles the profile says the drive takes (HIWIN 000 §2.5, 1C32h:02 range).
-    dc = drive.profile.quirk("dc_cycle_time_ns")
-    dc_cycle = (int(dc["min"]), int(dc["max"]), int(dc["step"])) if isinstance(dc, dict) else None
     return ec.SiiInfo(
         vendor_id=u32(0x1018, 1),
         product_code=u32(0x1018, 2),
@@ -80,7 +77,8 @@ def sii_from_drive(drive: SimulatedDrive, mailbox_size: int) -> ec.SiiInfo:
         name=name,
         mailbox_out=(MAILBOX_START, mailbox_size),
         mailbox_in=(MAILBOX_START + mailbox_size, mailbox_size),
-        dc_cycle_ns=dc_cycle,
+        # The SYNC0 cycles the profile says the drive takes (HIWIN 000 §2.5, 1C32h:02 range).
+        dc_cycle_ns=drive.profile.dc_cycles_ns(),
     )
 
 

@@ -117,6 +117,7 @@ export function CyclicPanel({
   const periodChanged = running && (status?.sync_period_ms !== period || (status?.sync ?? 'freerun') !== sync);
   const cycleProblem = sync === 'dc' ? dcCycleProblem(period, status?.dc_cycle_ns) : null;
   const unavailable = status?.unavailable ?? null;
+  const clock = syncText(status?.sync, status?.sync_period_ms);
   const rates = [...(status?.rx_pdos ?? []), ...(status?.tx_pdos ?? [])];
   return (
     <section className="card" data-testid="pdo-cyclic-card">
@@ -192,9 +193,7 @@ export function CyclicPanel({
         {status && (
           <span className="small" data-testid="pdo-cyclic-stats">
             <span className="mono">{status.frames_per_s.toFixed(0)}</span> frames/s
-            {syncText(status.sync, status.sync_period_ms) ? (
-              <span data-testid="pdo-cyclic-sync-text"> · {syncText(status.sync, status.sync_period_ms)}</span>
-            ) : null}{' '}
+            {clock ? <span data-testid="pdo-cyclic-sync-text"> · {clock}</span> : null}{' '}
             ·{' '}
             <span className={status.decode_errors ? 'pdo-over-text' : ''}>
               <span className="mono">{status.decode_errors}</span> decode errors
