@@ -84,6 +84,7 @@ from servodesk.sim.homing import HomingProcedure, SwitchLayout
 from servodesk.sim.onetouch import OneTouchTuning
 from servodesk.sim.pdo import pdo_kind
 from servodesk.sim.plant import Plant, PlantParams
+from servodesk.sim.profile_position import CONTROL_PERIOD_S, pp_step
 from servodesk.sim.recorder import Recorder
 from servodesk.sim.servo import POSITION, TORQUE, VELOCITY, ServoGains, ServoLoop
 from servodesk.sim.siggen import (
@@ -280,7 +281,7 @@ def _norm(name: str) -> str:
 class SimulatedDrive:
     """One simulated CiA 402 axis, built from a device profile."""
 
-    CONTROL_PERIOD = 1e-3
+    CONTROL_PERIOD = CONTROL_PERIOD_S
 
     def __init__(
         self,
@@ -1436,15 +1437,24 @@ class SimulatedDrive:
         return False
 
     def _pp_generate(self) -> None:
-        """Trapezoidal profile toward ``_pp_target`` (6081h, 6083h, 6084h, limited by 607Fh)."""
-        T = self._T
-        e = self._pp_target - self._dp
-        v = self._dv
-        dec = float(self._c[K_PROFILE_DEC])
-        if -0.5 <= e <= 0.5 and -dec * T <= v <= dec * T:
-            self._dp = self._pp_target
-            self._dv = 0.0
-            self._da = 0.0
+        """Trapezoidal profile toward ``_pp_target`` (6081h, 6083h, 6084h, limited by 607Fh):
+        one step of :func:`~servodesk.sim.profile_position.pp_step`."""
+        vmax = float(self._c[K_PROFILE_VEL])
+        lim = self._c[K_MAX_PROFILE_VEL]
+        if lim:
+            vmax = min(vmax, float(lim))
+        vmax = min(vmax, self._vmax_sim)
+        s = pp_step(
+            self._dp,
+            self._dv,
+            self._pp_target,
+            vmax,
+            float(self._c[K_PROFILE_ACC]),
+            float(self._c[K_PROFILE_DEC]),
+            self._T,
+        )
+        self._dp, self._dv, self._da = s.dp, s.dv, s.da
+        if s.done:
             self._pp_done = True
             if self._pp_buffer is not None:
                 self._pp_target = self._pp_buffer
@@ -1452,38 +1462,6 @@ class SimulatedDrive:
                 self._pp_done = False
                 self._reached = False
                 self._win_time = 0.0
-            return
-        vmax = float(self._c[K_PROFILE_VEL])
-        lim = self._c[K_MAX_PROFILE_VEL]
-        if lim:
-            vmax = min(vmax, float(lim))
-        vmax = min(vmax, self._vmax_sim)
-        acc = float(self._c[K_PROFILE_ACC])
-        # Discrete braking curve: the speed from which stepping down by dec*T per cycle stops
-        # exactly at the target (v²/2a + vT/2 = distance).
-        h = 0.5 * dec * T
-        vb = -h + math.sqrt(h * h + 2.0 * dec * abs(e))
-        vdes = min(vmax, vb)
-        if e < 0:
-            vdes = -vdes
-        rate = acc if abs(vdes) > abs(v) and v * vdes >= 0.0 else dec
-        dv = vdes - v
-        lim_dv = rate * T
-        if dv > lim_dv:
-            dv = lim_dv
-        elif dv < -lim_dv:
-            dv = -lim_dv
-        v += dv
-        step = v * T
-        if (step >= e > 0) or (step <= e < 0):
-            # Arrives within this cycle.
-            self._da = -self._dv / T
-            self._dp = self._pp_target
-            self._dv = 0.0
-            return
-        self._da = dv / T
-        self._dv = v
-        self._dp += step
 
     def _pv_generate(self) -> None:
         tgt = float(self._c[K_TARGET_VELOCITY])

@@ -1,7 +1,7 @@
 """A move on a simulated axis, tick by tick: the drive's cascade (servo.py) on the plant
 (plant.py), as the simulated drive runs them.
 
-Two users:
+Three users:
 
 - the tuning benchmark measures tuned and oracle gains with it on the true plant
   (benchmarks/tuning.py);
@@ -10,7 +10,10 @@ Two users:
   domain/tuning/simulate.py integrates the shaft by Euler steps and lets friction stick at
   slightly other places; at +-10 counts that ordered the best 40 candidates of R1-200Hz no
   better than chance against the true plant (rank correlation 0.0), where this simulation of
-  the identified model reached 0.7 (docs/tuning.md, "Ranking").
+  the identified model reached 0.7 (docs/tuning.md, "Ranking");
+- the same tuning fits its model to the moves the axis ran under known gains
+  (:func:`run_recorded_move`: a profile-position move as the drive generates it, from the rest
+  the recording starts in; services/tuning_calibrate.py).
 """
 
 from __future__ import annotations
@@ -27,8 +30,9 @@ from servodesk.domain.tuning.metrics import MoveMetrics, move_metrics
 from servodesk.domain.tuning.model import PlantModel
 from servodesk.domain.tuning.search import ReferenceMove, Rerank, reference_move
 from servodesk.sim.fused import applies, fused_move
-from servodesk.sim.plant import Plant, PlantParams, mechanics_for
-from servodesk.sim.servo import ServoLoop
+from servodesk.sim.plant import Plant, PlantParams, TwoMassMechanics, mechanics_for
+from servodesk.sim.profile_position import CONTROL_PERIOD_S, pp_step
+from servodesk.sim.servo import POSITION, ServoLoop
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -197,3 +201,82 @@ class WorstOf:
             else:
                 out.append(max((m for m in per_axis if m is not None), key=MoveMetrics.key))
         return out
+
+
+@dataclass(frozen=True, slots=True)
+class RecordedMove:
+    """A profile-position move the axis ran under known gains, as the drive's recorder saw it
+    at the loop rate: what the own tuning fits its model to (services/tuning_calibrate.py).
+
+    Counts are relative to where the demand rested before the move. ``position[0]`` is the
+    sample after the first loop tick of the move's first control cycle."""
+
+    gains: ServoGains
+    #: Target less the demand's rest [counts].
+    distance: float
+    #: The profile velocity and acceleration (= deceleration) as written [counts/s, counts/s²].
+    velocity: float
+    acc: float
+    #: Where the axis rested [counts] and the torque command that held it there [N m].
+    offset: float
+    hold_torque: float
+    #: The drive's torque limit (6072h) [N m].
+    torque_limit: float
+    #: The motor position per loop tick [counts].
+    position: FloatArray
+
+
+def run_recorded_move(params: PlantParams, move: RecordedMove, rate_hz: float) -> FloatArray:
+    """The motor position per loop tick [counts] of ``move`` on the axis ``params`` describes
+    (no noise), aligned with ``move.position``.
+
+    As the simulated drive runs it (engine.py): the set-point generator steps once per control
+    cycle, the loop ticks the cycle's sub-steps with the demand interpolated from the cycle's
+    start, the cycle's velocity and acceleration fed forward. The axis starts at rest where the
+    recording found it: the loop's integral holding the torque it held, and on a two-mass axis
+    the shaft wound by that torque (the load held by its friction, the motor by the shaft)."""
+    mech = mechanics_for(params)
+    plant = Plant(params, mech)
+    plant.set_position_counts(move.offset)
+    plant.torque = move.hold_torque
+    if isinstance(mech, TwoMassMechanics) and mech.stiffness > 0.0:
+        mech.load_pos = mech.position - move.hold_torque / mech.stiffness
+    loop = ServoLoop(move.gains, rate_hz, params.counts_per_rev, move.torque_limit)
+    loop.hold(plant.encoder_counts, move.hold_torque)
+    n = max(1, round(rate_hz * CONTROL_PERIOD_S))
+    dt = 1.0 / rate_hz
+    rad = 2.0 * math.pi / params.counts_per_rev
+    total = len(move.position)
+    out: list[float] = []
+    append = out.append
+
+    def after(_k: int) -> None:
+        append(float(plant.encoder_counts))
+
+    dp, dv = 0.0, 0.0
+    done = False
+    counts = plant.encoder_counts
+    while len(out) < total:
+        raw0 = dp
+        if done:
+            da = dv = 0.0
+        else:
+            step = pp_step(
+                dp, dv, move.distance, move.velocity, move.acc, move.acc, CONTROL_PERIOD_S
+            )
+            dp, dv, da, done = step
+        counts, _ = loop.run(
+            n,
+            plant.step_counts,
+            dt,
+            counts,
+            mode=POSITION,
+            p0=raw0,
+            inc=(dp - raw0) / n,
+            v_demand=dv * rad,
+            a_demand=da * rad,
+            after=after,
+        )
+        if not math.isfinite(loop.command):
+            out.extend([math.nan] * (total - len(out)))
+    return np.asarray(out[:total], dtype=np.float64)

@@ -241,6 +241,20 @@ class ServoLoop:
         self.velocity = 0.0
         self.saturated = 0
 
+    def hold(self, p_meas_counts: int, torque: float) -> None:
+        """At rest at a measured position, holding ``torque`` [N m] with its integral: the
+        state a move starts from once the axis has come to rest against friction or gravity
+        (the filters in steady state at it, the delayed command equal to it). The own tuning
+        replays a try on the axis from there (replay.run_recorded_move)."""
+        self.reset(p_meas_counts)
+        self.integral = torque
+        self._x_last = torque
+        self._next = torque
+        self.command = torque
+        self._lp_z = torque - self._lp[0] * torque
+        self._n1_z1, self._n1_z2 = _steady(self._n1, torque)
+        self._n2_z1, self._n2_z2 = _steady(self._n2, torque)
+
     # ------------------------------------------------------------------ one tick
 
     def update(
