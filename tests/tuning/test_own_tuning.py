@@ -371,6 +371,18 @@ def test_a_try_that_settles_only_in_the_noise_does_not_replace_the_models_pick()
     assert measure(spec, _gains(result))["settling_10_s"] < 0.40
 
 
+def test_the_tries_recordings_mend_the_inertias_the_identification_missed() -> None:
+    # A load as heavy as the motor behind a 200 Hz shaft, as the benchmark tunes it (noise
+    # seed 4). The identification left the motor's inertia 2.5 % light, and the gains searched
+    # on that settle in 26.9 ms on the true plant (the oracle: 11.0 ms). The winner's try,
+    # replayed on the model, fits the motor 2.2 % heavier; searched again on that the gains
+    # settle in 12.2 ms.
+    spec = dict(default_plants())["R1-200Hz"]
+    result, _drive = asyncio.run(tune(spec, "high", 4))
+    assert measure(spec, _gains(result))["settling_10_s"] < 0.018
+    assert any("the tries' recordings fit the motor inertia" in n for n in result["notes"])
+
+
 def test_the_feed_forward_the_variations_miss_is_found_on_the_model() -> None:
     # A load 3 x the motor behind a 400 Hz shaft with torque noise 2 % of peak, as the
     # benchmark tunes it (noise seed 4). The variations' feed-forwards (0.81 and 0.85 J) left
