@@ -26,7 +26,7 @@ from servodesk.benchmarks.tuning import (
 from servodesk.services.tuning_calibrate import fit_inertias, output_error, recorded_move
 from servodesk.services.tuning_own import OwnTuning, OwnTuningRequest
 from servodesk.sim.plant import PlantParams
-from servodesk.sim.profile_position import CONTROL_PERIOD_S, pp_step
+from servodesk.sim.profile_position import CONTROL_PERIOD_S, pp_duration_s, pp_step
 from servodesk.sim.replay import RecordedMove
 
 # A load as heavy as the motor behind a 200 Hz shaft, without torque noise.
@@ -152,3 +152,6 @@ def test_the_set_point_generator_arrives_on_the_target_at_rest() -> None:
     assert top == pytest.approx(1e6)
     # Distance / velocity + velocity / acceleration = 0.31 s, within a cycle or two.
     assert 310 <= steps <= 313
+    assert pp_duration_s(300_000.0, 1e6, 1e8) == pytest.approx(steps * CONTROL_PERIOD_S, abs=0.003)
+    # Too short to reach the velocity: a triangle, 2 sqrt(d / a).
+    assert pp_duration_s(-10_000.0, 1e6, 1e8) == pytest.approx(0.02)

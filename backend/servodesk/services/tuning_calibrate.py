@@ -22,7 +22,7 @@ from scipy.optimize import minimize  # type: ignore[import-untyped]
 
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.sim.plant import PlantParams
-from servodesk.sim.profile_position import CONTROL_PERIOD_S, pp_step
+from servodesk.sim.profile_position import CONTROL_PERIOD_S, pp_duration_s, pp_step
 from servodesk.sim.replay import RecordedMove, run_recorded_move
 
 FloatArray = npt.NDArray[np.float64]
@@ -98,7 +98,7 @@ def recorded_move(
     start = i0 - (k0 - 1)
     if start < 0:
         return None
-    profile_s = _profile_s(distance, velocity, acc)
+    profile_s = pp_duration_s(distance, velocity, acc)
     length = min(len(position) - start, round((profile_s + SETTLE_S) * rate_hz))
     if length < n:
         return None
@@ -167,13 +167,3 @@ def fit_inertias(params: PlantParams, moves: Sequence[RecordedMove], rate_hz: fl
     return InertiaFit(
         1.0 + float(x[0]), 1.0 + float(x[1]), before, min(float(res.fun), before), len(cache)
     )
-
-
-def _profile_s(distance: float, velocity: float, acc: float) -> float:
-    """The trapezoidal profile's duration [s] (a triangle where it does not reach the speed)."""
-    d = abs(distance)
-    if velocity <= 0.0 or acc <= 0.0:
-        return 0.0
-    if d * acc < velocity * velocity:
-        return 2.0 * math.sqrt(d / acc)
-    return d / velocity + velocity / acc

@@ -56,3 +56,14 @@ def pp_step(
         # Arrives within this cycle.
         return PpStep(target, 0.0, -dv / period, False)
     return PpStep(dp + step, v, step_v / period, False)
+
+
+def pp_duration_s(distance: float, velocity: float, acc: float) -> float:
+    """How long the profile takes [s], to within a cycle: a trapezoid at ``velocity``, or a
+    triangle where the distance is too short to reach it (acceleration = deceleration)."""
+    d = abs(distance)
+    if velocity <= 0.0 or acc <= 0.0:
+        return 0.0
+    if d * acc < velocity * velocity:
+        return 2.0 * math.sqrt(d / acc)
+    return d / velocity + velocity / acc
