@@ -342,7 +342,9 @@ def test_the_tries_on_a_slow_axis_are_watched_until_they_settle(
 
     monkeypatch.setattr(OwnTuning, "_watched_move", watched_move)
     result, _drive = asyncio.run(tune(spec, "high", 2))
-    assert watched.count(TRY_WATCH_MAX_S) >= 4  # at least two tries, there and back
+    # The winner's try, there and back (its recordings fit the model's inertias, and the
+    # gains searched again on that stand without further tries).
+    assert watched.count(TRY_WATCH_MAX_S) >= 2
     assert VERIFY_SETTLE_S in watched  # the verification moves keep theirs
     assert measure(spec, _gains(result))["settling_10_s"] < 0.78
 
@@ -381,6 +383,18 @@ def test_the_tries_recordings_mend_the_inertias_the_identification_missed() -> N
     result, _drive = asyncio.run(tune(spec, "high", 4))
     assert measure(spec, _gains(result))["settling_10_s"] < 0.018
     assert any("the tries' recordings fit the motor inertia" in n for n in result["notes"])
+
+
+def test_the_fitted_models_pick_is_not_undone_by_tries_that_cannot_tell() -> None:
+    # A load as heavy as the motor behind a 200 Hz shaft, as the benchmark tunes it (noise
+    # seed 5). The winner's try fits the motor 1.9 % heavier, and the gains searched again on
+    # that settle in 13.6 ms on the true plant (the oracle: 11.0 ms). Tried on the axis they
+    # did not settle within the 0.25 s watch, the first winner (22.2 ms) in 0.03 s and a
+    # runner-up (11.4 ms) in 0.14 s: on this axis the tries rank at random, and letting them
+    # undo the fitted model's pick kept 22.2 ms.
+    spec = dict(default_plants())["R1-200Hz"]
+    result, _drive = asyncio.run(tune(spec, "high", 5))
+    assert measure(spec, _gains(result))["settling_10_s"] < 0.016
 
 
 def test_the_feed_forward_the_variations_miss_is_found_on_the_model() -> None:
