@@ -24,7 +24,13 @@ from servodesk.benchmarks.tuning import (
     default_plants,
 )
 from servodesk.services.tuning_calibrate import fit_inertias, output_error, recorded_move
-from servodesk.services.tuning_own import OwnTuning, OwnTuningRequest
+from servodesk.services.tuning_own import (
+    FOLLOWING_ERROR,
+    POSITION,
+    SIG_TORQUE,
+    OwnTuning,
+    OwnTuningRequest,
+)
 from servodesk.sim.plant import PlantParams
 from servodesk.sim.profile_position import CONTROL_PERIOD_S, pp_duration_s, pp_step
 from servodesk.sim.replay import RecordedMove
@@ -33,9 +39,10 @@ from servodesk.sim.replay import RecordedMove
 SPEC = replace(dict(default_plants())["R1-200Hz"], noise_torque=0.0)
 
 
-async def _try_on_twin() -> tuple[list[RecordedMove], float, float, list[dict[str, np.ndarray]]]:
+async def _try_on_twin() -> tuple[list[RecordedMove], float, float, list[tuple[np.ndarray, ...]]]:
     """One try (there and back) under the twin's factory gains, as the tuning records it:
-    the recorded moves, the loop rate, the move torque, and each move's raw channels."""
+    the recorded moves, the loop rate, the move torque, and each move's position, torque
+    command and following error as recorded."""
     io = SimIO(build_drive(SPEC, 1))
     tuning = OwnTuning(
         io, OwnTuningRequest("high", TRAVEL_WINDOW_REV, TORQUE_LIMIT_PCT, None), offload=False
@@ -47,12 +54,13 @@ async def _try_on_twin() -> tuple[list[RecordedMove], float, float, list[dict[st
     inertia = SPEC.motor_inertia + SPEC.load_inertia
     acc = 0.7 * drive.limit_torque / inertia * drive.counts_per_rev / (2.0 * math.pi)
     velocity = min(0.8 * math.sqrt(acc * distance), 0.95 * drive.max_velocity)
-    raw: list[dict[str, np.ndarray]] = []
+    raw: list[tuple[np.ndarray, ...]] = []
+    torque_signal = tuning._signal(SIG_TORQUE)
     watched = tuning._watched_move
 
     async def spy(*args: object, **kw: object) -> object:
         rec, span, fe = await watched(*args, **kw)  # type: ignore[arg-type]
-        raw.append({str(k): v for k, v in rec.channels.items()})
+        raw.append((rec[POSITION], rec[torque_signal], rec[FOLLOWING_ERROR]))
         return rec, span, fe
 
     tuning._watched_move = spy  # type: ignore[method-assign]
@@ -101,9 +109,7 @@ def test_the_inertias_a_model_is_off_by_come_back_from_the_fit(
 def test_a_recording_is_aligned_by_its_demand_and_refused_where_it_misses_the_start() -> None:
     records, rate, move_torque, raw = asyncio.run(_try_on_twin())
     true = replace(SPEC.plant_params(1), peak_torque=2.0 * move_torque)
-    first = raw[0]
-    channels = list(first.values())
-    position, torque, fe = channels[0], channels[1], channels[2]
+    position, torque, fe = raw[0]
     origin = float(position[0] - records[0].position[0])  # Where the demand rested.
     kw = dict(
         rate_hz=rate,

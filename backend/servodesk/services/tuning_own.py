@@ -88,7 +88,7 @@ from servodesk.domain.tuning.search import (
 )
 from servodesk.errors import DriveStateError, ServodeskError, ValidationError
 from servodesk.services.session import Session
-from servodesk.services.tuning_calibrate import InertiaFit, fit_inertias, recorded_move
+from servodesk.services.tuning_calibrate import fit_inertias, recorded_move
 from servodesk.services.tuning_io import DriveRecorder, Recording, SessionIO, TuningIO, read_float
 from servodesk.sim.replay import ModelMoves, OwnMove, RecordedMove, WorstOf
 
@@ -329,7 +329,6 @@ class Redesign(NamedTuple):
 
     design: SearchResult
     model: PlantModel
-    fit: InertiaFit
 
 
 class OwnTuning:
@@ -588,30 +587,35 @@ class OwnTuning:
             # damping 0.01: 11 % where the factory gains overshot 6 %, and refused).
             unseen = hidden or below_band
 
+            # Ranked without the viscous term: the moves' fit lends it friction and shaft
+            # effects the machine may not have (R10-100Hz: 0.0029 N m s/rad where there is
+            # none), and damping the axis lacks makes sluggish gains look settled. Real
+            # viscous friction only helps whatever gains win (bench median ratio 1.93 ->
+            # 1.60, docs/tuning.md).
+            def model_moves(
+                model: PlantModel, scale: float = 1.0, friction_scale: float = 1.0
+            ) -> ModelMoves | None:
+                return ModelMoves.of(
+                    replace(
+                        model,
+                        viscous=0.0,
+                        motor_inertia=model.motor_inertia * scale,
+                        load_inertia=model.load_inertia * scale,
+                    ),
+                    drive.rate_hz,
+                    counts_per_rev=drive.counts_per_rev,
+                    torque_limit=drive.move_torque,
+                    coulomb=friction * friction_scale,
+                    gravity=est.gravity,
+                )
+
             def design_job(model: PlantModel) -> tuple[Callable[[], SearchResult], bool]:
                 """The gain search on ``model`` (the identified axis, or the same with the
                 inertias the tries' records fitted: :meth:`_try_alternatives`), and whether it
                 ranks a rigid axis with the instrumented inertia (no tries then)."""
 
-                # Ranked without the viscous term: the moves' fit lends it friction and shaft
-                # effects the machine may not have (R10-100Hz: 0.0029 N m s/rad where there is
-                # none), and damping the axis lacks makes sluggish gains look settled. Real
-                # viscous friction only helps whatever gains win (bench median ratio 1.93 ->
-                # 1.60, docs/tuning.md).
                 def moves(scale: float, friction_scale: float = 1.0) -> ModelMoves | None:
-                    return ModelMoves.of(
-                        replace(
-                            model,
-                            viscous=0.0,
-                            motor_inertia=model.motor_inertia * scale,
-                            load_inertia=model.load_inertia * scale,
-                        ),
-                        drive.rate_hz,
-                        counts_per_rev=drive.counts_per_rev,
-                        torque_limit=drive.move_torque,
-                        coulomb=friction * friction_scale,
-                        gravity=est.gravity,
-                    )
+                    return model_moves(model, scale, friction_scale)
 
                 nominal = moves(1.0)
                 rerank: ModelMoves | WorstOf | None = nominal
@@ -728,7 +732,7 @@ class OwnTuning:
 
                 async def redesign(records: list[RecordedMove]) -> Redesign | None:
                     return await self._redesign(
-                        identified, records, drive, friction, est.gravity, design_job
+                        identified, model_moves(identified), records, drive, design_job
                     )
 
                 _, step_after, design, model = await self._try_alternatives(
@@ -872,12 +876,10 @@ class OwnTuning:
         """An absolute profile-position move (CiA 402-2 §6.5: new set-point on the rising edge
         of bit 4, change immediately), checked against the travel window first."""
         self._within(drive, target)
-        # UNSIGNED32 objects: a wild estimate must not become a refused write.
-        velocity = min(velocity, drive.max_velocity, 0xFFFFFFFF)
-        acc = min(acc, 0xFFFFFFFF)
-        await self.io.write(PROFILE_VELOCITY, max(1, round(velocity)))
-        await self.io.write(PROFILE_ACC, max(1, round(acc)))
-        await self.io.write(PROFILE_DEC, max(1, round(acc)))
+        written_v, written_acc = _as_written(drive, velocity, acc)
+        await self.io.write(PROFILE_VELOCITY, written_v)
+        await self.io.write(PROFILE_ACC, written_acc)
+        await self.io.write(PROFILE_DEC, written_acc)
         await self.io.write(TARGET, round(target))
         await self.io.write(CONTROLWORD, CW_ENABLED | CW_IMMEDIATE)
         await self.io.write(CONTROLWORD, CW_ENABLED | CW_IMMEDIATE | CW_NEW_SETPOINT)
@@ -1330,24 +1332,16 @@ class OwnTuning:
     async def _redesign(
         self,
         model: PlantModel,
+        nominal: ModelMoves | None,
         records: list[RecordedMove],
         drive: _Drive,
-        friction: float,
-        gravity: float,
         design_job: Callable[[PlantModel], tuple[Callable[[], SearchResult], bool]],
     ) -> Redesign | None:
         """The gain search again on ``model`` with the inertias the tries' ``records`` fit
-        (services/tuning_calibrate.py), where they clearly fit better than the model's: the
-        output error at most :data:`CALIBRATE_ERROR_SHARE` of the model's and an inertia moved
-        by at least :data:`CALIBRATE_MIN_CHANGE`. None otherwise."""
-        nominal = ModelMoves.of(
-            replace(model, viscous=0.0),
-            drive.rate_hz,
-            counts_per_rev=drive.counts_per_rev,
-            torque_limit=drive.move_torque,
-            coulomb=friction,
-            gravity=gravity,
-        )
+        (services/tuning_calibrate.py) on ``nominal``, the simulation the search ranks ``model``
+        with, where they clearly fit better than the model's: the output error at most
+        :data:`CALIBRATE_ERROR_SHARE` of the model's and an inertia moved by at least
+        :data:`CALIBRATE_MIN_CHANGE`. None otherwise."""
         if nominal is None or not records:
             return None
         fit = fit_inertias(nominal.params, records, drive.rate_hz)
@@ -1371,7 +1365,7 @@ class OwnTuning:
         )
         self.progress(0.86, "searching the gains again with the inertias the tries fit")
         job, _ = design_job(fitted)
-        return Redesign(await self._search(job), fitted, fit)
+        return Redesign(await self._search(job), fitted)
 
     async def _try_alternatives(
         self,
@@ -1502,6 +1496,7 @@ class OwnTuning:
                 and fe_rms is not None
                 and rec.rate_hz == drive.rate_hz
             ):
+                written_v, written_acc = _as_written(drive, velocity, acc)
                 m = recorded_move(
                     position=rec[POSITION],
                     following_error=rec[FOLLOWING_ERROR],
@@ -1509,9 +1504,8 @@ class OwnTuning:
                     rate_hz=drive.rate_hz,
                     origin=round(origin),
                     target=round(target),
-                    # As written (_move): whole counts per second and per second².
-                    velocity=float(max(1, round(min(velocity, drive.max_velocity)))),
-                    acc=float(max(1, round(acc))),
+                    velocity=float(written_v),
+                    acc=float(written_acc),
                     gains=gains,
                     torque_limit=drive.limit_torque,
                 )
@@ -1755,6 +1749,14 @@ def _lowest_anti(resonances: list[Resonance]) -> float | None:
     if min(resonances, key=lambda r: r.freq_hz).anti_freq_hz is None:
         return BAND_LOW_HZ
     return min(r.anti_freq_hz for r in resonances if r.anti_freq_hz)
+
+
+def _as_written(drive: _Drive, velocity: float, acc: float) -> tuple[int, int]:
+    """The profile velocity (6081h) and acceleration (6083h, 6084h) a move writes, in whole
+    counts per second and per second²: within the drive's 607Fh, and within UNSIGNED32 so
+    that a wild estimate does not become a refused write."""
+    v = min(velocity, drive.max_velocity, 0xFFFFFFFF)
+    return max(1, round(v)), max(1, round(min(acc, 0xFFFFFFFF)))
 
 
 def _move_time(distance: float, velocity: float, acc: float) -> float:
