@@ -15,6 +15,8 @@ from typing import Any
 import pytest
 from fastapi.testclient import TestClient
 
+from servodesk.domain import dcp
+from servodesk.sim.profinet_dcp import DcpResponder, DcpStation
 from servodesk.sim.veth import create_veth
 from tests.operation.support import operation_app
 
@@ -197,3 +199,34 @@ def test_the_cli_finds_and_names_a_device_served_by_servodesk_sim() -> None:
             sim.wait(timeout=10)
     done = _cli("sim", "--profile", "lecsn-t", "--dcp", "lo")
     assert done.returncode == 2 and "add --interface profinet" in done.stderr
+
+
+def test_the_cli_says_what_to_do_about_an_address_the_rotary_switches_set() -> None:
+    # The same refusal as through the API (BlockError 5, 004 §20.1.3(4)): `servodesk dcp set`
+    # asks the device who it is and gives its profile's hint, not the link's generic one.
+    station = DcpStation(
+        vendor_id=0x010C,
+        device_id=0x0010,
+        type_of_station="LECSN-T",
+        name_of_station="lecsn-t-1",
+        ip="10.80.0.2",
+        netmask="255.255.255.0",
+        address_switch=0x10,
+    )
+    with create_veth("sdr") as pair:
+        twin = DcpResponder(station, dcp.mac_bytes(MAC)).start(pair.slave)
+        try:
+            done = _cli(
+                "dcp", "set", "--nic", pair.master, "--mac", MAC,
+                "--ip", "10.80.0.5", "--netmask", "255.255.255.0",
+            )  # fmt: skip
+            assert done.returncode != 0 and "Traceback" not in done.stderr, done.stderr
+            assert "SMC LECSN-T servo amplifier" in done.stderr, done.stderr
+            assert "SW2/SW3" in done.stderr and "004 §20.1.3(4)" in done.stderr
+            assert station.ip == "10.80.0.2"
+            # The name is still the master's to set.
+            done = _cli("dcp", "set", "--nic", pair.master, "--mac", MAC, "--name", "cell-4")
+            assert done.returncode == 0, done.stderr
+            assert station.name_of_station == "cell-4"
+        finally:
+            twin.stop()

@@ -17,11 +17,14 @@ import argparse
 import json
 import sys
 from dataclasses import asdict
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from servodesk.domain import dcp
-from servodesk.errors import ValidationError
+from servodesk.errors import ObjectAccessError, ValidationError
 from servodesk.links.profinet_dcp import DcpClient
+
+if TYPE_CHECKING:
+    from servodesk.domain.profile_loader import ProfileCatalog
 
 
 def register(sub: Any) -> None:
@@ -116,11 +119,7 @@ def _profiles(devices: list[dcp.Device]) -> dict[str, str]:
     profiles are loaded only when some device answered with them)."""
     if not any(d.vendor_id is not None for d in devices):
         return {}
-    from servodesk.cli.backup import _catalog
-    from servodesk.domain.profile_loader import default_profile_dirs
-    from servodesk.settings import Settings
-
-    catalog = _catalog(tuple(default_profile_dirs(Settings().profile_paths())))
+    catalog = _catalog()
     out: dict[str, str] = {}
     for d in devices:
         p = catalog.match_dcp(d.vendor_id, d.device_id)
@@ -129,10 +128,37 @@ def _profiles(devices: list[dcp.Device]) -> dict[str, str]:
     return out
 
 
+def _catalog() -> ProfileCatalog:
+    from servodesk.cli.backup import _catalog
+    from servodesk.domain.profile_loader import default_profile_dirs
+    from servodesk.settings import Settings
+
+    catalog: ProfileCatalog = _catalog(tuple(default_profile_dirs(Settings().profile_paths())))
+    return catalog
+
+
+#: How long a refused Set waits for the device's Identify answer, which names its vendor and
+#: device ID and so the profile whose hint the refusal gets [s].
+REFUSAL_IDENTIFY_S = 0.3
+
+
 def _send(args: argparse.Namespace, blocks: tuple[dcp.Block, ...], what: str) -> int:
     mac = dcp.mac_bytes(args.mac)
     with DcpClient(args.nic) as client:
-        client.set(mac, blocks)
+        try:
+            client.set(mac, blocks)
+        except ObjectAccessError as exc:
+            if exc.protocol != "dcp":
+                raise
+            # What to do about a refusal is the device's (its profile's ``dcp`` quirk): the
+            # LECSN-T refuses an address its rotary switches set (004 §20.1.3(4)).
+            seen = client.identify(REFUSAL_IDENTIFY_S).devices
+            found = [d for d in seen if d.mac == dcp.mac_text(mac)]
+            if found:
+                hint = _catalog().dcp_refusal_hint(found[0].vendor_id, found[0].device_id, exc.code)
+                if hint is not None:
+                    exc.hint = hint
+            raise
     print(f"{dcp.mac_text(mac)}: {what}")
     return 0
 

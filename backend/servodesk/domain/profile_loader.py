@@ -446,6 +446,20 @@ class ProfileCatalog:
                 return p
         return None
 
+    def dcp_refusal_hint(
+        self, vendor_id: int | None, device_id: int | None, block_error: int
+    ) -> str | None:
+        """What to do about a DCP BlockError the device answered, from the profile whose
+        ``dcp`` quirk names its vendor and device ID (the quirk's ``refusals``, by code), as
+        "<profile name>: <what to do>"; None where no profile says."""
+        profile = self.match_dcp(vendor_id, device_id)
+        quirk = profile.quirk("dcp") if profile is not None else None
+        refusals = quirk.get("refusals") if isinstance(quirk, dict) else None
+        if profile is None or not isinstance(refusals, dict):
+            return None
+        hint = refusals.get(block_error, refusals.get(str(block_error)))
+        return f"{profile.name}: {hint}" if isinstance(hint, str) else None
+
 
 def _int(v: object) -> int | None:
     if isinstance(v, bool):

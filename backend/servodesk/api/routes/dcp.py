@@ -112,14 +112,9 @@ def _with_profile_hint(state: StateDep, mac: str, exc: ObjectAccessError) -> Obj
     """A device's DCP refusal (BlockError) with what its profile says to do about it
     (the ``dcp`` quirk's ``refusals``), where the last Identify matched the MAC to one."""
     ids = state.dcp_seen.get(mac)
-    profile = state.catalog.match_dcp(*ids) if ids is not None else None
-    quirk = profile.quirk("dcp") if profile is not None else None
-    refusals = quirk.get("refusals") if isinstance(quirk, dict) else None
-    hint = (
-        refusals.get(exc.code, refusals.get(str(exc.code))) if isinstance(refusals, dict) else None
-    )
-    if isinstance(hint, str) and profile is not None:
-        exc.hint = f"{profile.name}: {hint}"
+    hint = state.catalog.dcp_refusal_hint(*ids, exc.code) if ids is not None else None
+    if hint is not None:
+        exc.hint = hint
     return exc
 
 
