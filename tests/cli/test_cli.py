@@ -113,7 +113,9 @@ def test_scan_lists_the_nodes_of_a_can_bus_with_their_profiles(
 ) -> None:
     from servodesk.sim.bus import SimulatedBus
 
-    monkeypatch.setenv("SERVODESK_DATA_DIR", str(tmp_path))
+    # A scan keeps nothing: it works where the data directory cannot be made, and makes none.
+    (tmp_path / "f").write_text("a file where a directory would go")
+    monkeypatch.setenv("SERVODESK_DATA_DIR", str(tmp_path / "f" / "data"))
     with SimulatedBus.start(drives=[("cia402-generic", 1), ("smartris", 3)], channel=channel):
         code, out, err = run(capsys, "scan", "--channel", channel, "--json")
         assert code == 0, err
@@ -127,6 +129,7 @@ def test_scan_lists_the_nodes_of_a_can_bus_with_their_profiles(
         assert "node   3" in out and "profile smartris" in out and "vendor_id " in out
     code, _, err = run(capsys, "scan", "--channel", f"{channel}-empty", "--wait", "0.1")
     assert code == 0 and "no node answered" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f"]
 
 
 @pytest.mark.parametrize(

@@ -12,10 +12,11 @@ by DCP: ``servodesk dcp identify --nic eth1``. Exit codes: 0 done (also when not
 from __future__ import annotations
 
 import argparse
+import asyncio
 import sys
 from typing import Any
 
-from servodesk.cli.backup import _Context, _dump, _run
+from servodesk.cli.backup import _catalog, _dump
 from servodesk.errors import ValidationError
 
 
@@ -56,13 +57,30 @@ def _check(args: argparse.Namespace) -> None:
         raise ValidationError(f"--wait {args.wait} is outside 0.05-3 s", field="wait")
 
 
+async def _scan(args: argparse.Namespace) -> list[dict[str, Any]]:
+    """A session manager only: a scan reads identities and keeps nothing, so it opens no
+    store (the other commands' _Context would create the data directory and its database)."""
+    from servodesk.domain.profile_loader import default_profile_dirs
+    from servodesk.services.events import EventHub
+    from servodesk.services.manager import SessionManager
+    from servodesk.settings import Settings
+
+    settings = Settings()
+    catalog = _catalog(tuple(default_profile_dirs(settings.profile_paths())))
+    timeout = args.timeout or settings.sdo_timeout
+    manager = SessionManager(catalog, EventHub(), sdo_timeout=timeout, poll_hz=1.0)
+    try:
+        found: list[dict[str, Any]] = await manager.scan(
+            args.interface, args.channel, args.bitrate, args.wait
+        )
+        return found
+    finally:
+        await manager.close_all()
+
+
 def run(args: argparse.Namespace) -> int:
     _check(args)
-
-    async def body(ctx: _Context) -> list[dict[str, Any]]:
-        return await ctx.manager.scan(args.interface, args.channel, args.bitrate, args.wait)
-
-    nodes = _run(args, body)
+    nodes = asyncio.run(_scan(args))
     if args.json:
         _dump({"interface": args.interface, "channel": args.channel, "nodes": nodes})
         print()
