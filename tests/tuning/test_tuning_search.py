@@ -366,6 +366,23 @@ def test_the_axis_only_tries_runners_up_the_model_puts_near_the_winner() -> None
     assert any(m.settling_10_s > limit for m in every.alternative_metrics)
 
 
+def test_an_incumbent_is_measured_on_the_model_as_the_winner_was() -> None:
+    # The gains chosen on an earlier model of the axis, run on this one through the same
+    # simulation and confirmation: the winner itself measures as the winner.
+    plant = PlantModel(JM, 3 * JM, 800.0, 0.03, 0.0, 2000.0)
+    kw = _on_model(plant)
+    off = ModelMoves.of(plant, RATE, counts_per_rev=CPR, torque_limit=PEAK, coulomb=0.09 * 1.02)
+    assert off is not None
+    first = tune_on_model(plant, RATE, "high", confirm=off, **kw)
+    assert first.incumbent_metrics is None
+    again = tune_on_model(plant, RATE, "high", confirm=off, incumbent=first.gains, **kw)
+    assert again.gains == first.gains and again.incumbent_metrics == first.metrics
+    other = first.alternatives[0]
+    third = tune_on_model(plant, RATE, "high", confirm=off, incumbent=other, **kw)
+    assert third.incumbent_metrics is not None
+    assert third.incumbent_metrics.key() >= third.metrics.key()
+
+
 def test_confirmed_ranks_the_first_by_their_worst_move_and_a_divergence_last() -> None:
     g = [ServoGains(kp_vel=0.01 * (i + 1)) for i in range(CONFIRM_TOP + 2)]
     ms = [MoveMetrics(0.010 + 0.001 * i, 0.005, 0.0, 1.0, 2.0) for i in range(len(g))]

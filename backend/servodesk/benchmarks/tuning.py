@@ -404,6 +404,12 @@ def run_plant(
         row.update(
             {
                 "inertia_error": ident["inertia_kgm2"] / j_true - 1.0,
+                # The Coulomb friction the gains were ranked with, against the plant's (a
+                # diagnostic: the +-10 count settling of a sticking axis rests on it).
+                "friction_error": ident["ranking_friction_nm"] / (spec.coulomb * spec.peak_torque)
+                - 1.0
+                if ident.get("ranking_friction_nm") is not None and spec.coulomb > 0.0
+                else None,
                 "resonance_hz": res[0]["freq_hz"] if res else None,
                 "resonance_error": (res[0]["freq_hz"] / spec.resonance_hz - 1.0)
                 if res and spec.resonance_hz

@@ -123,6 +123,10 @@ class SearchResult:
     alternatives: tuple[ServoGains, ...] = ()
     #: The move each runner-up gives on the model, in the order of ``alternatives``.
     alternative_metrics: tuple[MoveMetrics, ...] = ()
+    #: The move the caller's ``incumbent`` gives on the model, ranked as the winner was (its
+    #: worst over the ranking's simulation and the confirmation's); None without one, or
+    #: where it diverged.
+    incumbent_metrics: MoveMetrics | None = None
 
     def with_gains(self, gains: ServoGains, rate_hz: float, plant: PlantModel) -> SearchResult:
         """The same result for one of its runners-up (the drive chose it): its margins and
@@ -628,6 +632,7 @@ def tune_on_model(
     confirm: Rerank | None = None,
     light_damping: float | None = None,
     ff_sweep: bool = False,
+    incumbent: ServoGains | None = None,
 ) -> SearchResult:
     """The tuner's design: :func:`design_gains` at the response level, then for ``high`` the
     best move among the variations that keep the margins on every plant the identification
@@ -648,7 +653,9 @@ def tune_on_model(
     (:func:`confirmed`); the result's metrics are then those worst moves. ``light_damping``:
     a shaft damping the identification may have overestimated the mode's to
     (:func:`identification_set`). ``ff_sweep``: with ``confirm``, the confirmed first also
-    run at other inertia feed-forwards (:func:`ff_swept`)."""
+    run at other inertia feed-forwards (:func:`ff_swept`). ``incumbent``: gains chosen before
+    (on another model of the axis), whose move on this model is measured as the winner's was
+    (``SearchResult.incumbent_metrics``)."""
     check = identification_set(plant, resonance_tol, light_damping)
     drift = drift_set(plant, resonance_tol)
     stuck = stuck_load_set(plant) + drift
@@ -737,6 +744,12 @@ def tune_on_model(
             move.t_end,
             move.p * model.counts_per_rev / (2.0 * math.pi),
         )
+    incumbent_metrics: MoveMetrics | None = None
+    if incumbent is not None and rerank is not None:
+        incumbent_metrics = rerank([incumbent], move)[0]
+        if incumbent_metrics is not None and confirm is not None:
+            off = confirm([incumbent], move)[0]
+            incumbent_metrics = max(incumbent_metrics, off, key=MoveMetrics.key) if off else None
     loop = LoopModel(plant, rate_hz, chosen)
     return SearchResult(
         gains=chosen,
@@ -749,4 +762,5 @@ def tune_on_model(
         notes=tuple(notes),
         alternatives=alternatives,
         alternative_metrics=alternative_metrics,
+        incumbent_metrics=incumbent_metrics,
     )
