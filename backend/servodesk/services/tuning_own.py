@@ -1349,7 +1349,9 @@ class OwnTuning:
         (services/tuning_calibrate.py) on ``nominal``, the simulation the search ranks ``model``
         with, where they clearly fit better than the model's: the output error at most
         :data:`CALIBRATE_ERROR_SHARE` of the model's and an inertia moved by at least
-        :data:`CALIBRATE_MIN_CHANGE`. None otherwise."""
+        :data:`CALIBRATE_MIN_CHANGE`, and where the new winner settles on that model in less
+        than :data:`TRY_CLEAR_SHARE` of the time of ``first``, the pick so far, run there as the
+        winner was. None otherwise."""
         if nominal is None or not records:
             return None
         fit = fit_inertias(nominal.params, records, drive.rate_hz)
