@@ -21,10 +21,14 @@ import socket
 import sys
 from collections.abc import Awaitable, Callable
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from servodesk.domain.paramset import ParameterSet
 from servodesk.errors import ConflictError, NotFoundError, ValidationError
+
+if TYPE_CHECKING:
+    from servodesk.domain.profile_loader import ProfileCatalog
+    from servodesk.settings import Settings
 
 T = TypeVar("T")
 
@@ -96,11 +100,21 @@ def _catalog(dirs: tuple[Path, ...]) -> Any:
     return ProfileCatalog(list(dirs))
 
 
+def settings_catalog(settings: Settings | None = None) -> ProfileCatalog:
+    """The catalog of the profile directories ``settings`` (default: the environment's) name,
+    loaded once per process (:func:`_catalog`)."""
+    from servodesk.domain.profile_loader import default_profile_dirs
+    from servodesk.settings import Settings
+
+    s = settings if settings is not None else Settings()
+    catalog: ProfileCatalog = _catalog(tuple(default_profile_dirs(s.profile_paths())))
+    return catalog
+
+
 class _Context:
     """A store, a session manager with the audit hook, and (when needed) one session."""
 
     def __init__(self, args: argparse.Namespace) -> None:
-        from servodesk.domain.profile_loader import default_profile_dirs
         from servodesk.services.backup import BackupService
         from servodesk.services.events import EventHub
         from servodesk.services.manager import SessionManager
@@ -110,7 +124,7 @@ class _Context:
 
         settings = Settings()
         self.args = args
-        self.catalog = _catalog(tuple(default_profile_dirs(settings.profile_paths())))
+        self.catalog = settings_catalog(settings)
         self.hub = EventHub()
         timeout = args.timeout or settings.sdo_timeout
         self.manager = SessionManager(self.catalog, self.hub, sdo_timeout=timeout, poll_hz=1.0)

@@ -17,14 +17,12 @@ import argparse
 import json
 import sys
 from dataclasses import asdict
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from servodesk.cli.backup import settings_catalog
 from servodesk.domain import dcp
 from servodesk.errors import ObjectAccessError, ValidationError
 from servodesk.links.profinet_dcp import DcpClient
-
-if TYPE_CHECKING:
-    from servodesk.domain.profile_loader import ProfileCatalog
 
 
 def register(sub: Any) -> None:
@@ -119,22 +117,13 @@ def _profiles(devices: list[dcp.Device]) -> dict[str, str]:
     profiles are loaded only when some device answered with them)."""
     if not any(d.vendor_id is not None for d in devices):
         return {}
-    catalog = _catalog()
+    catalog = settings_catalog()
     out: dict[str, str] = {}
     for d in devices:
         p = catalog.match_dcp(d.vendor_id, d.device_id)
         if p is not None:
             out[d.mac] = p.id
     return out
-
-
-def _catalog() -> ProfileCatalog:
-    from servodesk.cli.backup import _catalog
-    from servodesk.domain.profile_loader import default_profile_dirs
-    from servodesk.settings import Settings
-
-    catalog: ProfileCatalog = _catalog(tuple(default_profile_dirs(Settings().profile_paths())))
-    return catalog
 
 
 #: How long a refused Set waits for the device's Identify answer, which names its vendor and
@@ -155,7 +144,9 @@ def _send(args: argparse.Namespace, blocks: tuple[dcp.Block, ...], what: str) ->
             seen = client.identify(REFUSAL_IDENTIFY_S).devices
             found = [d for d in seen if d.mac == dcp.mac_text(mac)]
             if found:
-                hint = _catalog().dcp_refusal_hint(found[0].vendor_id, found[0].device_id, exc.code)
+                hint = settings_catalog().dcp_refusal_hint(
+                    found[0].vendor_id, found[0].device_id, exc.code
+                )
                 if hint is not None:
                     exc.hint = hint
             raise

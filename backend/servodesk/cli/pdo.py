@@ -19,12 +19,12 @@ from typing import Any
 
 from servodesk.cli.backup import (
     _bus_options,
-    _catalog,
     _Context,
     _dump,
     _read_file,
     _run,
     client_id,
+    settings_catalog,
 )
 from servodesk.errors import PdoRefused, ValidationError
 
@@ -187,10 +187,7 @@ def run_templates(args: argparse.Namespace) -> int:
     from servodesk.domain import pdo as pdomod
 
     if args.profile:
-        from servodesk.domain.profile_loader import default_profile_dirs
-        from servodesk.settings import Settings
-
-        catalog = _catalog(tuple(default_profile_dirs(Settings().profile_paths())))
+        catalog = settings_catalog()
         profile = catalog.get(args.profile)
         items = [
             {"id": t.id, "name": t.name, "description": t.description, "section": t.section}

@@ -16,7 +16,7 @@ import asyncio
 import sys
 from typing import Any
 
-from servodesk.cli.backup import _catalog, _dump
+from servodesk.cli.backup import _dump, settings_catalog
 from servodesk.errors import ValidationError
 
 
@@ -60,13 +60,12 @@ def _check(args: argparse.Namespace) -> None:
 async def _scan(args: argparse.Namespace) -> list[dict[str, Any]]:
     """A session manager only: a scan reads identities and keeps nothing, so it opens no
     store (the other commands' _Context would create the data directory and its database)."""
-    from servodesk.domain.profile_loader import default_profile_dirs
     from servodesk.services.events import EventHub
     from servodesk.services.manager import SessionManager
     from servodesk.settings import Settings
 
     settings = Settings()
-    catalog = _catalog(tuple(default_profile_dirs(settings.profile_paths())))
+    catalog = settings_catalog(settings)
     timeout = args.timeout or settings.sdo_timeout
     manager = SessionManager(catalog, EventHub(), sdo_timeout=timeout, poll_hz=1.0)
     try:

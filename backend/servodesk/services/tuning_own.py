@@ -1367,7 +1367,7 @@ class OwnTuning:
             motor_inertia=model.motor_inertia * fit.motor,
             load_inertia=model.load_inertia * fit.load,
         )
-        self._notes.append(
+        note = (
             f"the tries' recordings fit the motor inertia {100.0 * (fit.motor - 1.0):+.2g} % and "
             f"the load's {100.0 * (fit.load - 1.0):+.2g} % off the identification (position "
             f"error RMS {math.sqrt(fit.error_before):.3g} -> {math.sqrt(fit.error_after):.3g} "
@@ -1386,11 +1386,13 @@ class OwnTuning:
             # runners-up are tried on the axis as where nothing was refitted (R30-100Hz seed 1:
             # 378 ms on the fitted model against the first pick's 388, on the axis 636 ms
             # against 388, docs/tuning.md).
-            self._notes[-1] += (
-                f"; they settle in {1e3 * found.metrics.settling_10_s:.3g} ms on it, the first "
-                f"pick in {1e3 * held.settling_10_s:.3g} ms: not clearly ahead, the first kept"
+            self._notes.append(
+                f"{note}; they settle in {1e3 * found.metrics.settling_10_s:.3g} ms on it, the "
+                f"first pick in {1e3 * held.settling_10_s:.3g} ms: not clearly ahead, the first "
+                "kept"
             )
             return None
+        self._notes.append(note)
         return Redesign(found, fitted)
 
     async def _try_alternatives(
@@ -1458,7 +1460,8 @@ class OwnTuning:
         for i, g in enumerate(design.alternatives if redone is None else ()):
             if self.axis_time_s + try_s + verify_s > AXIS_BUDGET_S:
                 break
-            self.progress(0.85 + 0.04 * i, f"trying runner-up {i + 1} on the axis")
+            # After a search again (0.86) the progress goes on from there.
+            self.progress(min(0.87 + 0.03 * i, 0.97), f"trying runner-up {i + 1} on the axis")
             await self.write_gains(g)
             last = g
             key = await self._try_key(drive, brisk, watch)
