@@ -77,6 +77,8 @@ def test_rigid_axis_inertia_margins_and_settling() -> None:
     assert result["identified"]["resonances"] == []
     # Friction identified near the plant file's 2 % of peak torque.
     assert result["identified"]["coulomb_nm"] == pytest.approx(0.02 * spec.peak_torque, rel=0.3)
+    # A rigid axis ranked on the instrumented inertia tries nothing on the axis: no refit.
+    assert result["identified"]["refit"] is None
     g = _gains(result)
     assert g.notch1_hz == 0.0 and g.notch2_hz == 0.0  # Nothing to notch on a rigid axis.
     # On the drive: every mapped gain object holds the new value.
@@ -375,6 +377,13 @@ def test_a_try_that_settles_only_in_the_noise_does_not_replace_the_models_pick()
     spec = dict(default_plants())["R30-100Hz"]
     result, _drive = asyncio.run(tune(spec, "high", 1))
     assert measure(spec, _gains(result))["settling_10_s"] < 0.40
+    # The result says so (identified.refit): the fit, far closer to the try than the
+    # identification, and the two picks' settling on the fitted model, not 0.7 x apart.
+    refit = result["identified"]["refit"]
+    assert refit["outcome"] == "first_kept"
+    assert refit["error_rms_counts_after"] < 0.5 * refit["error_rms_counts_before"]
+    assert refit["searched_settling_s"] >= 0.7 * refit["first_settling_s"]
+    assert any("not clearly ahead, the first kept" in n for n in result["notes"])
 
 
 def test_the_tries_recordings_mend_the_inertias_the_identification_missed() -> None:
@@ -387,6 +396,12 @@ def test_the_tries_recordings_mend_the_inertias_the_identification_missed() -> N
     result, _drive = asyncio.run(tune(spec, "high", 4))
     assert measure(spec, _gains(result))["settling_10_s"] < 0.018
     assert any("the tries' recordings fit the motor inertia" in n for n in result["notes"])
+    # The result's record of it (identified.refit): the motor 1-4 % heavier than identified,
+    # and the new pick taken, clearly ahead of the first on the fitted model.
+    refit = result["identified"]["refit"]
+    assert refit["outcome"] == "searched_again"
+    assert 1.01 < refit["motor_inertia_factor"] < 1.04
+    assert refit["searched_settling_s"] < 0.7 * refit["first_settling_s"]
 
 
 def test_the_fitted_models_pick_is_not_undone_by_tries_that_cannot_tell() -> None:

@@ -378,6 +378,9 @@ class OwnTuning:
         self.peak_torque = 0.0
         #: What the procedure adds to the design's notes in the result.
         self._notes: list[str] = []
+        #: What the tries' recordings fitted and what came of it (:meth:`_redesign`), for the
+        #: result's ``identified.refit``; None where no try was fitted.
+        self._refit: dict[str, Any] | None = None
 
     # ------------------------------------------------------------------ small helpers
 
@@ -1357,6 +1360,16 @@ class OwnTuning:
         fit = fit_inertias(nominal.params, records, drive.rate_hz)
         log.debug("the tries' records fit the inertias x %s", fit)
         moved = max(abs(fit.motor - 1.0), abs(fit.load - 1.0))
+        refit: dict[str, Any] = {
+            "motor_inertia_factor": fit.motor,
+            "load_inertia_factor": fit.load,
+            "error_rms_counts_before": math.sqrt(fit.error_before),
+            "error_rms_counts_after": math.sqrt(fit.error_after),
+            "outcome": "fit_not_used",
+            "searched_settling_s": None,
+            "first_settling_s": None,
+        }
+        self._refit = refit
         if (
             moved < CALIBRATE_MIN_CHANGE
             or fit.error_after > CALIBRATE_ERROR_SHARE * fit.error_before
@@ -1377,6 +1390,8 @@ class OwnTuning:
         job, _ = design_job(fitted, first)
         found = await self._search(job)
         held = found.incumbent_metrics
+        refit["searched_settling_s"] = found.metrics.settling_10_s
+        refit["first_settling_s"] = held.settling_10_s if held is not None else None
         if (
             found.gains != first
             and held is not None
@@ -1391,8 +1406,10 @@ class OwnTuning:
                 f"first pick in {1e3 * held.settling_10_s:.3g} ms: not clearly ahead, the first "
                 "kept"
             )
+            refit["outcome"] = "first_kept"
             return None
         self._notes.append(note)
+        refit["outcome"] = "searched_again"
         return Redesign(found, fitted)
 
     async def _try_alternatives(
@@ -1689,6 +1706,10 @@ class OwnTuning:
                     }
                     for r in resonances
                 ],
+                # The inertias the winner's try fitted and what came of it (:meth:`_redesign`):
+                # None where no try was fitted (a rigid axis, a response that did not show the
+                # anti-resonance, inertias from the moves' double integral, no axis time left).
+                "refit": self._refit,
             },
             "bode": {
                 "freq_hz": _round(frf.f_hz),

@@ -166,6 +166,29 @@ export interface Identified {
     /** The damping ratio the design used (dimensionless); absent from older results. */
     damping?: number;
   }[];
+  /** servodesk's own tuning: the inertias the winner's try on the axis fitted (factors on the
+   * identified motor's and load's) and what came of it; null where no try was fitted, absent
+   * from older results and from the drive's own tuning. */
+  refit?: Refit | null;
+}
+
+/** `identified.refit`: the model's inertias fitted to the recordings of the winner's try. */
+export interface Refit {
+  motor_inertia_factor: number;
+  load_inertia_factor: number;
+  /** The replayed try's motor position error against the recording, RMS [counts], with the
+   * identified inertias and with the fitted ones. */
+  error_rms_counts_before: number;
+  error_rms_counts_after: number;
+  /** `fit_not_used`: the fit was not clearly better (error not halved) or moved no inertia by
+   * 0.5 %; `searched_again`: the gains were searched again on the fitted model and its pick
+   * taken; `first_kept`: searched again, but the new pick was not clearly ahead of the first
+   * on that model (under 0.7 x its settling), so the first stayed. */
+  outcome: 'fit_not_used' | 'searched_again' | 'first_kept';
+  /** Settling to +-10 counts on the fitted model [s]: the search's new pick and the first pick
+   * (null where not searched again, or where the first pick diverged there). */
+  searched_settling_s: number | null;
+  first_settling_s: number | null;
 }
 
 export interface TuningResult {

@@ -15,7 +15,7 @@
  */
 import { useCallback, useEffect, useMemo, useState } from 'react';
 import { api, operationApi } from '../api/client';
-import { type TuningInfo, type TuningJob, type TuningMode, type TuningResult, tuningApi } from '../api/tuning';
+import { type Refit, type TuningInfo, type TuningJob, type TuningMode, type TuningResult, tuningApi } from '../api/tuning';
 import { ConfirmDialog } from '../components/ConfirmDialog';
 import { FailureBox } from '../components/FailureBox';
 import { ProgressBar } from '../components/ProgressBar';
@@ -25,7 +25,7 @@ import { beginHeartbeat, heartbeatRunning, loadControl, me, operationLive, start
 import '../components/operation/operation.css';
 import { GainTable } from '../components/tuning/GainTable';
 import { BodePlot, StepPlot } from '../components/tuning/TuningPlots';
-import { type Inputs, checkInputs, fmtNumber, gainLines, isRunning, jobLabel, kindTitle, modeText, presentLines, windowInUnits, withUnit } from '../components/tuning/tuningModel';
+import { type Inputs, checkInputs, fmtNumber, gainLines, isRunning, jobLabel, kindTitle, modeText, presentLines, refitLines, windowInUnits, withUnit } from '../components/tuning/tuningModel';
 import '../components/tuning/tuning.css';
 import { type Failure, failureOf } from '../lib/codes';
 import { notify, notifyError } from '../state/notify';
@@ -43,6 +43,22 @@ function Step({ n, title, children, testid, dim = false }: { n: number; title: s
       </h2>
       {children}
     </section>
+  );
+}
+
+/** The inertias the winner's try fitted, and what servodesk did with them (own tuning). */
+function RefitRow({ refit }: { refit: Refit }) {
+  const { fit, outcome } = refitLines(refit);
+  return (
+    <tr data-testid="tuning-refit">
+      <th>Inertias fitted to the winner's try</th>
+      <td className="mono">
+        {fit}
+        <div className="muted small" data-testid="tuning-refit-outcome">
+          {outcome}
+        </div>
+      </td>
+    </tr>
   );
 }
 
@@ -509,6 +525,7 @@ export function TuningPage({ sid }: PageProps) {
                           </td>
                         </tr>
                       ))}
+                      {result.identified.refit && <RefitRow refit={result.identified.refit} />}
                     </tbody>
                   </table>
                 )}

@@ -12,6 +12,7 @@ import {
   largestWindow,
   modeText,
   parseDecimal,
+  refitLines,
   stepSeries,
   windowInUnits,
   withUnit,
@@ -173,5 +174,32 @@ describe('modeText', () => {
     expect(modeText('low', notes)).toBe('Low response: the softest gains, for machines that must not ring (low mode)');
     expect(modeText('high', {})).toBe('High response: the stiffest gains the drive accepts (high mode)');
     expect(modeText('high')).toBe(modeText('high', {}));
+  });
+});
+
+describe('refitLines', () => {
+  const base = {
+    motor_inertia_factor: 0.985,
+    load_inertia_factor: 0.9965,
+    error_rms_counts_before: 1540.2,
+    error_rms_counts_after: 83.4,
+    outcome: 'first_kept' as const,
+    searched_settling_s: 0.378,
+    first_settling_s: 0.388,
+  };
+  it('gives the fit as signed percentages and the replay error in counts', () => {
+    expect(refitLines(base).fit).toBe('motor −1.5 %, load −0.35 % off the identification (replay\'s position error RMS 1540 → 83.4 counts)');
+  });
+  it('says why the first pick stayed, with both settling times on the fitted model', () => {
+    expect(refitLines(base).outcome).toBe(
+      'gains searched again on the fitted model: its pick settles in 378 ms there, the first pick in 388 ms; not clearly ahead (under 0.7 ×), the first kept',
+    );
+  });
+  it('says a new pick was taken, and when the fit was not used', () => {
+    expect(refitLines({ ...base, motor_inertia_factor: 1.022, outcome: 'searched_again', searched_settling_s: 0.0122, first_settling_s: 0.0269 }).outcome).toBe(
+      'gains searched again on the fitted model: its pick settles in 12.2 ms there, the first pick in 26.9 ms; taken',
+    );
+    expect(refitLines({ ...base, motor_inertia_factor: 1.022 }).fit.startsWith('motor +2.2 %')).toBe(true);
+    expect(refitLines({ ...base, outcome: 'fit_not_used', searched_settling_s: null, first_settling_s: null }).outcome).toMatch(/identified model kept/);
   });
 });

@@ -3,7 +3,7 @@
  * gain table (old -> new, with units and raw values), and the series of the step-response and
  * Bode plots. No React, no DOM: unit-tested in tuningModel.test.ts.
  */
-import type { Bode, GainRow, JobState, ResultGain, StepResponse, TuningInfo, TuningJob, TuningKind, TuningMode } from '../../api/tuning';
+import type { Bode, GainRow, JobState, Refit, ResultGain, StepResponse, TuningInfo, TuningJob, TuningKind, TuningMode } from '../../api/tuning';
 
 export interface Inputs {
   mode: TuningMode;
@@ -254,4 +254,32 @@ export function decadeLabel(v: number | null): string {
   const e = Math.log10(v);
   if (Math.abs(e - Math.round(e)) > 1e-9) return '';
   return v >= 1000 ? `${v / 1000}k` : `${v}`;
+}
+
+/** A factor on an identified value as a signed percentage ("+2.2 %", "-0.35 %"). */
+function offPct(factor: number): string {
+  const p = 100 * (factor - 1);
+  return `${p >= 0 ? '+' : '−'}${fmtNumber(Math.abs(p), 2)} %`;
+}
+
+/** What the winner's try on the axis told about the inertias, in the Tuning page's words:
+ * the fit (motor and load against the identification, the replay's position error RMS before
+ * and after, in counts) and what servodesk did with it. */
+export function refitLines(r: Refit): { fit: string; outcome: string } {
+  const fit =
+    `motor ${offPct(r.motor_inertia_factor)}, load ${offPct(r.load_inertia_factor)} off the identification ` +
+    `(replay's position error RMS ${fmtNumber(r.error_rms_counts_before, 3)} → ${fmtNumber(r.error_rms_counts_after, 3)} counts)`;
+  const ms = (s: number | null) => (s === null ? '—' : `${fmtNumber(1e3 * s, 3)} ms`);
+  let outcome: string;
+  if (r.outcome === 'searched_again') {
+    outcome =
+      r.first_settling_s === null
+        ? `gains searched again on the fitted model: its pick settles in ${ms(r.searched_settling_s)} there, taken`
+        : `gains searched again on the fitted model: its pick settles in ${ms(r.searched_settling_s)} there, the first pick in ${ms(r.first_settling_s)}; taken`;
+  } else if (r.outcome === 'first_kept') {
+    outcome = `gains searched again on the fitted model: its pick settles in ${ms(r.searched_settling_s)} there, the first pick in ${ms(r.first_settling_s)}; not clearly ahead (under 0.7 ×), the first kept`;
+  } else {
+    outcome = 'the fit was not clearly closer to the axis (error not halved, or no inertia moved by 0.5 %): the identified model kept';
+  }
+  return { fit, outcome };
 }
