@@ -1,13 +1,16 @@
 """Per-tick cost of the move simulation the own tuning ranks its candidates with and the
 benchmark's oracle is chosen with: the fused tick loop (sim/fused.py, what ``run_move`` takes
-for a noiseless axis) against the call-per-tick path through ``ServoLoop.update`` and
-``Plant.step`` (``run_move_stepwise``, the baseline), alternating in one process.
+for a noiseless axis; compiled by numba) against the call-per-tick path through
+``ServoLoop.update`` and ``Plant.step`` (``run_move_stepwise``, the baseline) and against the
+same fused loop run as Python (``python_fused``, what ran before numba compiled it),
+alternating in one process.
 
 Each plant runs the benchmark's reference move (0.5 rev, jerk-limited, watched 0.5 s) with the
 ``high`` design of its exact model, twice: with the model's numbers as Python floats, and as
 numpy scalars, which is how an identified model and a designed gain set carry them (the
-tuning's case). Reports the median microseconds per tick of each path, their ratio (fused over
-baseline; below 1 is faster) and whether the two gave the same positions to the count.
+tuning's case). Reports the median microseconds per tick of each path, their ratios (fused
+over baseline, and fused over the Python fused loop; below 1 is faster) and whether the three
+gave the same positions to the count.
 
     python bench/bench_replay.py [--rounds 5] [--plants R10-200Hz,R30-100Hz,R3-rigid] [--json]
 """
@@ -29,6 +32,7 @@ from servodesk.benchmarks.tuning import default_plants, exact_model, plant_names
 from servodesk.domain.tuning.design import design_gains
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.search import reference_move
+from servodesk.sim import fused as fused_module
 from servodesk.sim.plant import PlantParams
 from servodesk.sim.replay import ModelMoves, run_move, run_move_stepwise
 
@@ -67,23 +71,40 @@ def one_plant(name: str, rounds: int, numpy_scalars: bool) -> dict[str, Any]:
     ticks = len(move.p)
     base: list[float] = []
     fused: list[float] = []
+    python: list[float] = []
     same = True
+    run_move(params, gains, rate, spec.peak_torque, move)  # Loads (or compiles) the loop once.
+    compiled = fused_module.COMPILED and fused_module._compiled is not None
     for _ in range(rounds):
         t0 = time.perf_counter()
         a = run_move_stepwise(params, gains, rate, spec.peak_torque, move)
         t1 = time.perf_counter()
         b = run_move(params, gains, rate, spec.peak_torque, move)
         t2 = time.perf_counter()
+        fused_module.COMPILED = False
+        try:
+            c = run_move(params, gains, rate, spec.peak_torque, move)
+        finally:
+            fused_module.COMPILED = True
+        t3 = time.perf_counter()
         base.append((t1 - t0) / ticks * 1e6)
         fused.append((t2 - t1) / ticks * 1e6)
-        same = same and bool(np.array_equal(a, b, equal_nan=True))
+        python.append((t3 - t2) / ticks * 1e6)
+        same = (
+            same
+            and bool(np.array_equal(a, b, equal_nan=True))
+            and bool(np.array_equal(a, c, equal_nan=True))
+        )
     return {
         "plant": name,
         "numbers": "numpy scalars" if numpy_scalars else "floats",
         "ticks": ticks,
+        "compiled": compiled,
         "baseline_us_per_tick": statistics.median(base),
+        "python_fused_us_per_tick": statistics.median(python),
         "fused_us_per_tick": statistics.median(fused),
         "ratio": statistics.median(fused) / statistics.median(base),
+        "ratio_to_python_fused": statistics.median(fused) / statistics.median(python),
         "same_positions": same,
     }
 
@@ -103,8 +124,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     rows = [one_plant(n, args.rounds, np_) for n in names for np_ in (False, True)]
     out = {
-        "what": "reference move on an exact plant model, fused tick loop (sim/fused.py) "
-        "against ServoLoop.update + Plant.step per tick (baseline), same process",
+        "what": "reference move on an exact plant model, fused tick loop (sim/fused.py, "
+        "compiled) against ServoLoop.update + Plant.step per tick (baseline) and against the "
+        "fused loop as Python (python_fused), same process",
         "rounds": args.rounds,
         "cpu_count": os.cpu_count(),
         "loadavg": os.getloadavg(),
@@ -115,6 +137,7 @@ def main(argv: list[str] | None = None) -> int:
         "ratio_median_numpy_scalars": statistics.median(
             r["ratio"] for r in rows if r["numbers"] == "numpy scalars"
         ),
+        "ratio_to_python_fused_median": statistics.median(r["ratio_to_python_fused"] for r in rows),
         "same_positions": all(r["same_positions"] for r in rows),
     }
     if args.json:
@@ -123,12 +146,14 @@ def main(argv: list[str] | None = None) -> int:
         for r in rows:
             print(
                 f"{r['plant']:12s} {r['numbers']:14s} {r['ticks']:6d} ticks  baseline "
-                f"{r['baseline_us_per_tick']:.2f} us  fused {r['fused_us_per_tick']:.2f} us  "
-                f"ratio {r['ratio']:.2f}" + ("" if r["same_positions"] else "  DIFFERENT")
+                f"{r['baseline_us_per_tick']:.2f} us  python fused "
+                f"{r['python_fused_us_per_tick']:.2f} us  fused {r['fused_us_per_tick']:.2f} us  "
+                f"ratio {r['ratio']:.3f}" + ("" if r["same_positions"] else "  DIFFERENT")
             )
         print(
-            f"median ratio: floats {out['ratio_median_floats']:.2f}, "
-            f"numpy scalars {out['ratio_median_numpy_scalars']:.2f}"
+            f"median ratio to the baseline: floats {out['ratio_median_floats']:.3f}, "
+            f"numpy scalars {out['ratio_median_numpy_scalars']:.3f}; to the Python fused loop "
+            f"{out['ratio_to_python_fused_median']:.3f}"
         )
     return 0 if out["same_positions"] else 1
 

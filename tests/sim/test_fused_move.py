@@ -12,7 +12,7 @@ import pytest
 
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.search import ReferenceMove, reference_move
-from servodesk.sim import replay
+from servodesk.sim import fused, replay
 from servodesk.sim.fused import applies, fused_move
 from servodesk.sim.plant import PlantParams
 
@@ -144,3 +144,45 @@ def test_a_noisy_plant_takes_the_stepwise_path() -> None:
     # The noise is in: the same move without it ends elsewhere.
     quiet = replay.run_move(TWO_MASS, PLAIN, RATE, 4.46, move)
     assert not np.array_equal(quiet, replay.run_move(noisy, PLAIN, RATE, 4.46, move))
+
+
+def test_the_tick_loop_runs_compiled() -> None:
+    # numba is a dependency: without it every tuning's ranking would run the loop as Python,
+    # over twenty times slower (bench/bench_replay.py), and nothing else would say so.
+    assert fused.COMPILED
+    move = _move(TWO_MASS, 3.0)
+    replay.run_move(TWO_MASS, FILTERED, RATE, 4.46, move)
+    assert fused._compiled is not None and fused._compiled.signatures
+
+
+@pytest.mark.parametrize(
+    ("params", "gains", "limit", "hold"),
+    [
+        (TWO_MASS, FILTERED, 4.46, 0),
+        (TWO_MASS, FILTERED, 0.6, 40),
+        (replace(TWO_MASS, gravity=0.4), PLAIN, 4.46, 0),
+        (RIGID, PLAIN, 4.46, 25),
+        (replace(RIGID, exact=False, current_loop_hz=None, current_tau=0.0), FILTERED, 4.46, 0),
+        (TWO_MASS, replace(PLAIN, inertia_ff=math.inf), math.inf, 0),
+    ],
+    ids=[
+        "two-mass",
+        "two-mass-clamped-held",
+        "two-mass-gravity",
+        "rigid-held",
+        "rigid-semi",
+        "nan",
+    ],
+)
+def test_the_compiled_loop_gives_the_python_loops_positions_to_the_bit(
+    params: PlantParams, gains: ServoGains, limit: float, hold: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The same source runs compiled and as Python; no fast-math, so no fused multiply-add or
+    # reordering may change a bit (a count moved would move the tuning's ranking).
+    move = _move(params, 3.0)
+    args = (params, gains, RATE, limit, list(move.p), list(move.v), list(move.a), hold)
+    compiled = fused_move(*args)
+    monkeypatch.setattr(fused, "COMPILED", False)
+    python = fused_move(*args)
+    assert compiled is not None and python is not None
+    assert np.array_equal(compiled, python, equal_nan=True)

@@ -54,10 +54,9 @@ def run_move(
     several times faster); one with noise or a dead time through :func:`run_move_stepwise`."""
     if not applies(params):
         return run_move_stepwise(params, gains, rate_hz, torque_limit, move)
-    p, v, a = move.p.tolist(), move.v.tolist(), move.a.tolist()
     # Start where the axis rests under gravity: the loop holds it with its integral.
     hold = int(GRAVITY_HOLD_S * rate_hz) if params.gravity else 0
-    pos = fused_move(params, gains, rate_hz, torque_limit, p, v, a, hold)
+    pos = fused_move(params, gains, rate_hz, torque_limit, move.p, move.v, move.a, hold)
     assert pos is not None
     return pos
 
