@@ -28,7 +28,7 @@ class EthercatCyclic(CyclicTransport):
     """The process data of the slaves of one EtherCAT line (see the module docstring)."""
 
     def __init__(self, link: EthercatLink) -> None:
-        self._shared, _ = link._master()
+        self._shared = link.line()
         self._channel = link.params.channel
         # A new exchange starts without the outputs of the last one (it may run inputs only).
         self._shared.outputs.pop(link.params.node_id - 1, None)

@@ -243,6 +243,14 @@ class EthercatLink(DriveLink):
         if shared is not None:
             _release_master(self.params.channel, shared)
 
+    def line(self) -> _Master:
+        """The state this link shares with the other links of its line: the SOEM master, the
+        lock every access takes, and the cyclic transport's receivers and outputs
+        (links/ethercat_cyclic.py drives one process data cycle of the whole line with it).
+        LinkError when the link is closed."""
+        shared, _ = self._master()
+        return shared
+
     def _master(self) -> tuple[_Master, Any]:
         if self._shared is None or self._slave is None:
             raise LinkError("the EtherCAT link is closed", hint="open the session again")
