@@ -23,7 +23,12 @@ from servodesk.benchmarks.tuning import (
     build_drive,
     default_plants,
 )
-from servodesk.services.tuning_calibrate import fit_inertias, output_error, recorded_move
+from servodesk.services.tuning_calibrate import (
+    fit_inertias,
+    fit_split,
+    output_error,
+    recorded_move,
+)
 from servodesk.services.tuning_own import (
     FOLLOWING_ERROR,
     POSITION,
@@ -104,6 +109,24 @@ def test_the_inertias_a_model_is_off_by_come_back_from_the_fit(
     assert fit.motor * 0.975 == pytest.approx(1.0, abs=0.002)
     assert fit.load * 1.01 == pytest.approx(1.0, abs=0.002)
     assert fit.error_after < 0.01 * fit.error_before
+
+
+def test_the_split_of_a_known_total_comes_back_from_the_fit_with_the_total_held(
+    tried: tuple[list[RecordedMove], float, PlantParams],
+) -> None:
+    records, rate, true = tried
+    # The total right (as the moves' double integral gives it) and the motor 3 % light, the
+    # load taking the difference: the split alone is fitted.
+    jm = true.motor_inertia * 0.97
+    jl = true.load_inertia + 0.03 * true.motor_inertia
+    model = replace(true, motor_inertia=jm, load_inertia=jl)
+    fit = fit_split(model, records, rate)
+    assert fit.motor * jm == pytest.approx(true.motor_inertia, rel=0.002)
+    assert fit.motor * jm + fit.load * jl == pytest.approx(jm + jl, rel=1e-12)
+    assert fit.error_after < 0.01 * fit.error_before
+    # Where the model is the axis, the fit stays there.
+    held = fit_split(true, records, rate)
+    assert held.motor == pytest.approx(1.0, abs=0.002) and held.error_before == 0.0
 
 
 def test_a_recording_is_aligned_by_its_demand_and_refused_where_it_misses_the_start() -> None:
