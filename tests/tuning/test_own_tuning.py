@@ -418,6 +418,15 @@ def test_the_winners_try_is_fitted_where_the_ranking_offers_no_runner_up() -> No
     assert result["axis_time_s"] <= 5.0
 
 
+def test_the_basic_response_tries_nothing_on_the_axis() -> None:
+    # The same axis at ``basic``: that level ranks nothing, and no try runs for a fit either
+    # (the design is the model's; the refit's try is for the ranking at ``high``).
+    spec = dict(default_plants())["R1-200Hz"]
+    result, _drive = asyncio.run(tune(spec, "basic", 7))
+    assert result["identified"]["refit"] is None
+    assert not any("tries" in n for n in result["notes"])
+
+
 def test_where_the_moves_gave_the_inertia_the_tries_fit_its_split_only() -> None:
     # A load 10 x the motor behind a 400 Hz shaft, as the benchmark tunes it (noise seed 3):
     # the moves' double integral gave the inertia, which the tries' fit left alone (a free

@@ -1456,10 +1456,11 @@ class OwnTuning:
         Each try stays within the axis-time budget of a tuning. Returns the gains, their
         verification move, and the search result and model they came from (the gains' figures
         are that result's)."""
-        # The winner's try also feeds the refit: it runs where the ranking offers no runner-up
-        # too (R1-200Hz seed 7: none within 1.5 x the winner, so no try and no fit, and gains
-        # that settle in 25.5 ms; fitted, 16.3 ms; the oracle 11.0 ms).
-        if not design.alternatives and redesign is None:
+        # The winner's try also feeds the refit: at ``high`` it runs where the ranking offers
+        # no runner-up too (R1-200Hz seed 7: none within 1.5 x the winner, so no try and no
+        # fit, and gains that settle in 25.5 ms; fitted, 16.3 ms; the oracle 11.0 ms). The
+        # other levels rank nothing and try nothing on the axis, as before.
+        if not design.alternatives and (redesign is None or self.request.mode != "high"):
             return design.gains, step, design, model
         distance, _velocity, acc = profile
         acc *= RANK_TORQUE_SHARE * 3.0  # The verification move accelerates at a third.
