@@ -415,6 +415,7 @@ def test_the_winners_try_is_fitted_where_the_ranking_offers_no_runner_up() -> No
     assert measure(spec, _gains(result))["settling_10_s"] < 0.02
     refit = result["identified"]["refit"]
     assert refit["outcome"] == "searched_again" and refit["motor_inertia_factor"] > 1.02
+    assert refit["total_held"] is False
     assert result["axis_time_s"] <= 5.0
 
 
@@ -440,6 +441,7 @@ def test_where_the_moves_gave_the_inertia_the_tries_fit_its_split_only() -> None
     refit = result["identified"]["refit"]
     assert refit["outcome"] == "searched_again"
     assert refit["motor_inertia_factor"] < 1.0 < refit["load_inertia_factor"]
+    assert refit["total_held"] is True
 
 
 def test_the_fitted_models_pick_is_not_undone_by_tries_that_cannot_tell() -> None:

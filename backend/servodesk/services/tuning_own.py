@@ -1373,6 +1373,8 @@ class OwnTuning:
         refit: dict[str, Any] = {
             "motor_inertia_factor": fit.motor,
             "load_inertia_factor": fit.load,
+            # Only the split was fitted: the moves' double integral gave the total.
+            "total_held": split_only,
             "error_rms_counts_before": math.sqrt(fit.error_before),
             "error_rms_counts_after": math.sqrt(fit.error_after),
             "outcome": "fit_not_used",
@@ -1392,9 +1394,10 @@ class OwnTuning:
         )
         note = (
             f"the tries' recordings fit the motor inertia {100.0 * (fit.motor - 1.0):+.2g} % and "
-            f"the load's {100.0 * (fit.load - 1.0):+.2g} % off the identification (position "
-            f"error RMS {math.sqrt(fit.error_before):.3g} -> {math.sqrt(fit.error_after):.3g} "
-            f"counts): gains searched again on that"
+            f"the load's {100.0 * (fit.load - 1.0):+.2g} % off the identification"
+            f"{', the total held' if split_only else ''} (position error RMS "
+            f"{math.sqrt(fit.error_before):.3g} -> {math.sqrt(fit.error_after):.3g} counts): "
+            "gains searched again on that"
         )
         self.progress(0.86, "searching the gains again with the inertias the tries fit")
         job, _ = design_job(fitted, first)
@@ -1723,8 +1726,9 @@ class OwnTuning:
                     for r in resonances
                 ],
                 # The inertias the winner's try fitted and what came of it (:meth:`_redesign`):
-                # None where no try was fitted (a rigid axis, a response that did not show the
-                # anti-resonance, inertias from the moves' double integral, no axis time left).
+                # None where no try was fitted (a rigid axis ranked on the instrumented inertia,
+                # a response that did not show the anti-resonance, the basic and low levels, no
+                # axis time left).
                 "refit": self._refit,
             },
             "bode": {

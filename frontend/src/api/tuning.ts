@@ -176,6 +176,9 @@ export interface Identified {
 export interface Refit {
   motor_inertia_factor: number;
   load_inertia_factor: number;
+  /** Only the split between motor and load was fitted, the total held (the test moves' double
+   * integral measured it); absent from older results. */
+  total_held?: boolean;
   /** The replayed try's motor position error against the recording, RMS [counts], with the
    * identified inertias and with the fitted ones. */
   error_rms_counts_before: number;

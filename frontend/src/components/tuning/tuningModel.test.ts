@@ -202,4 +202,9 @@ describe('refitLines', () => {
     expect(refitLines({ ...base, motor_inertia_factor: 1.022 }).fit.startsWith('motor +2.2 %')).toBe(true);
     expect(refitLines({ ...base, outcome: 'fit_not_used', searched_settling_s: null, first_settling_s: null }).outcome).toMatch(/identified model kept/);
   });
+  it('says where only the split was fitted, the total held', () => {
+    expect(refitLines({ ...base, motor_inertia_factor: 0.989, load_inertia_factor: 1.0011, total_held: true }).fit).toBe(
+      'motor −1.1 %, load +0.11 % off the identification, the total held (the test moves measured it) (replay\'s position error RMS 1540 → 83.4 counts)',
+    );
+  });
 });

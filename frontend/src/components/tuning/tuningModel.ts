@@ -267,7 +267,8 @@ function offPct(factor: number): string {
  * and after, in counts) and what servodesk did with it. */
 export function refitLines(r: Refit): { fit: string; outcome: string } {
   const fit =
-    `motor ${offPct(r.motor_inertia_factor)}, load ${offPct(r.load_inertia_factor)} off the identification ` +
+    `motor ${offPct(r.motor_inertia_factor)}, load ${offPct(r.load_inertia_factor)} off the identification` +
+    (r.total_held ? ', the total held (the test moves measured it) ' : ' ') +
     `(replay's position error RMS ${fmtNumber(r.error_rms_counts_before, 3)} → ${fmtNumber(r.error_rms_counts_after, 3)} counts)`;
   const ms = (s: number | null) => (s === null ? '—' : `${fmtNumber(1e3 * s, 3)} ms`);
   let outcome: string;
