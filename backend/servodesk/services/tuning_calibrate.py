@@ -132,6 +132,37 @@ def output_error(params: PlantParams, moves: Sequence[RecordedMove], rate_hz: fl
     return total / count if count else math.inf
 
 
+class _Errors:
+    """The output error (:func:`output_error`) of ``params`` with its motor's and load's
+    inertia scaled by ``a`` and ``b``, each replay run once (the searches come back to points
+    they ran); inf beyond :data:`REACH` of the model."""
+
+    def __init__(self, params: PlantParams, moves: Sequence[RecordedMove], rate_hz: float) -> None:
+        self.params, self.moves, self.rate_hz = params, moves, rate_hz
+        self.cache: dict[tuple[float, float], float] = {}
+
+    def __call__(self, a: float, b: float) -> float:
+        if abs(a - 1.0) > REACH or abs(b - 1.0) > REACH:
+            return math.inf
+        key = (round(a, 7), round(b, 7))
+        if key not in self.cache:
+            p = replace(
+                self.params,
+                motor_inertia=self.params.motor_inertia * a,
+                load_inertia=self.params.load_inertia * b,
+            )
+            self.cache[key] = output_error(p, self.moves, self.rate_hz)
+        return self.cache[key]
+
+    def fit(self, a: float, b: float, found: float) -> InertiaFit:
+        """The fit at ``(a, b)`` whose error the search found as ``found``, or the model's own
+        inertias where that is no better than the model."""
+        before = self(1.0, 1.0)
+        if not found < before:
+            a, b = 1.0, 1.0
+        return InertiaFit(a, b, before, min(found, before), len(self.cache))
+
+
 def fit_inertias(params: PlantParams, moves: Sequence[RecordedMove], rate_hz: float) -> InertiaFit:
     """The motor's and the load's inertia (factors on ``params``'s) whose replays come closest
     to the recorded moves, within :data:`REACH` of the model: a Nelder-Mead search from it
@@ -139,34 +170,16 @@ def fit_inertias(params: PlantParams, moves: Sequence[RecordedMove], rate_hz: fl
     diagonally (a heavier motor with a lighter load moves the motor alike) and is narrow across
     the load: R10-200Hz's error grows 20 x with the load 1 % off and 2 x with the motor 2 %
     off, where a search along the axes stopped 5 % off the motor's inertia."""
-    cache: dict[tuple[float, float], float] = {}
-
-    def err(x: npt.NDArray[np.float64]) -> float:
-        a, b = 1.0 + float(x[0]), 1.0 + float(x[1])
-        if abs(a - 1.0) > REACH or abs(b - 1.0) > REACH:
-            return math.inf
-        key = (round(a, 7), round(b, 7))
-        if key not in cache:
-            p = replace(
-                params,
-                motor_inertia=params.motor_inertia * a,
-                load_inertia=params.load_inertia * b,
-            )
-            cache[key] = output_error(p, moves, rate_hz)
-        return cache[key]
-
-    before = err(np.zeros(2))
+    errors = _Errors(params, moves, rate_hz)
+    errors(1.0, 1.0)
     simplex = np.array([[0.0, 0.0], [FIRST_STEP, 0.0], [0.0, FIRST_STEP / 4.0]])
     res = minimize(
-        err,
+        lambda x: errors(1.0 + float(x[0]), 1.0 + float(x[1])),
         np.zeros(2),
         method="Nelder-Mead",
         options={"initial_simplex": simplex, "xatol": LAST_STEP / 2.0, "fatol": 0.0, "maxfev": 80},
     )
-    x = res.x if float(res.fun) < before else np.zeros(2)
-    return InertiaFit(
-        1.0 + float(x[0]), 1.0 + float(x[1]), before, min(float(res.fun), before), len(cache)
-    )
+    return errors.fit(1.0 + float(res.x[0]), 1.0 + float(res.x[1]), float(res.fun))
 
 
 def fit_split(params: PlantParams, moves: Sequence[RecordedMove], rate_hz: float) -> InertiaFit:
@@ -180,30 +193,19 @@ def fit_split(params: PlantParams, moves: Sequence[RecordedMove], rate_hz: float
     were off by (R3-800Hz seed 1: the motor 4.1 % heavier, gains that settled 2 x slower),
     and held to the split it moved R10-400Hz seed 3's pick from 51.2 to 19.6 ms (the oracle
     60.0 ms) and no tuning of the benchmark's 208 the other way (docs/tuning.md)."""
-    cache: dict[float, float] = {}
+    errors = _Errors(params, moves, rate_hz)
     jm, jl = params.motor_inertia, params.load_inertia
 
-    def factors(x: float) -> tuple[float, float]:
-        return 1.0 + x, 1.0 - x * jm / jl
+    def load(x: float) -> float:  # The load's factor that keeps the total at the motor's 1 + x.
+        return 1.0 - x * jm / jl
 
-    def err(x: float) -> float:
-        a, b = factors(float(x))
-        if abs(a - 1.0) > REACH or abs(b - 1.0) > REACH:
-            return math.inf
-        key = round(a, 7)
-        if key not in cache:
-            p = replace(params, motor_inertia=jm * a, load_inertia=jl * b)
-            cache[key] = output_error(p, moves, rate_hz)
-        return cache[key]
-
-    before = err(0.0)
+    errors(1.0, 1.0)
     reach = min(REACH, REACH * jl / jm)
     res = minimize_scalar(
-        err,
+        lambda x: errors(1.0 + float(x), load(float(x))),
         bounds=(-reach, reach),
         method="bounded",
         options={"xatol": LAST_STEP / 2.0, "maxiter": 40},
     )
-    x = float(res.x) if float(res.fun) < before else 0.0
-    a, b = factors(x)
-    return InertiaFit(a, b, before, min(float(res.fun), before), len(cache))
+    x = float(res.x)
+    return errors.fit(1.0 + x, load(x), float(res.fun))

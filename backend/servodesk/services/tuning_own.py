@@ -762,8 +762,9 @@ class OwnTuning:
                     # benchmark's 400-800 Hz axes, closer than the fit, whose inertias also take
                     # up what the friction and damping are off by: R3-800Hz seed 1's motor came
                     # out 4.1 % heavier and its gains settled 2 x slower), only the split between
-                    # motor and load is fitted, the total held (_redesign's split_only).
-                    redesign=None if unseen else redesign,
+                    # motor and load is fitted, the total held (_redesign's split_only). Only at
+                    # ``high``: the other levels rank nothing and try nothing on the axis.
+                    redesign=None if unseen or self.request.mode != "high" else redesign,
                 )
             refuse_if_worse(step_before, step_after)
         except BaseException:
@@ -1459,11 +1460,10 @@ class OwnTuning:
         Each try stays within the axis-time budget of a tuning. Returns the gains, their
         verification move, and the search result and model they came from (the gains' figures
         are that result's)."""
-        # The winner's try also feeds the refit: at ``high`` it runs where the ranking offers
-        # no runner-up too (R1-200Hz seed 7: none within 1.5 x the winner, so no try and no
-        # fit, and gains that settle in 25.5 ms; fitted, 16.3 ms; the oracle 11.0 ms). The
-        # other levels rank nothing and try nothing on the axis, as before.
-        if not design.alternatives and (redesign is None or self.request.mode != "high"):
+        # The winner's try also feeds the refit: it runs where the ranking offers no runner-up
+        # too (R1-200Hz seed 7: none within 1.5 x the winner, so no try and no fit, and gains
+        # that settle in 25.5 ms; fitted, 16.3 ms; the oracle 11.0 ms).
+        if not design.alternatives and redesign is None:
             return design.gains, step, design, model
         distance, _velocity, acc = profile
         acc *= RANK_TORQUE_SHARE * 3.0  # The verification move accelerates at a third.
