@@ -85,6 +85,7 @@ bench: setup
 	$(PY) bench/bench_pdo.py --json
 	$(PY) bench/bench_tuning_design.py --json
 	$(PY) bench/bench_replay.py --json
+	$(PY) bench/bench_tuning_loop.py --json
 	$(VENV)/bin/servodesk bench scope --json
 
 openapi: $(VENV)/.synced

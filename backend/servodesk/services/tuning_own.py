@@ -45,7 +45,7 @@ import sys
 from collections.abc import Awaitable, Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
-from typing import Any, Literal, NamedTuple
+from typing import Any, Literal, NamedTuple, TypeVar
 
 import numpy as np
 from scipy.signal import lfilter  # type: ignore[import-untyped]
@@ -93,6 +93,8 @@ from servodesk.services.tuning_io import DriveRecorder, Recording, SessionIO, Tu
 from servodesk.sim.replay import ModelMoves, OwnMove, RecordedMove, WorstOf
 
 log = logging.getLogger(__name__)
+#: What a job handed to the design worker returns (:meth:`OwnTuning._compute`).
+_T = TypeVar("_T")
 
 Progress = Callable[[float, str], None]
 
@@ -1170,10 +1172,9 @@ class OwnTuning:
         worker process when offloading: one fit is 20-40 ms of arithmetic, a tuning runs up to
         four, and the event loop carries the operator's heartbeats meanwhile."""
         assert self._frf_record is not None
-        job = functools.partial(resonance_from_record, *self._frf_record, resonance)
-        if not self._offload:
-            return job()
-        return await asyncio.get_running_loop().run_in_executor(_design_pool(), job)
+        return await self._compute(
+            functools.partial(resonance_from_record, *self._frf_record, resonance)
+        )
 
     def _resonances(self, frf: Frf, inertia: float, drive: _Drive) -> list[Resonance]:
         """Resonances up to an eighth of the loop rate (plant files allow no higher), and
@@ -1285,12 +1286,16 @@ class OwnTuning:
             if demand is not None and resonances:
                 self._moves_record = (rec.rate_hz, torque, position, demand)
             try:
-                est = identify_rigid(
-                    rec.rate_hz,
-                    torque,
-                    position_rad=position,
-                    window_s=window_s,
-                    instrument_rad=demand if instrumented else None,
+                # In the worker: its Savitzky-Golay filters over the moves' record take 40-90 ms.
+                est = await self._compute(
+                    functools.partial(
+                        identify_rigid,
+                        rec.rate_hz,
+                        torque,
+                        position_rad=position,
+                        window_s=window_s,
+                        instrument_rad=demand if instrumented else None,
+                    )
                 )
             except ValueError as exc:
                 raise TuningFailed(f"the test moves give no inertia: {exc}") from exc
@@ -1329,17 +1334,28 @@ class OwnTuning:
             )
         if window_s > FRICTION_WINDOW_S:
             with contextlib.suppress(ValueError):
-                fr = identify_rigid(
-                    rec.rate_hz, torque, position_rad=position, window_s=FRICTION_WINDOW_S
+                fr = await self._compute(
+                    functools.partial(
+                        identify_rigid,
+                        rec.rate_hz,
+                        torque,
+                        position_rad=position,
+                        window_s=FRICTION_WINDOW_S,
+                    )
                 )
                 log.debug("friction with a %g s window: %s", FRICTION_WINDOW_S, fr)
                 est = replace(est, viscous=fr.viscous, coulomb=fr.coulomb, gravity=fr.gravity)
         return est, velocity * rad
 
     async def _search(self, job: Callable[[], SearchResult]) -> SearchResult:
-        """The gain search ``job``, in its own process unless the tuning runs on simulated time:
-        the search is seconds of Python arithmetic that, in a thread, would hold the GIL against
-        the event loop (heartbeats, dead-man)."""
+        """The gain search ``job`` (:meth:`_compute`)."""
+        return await self._compute(job)
+
+    async def _compute(self, job: Callable[[], _T]) -> _T:
+        """``job`` in the design's worker process unless the tuning runs on simulated time: the
+        searches and fits are tens of milliseconds to seconds of Python arithmetic that, here
+        or in a thread (which would hold the GIL), would hold the event loop that carries the
+        operator's heartbeats and every other session's traffic."""
         if self._offload:
             loop = asyncio.get_running_loop()
             return await loop.run_in_executor(_design_pool(), job)
@@ -1368,7 +1384,13 @@ class OwnTuning:
         (:func:`~servodesk.services.tuning_calibrate.fit_split`)."""
         if nominal is None or not records:
             return None
-        fit = (fit_split if split_only else fit_inertias)(nominal.params, records, drive.rate_hz)
+        # In the worker: some 80 replays of the recorded moves, 1.3 s of arithmetic on
+        # R10-200Hz, which on the event loop held every session's traffic that long.
+        fit = await self._compute(
+            functools.partial(
+                fit_split if split_only else fit_inertias, nominal.params, records, drive.rate_hz
+            )
+        )
         log.debug("the tries' records fit the inertias x %s", fit)
         moved = max(abs(fit.motor - 1.0), abs(fit.load - 1.0))
         refit: dict[str, Any] = {
