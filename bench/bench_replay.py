@@ -5,6 +5,11 @@ for a noiseless axis; compiled by numba) against the call-per-tick path through
 same fused loop run as Python (``python_fused``, what ran before numba compiled it),
 alternating in one process.
 
+``recorded``: the replay of a try's move from the rest the recording found the axis in
+(``run_recorded_move``, what the fit of the inertias to the winner's try runs some 80 times per
+tuning, services/tuning_calibrate.py), fused against the per-cycle path through
+``ServoLoop.run`` (``run_recorded_move_stepwise``, the baseline): milliseconds per replay.
+
 Each plant runs the benchmark's reference move (0.5 rev, jerk-limited, watched 0.5 s) with the
 ``high`` design of its exact model, twice: with the model's numbers as Python floats, and as
 numpy scalars, which is how an identified model and a designed gain set carry them (the
@@ -34,7 +39,14 @@ from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.search import reference_move
 from servodesk.sim import fused as fused_module
 from servodesk.sim.plant import PlantParams
-from servodesk.sim.replay import ModelMoves, run_move, run_move_stepwise
+from servodesk.sim.replay import (
+    ModelMoves,
+    RecordedMove,
+    run_move,
+    run_move_stepwise,
+    run_recorded_move,
+    run_recorded_move_stepwise,
+)
 
 DEFAULT_PLANTS = "R10-200Hz,R30-100Hz,R1-800Hz,R3-rigid"
 
@@ -109,6 +121,57 @@ def one_plant(name: str, rounds: int, numpy_scalars: bool) -> dict[str, Any]:
     }
 
 
+def one_recorded(name: str, rounds: int) -> dict[str, Any]:
+    """A try's move replayed from rest (module docstring): a quarter revolution there at 0.7 x
+    the peak torque over the axis's inertia, under the ``high`` design, the axis resting 3
+    counts off the demand with its integral holding a small torque; 0.4 s recorded."""
+    spec = dict(default_plants())[name]
+    plant = exact_model(spec)
+    rate = float(spec.loop_rate_hz)
+    gains = design_gains(plant, rate, "high").gains
+    moves = ModelMoves.of(
+        plant,
+        rate,
+        counts_per_rev=spec.encoder_counts,
+        torque_limit=spec.peak_torque,
+        coulomb=spec.coulomb * spec.peak_torque,
+    )
+    assert moves is not None
+    cpr = spec.encoder_counts
+    acc = 0.7 * spec.peak_torque / plant.total_inertia * cpr / (2.0 * np.pi)
+    move = RecordedMove(
+        gains=gains,
+        distance=0.25 * cpr,
+        velocity=min(0.8 * float(np.sqrt(acc * 0.25 * cpr)), 40.0 * cpr),
+        acc=acc,
+        offset=3.0,
+        hold_torque=0.5 * spec.coulomb * spec.peak_torque,
+        torque_limit=spec.peak_torque,
+        position=np.zeros(int(0.4 * rate)),
+    )
+    run_recorded_move(moves.params, move, rate)  # Loads (or compiles) the loop once.
+    base: list[float] = []
+    fused: list[float] = []
+    same = True
+    for _ in range(rounds):
+        t0 = time.perf_counter()
+        a = run_recorded_move_stepwise(moves.params, move, rate)
+        t1 = time.perf_counter()
+        b = run_recorded_move(moves.params, move, rate)
+        t2 = time.perf_counter()
+        base.append((t1 - t0) * 1e3)
+        fused.append((t2 - t1) * 1e3)
+        same = same and bool(np.array_equal(a, b, equal_nan=True))
+    return {
+        "plant": name,
+        "ticks": len(move.position),
+        "baseline_ms_per_replay": statistics.median(base),
+        "fused_ms_per_replay": statistics.median(fused),
+        "ratio": statistics.median(fused) / statistics.median(base),
+        "same_positions": same,
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rounds", type=int, default=5, help="rounds of each path per plant")
@@ -123,6 +186,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"bench_replay: {exc}", file=sys.stderr)
         return 2
     rows = [one_plant(n, args.rounds, np_) for n in names for np_ in (False, True)]
+    recorded = [one_recorded(n, args.rounds) for n in names]
     out = {
         "what": "reference move on an exact plant model, fused tick loop (sim/fused.py, "
         "compiled) against ServoLoop.update + Plant.step per tick (baseline) and against the "
@@ -138,7 +202,9 @@ def main(argv: list[str] | None = None) -> int:
             r["ratio"] for r in rows if r["numbers"] == "numpy scalars"
         ),
         "ratio_to_python_fused_median": statistics.median(r["ratio_to_python_fused"] for r in rows),
-        "same_positions": all(r["same_positions"] for r in rows),
+        "recorded": recorded,
+        "recorded_ratio_median": statistics.median(r["ratio"] for r in recorded),
+        "same_positions": all(r["same_positions"] for r in [*rows, *recorded]),
     }
     if args.json:
         print(json.dumps(out, indent=2))
@@ -155,6 +221,12 @@ def main(argv: list[str] | None = None) -> int:
             f"numpy scalars {out['ratio_median_numpy_scalars']:.3f}; to the Python fused loop "
             f"{out['ratio_to_python_fused_median']:.3f}"
         )
+        for r in recorded:
+            print(
+                f"{r['plant']:12s} recorded move {r['ticks']:6d} ticks  baseline "
+                f"{r['baseline_ms_per_replay']:.2f} ms  fused {r['fused_ms_per_replay']:.3f} ms  "
+                f"ratio {r['ratio']:.3f}" + ("" if r["same_positions"] else "  DIFFERENT")
+            )
     return 0 if out["same_positions"] else 1
 
 

@@ -15,6 +15,7 @@ from servodesk.domain.tuning.search import ReferenceMove, reference_move
 from servodesk.sim import fused, replay
 from servodesk.sim.fused import applies, fused_move
 from servodesk.sim.plant import PlantParams
+from servodesk.sim.replay import RecordedMove
 
 RATE = 16000.0
 COUNTS = 1 << 20
@@ -186,3 +187,42 @@ def test_the_compiled_loop_gives_the_python_loops_positions_to_the_bit(
     python = fused_move(*args)
     assert compiled is not None and python is not None
     assert np.array_equal(compiled, python, equal_nan=True)
+
+
+def _recorded(gains: ServoGains, *, offset: float, hold: float, distance: float) -> RecordedMove:
+    """A try's move as the tuning records it (services/tuning_calibrate.recorded_move): only
+    its length and the generator's inputs matter to a replay."""
+    return RecordedMove(
+        gains=gains,
+        distance=distance,
+        velocity=2.0e6,
+        acc=1.5e8,
+        offset=offset,
+        hold_torque=hold,
+        torque_limit=4.46,
+        position=np.zeros(int(0.3 * RATE)),
+    )
+
+
+@pytest.mark.parametrize(
+    ("params", "move"),
+    [
+        (TWO_MASS, _recorded(FILTERED, offset=-3.0, hold=0.05, distance=262144.0)),
+        (TWO_MASS, _recorded(PLAIN, offset=2.0, hold=-0.08, distance=-262144.0)),
+        (replace(TWO_MASS, gravity=0.3), _recorded(FILTERED, offset=0.0, hold=0.3, distance=1e5)),
+        (RIGID, _recorded(PLAIN, offset=5.0, hold=0.02, distance=262144.0)),
+    ],
+    ids=["two-mass-filtered", "two-mass-back", "two-mass-gravity", "rigid"],
+)
+def test_a_recorded_move_replays_fused_as_it_does_stepwise(
+    params: PlantParams, move: RecordedMove
+) -> None:
+    # The fit of the inertias to a try (services/tuning_calibrate.py) replays its moves some
+    # 80 times; the fused loop must give the per-cycle path's positions to the count, from the
+    # rest the recording found the axis in (the integral holding a torque, the shaft wound).
+    fused_pos = replay.run_recorded_move(params, move, RATE)
+    stepwise = replay.run_recorded_move_stepwise(params, move, RATE)
+    assert len(fused_pos) == len(stepwise) == len(move.position)
+    assert np.array_equal(fused_pos, stepwise)
+    # It moved: the replay ends near the target, not where it started.
+    assert abs(fused_pos[-1] - move.offset - move.distance) < 0.05 * abs(move.distance)

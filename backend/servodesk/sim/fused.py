@@ -65,9 +65,25 @@ def fused_move(
     (:func:`applies`)."""
     if not applies(params):
         return None
-    mech = mechanics_for(params)
-    plant = Plant(params, mech)
+    plant = Plant(params, mechanics_for(params))
     loop = ServoLoop(gains, rate_hz, params.counts_per_rev, torque_limit)
+    return fused_ticks(plant, loop, rate_hz, p, v, a, hold_ticks)
+
+
+def fused_ticks(
+    plant: Plant,
+    loop: ServoLoop,
+    rate_hz: float,
+    p: Sequence[float] | FloatArray,
+    v: Sequence[float] | FloatArray,
+    a: Sequence[float] | FloatArray,
+    hold_ticks: int = 0,
+) -> FloatArray:
+    """:func:`fused_move` from the state ``plant`` and ``loop`` are in (a replay starts where a
+    recording found the axis: replay.run_recorded_move), leaving both as they were: the encoder
+    reading at the start of each tick [counts]. The plant must be one :func:`applies` to (its
+    parameters); ``p`` [rad] is each tick's demand as the loop compares it with the encoder."""
+    mech = plant.mechanics
     dt = 1.0 / rate_hz
     plant._set_dt(dt)
     # Every coefficient as a Python float: an identified model's inertias and friction and a

@@ -29,7 +29,7 @@ from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.metrics import MoveMetrics, move_metrics
 from servodesk.domain.tuning.model import PlantModel
 from servodesk.domain.tuning.search import ReferenceMove, Rerank, reference_move
-from servodesk.sim.fused import applies, fused_move
+from servodesk.sim.fused import applies, fused_move, fused_ticks
 from servodesk.sim.plant import Plant, PlantParams, TwoMassMechanics, mechanics_for
 from servodesk.sim.profile_position import CONTROL_PERIOD_S, pp_step
 from servodesk.sim.servo import POSITION, ServoLoop
@@ -233,7 +233,53 @@ def run_recorded_move(params: PlantParams, move: RecordedMove, rate_hz: float) -
     cycle, the loop ticks the cycle's sub-steps with the demand interpolated from the cycle's
     start, the cycle's velocity and acceleration fed forward. The axis starts at rest where the
     recording found it: the loop's integral holding the torque it held, and on a two-mass axis
-    the shaft wound by that torque (the load held by its friction, the motor by the shaft)."""
+    the shaft wound by that torque (the load held by its friction, the motor by the shaft).
+
+    A noiseless axis runs through the fused tick loop of sim/fused.py, the generator's
+    demand laid out per tick beforehand: the same arithmetic as :func:`run_recorded_move_stepwise`
+    (tests/sim/test_fused_move.py holds the two equal to the count), some twenty times faster.
+    The fit of the inertias to a try replays its moves some 80 times (services/tuning_calibrate.py)."""
+    plant, loop = _at_rest(params, move, rate_hz)
+    if not applies(params):
+        return _replayed_stepwise(plant, loop, params, move, rate_hz)
+    n = max(1, round(rate_hz * CONTROL_PERIOD_S))
+    rad = 2.0 * math.pi / params.counts_per_rev
+    total = len(move.position)
+    # The encoder after each tick is the one the next tick starts with: one tick more.
+    cycles = -(-(total + 1) // n)
+    k = np.arange(1, n + 1, dtype=np.float64)
+    p = np.empty(cycles * n)
+    v = np.empty(cycles * n)
+    a = np.empty(cycles * n)
+    dp, dv = 0.0, 0.0
+    done = False
+    for c in range(cycles):
+        raw0 = dp
+        if done:
+            da = dv = 0.0
+        else:
+            dp, dv, da, done = pp_step(
+                dp, dv, move.distance, move.velocity, move.acc, move.acc, CONTROL_PERIOD_S
+            )
+        # As ServoLoop.run forms the demand: (p0 + inc * k) * rad on tick k of the cycle.
+        p[c * n : (c + 1) * n] = (raw0 + ((dp - raw0) / n) * k) * rad
+        v[c * n : (c + 1) * n] = dv * rad
+        a[c * n : (c + 1) * n] = da * rad
+    pos = fused_ticks(plant, loop, rate_hz, p[: total + 1], v[: total + 1], a[: total + 1])
+    return np.asarray(pos[1 : total + 1], dtype=np.float64)
+
+
+def run_recorded_move_stepwise(
+    params: PlantParams, move: RecordedMove, rate_hz: float
+) -> FloatArray:
+    """:func:`run_recorded_move` through ``ServoLoop.run`` and ``Plant.step_counts``, a control
+    cycle at a time as the simulated drive's engine runs them: any plant (noise)."""
+    plant, loop = _at_rest(params, move, rate_hz)
+    return _replayed_stepwise(plant, loop, params, move, rate_hz)
+
+
+def _at_rest(params: PlantParams, move: RecordedMove, rate_hz: float) -> tuple[Plant, ServoLoop]:
+    """The axis and its loop where the recording found them (:func:`run_recorded_move`)."""
     mech = mechanics_for(params)
     plant = Plant(params, mech)
     plant.set_position_counts(move.offset)
@@ -242,6 +288,12 @@ def run_recorded_move(params: PlantParams, move: RecordedMove, rate_hz: float) -
         mech.load_pos = mech.position - move.hold_torque / mech.stiffness
     loop = ServoLoop(move.gains, rate_hz, params.counts_per_rev, move.torque_limit)
     loop.hold(plant.encoder_counts, move.hold_torque)
+    return plant, loop
+
+
+def _replayed_stepwise(
+    plant: Plant, loop: ServoLoop, params: PlantParams, move: RecordedMove, rate_hz: float
+) -> FloatArray:
     n = max(1, round(rate_hz * CONTROL_PERIOD_S))
     dt = 1.0 / rate_hz
     rad = 2.0 * math.pi / params.counts_per_rev
