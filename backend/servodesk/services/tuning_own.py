@@ -1531,6 +1531,20 @@ class OwnTuning:
             clear = key[0] < TRY_CLEAR_SHARE * best_key[0]
             better = clear if trust_model else key < best_key
             if better:
+                verdict = "taken"
+            elif trust_model:
+                verdict = (
+                    f"not clearly ahead (under {TRY_CLEAR_SHARE:g} x the pick's time), "
+                    "the pick kept"
+                )
+            else:
+                verdict = "the pick kept"
+            self._notes.append(
+                f"runner-up {i + 1} tried on the axis: {_settling_text(key[0], watch)}, the pick "
+                f"so far {_settling_text(best_key[0], watch)} (each the mean of a move there and "
+                f"back): {verdict}"
+            )
+            if better:
                 best, best_key = g, key
         if last != best:
             await self.write_gains(best)
@@ -1842,6 +1856,14 @@ def _lowest_anti(resonances: list[Resonance]) -> float | None:
     if min(resonances, key=lambda r: r.freq_hz).anti_freq_hz is None:
         return BAND_LOW_HZ
     return min(r.anti_freq_hz for r in resonances if r.anti_freq_hz)
+
+
+def _settling_text(seconds: float, watch: float) -> str:
+    """A try's settling (:meth:`OwnTuning._try_key`, the mean of its two moves) for the notes:
+    a try whose moves did not settle counts as its watch."""
+    if seconds >= watch:
+        return f"not settled within its {1e3 * watch:.3g} ms watch"
+    return f"settles in {1e3 * seconds:.3g} ms"
 
 
 def _as_written(drive: _Drive, velocity: float, acc: float) -> tuple[int, int]:
