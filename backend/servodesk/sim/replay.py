@@ -235,10 +235,11 @@ def run_recorded_move(params: PlantParams, move: RecordedMove, rate_hz: float) -
     recording found it: the loop's integral holding the torque it held, and on a two-mass axis
     the shaft wound by that torque (the load held by its friction, the motor by the shaft).
 
-    A noiseless axis runs through the fused tick loop of sim/fused.py, the generator's
-    demand laid out per tick beforehand: the same arithmetic as :func:`run_recorded_move_stepwise`
-    (tests/sim/test_fused_move.py holds the two equal to the count), some twenty times faster.
-    The fit of the inertias to a try replays its moves some 80 times (services/tuning_calibrate.py)."""
+    A noiseless axis runs through the fused tick loop of sim/fused.py, the generator's demand
+    laid out per tick beforehand: the same arithmetic as :func:`run_recorded_move_stepwise`
+    (tests/sim/test_fused_move.py holds the two equal to the count), some ten times faster
+    (bench/bench_replay.py). The fit of the inertias to a try replays its moves some 80 times
+    (services/tuning_calibrate.py)."""
     plant, loop = _at_rest(params, move, rate_hz)
     if not applies(params):
         return _replayed_stepwise(plant, loop, params, move, rate_hz)
