@@ -36,9 +36,11 @@ import numpy as np
 from servodesk.benchmarks.tuning import default_plants, exact_model, plant_names
 from servodesk.domain.tuning.design import design_gains
 from servodesk.domain.tuning.gains import ServoGains
+from servodesk.domain.tuning.model import PlantModel
 from servodesk.domain.tuning.search import reference_move
 from servodesk.sim import fused as fused_module
 from servodesk.sim.plant import PlantParams
+from servodesk.sim.plantfile import PlantSpec
 from servodesk.sim.replay import (
     ModelMoves,
     RecordedMove,
@@ -63,7 +65,9 @@ def _as_numpy(params: PlantParams, gains: ServoGains) -> tuple[PlantParams, Serv
     return p, g
 
 
-def one_plant(name: str, rounds: int, numpy_scalars: bool) -> dict[str, Any]:
+def _designed(name: str) -> tuple[PlantSpec, PlantModel, float, ServoGains, ModelMoves]:
+    """A plant of the default set, its exact model, loop rate, ``high`` design and the
+    simulation of it (with its Coulomb friction)."""
     spec = dict(default_plants())[name]
     plant = exact_model(spec)
     rate = float(spec.loop_rate_hz)
@@ -76,6 +80,11 @@ def one_plant(name: str, rounds: int, numpy_scalars: bool) -> dict[str, Any]:
         coulomb=spec.coulomb * spec.peak_torque,
     )
     assert moves is not None
+    return spec, plant, rate, gains, moves
+
+
+def one_plant(name: str, rounds: int, numpy_scalars: bool) -> dict[str, Any]:
+    spec, plant, rate, gains, moves = _designed(name)
     params = moves.params
     if numpy_scalars:
         params, gains = _as_numpy(params, gains)
@@ -125,18 +134,7 @@ def one_recorded(name: str, rounds: int) -> dict[str, Any]:
     """A try's move replayed from rest (module docstring): a quarter revolution there at 0.7 x
     the peak torque over the axis's inertia, under the ``high`` design, the axis resting 3
     counts off the demand with its integral holding a small torque; 0.4 s recorded."""
-    spec = dict(default_plants())[name]
-    plant = exact_model(spec)
-    rate = float(spec.loop_rate_hz)
-    gains = design_gains(plant, rate, "high").gains
-    moves = ModelMoves.of(
-        plant,
-        rate,
-        counts_per_rev=spec.encoder_counts,
-        torque_limit=spec.peak_torque,
-        coulomb=spec.coulomb * spec.peak_torque,
-    )
-    assert moves is not None
+    spec, plant, rate, gains, moves = _designed(name)
     cpr = spec.encoder_counts
     acc = 0.7 * spec.peak_torque / plant.total_inertia * cpr / (2.0 * np.pi)
     move = RecordedMove(

@@ -237,7 +237,7 @@ def run_recorded_move(params: PlantParams, move: RecordedMove, rate_hz: float) -
 
     A noiseless axis runs through the fused tick loop of sim/fused.py, the generator's demand
     laid out per tick beforehand: the same arithmetic as :func:`run_recorded_move_stepwise`
-    (tests/sim/test_fused_move.py holds the two equal to the count), some ten times faster
+    (tests/sim/test_fused_move.py holds the two equal to the count), some 25 times faster
     (bench/bench_replay.py). The fit of the inertias to a try replays its moves some 80 times
     (services/tuning_calibrate.py)."""
     plant, loop = _at_rest(params, move, rate_hz)
@@ -248,10 +248,8 @@ def run_recorded_move(params: PlantParams, move: RecordedMove, rate_hz: float) -
     total = len(move.position)
     # The encoder after each tick is the one the next tick starts with: one tick more.
     cycles = -(-(total + 1) // n)
-    k = np.arange(1, n + 1, dtype=np.float64)
-    p = np.empty(cycles * n)
-    v = np.empty(cycles * n)
-    a = np.empty(cycles * n)
+    # Per control cycle: where the demand starts, its step per tick, velocity, acceleration.
+    start, inc, vel, acc = (np.empty(cycles) for _ in range(4))
     dp, dv = 0.0, 0.0
     done = False
     for c in range(cycles):
@@ -262,11 +260,13 @@ def run_recorded_move(params: PlantParams, move: RecordedMove, rate_hz: float) -
             dp, dv, da, done = pp_step(
                 dp, dv, move.distance, move.velocity, move.acc, move.acc, CONTROL_PERIOD_S
             )
-        # As ServoLoop.run forms the demand: (p0 + inc * k) * rad on tick k of the cycle.
-        p[c * n : (c + 1) * n] = (raw0 + ((dp - raw0) / n) * k) * rad
-        v[c * n : (c + 1) * n] = dv * rad
-        a[c * n : (c + 1) * n] = da * rad
-    pos = fused_ticks(plant, loop, rate_hz, p[: total + 1], v[: total + 1], a[: total + 1])
+        start[c], inc[c], vel[c], acc[c] = raw0, (dp - raw0) / n, dv * rad, da * rad
+    # As ServoLoop.run forms the demand: (p0 + inc * k) * rad on tick k = 1..n of the cycle.
+    k = np.arange(1, n + 1, dtype=np.float64)
+    p = ((start[:, None] + inc[:, None] * k) * rad).ravel()[: total + 1]
+    v = np.repeat(vel, n)[: total + 1]
+    a = np.repeat(acc, n)[: total + 1]
+    pos = fused_ticks(plant, loop, rate_hz, p, v, a)
     return np.asarray(pos[1 : total + 1], dtype=np.float64)
 
 
