@@ -28,6 +28,8 @@ from servodesk.domain.tuning.search import (
     MOTOR_SPLIT_TOL_LOW_ANTI,
     PM_MIN,
     REF_HOLD_S,
+    REFINE_LEAD,
+    REFINE_TI,
     RESONANCE_DRIFT,
     RESONANCE_TOL,
     RESONANCE_TOL_PEAK,
@@ -46,6 +48,7 @@ from servodesk.domain.tuning.search import (
     mechanical,
     rank_gains,
     reference_move,
+    refined,
     stuck_load_set,
     tune_on_model,
     worth_trying,
@@ -586,7 +589,10 @@ def test_a_feed_forward_the_variations_miss_is_found_where_it_settles_on_every_a
         light_damping=0.25 * plant.damping,
     )
     plain = tune_on_model(plant, RATE, "high", rerank=moves(), **kw)
-    swept = tune_on_model(plant, RATE, "high", rerank=moves(), ff_sweep=True, **kw)
+    # The sweep alone: the refinement between the variations' steps that follows it picks
+    # gains 10 % ahead at worst on the model here which settle in 20.6 ms on the true plant
+    # (a loss the benchmark shows on this row; docs/tuning.md, second session of 2026-12-01).
+    swept = tune_on_model(plant, RATE, "high", rerank=moves(), ff_sweep=True, refine=False, **kw)
     true = true_plant_metrics(PlantSpec(inertia_ratio=3.0, resonance_hz=400.0, noise_torque=0.02))
     assert true(plain.gains).settling_10_s > 0.025
     assert true(swept.gains).settling_10_s < 0.015
@@ -725,3 +731,56 @@ def test_the_bench_scripts_plant_list_names_what_is_unknown() -> None:
     assert plant_names("R3-rigid,,R10-200Hz") == ["R3-rigid", "R10-200Hz"]
     with pytest.raises(ValueError, match=r"unknown plant\(s\): R3-300Hz, x \(known: R1-rigid"):
         plant_names("R3-rigid,R3-300Hz,x")
+
+
+def test_gains_between_the_grids_steps_enter_the_ranking_only_with_a_clear_lead() -> None:
+    j = 1.5e-4
+    first = ServoGains(kp_pos=100.0, kp_vel=0.1, ti_vel=0.01, inertia_ff=0.7 * j)
+    second = replace(first, kp_vel=0.09)
+    tail = replace(first, kp_vel=0.08)
+    base = MoveMetrics(0.100, 0.02, 0.0, 1.0, 2.0)
+    order = [(first, base), (second, replace(base, settling_10_s=0.110))]
+    # The last is ranked by the model alone (not confirmed): it keeps its place behind.
+    order.append((tail, replace(base, settling_10_s=0.090)))
+
+    def runner(lead: float, off: float = 1.0) -> Any:
+        # The first's gains with the integral time 1.4 x settle in ``lead`` of its time (and
+        # ``off`` of that a little off the identified axis); every other gain set as the first.
+        def run(gains: Any, move: Any) -> list[MoveMetrics | None]:
+            return [
+                replace(base, settling_10_s=0.100 * lead * off)
+                if x.kp_vel == 0.1 and math.isclose(x.ti_vel, 0.014) and x.kp_pos == 100.0
+                else base
+                for x in gains
+            ]
+
+        return run
+
+    def keeps(g: ServoGains) -> bool:
+        # The margins refuse the integral time 1.7 x.
+        return not math.isclose(g.ti_vel, first.ti_vel * REFINE_TI[-1])
+
+    asked: list[ServoGains] = []
+
+    def nominal(gains: Any, move: Any) -> list[MoveMetrics | None]:
+        asked.extend(gains)
+        return runner(0.5)(gains, move)
+
+    out = refined(order, nominal, runner(0.5, 1.6), None, j, keeps, unconfirmed=1)  # type: ignore[arg-type]
+    best, metrics = out[0]
+    assert math.isclose(best.ti_vel, 0.014) and best.kp_pos == 100.0
+    # Ranked by its worst move: 80 ms a little off the axis, not the model's 50 ms.
+    assert math.isclose(metrics.settling_10_s, 0.080)
+    assert out[-1] == order[-1]
+    # Both of the first two gain sets refined, at every feed-forward of the sweep, never
+    # where the margins do not hold; the gains themselves are not run again.
+    assert {replace(g, inertia_ff=0.0, ti_vel=0.0, kp_pos=0.0) for g in asked} == {
+        replace(g, inertia_ff=0.0, ti_vel=0.0, kp_pos=0.0) for g in (first, second)
+    }
+    assert {round(g.inertia_ff / j, 2) for g in asked} == set(FF_SWEEP)
+    assert not any(math.isclose(g.ti_vel / 0.01, REFINE_TI[-1]) for g in asked)
+    assert first not in asked and second not in asked
+    # A lead inside the model's resolution (R30-100Hz: 0.2-1.1 %) changes nothing.
+    near = 1.0 - (1.0 - REFINE_LEAD) / 2.0
+    assert refined(order, runner(near), runner(near), None, j, keeps, 1) == order  # type: ignore[arg-type]
+    assert refined([], nominal, nominal, None, j, keeps) == []  # type: ignore[arg-type]

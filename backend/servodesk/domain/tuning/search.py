@@ -253,6 +253,77 @@ def ff_swept(
     return merged + list(order[top:])
 
 
+#: Position-gain and integral-time factors (of the gains refined) between the variations'
+#: steps (they step the position gain by 1.5 x and the integral time by 2 x) around the first
+#: of a swept ranking (:func:`refined`) ...
+REFINE_KP = (1.0, 1.15, 1.3)
+REFINE_TI = (1.0, 1.2, 1.4, 1.7)
+#: ... around how many of its first distinct gain sets ...
+REFINE_TOP = 2
+#: ... and how clear a lead on the worst move one of them needs to enter the ranking. On
+#: R30-100Hz the refinement's best led the pick by 0.2-1.1 % on the model and settled 7-48 %
+#: later on the true plant (seeds 5, 6, 8); the wins that matter led by 5-58 % (docs/tuning.md,
+#: second session of 2026-12-01).
+REFINE_LEAD = 0.95
+
+
+def refined(
+    order: Sequence[tuple[ServoGains, MoveMetrics]],
+    rerank: Rerank,
+    confirm: Rerank,
+    move: ReferenceMove,
+    inertia: float,
+    feasible: Callable[[ServoGains], bool],
+    unconfirmed: int = 0,
+    top: int = REFINE_TOP,
+) -> list[tuple[ServoGains, MoveMetrics]]:
+    """A swept ranking (:func:`ff_swept`; best first by the worst move, its ``unconfirmed``
+    last ranked by the model alone) with its first ``top`` distinct gain sets also run at
+    position gains and integral times between the variations' steps (:data:`REFINE_KP`,
+    :data:`REFINE_TI`), each at every feed-forward of :data:`FF_SWEEP`: those that keep the
+    margins (``feasible``) ranked among the confirmed by their worst move over ``rerank`` and
+    ``confirm``, where one of them settles within :data:`REFINE_LEAD` of the first's time
+    (else the ranking as it was).
+
+    The variations step the integral time by 2 x and the position gain by 1.5 x, and where
+    the best gains lie between two steps the grid misses them: on R10-200Hz the oracle's
+    gains (position gain 1.27 x, integral time 1.4-2.1 x the pick's) settle in 39-47 ms on
+    the identified models of seeds 2-4 (42-94 ms at worst with their friction 2 % off), the
+    tuner's pick in 91-113 ms at worst; on R3-400Hz seed 8 the pick settled in 26 ms on the
+    true plant, the refined gains in 10.2 ms (the oracle 10.6 ms)."""
+    bases: list[ServoGains] = []
+    for g, _ in order:
+        b = replace(g, inertia_ff=0.0)
+        if b not in bases:
+            bases.append(b)
+        if len(bases) >= top:
+            break
+    if not bases or inertia <= 0.0:
+        return list(order)
+    seen = {g for g, _ in order}
+    loops = [
+        replace(b, kp_pos=b.kp_pos * fk, ti_vel=b.ti_vel * ft)
+        for b in bases
+        for fk in REFINE_KP
+        for ft in REFINE_TI
+        if (fk, ft) != (1.0, 1.0)
+    ]
+    loops = [g for g in dict.fromkeys(loops) if feasible(g)]
+    cands = [
+        s for g in loops for f in FF_SWEEP if (s := replace(g, inertia_ff=f * inertia)) not in seen
+    ]
+    if not cands:
+        return list(order)
+    ran = [(g, m) for g, m in zip(cands, rerank(cands, move), strict=True) if m is not None]
+    runs = [(g, m) for g, m in confirmed(ran, confirm, move, len(ran)) if m is not DIVERGED]
+    if order and not any(
+        m.settling_10_s < REFINE_LEAD * order[0][1].settling_10_s for _, m in runs
+    ):
+        return list(order)
+    head = len(order) - unconfirmed
+    return sorted([*order[:head], *runs], key=lambda x: x[1].key()) + list(order[head:])
+
+
 def alternatives_of(order: Sequence[ServoGains], n: int = ALTERNATIVES) -> tuple[ServoGains, ...]:
     """Up to ``n`` runners-up of a ranking that differ from the winner, and from each other,
     in what the model is least sure of: the integral time (by more than 20 %) or the
@@ -632,6 +703,7 @@ def tune_on_model(
     confirm: Rerank | None = None,
     light_damping: float | None = None,
     ff_sweep: bool = False,
+    refine: bool = True,
     incumbent: ServoGains | None = None,
 ) -> SearchResult:
     """The tuner's design: :func:`design_gains` at the response level, then for ``high`` the
@@ -653,7 +725,9 @@ def tune_on_model(
     (:func:`confirmed`); the result's metrics are then those worst moves. ``light_damping``:
     a shaft damping the identification may have overestimated the mode's to
     (:func:`identification_set`). ``ff_sweep``: with ``confirm``, the confirmed first also
-    run at other inertia feed-forwards (:func:`ff_swept`). ``incumbent``: gains chosen before
+    run at other inertia feed-forwards (:func:`ff_swept`) and, with ``refine``, around the
+    first two at position gains and integral times between the variations' steps
+    (:func:`refined`). ``incumbent``: gains chosen before
     (on another model of the axis), whose move on this model is measured as the winner's was
     (``SearchResult.incumbent_metrics``)."""
     check = identification_set(plant, resonance_tol, light_damping)
@@ -719,11 +793,31 @@ def tune_on_model(
             )
             if mode == "high" and ff_sweep:
                 swept = min(FF_SWEEP_TOP, len(order))
+                unconfirmed = max(0, len(order) - CONFIRM_TOP)
                 order = ff_swept(order, rerank, confirm, move, plant.total_inertia)
+                first = order[0][0] if order else None
+                if refine:
+                    order = refined(
+                        order,
+                        rerank,
+                        confirm,
+                        move,
+                        plant.total_inertia,
+                        lambda g: _margins_ok(check, rate_hz, g, pm, gm, stuck),
+                        unconfirmed,
+                    )
                 notes.append(
                     f"the first {swept} also run with inertia "
                     f"feed-forwards of {FF_SWEEP[0]:g}-{FF_SWEEP[-1]:g} x J"
                 )
+                if order and first is not None and order[0][0] != first:
+                    g0 = order[0][0]
+                    notes.append(
+                        "a position gain and integral time between the variations' steps "
+                        f"settle sooner: {g0.kp_pos / first.kp_pos:.2f} x and "
+                        f"{g0.ti_vel / first.ti_vel if first.ti_vel else 1.0:.2f} x "
+                        "the swept ranking's first"
+                    )
     if order:
         chosen, metrics = order[0]
         if chosen.inertia_ff != design.gains.inertia_ff and plant.total_inertia > 0.0:
