@@ -207,6 +207,15 @@ def confirmed(
     return sorted(worst, key=lambda x: x[1].key()) + list(order[top:])
 
 
+def _worst_moves(
+    cands: Sequence[ServoGains], rerank: Rerank, confirm: Rerank, move: ReferenceMove
+) -> list[tuple[ServoGains, MoveMetrics]]:
+    """``cands`` ranked by their worst move over ``rerank`` and ``confirm``, as the first of a
+    confirmed ranking are (:func:`confirmed`); one that diverges on either is dropped."""
+    ran = [(g, m) for g, m in zip(cands, rerank(cands, move), strict=True) if m is not None]
+    return [(g, m) for g, m in confirmed(ran, confirm, move, len(ran)) if m is not DIVERGED]
+
+
 #: Inertia feed-forwards (shares of the identified inertia) the first of a confirmed ranking
 #: are also run at (:func:`ff_swept`). Against the variations' two: within 2 x the oracle 94 ->
 #: 97 of 104 on the benchmark's seeds 1-4 and 92 -> 99 on the held-out seeds 5-8, geometric
@@ -245,10 +254,7 @@ def ff_swept(
     swept = [
         s for g in head for f in FF_SWEEP if (s := replace(g, inertia_ff=f * inertia)) not in seen
     ]
-    swept = list(dict.fromkeys(swept))
-    ran = [(g, m) for g, m in zip(swept, rerank(swept, move), strict=True) if m is not None]
-    # Each by its worst move, as the first were (one that diverges off the model is dropped).
-    runs = [(g, m) for g, m in confirmed(ran, confirm, move, len(ran)) if m is not DIVERGED]
+    runs = _worst_moves(list(dict.fromkeys(swept)), rerank, confirm, move)
     merged = sorted([*order[:top], *runs], key=lambda x: x[1].key())
     return merged + list(order[top:])
 
@@ -314,8 +320,7 @@ def refined(
     ]
     if not cands:
         return list(order)
-    ran = [(g, m) for g, m in zip(cands, rerank(cands, move), strict=True) if m is not None]
-    runs = [(g, m) for g, m in confirmed(ran, confirm, move, len(ran)) if m is not DIVERGED]
+    runs = _worst_moves(cands, rerank, confirm, move)
     if order and not any(
         m.settling_10_s < REFINE_LEAD * order[0][1].settling_10_s for _, m in runs
     ):
@@ -810,7 +815,7 @@ def tune_on_model(
                     f"the first {swept} also run with inertia "
                     f"feed-forwards of {FF_SWEEP[0]:g}-{FF_SWEEP[-1]:g} x J"
                 )
-                if order and first is not None and order[0][0] != first:
+                if refine and order and first is not None and order[0][0] != first:
                     g0 = order[0][0]
                     notes.append(
                         "a position gain and integral time between the variations' steps "
