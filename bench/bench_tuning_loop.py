@@ -25,7 +25,8 @@ from collections.abc import Generator
 from typing import Any
 
 from servodesk.benchmarks.tuning import SimIO, build_drive, default_plants, plant_names
-from servodesk.services.tuning_own import OwnTuning, OwnTuningRequest, shutdown_design_pool
+from servodesk.services import tuning_worker
+from servodesk.services.tuning_own import OwnTuning, OwnTuningRequest
 
 #: A stretch longer than this counts as holding the loop (the dead-man's watchdog naps a few
 #: milliseconds; a heartbeat every 100 ms).
@@ -109,7 +110,7 @@ def main() -> int:
                 for offload in (True, False):
                     rows.append(one(name, seed, offload))
     finally:
-        shutdown_design_pool()
+        tuning_worker.shutdown()
     ours = [r for r in rows if r["offload"]]
     base = [r for r in rows if not r["offload"]]
     out = {

@@ -45,7 +45,7 @@ from servodesk.domain.tuning.model import LoopModel
 from servodesk.domain.tuning.oracle import oracle_search
 from servodesk.domain.tuning.search import reference_move
 from servodesk.errors import DriveStateError, ValidationError
-from servodesk.services import tuning_own
+from servodesk.services import tuning_worker
 from servodesk.services.tuning_own import (
     TRY_WATCH_MAX_S,
     VERIFY_SETTLE_S,
@@ -220,7 +220,7 @@ def test_the_tuning_never_holds_the_event_loop_for_a_dead_man_period(
     # tuning on; every app that stops in this test session ends it), and the cyclic garbage
     # collector, whose pauses grow with the whole session's heap, is off meanwhile. In the
     # full suite one run showed a single 0.79 s hold with neither excluded.
-    assert tuning_own._design_pool().submit(int).result(timeout=60) == 0
+    assert tuning_worker.pool().submit(int).result(timeout=60) == 0
     gc.disable()
     try:
         with caplog.at_level(logging.WARNING, logger="asyncio"):

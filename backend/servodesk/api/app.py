@@ -79,9 +79,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         finally:
             await manager.close_all()
             backup_service.store.close()
-            from servodesk.services.tuning_own import shutdown_design_pool
+            from servodesk.services import tuning_worker
 
-            shutdown_design_pool()
+            tuning_worker.shutdown()
             if state.sim is not None:
                 state.sim.stop()
                 state.sim = None

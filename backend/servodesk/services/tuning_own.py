@@ -33,17 +33,11 @@ memory unless the user asks (POST .../tuning/store).
 
 from __future__ import annotations
 
-import asyncio
 import contextlib
-import ctypes
 import functools
 import logging
 import math
-import multiprocessing
-import signal
-import sys
 from collections.abc import Awaitable, Callable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from typing import Any, Literal, NamedTuple, TypeVar
 
@@ -87,6 +81,7 @@ from servodesk.domain.tuning.search import (
     tune_on_model,
 )
 from servodesk.errors import DriveStateError, ServodeskError, ValidationError
+from servodesk.services import tuning_worker
 from servodesk.services.session import Session
 from servodesk.services.tuning_calibrate import fit_inertias, fit_split, recorded_move
 from servodesk.services.tuning_io import DriveRecorder, Recording, SessionIO, TuningIO, read_float
@@ -1357,8 +1352,7 @@ class OwnTuning:
         or in a thread (which would hold the GIL), would hold the event loop that carries the
         operator's heartbeats and every other session's traffic."""
         if self._offload:
-            loop = asyncio.get_running_loop()
-            return await loop.run_in_executor(_design_pool(), job)
+            return await tuning_worker.run(job)
         return job()
 
     async def _redesign(
@@ -1904,50 +1898,6 @@ def json_safe(x: Any) -> Any:
 
 def _round(x: np.ndarray) -> list[float]:
     return [round(float(v), 4) if math.isfinite(float(v)) else 0.0 for v in x]
-
-
-_POOL: ProcessPoolExecutor | None = None
-#: prctl(2) option: the signal a process gets when the thread that started it ends.
-_PR_SET_PDEATHSIG = 1
-
-
-def _die_with_parent() -> None:
-    """In the worker (Linux): end with the server, however the server ends. A server killed
-    outright (SIGKILL, or a stop that timed out waiting for a long search) left the worker
-    and its resource tracker running for good."""
-    if not sys.platform.startswith("linux"):
-        return
-    try:
-        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
-    except (OSError, AttributeError):
-        log.debug("tuning worker: prctl(PR_SET_PDEATHSIG) not available")
-
-
-def _design_pool() -> ProcessPoolExecutor:
-    """One worker process for the gain search, started on first use (spawned, not forked:
-    the server has bus threads a fork would copy in whatever state they are)."""
-    global _POOL
-    if _POOL is None:
-        _POOL = ProcessPoolExecutor(
-            1, mp_context=multiprocessing.get_context("spawn"), initializer=_die_with_parent
-        )
-    return _POOL
-
-
-def shutdown_design_pool() -> None:
-    """Stop the gain search worker now (the server stops): a search in progress is
-    abandoned (its tuning was stopped with the sessions) rather than waited for."""
-    global _POOL
-    pool, _POOL = _POOL, None
-    if pool is None:
-        return
-    # ProcessPoolExecutor has no public way to end a busy worker (Python 3.11).
-    workers = list((getattr(pool, "_processes", None) or {}).values())
-    pool.shutdown(wait=False, cancel_futures=True)
-    for w in workers:
-        w.terminate()
-    for w in workers:
-        w.join(2.0)
 
 
 async def _quietly(aw: Any) -> None:
