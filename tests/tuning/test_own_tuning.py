@@ -425,10 +425,25 @@ def test_the_result_says_what_each_runner_ups_try_showed_on_the_axis() -> None:
     for note in tried:
         assert re.search(
             r"tried on the axis: (not settled within its 250 ms watch|settles in \d+ ms), "
-            r"the pick so far settles in \d+ ms \(each the mean of a move there and back\)",
+            r"the pick so far settles in \d+ ms \(each the faster of a move there and back\)",
             note,
         ), note
         assert note.endswith("not clearly ahead (under 0.7 x the pick's time), the pick kept")
+
+
+def test_a_try_is_judged_by_its_faster_move() -> None:
+    # A load as heavy as the motor behind a 200 Hz shaft as the benchmark tunes it (noise
+    # seed 1). The model's pick settles in 9.5 ms without noise; on the axis one of its two
+    # moves settled in 38 ms and the other not within its 250 ms watch, the torque noise
+    # pushing the error's 5 ms mean back out of the band. As the mean of the two (144 ms) the
+    # try lost to a runner-up's 28 / 31 ms, gains that settle in 23.6 ms without noise (2.15 x
+    # the oracle). Noise delays a move's settling and hardly ever advances it: the faster
+    # move is the try's figure, and 28 ms is not clearly ahead of 38 ms.
+    spec = PlantSpec(inertia_ratio=1.0, resonance_hz=200.0)
+    result, _drive = asyncio.run(tune(spec, "high", 1))
+    tried = [n for n in result["notes"] if "tried on the axis" in n]
+    assert tried and all(n.endswith("the pick kept") for n in tried), result["notes"]
+    assert measure(spec, _gains(result))["settling_10_s"] < 0.012
 
 
 def test_a_try_that_settles_only_in_the_noise_does_not_replace_the_models_pick() -> None:
