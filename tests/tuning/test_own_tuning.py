@@ -674,6 +674,8 @@ def test_benchmark_row_has_the_issue_keys(tmp_path: Any) -> None:
     ):
         assert key in row, key
     assert row["stable"] and row["oracle_cached"] is False
+    # A rigid axis with the instrumented inertia tries nothing on the axis: nothing fitted.
+    assert "refit_outcome" in row and row["refit_outcome"] is None
     # The diagnostic beside the issue's ratio: the oracle built on the inertia this tuning
     # measured (a settled move, so a finite ratio).
     assert math.isfinite(row["oracle_at_tuner_inertia_settling_10_s"])

@@ -410,6 +410,9 @@ def run_plant(
                 - 1.0
                 if ident.get("ranking_friction_nm") is not None and spec.coulomb > 0.0
                 else None,
+                # What the fit of the inertias to the winner's try did (a diagnostic: None
+                # where no try was fitted; else fit_not_used, first_kept or searched_again).
+                "refit_outcome": (ident.get("refit") or {}).get("outcome"),
                 "resonance_hz": res[0]["freq_hz"] if res else None,
                 "resonance_error": (res[0]["freq_hz"] / spec.resonance_hz - 1.0)
                 if res and spec.resonance_hz
