@@ -73,9 +73,9 @@ async def run(job: Callable[[], _T]) -> _T:
     try:
         return await asyncio.wrap_future(future)
     except asyncio.CancelledError:
-        # Cancelled before it started: the executor drops it. Started: only ending the
-        # process stops it.
-        if not future.cancel() and not (pending - {future}):
+        # Cancelled before it started: the executor drops it. Done meanwhile: nothing to
+        # stop. Running: only ending the process stops it.
+        if not future.cancel() and not future.done() and not (pending - {future}):
             log.info("tuning worker: a stopped tuning's job abandoned, the worker ended")
             _end(executor)
         raise
