@@ -3,8 +3,9 @@
 What a commissioning engineer relies on: on the LECSN-T twin the page says the drive tunes
 itself, takes the travel window, torque limit and mode, runs the drive's one-touch tuning with
 a progress bar to 100 % while the page keeps the dead-man alive, shows the gains old -> new
-and the step responses, and Undo returns the gains (the drive's P11603). On the CTMM04x the
-page says plainly that there is nothing to tune and what applies instead.
+and the step responses, and Undo returns the gains (the drive's P11603); Stop cancels the
+drive's tuning, and the drive's own error (C001h) is shown with its name, cause and remedy. On
+the CTMM04x the page says plainly that there is nothing to tune and what applies instead.
 """
 
 from __future__ import annotations
@@ -206,3 +207,69 @@ def test_own_tuning_from_the_page_shows_what_it_found_then_undo(generic_page: Pa
     page.get_by_test_id("tuning-confirm-dialog-confirm").click()
     expect(status).to_contain_text("Undone")
     assert [g["raw"] for g in tuning_info(page, GENERIC)["gains"]] == before
+
+
+def _start_lecsn_tuning(page: Page, mode: str) -> None:
+    """Control, servo on, a quarter-revolution window confirmed, ``mode``, Start."""
+    page.get_by_test_id("control-take").click()
+    expect(page.get_by_test_id("control-owner")).to_have_attribute("data-you", "true")
+    page.get_by_test_id("servo-on").click()
+    expect(page.get_by_test_id("servo-on")).to_be_disabled(timeout=10_000)
+    page.get_by_test_id("tuning-travel").fill("0.25")
+    page.get_by_test_id(f"tuning-mode-{mode}").check()
+    page.get_by_test_id("tuning-confirm").check()
+    page.get_by_test_id("tuning-start").click()
+    expect(page.get_by_test_id("tuning-step-text")).to_contain_text("drive tuning", timeout=15_000)
+
+
+def test_lecsn_one_touch_tuning_stopped_from_the_page(lecsn_page: Page) -> None:
+    """Stop in the page's stop bar while the drive tunes: the drive's tuning is cancelled
+    (1EA5h to P11602, its C000h), the page says the tuning stopped and the gains from before
+    are active."""
+    page = lecsn_page
+    before = [g["raw"] for g in tuning_info(page, LECSN)["gains"]]
+    _start_lecsn_tuning(page, "basic")
+    page.get_by_test_id("tuning-stop").click()
+    expect(page.get_by_test_id("tuning-job")).to_have_attribute(
+        "data-state", "stopped", timeout=15_000
+    )
+    status = page.get_by_test_id("tuning-result-status")
+    expect(status).to_have_attribute("data-status", "stopped")
+    expect(status).to_contain_text("Tuning stopped.")
+    expect(status).to_contain_text("The gains from before are active.")
+    expect(page.get_by_test_id("tuning-error-name")).to_have_text("Stopped")
+    expect(page.get_by_test_id("heartbeat-indicator")).to_have_count(0, timeout=5_000)
+    assert [g["raw"] for g in tuning_info(page, LECSN)["gains"]] == before
+
+
+def test_lecsn_one_touch_tuning_error_decoded_on_the_page(lecsn_page: Page) -> None:
+    """The drive's own error, as the manual names it: with PA10 (in-position range) at 0
+    pulses any overshoot of the tuning's moves fails the drive's check, P11604 = C001h. The
+    page shows the code, its name, cause and remedy (004 §20.8.7), and the gains from before
+    stay."""
+    page = lecsn_page
+    pa10 = f"/api/v1/sessions/{LECSN}/objects/0x200A:00"
+    headers = {"X-Servodesk-Client": client_id(page), "Content-Type": "application/json"}
+    r = page.request.get(pa10)
+    assert r.ok, r.text()
+    in_position = r.json()["value"]
+    before = [g["raw"] for g in tuning_info(page, LECSN)["gains"]]
+    try:
+        r = page.request.put(pa10, data='{"value": 0}', headers=headers)
+        assert r.ok, r.text()
+        _start_lecsn_tuning(page, "low")
+        expect(page.get_by_test_id("tuning-job")).to_have_attribute(
+            "data-state", "failed", timeout=90_000
+        )
+        expect(page.get_by_test_id("tuning-result-status")).to_have_attribute(
+            "data-status", "failed"
+        )
+        expect(page.get_by_test_id("tuning-error-code")).to_contain_text("0xC001")
+        expect(page.get_by_test_id("tuning-error-name")).to_have_text("Overshoot exceeded")
+        expect(page.get_by_test_id("tuning-error-cause")).to_contain_text(
+            "overshoot during tuning exceeded"
+        )
+        expect(page.get_by_test_id("tuning-error-remedy")).to_contain_text("§6.2.2(4)")
+        assert [g["raw"] for g in tuning_info(page, LECSN)["gains"]] == before
+    finally:
+        page.request.put(pa10, data=f'{{"value": {in_position}}}', headers=headers)
