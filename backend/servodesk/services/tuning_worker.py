@@ -20,6 +20,7 @@ import logging
 import multiprocessing
 import signal
 import sys
+import threading
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
 from typing import Any, TypeVar
@@ -29,9 +30,9 @@ log = logging.getLogger(__name__)
 _T = TypeVar("_T")
 
 _POOL: ProcessPoolExecutor | None = None
-#: The jobs submitted to each pool and not yet done, by the pool's id: a pool whose only job
-#: was abandoned is ended, one that still serves another tuning is not.
-_PENDING: dict[int, set[Future[Any]]] = {}
+#: The jobs submitted to the worker and not yet done: a worker whose only job was abandoned
+#: is ended, one that still serves another tuning is not.
+_PENDING: set[Future[Any]] = set()
 #: prctl(2) option: the signal a process gets when the thread that started it ends.
 _PR_SET_PDEATHSIG = 1
 
@@ -67,7 +68,7 @@ async def run(job: Callable[[], _T]) -> _T:
     docstring)."""
     executor = pool()
     future = executor.submit(job)
-    pending = _PENDING.setdefault(id(executor), set())
+    pending = _PENDING
     pending.add(future)
     future.add_done_callback(pending.discard)
     try:
@@ -77,26 +78,33 @@ async def run(job: Callable[[], _T]) -> _T:
         # stop. Running: only ending the process stops it.
         if not future.cancel() and not future.done() and not (pending - {future}):
             log.info("tuning worker: a stopped tuning's job abandoned, the worker ended")
-            _end(executor)
+            # On the event loop: the ended process is reaped in a thread, not waited for here.
+            _end(executor, wait=False)
         raise
 
 
-def _end(executor: ProcessPoolExecutor) -> None:
-    global _POOL
+def _end(executor: ProcessPoolExecutor, *, wait: bool) -> None:
+    global _POOL, _PENDING
     if _POOL is executor:
-        _POOL = None
-    _PENDING.pop(id(executor), None)
+        _POOL, _PENDING = None, set()
     # ProcessPoolExecutor has no public way to end a busy worker (Python 3.11).
     workers = list((getattr(executor, "_processes", None) or {}).values())
     executor.shutdown(wait=False, cancel_futures=True)
     for w in workers:
         w.terminate()
-    for w in workers:
-        w.join(2.0)
+
+    def reap() -> None:
+        for w in workers:
+            w.join(2.0)
+
+    if wait:
+        reap()
+    else:
+        threading.Thread(target=reap, name="tuning-worker-reap", daemon=True).start()
 
 
 def shutdown() -> None:
     """Stop the worker now (the server stops): a search in progress is abandoned (its tuning
     was stopped with the sessions) rather than waited for."""
     if _POOL is not None:
-        _end(_POOL)
+        _end(_POOL, wait=True)
