@@ -297,6 +297,7 @@ class ViewerService:
                 self.port,
             )
         self._add_static()
+        self.server.on_client_connect(self._fit_client)
         self._tasks = [
             asyncio.create_task(self._frame_loop(), name="viewer frames"),
             asyncio.create_task(self._refresh_loop(), name="viewer targets and limits"),
@@ -469,14 +470,37 @@ class ViewerService:
 
     def _frame_camera(self, n: int) -> None:
         """Point the camera new clients start with at the row of ``n`` stages."""
-        width = max(n - 1, 0) * SPACING + 2.0 * DISC_RADIUS + 0.6
-        cx = max(n - 1, 0) * SPACING / 2.0
-        # Framed so that a row of five fills the view: at 0.62 x the row's width the five
-        # twins' labels overlapped on a 1280 px screen (about 100 px between stages).
-        d = max(2.0, 0.48 * width)
-        self.server.initial_camera.look_at = (cx, 0.0, 0.0)
-        self.server.initial_camera.position = (cx, -d, 0.8 * d)
+        look_at, position = row_camera(n)
+        self.server.initial_camera.look_at = look_at
+        self.server.initial_camera.position = position
         self._framed = n
+
+    def _fit_client(self, client: Any) -> None:
+        """Keep a new client's camera stepped back far enough to show the whole row.
+
+        The initial camera is framed for a laptop screen; a narrower canvas (the operation
+        page's compact view, a browser beside the drive's manual) saw the row's ends cut off,
+        the first axis among them. viser calls this once per client, after its first camera
+        message. The client reports its canvas again whenever it is resized (the docked
+        panel takes its width just after the first message): each report refits the camera,
+        until the user orbits or zooms it, which is left alone from then on.
+        """
+        camera = client.camera
+        placed = [np.asarray(camera.position, dtype=float)]
+
+        def refit(_: Any) -> None:
+            if not np.allclose(camera.position, placed[0], atol=1e-3):
+                return  # The user has taken the camera.
+            look_at, position = row_camera(max(self._framed, 0), camera.aspect, camera.fov)
+            if np.allclose(position, placed[0], atol=1e-3):
+                return
+            placed[0] = np.asarray(position, dtype=float)
+            with client.atomic():
+                camera.look_at = look_at
+                camera.position = position
+
+        refit(camera)
+        camera.on_update(refit)
 
     def _label_text(self, stage: Stage) -> str:
         s = stage.session
@@ -751,6 +775,30 @@ def is_loopback(host: str) -> bool:
 
 def _node_name(sid: str) -> str:
     return "".join(c if c.isalnum() or c in "-_" else "_" for c in sid)
+
+
+def row_camera(
+    n: int, aspect: float | None = None, fov: float | None = None
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """The camera's (look_at, position) that shows a row of ``n`` stages from the front, above.
+
+    Without ``aspect`` (canvas width / height) and ``fov`` (vertical field of view, radians):
+    the framing for a laptop screen, where a row of five fills the view (at 0.62 x the row's
+    width the five twins' labels overlapped on a 1280 px screen, about 100 px between stages).
+    With them, the camera steps back further when that canvas is too narrow to show the
+    whole row, never closer.
+    """
+    span = max(n - 1, 0) * SPACING
+    width = span + 2.0 * DISC_RADIUS + 0.6
+    cx = span / 2.0
+    d = max(2.0, 0.48 * width)
+    if aspect is not None and fov is not None and aspect > 0.0 and 0.0 < fov < math.pi:
+        # The camera looks along (0, 1, -0.8) at the row's middle, from sqrt(1 + 0.8^2) * d:
+        # the row (along x, across the view) fits when its half width (and a 10 % margin)
+        # is within the horizontal half angle, tan = aspect * tan(fov / 2).
+        half_angle = aspect * math.tan(fov / 2.0)
+        d = max(d, 1.1 * (width / 2.0) / (half_angle * math.sqrt(1.64)))
+    return (cx, 0.0, 0.0), (cx, -d, 0.8 * d)
 
 
 def _make_server(host: str, port: int) -> Any:
