@@ -76,8 +76,10 @@ wheel: setup
 	rm -rf dist && $(UV) build --wheel -q -o dist
 	$(PY) scripts/check_wheel.py dist
 
+# The suite in two parts at once: the tests on simulated time on every core at the lowest
+# priority, beside the rest one at a time (scripts/run_tests.sh, tests/conftest.py).
 test: setup chromium netutils lint typecheck unit wheel
-	$(VENV)/bin/pytest -q -p no:cacheprovider
+	scripts/run_tests.sh
 
 bench: setup
 	$(PY) bench/bench_sdo.py --json

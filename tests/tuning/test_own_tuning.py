@@ -198,6 +198,7 @@ class _SteppedInAThread(SimIO):
         await asyncio.to_thread(self.drive.step, seconds)
 
 
+@pytest.mark.wallclock  # It times the event loop's callbacks: never beside a busy core.
 def test_the_tuning_never_holds_the_event_loop_for_a_dead_man_period(
     caplog: pytest.LogCaptureFixture,
 ) -> None:

@@ -44,6 +44,7 @@ PLANTS = [PlantModel(JM, JM * r) for r in (1.0, 10.0, 30.0)] + [
 ]
 
 
+@pytest.mark.wallclock  # Each design is also timed (under 2 s).
 @pytest.mark.parametrize(
     "plant",
     PLANTS,

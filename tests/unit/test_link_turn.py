@@ -100,6 +100,7 @@ async def test_a_link_held_exclusive_keeps_its_requests_until_the_block_ends() -
     await link.close()
 
 
+@pytest.mark.wallclock  # A 0.2 s open in a thread against a 0.05 s time-out.
 async def test_an_open_that_ends_after_its_time_out_is_closed_again() -> None:
     # A bus or an EtherCAT master opened after the caller gave up must not stay held by a link
     # nobody has (a shared master was kept for good; the next open of that NIC reused it).

@@ -22,6 +22,9 @@ import pytest
 
 from servodesk.services import tuning_worker
 
+# Processes started, stopped and waited for on the wall clock (a job "has started" after 0.5 s).
+pytestmark = pytest.mark.wallclock
+
 
 def _alive(pid: int) -> bool:
     try:
