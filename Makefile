@@ -76,8 +76,8 @@ wheel: setup
 	rm -rf dist && $(UV) build --wheel -q -o dist
 	$(PY) scripts/check_wheel.py dist
 
-# The suite in two parts at once: the tests on simulated time on every core at the lowest
-# priority, beside the rest one at a time (scripts/run_tests.sh, tests/conftest.py).
+# The suite in two parts: the tests on simulated time on every core, then the rest one at a
+# time (scripts/run_tests.sh, tests/conftest.py).
 test: setup chromium netutils lint typecheck unit wheel
 	scripts/run_tests.sh
 

@@ -23,9 +23,9 @@ def channel() -> str:
 
 #: Test directories whose tests run on simulated time or none: CPU-bound computation (the
 #: tuning's searches on simulated drives), nothing that waits on the wall clock. ``make test``
-#: (scripts/run_tests.sh) runs these on every core at the lowest priority, beside the rest one
-#: at a time: those run drives, buses and browsers on the wall clock and must not be kept
-#: waiting for a core. A test here that times something is marked ``wallclock``.
+#: (scripts/run_tests.sh) runs these first on every core, then the rest one at a time: those
+#: run drives, buses and browsers on the wall clock and must not be kept waiting for a core.
+#: A test here that times something is marked ``wallclock``.
 SIMTIME_DIRS = ("tests/tuning", "tests/unit")
 
 
