@@ -10,9 +10,13 @@
 set -uo pipefail
 cd "$(dirname "$0")/.."
 pytest=.venv/bin/pytest
-"$pytest" -q -p no:cacheprovider -m simtime -n auto --maxprocesses 4 "$@"
+# Only those directories are collected for the first part (collecting the whole suite takes
+# 20 s here, in each worker); the list is the one tests/conftest.py marks by.
+simtime_dirs=$(.venv/bin/python -c "from tests.conftest import SIMTIME_DIRS; print(*SIMTIME_DIRS)") || exit 1
+# shellcheck disable=SC2086 # the directories are words
+"$pytest" -q -p no:cacheprovider -m simtime -n auto --maxprocesses 4 $simtime_dirs
 sim=$?
-"$pytest" -q -p no:cacheprovider -m "not simtime" "$@"
+"$pytest" -q -p no:cacheprovider -m "not simtime"
 rest=$?
 if [ "$sim" -ne 0 ] || [ "$rest" -ne 0 ]; then
   echo "make test: failed (tests on simulated time: exit $sim; on the wall clock: exit $rest)"
