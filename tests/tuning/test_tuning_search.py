@@ -17,6 +17,7 @@ from servodesk.domain.tuning.design import FF_FACTOR, STUCK_GM_MIN_DB, STUCK_PM_
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.metrics import MoveMetrics
 from servodesk.domain.tuning.model import LoopModel, Mode, PlantModel
+from servodesk.domain.tuning.promise import RESONANCE_DRIFT, RESONANCE_TOL, RESONANCE_TOL_PEAK
 from servodesk.domain.tuning.search import (
     ALTERNATIVE_SETTLING_FACTOR,
     CONFIRM_TOP,
@@ -30,9 +31,6 @@ from servodesk.domain.tuning.search import (
     REF_HOLD_S,
     REFINE_LEAD,
     REFINE_TI,
-    RESONANCE_DRIFT,
-    RESONANCE_TOL,
-    RESONANCE_TOL_PEAK,
     RIGID_VARIATIONS,
     STRUCTURE_FF_FACTORS,
     STUCK_LOAD_DAMPING,

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import importlib
 import itertools
 import logging
 import math
@@ -55,7 +56,7 @@ from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, Value, codec, coerce_int
 from servodesk.domain.profile import DeviceProfile, ObjectSpec, RecorderSpec
 from servodesk.domain.ramps import ramp_kind
-from servodesk.domain.tuning.search import mode_promise
+from servodesk.domain.tuning.promise import mode_promise
 from servodesk.errors import (
     ConflictError,
     DriveStateError,
@@ -64,7 +65,6 @@ from servodesk.errors import (
     ServodeskError,
     ValidationError,
 )
-from servodesk.services import tuning_own
 from servodesk.services.events import EventHub
 from servodesk.services.manager import SessionManager
 from servodesk.services.motion import Limits, Motion, MotionService
@@ -1276,6 +1276,12 @@ class TuningService:
     # servodesk's own tuning ---------------------------------------------------------------
 
     async def _own(self, job: Job, run: _Run) -> tuple[str, str, dict[str, Any]]:
+        # Imported on the first tuning, not with the backend: its numerical stack (scipy)
+        # took 3 s of every start-up (servodesk serve, each test's server). In a thread, so
+        # that the event loop carries the heartbeats and the other sessions meanwhile.
+        await asyncio.to_thread(importlib.import_module, "servodesk.services.tuning_own")
+        from servodesk.services import tuning_own
+
         s = run.session
         request = tuning_own.OwnTuningRequest(
             mode=job.mode,  # type: ignore[arg-type]

@@ -69,12 +69,11 @@ from servodesk.domain.tuning.identify import (
 )
 from servodesk.domain.tuning.metrics import move_metrics, smoothed_settling
 from servodesk.domain.tuning.model import LoopModel, PlantModel
+from servodesk.domain.tuning.promise import RESONANCE_TOL, RESONANCE_TOL_PEAK
 from servodesk.domain.tuning.search import (
     ALTERNATIVE_SETTLING_FACTOR,
     LOW_ANTI_RESONANCE_HZ,
     REF_HOLD_PERIODS,
-    RESONANCE_TOL,
-    RESONANCE_TOL_PEAK,
     RIGID_VARIATIONS,
     VARIATIONS,
     SearchResult,
@@ -689,7 +688,7 @@ class OwnTuning:
                     # the frequency response did not show its anti-resonance (``unseen``).
                     structure_runs=STRUCTURE_RUNS if resonances and not unseen else 0,
                     # High response trusts a resonance where the response's own peak put it
-                    # (search.RESONANCE_TOL_PEAK); one the record fit placed, it does not.
+                    # (promise.RESONANCE_TOL_PEAK); one the record fit placed, it does not.
                     resonance_tol=(
                         RESONANCE_TOL_PEAK
                         if self.request.mode == "high" and not (unseen or refitted)
