@@ -491,7 +491,10 @@ class ViewerService:
         def refit(_: Any) -> None:
             if not np.allclose(camera.position, placed[0], atol=1e-3):
                 return  # The user has taken the camera.
-            look_at, position = row_camera(max(self._framed, 0), camera.aspect, camera.fov)
+            if camera.image_height <= 0 or camera.image_width <= 0:
+                return  # A hidden frame (a folded panel, a tab in the background): no canvas.
+            aspect = camera.image_width / camera.image_height
+            look_at, position = row_camera(max(self._framed, 0), aspect, camera.fov)
             if np.allclose(position, placed[0], atol=1e-3):
                 return
             placed[0] = np.asarray(position, dtype=float)
