@@ -68,6 +68,7 @@ async def run(job: Callable[[], _T]) -> _T:
     docstring)."""
     executor = pool()
     future = executor.submit(job)
+    # This worker's set: an _end meanwhile gives the next worker a new one.
     pending = _PENDING
     pending.add(future)
     future.add_done_callback(pending.discard)

@@ -486,18 +486,19 @@ class ViewerService:
         until the user orbits or zooms it, which is left alone from then on.
         """
         camera = client.camera
-        placed = [np.asarray(camera.position, dtype=float)]
+        placed = np.asarray(camera.position, dtype=float)
 
         def refit(_: Any) -> None:
-            if not np.allclose(camera.position, placed[0], atol=1e-3):
+            nonlocal placed
+            if not np.allclose(camera.position, placed, atol=1e-3):
                 return  # The user has taken the camera.
             if camera.image_height <= 0 or camera.image_width <= 0:
                 return  # A hidden frame (a folded panel, a tab in the background): no canvas.
             aspect = camera.image_width / camera.image_height
             look_at, position = row_camera(max(self._framed, 0), aspect, camera.fov)
-            if np.allclose(position, placed[0], atol=1e-3):
+            if np.allclose(position, placed, atol=1e-3):
                 return
-            placed[0] = np.asarray(position, dtype=float)
+            placed = np.asarray(position, dtype=float)
             with client.atomic():
                 camera.look_at = look_at
                 camera.position = position
