@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
@@ -111,8 +111,59 @@ def operation_app(
         yield client, app.state.servodesk.sim
 
 
-def headers(client_id: str) -> dict[str, str]:
-    return {"X-Servodesk-Client": client_id}
+#: The control token each test client got when it took control (by its label). A label
+#: gives no authority (services/control.py); these tokens do. A stale token of an earlier
+#: test is simply not the holder's.
+TOKENS: dict[str, str] = {}
+
+
+class LiveHeaders(Mapping[str, str]):
+    """The label and, once the client took control, its control token: read at each request,
+    so a module's ``A = headers("A")`` carries the token A holds when the request is sent."""
+
+    def __init__(self, client_id: str) -> None:
+        self.client_id = client_id
+
+    def _now(self) -> dict[str, str]:
+        out = {"X-Servodesk-Client": self.client_id}
+        token = TOKENS.get(self.client_id)
+        if token:
+            out["X-Servodesk-Control"] = token
+        return out
+
+    def __getitem__(self, key: str) -> str:
+        return self._now()[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._now())
+
+    def __len__(self) -> int:
+        return len(self._now())
+
+
+def headers(client_id: str) -> LiveHeaders:
+    return LiveHeaders(client_id)
+
+
+def take(client: TestClient, sid: str, who: str, *, force: bool = False) -> str:
+    """Take (or force-take) control of ``sid`` as ``who``; its token, kept in TOKENS."""
+    body = {"action": "force_take", "confirm": True} if force else {"action": "take"}
+    r = client.post(f"/api/v1/sessions/{sid}/control", json=body, headers=headers(who))
+    assert r.status_code == 200, r.text
+    token: str = r.json()["token"]
+    assert token
+    TOKENS[who] = token
+    return token
+
+
+def bind(ws: WebSocketTestSession, sid: str, who: str) -> None:
+    """Make ``ws`` the dead-man of ``who``'s control of ``sid`` and wait for the answer."""
+    ws.send_json({"type": "bind", "session": sid, "token": TOKENS.get(who, "")})
+    while True:
+        msg = ws.receive_json()
+        if msg.get("type") == "bind" and msg.get("session") == sid:
+            assert msg["ok"], msg
+            return
 
 
 class Heartbeats:
@@ -142,16 +193,17 @@ class Heartbeats:
         return self.last
 
 
-def take_and_enable(client: TestClient, sid: str, who: str) -> None:
-    r = client.post(
-        f"/api/v1/sessions/{sid}/control", json={"action": "take"}, headers=headers(who)
-    )
-    assert r.status_code == 200, r.text
+def take_and_enable(client: TestClient, sid: str, who: str, ws: WebSocketTestSession) -> Heartbeats:
+    """Take control as ``who``, bind ``ws`` as its dead-man, beat, and servo on."""
+    take(client, sid, who)
+    bind(ws, sid, who)
+    beats = Heartbeats(ws, sid)
     r = client.post(
         f"/api/v1/sessions/{sid}/state", json={"command": "enable"}, headers=headers(who)
     )
     assert r.status_code == 200, r.text
     assert r.json()["state"] == "Operation enabled"
+    return beats
 
 
 def wait_motion(client: TestClient, sid: str, timeout: float = 5.0) -> dict[str, Any]:

@@ -17,7 +17,6 @@ from servodesk.api.control_deps import operation
 from servodesk.settings import Settings
 from tests.operation.support import (
     BusSpy,
-    Heartbeats,
     headers,
     is_stop,
     operation_app,
@@ -47,10 +46,9 @@ def test_missing_heartbeats_halt_then_quick_stop_within_the_deadline(channel, tm
     try:
         with operation_app(channel, tmp_path, deadman_ms=DEADMAN_MS) as (client, sim):
             drive = sim.drives[0]
-            take_and_enable(client, SID, "A")
             with client.websocket_connect("/api/v1/ws?client=A") as ws:
                 ws.send_json({"type": "subscribe", "session": SID})
-                beats = Heartbeats(ws, SID, period=0.05)
+                beats = take_and_enable(client, SID, "A", ws)
                 t_start = time.time()
                 _jog(client)
                 # Heartbeats for longer than the dead-man time keep the jog running.
@@ -87,9 +85,8 @@ def test_closing_the_websocket_stops_the_jog(channel, tmp_path) -> None:  # type
     try:
         with operation_app(channel, tmp_path, deadman_ms=DEADMAN_MS) as (client, sim):
             drive = sim.drives[0]
-            take_and_enable(client, SID, "A")
             with client.websocket_connect("/api/v1/ws?client=A") as ws:
-                beats = Heartbeats(ws, SID)
+                beats = take_and_enable(client, SID, "A", ws)
                 _jog(client)
                 assert wait_until(lambda: abs(drive.velocity) > 150_000, 1.0)
                 beats.stop()
@@ -120,7 +117,8 @@ async def test_backend_shutdown_stops_motion(channel, tmp_path) -> None:  # type
         )
         app = create_app(settings)
         async with app.router.lifespan_context(app):
-            operation(app).control.socket_opened("A")
+            control = operation(app).control
+            connection = control.connect("A")
             transport = httpx.ASGITransport(app=app)
             async with httpx.AsyncClient(transport=transport, base_url="http://t") as c:
                 h = headers("A")
@@ -128,6 +126,8 @@ async def test_backend_shutdown_stops_motion(channel, tmp_path) -> None:  # type
                     f"/api/v1/sessions/{SID}/control", json={"action": "take"}, headers=h
                 )
                 assert r.status_code == 200
+                control.bind(connection, SID, r.json()["token"])
+                h = {**h, "X-Servodesk-Control": r.json()["token"]}
                 r = await c.post(
                     f"/api/v1/sessions/{SID}/state", json={"command": "enable"}, headers=h
                 )
@@ -139,7 +139,7 @@ async def test_backend_shutdown_stops_motion(channel, tmp_path) -> None:  # type
                 )
                 assert r.status_code == 200, r.text
                 t_jog = time.time()
-                operation(app).control.heartbeat("A", SID)
+                control.heartbeat(connection, SID)
                 await asyncio.sleep(0.05)
         t_end = time.time()
         stops = [d for d in spy.controlwords(NODE, t_jog) if is_stop(d.value)]
@@ -164,9 +164,8 @@ def test_a_stall_of_the_backend_is_not_a_lost_client(channel, tmp_path) -> None:
     silent during a stall is stopped once the stall and a short grace have passed."""
     with operation_app(channel, tmp_path, deadman_ms=DEADMAN_MS) as (client, sim):
         drive = sim.drives[0]
-        take_and_enable(client, SID, "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
-            beats = Heartbeats(ws, SID, period=0.05)
+            beats = take_and_enable(client, SID, "A", ws)
             _jog(client)
             assert wait_until(lambda: abs(drive.velocity) > 150_000, 1.0)
             client.portal.call(time.sleep, 0.6)  # Blocks the backend's event loop.
@@ -184,9 +183,8 @@ def test_a_stall_of_the_backend_is_not_a_lost_client(channel, tmp_path) -> None:
         assert client.post(
             f"/api/v1/sessions/{SID}/alarms/reset", json={}, headers=headers("A")
         ).status_code in (200, 409)
-        take_and_enable(client, SID, "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
-            beats = Heartbeats(ws, SID, period=0.05)
+            beats = take_and_enable(client, SID, "A", ws)
             _jog(client)
             assert wait_until(lambda: abs(drive.velocity) > 150_000, 1.0)
             last = beats.stop()

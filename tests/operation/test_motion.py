@@ -8,8 +8,10 @@ import time
 from tests.operation.support import (
     BusSpy,
     Heartbeats,
+    bind,
     headers,
     operation_app,
+    take,
     take_and_enable,
     wait_motion,
     wait_until,
@@ -31,9 +33,8 @@ def _post(client, sid: str, path: str, body: dict) -> dict:  # type: ignore[no-u
 def test_moves_reach_their_targets(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
     with operation_app(channel, tmp_path) as (client, sim):
         drive = sim.drives[0]
-        take_and_enable(client, GENERIC, "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
-            beats = Heartbeats(ws, GENERIC)
+            beats = take_and_enable(client, GENERIC, "A", ws)
             move = {"velocity": 500_000, "acceleration": 5_000_000, "deceleration": 5_000_000}
             st = _post(
                 client, GENERIC, "motion/move", {"mode": "absolute", "target": 131072, **move}
@@ -76,7 +77,7 @@ def test_limits_refuse_before_anything_reaches_the_bus(channel, tmp_path) -> Non
     try:
         with operation_app(channel, tmp_path) as (client, _sim):
             base = f"/api/v1/sessions/{GENERIC}"
-            take_and_enable(client, GENERIC, "A")
+            take(client, GENERIC, "A")
             # The limits are read from the drive, and again after a write.
             assert client.get(f"{base}/limits").json()["max_velocity"] == 1_000_000
             for addr, value in (
@@ -94,7 +95,10 @@ def test_limits_refuse_before_anything_reaches_the_bus(channel, tmp_path) -> Non
             )
             assert lim["max_torque"] == 3000 and lim["modes"] == [1, 3, 4, 6]
             with client.websocket_connect("/api/v1/ws?client=A") as ws:
+                bind(ws, GENERIC, "A")
                 beats = Heartbeats(ws, GENERIC)
+                r = client.post(f"{base}/state", json={"command": "enable"}, headers=A)
+                assert r.status_code == 200, r.text
                 for path, body, words in (
                     (
                         "motion/jog",
@@ -130,9 +134,8 @@ def test_limits_refuse_before_anything_reaches_the_bus(channel, tmp_path) -> Non
 def test_velocity_and_torque_modes(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
     with operation_app(channel, tmp_path) as (client, sim):
         drive = sim.drives[0]
-        take_and_enable(client, GENERIC, "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
-            beats = Heartbeats(ws, GENERIC)
+            beats = take_and_enable(client, GENERIC, "A", ws)
             st = _post(
                 client, GENERIC, "motion/velocity", {"velocity": -120_000, "acceleration": 10**6}
             )
@@ -152,10 +155,14 @@ def test_velocity_and_torque_modes(channel, tmp_path) -> None:  # type: ignore[n
 def test_cyclic_runs_where_the_family_has_it_and_is_refused_elsewhere(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
     with operation_app(channel, tmp_path, "cia402-generic,hiwin-e") as (client, sim):
         hiwin = sim.drives[1]
-        take_and_enable(client, GENERIC, "A")
-        take_and_enable(client, HIWIN, "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
-            beats = Heartbeats(ws, GENERIC)
+            beats = take_and_enable(client, GENERIC, "A", ws)
+            take(client, HIWIN, "A")
+            bind(ws, HIWIN, "A")
+            r = client.post(
+                f"/api/v1/sessions/{HIWIN}/state", json={"command": "enable"}, headers=A
+            )
+            assert r.status_code == 200, r.text
             body = SINE_CSP
             r = client.post(f"/api/v1/sessions/{GENERIC}/motion/cyclic", json=body, headers=A)
             assert r.status_code == 400
@@ -212,9 +219,8 @@ def test_a_backend_stall_stretches_the_cyclic_waveform_instead_of_skipping_it(
     # the clock said it should be (here: the whole negative half, straight back to the start).
     with operation_app(channel, tmp_path, "hiwin-e") as (client, sim):
         hiwin = sim.drives[0]
-        take_and_enable(client, "hiwin-e-1", "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
-            beats = Heartbeats(ws, "hiwin-e-1")
+            beats = take_and_enable(client, "hiwin-e-1", "A", ws)
             start = hiwin.position
             seen: list[int] = []
             hiwin.on_cycle(lambda: seen.append(hiwin.position - start))

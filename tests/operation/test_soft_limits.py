@@ -15,7 +15,6 @@ from typing import Any
 
 from tests.operation.support import (
     BusSpy,
-    Heartbeats,
     headers,
     operation_app,
     take_and_enable,
@@ -59,10 +58,9 @@ class Extremes:
 def test_jog_and_velocity_halt_before_the_software_limits(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
     with operation_app(channel, tmp_path) as (client, sim):
         drive = sim.drives[0]
-        take_and_enable(client, SID, "A")
-        _set_limits(client, LO, HI)
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
-            beats = Heartbeats(ws, SID)
+            beats = take_and_enable(client, SID, "A", ws)
+            _set_limits(client, LO, HI)
             seen = Extremes(drive)
             try:
                 # Jog toward max: 300000 inc/s would cross the limit 0.33 s after the start.
@@ -107,12 +105,11 @@ def test_continuous_motion_toward_a_limit_already_reached_is_refused(channel, tm
     try:
         with operation_app(channel, tmp_path) as (client, sim):
             drive = sim.drives[0]
-            take_and_enable(client, SID, "A")
-            pos = drive.position
-            # The axis stands exactly at max and beyond min.
-            _set_limits(client, pos - 50_000, pos)
             with client.websocket_connect("/api/v1/ws?client=A") as ws:
-                beats = Heartbeats(ws, SID)
+                beats = take_and_enable(client, SID, "A", ws)
+                pos = drive.position
+                # The axis stands exactly at max and beyond min.
+                _set_limits(client, pos - 50_000, pos)
                 for path, body in (
                     ("motion/jog", {"velocity": 10_000, "acceleration": 100_000}),
                     ("motion/velocity", {"velocity": 1}),

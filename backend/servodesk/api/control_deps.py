@@ -1,10 +1,12 @@
-"""FastAPI dependencies for control ownership: who may write, who may move the axis.
+"""FastAPI dependencies for control: who may change a drive, who may energise and move it.
 
-The rules live in :mod:`servodesk.services.control`; here they are applied to requests. A
-client names itself with the ``X-Servodesk-Client`` header. Mutating session routes take
-:data:`WriteControl` (refused with 409 naming the owner when another client holds control),
-the state route :data:`StateControl` (quick stop is never refused), motion routes
-:data:`MotionControl` (control and a live WebSocket needed).
+The rules live in :mod:`servodesk.services.control`; here they are applied to requests. The
+authority is the control token (``X-Servodesk-Control``) that taking control returned; the
+client id (``X-Servodesk-Client``) is only a label. Every route that changes a drive takes
+:data:`WriteControl` (controlword writes: also the dead-man), the state route
+:data:`StateControl` (servo on: also the dead-man; quick stop is never refused), motion,
+homing and tuning :data:`MotionControl` (control and a bound WebSocket). Each is refused with
+409 naming the holder and nothing reaches the bus.
 """
 
 from __future__ import annotations
@@ -17,7 +19,9 @@ from typing import Annotated, Any
 from fastapi import Depends, Header, Request
 
 from servodesk.api.deps import AppState
-from servodesk.services.control import ControlService
+from servodesk.domain.address import ObjectAddress
+from servodesk.errors import ValidationError
+from servodesk.services.control import CONTROL_HEADER, ControlService
 from servodesk.services.motion import MotionService
 
 #: The client id header: any printable id up to 64 characters (a tab's random id).
@@ -70,38 +74,92 @@ def get_operation(request: Request) -> Operation:
 OperationDep = Annotated[Operation, Depends(get_operation)]
 
 
+#: The control token ``take`` returned: the authority for every request that changes a drive.
+ControlHeader = Annotated[
+    str | None,
+    Header(
+        alias=CONTROL_HEADER,
+        max_length=64,
+        pattern=r"^[A-Za-z0-9_-]+$",
+        description="The control token POST /control returned (take / force_take)",
+    ),
+]
+
+#: Writes of these objects energise or command the drive directly (CiA 402-2 §6.2.1: the
+#: controlword's enable bits): they need the dead-man like servo on does.
+_ENERGISING_OBJECTS = {0x6040}
+#: State commands that lead towards Switched on / Operation enabled (CiA 402-2 §6.2, figure 9
+#: transitions 3, 4, 16) or walk there: power on the motor, so they need the dead-man.
+_ENERGISING_COMMANDS = {"switch_on", "switch_on_enable", "enable_operation", "enable"}
+
+
+def _label(client: str | None, holder: str) -> str:
+    """The audit log's name for the request: the holder's label (it presented the token)."""
+    return holder if not client or client == holder else f"{holder} (as {client})"
+
+
+def _energising_write(request: Request) -> bool:
+    raw = request.path_params.get("address")
+    if not isinstance(raw, str):
+        return False
+    try:
+        return ObjectAddress.parse(raw).index in _ENERGISING_OBJECTS
+    except (ValueError, ValidationError):
+        return False  # The route answers the bad address itself.
+
+
 async def require_write(
-    sid: str, request: Request, x_servodesk_client: ClientHeader = None
-) -> AsyncIterator[str | None]:
-    """Refuse the write when another client holds control; re-read limits after it."""
+    sid: str,
+    request: Request,
+    x_servodesk_client: ClientHeader = None,
+    x_servodesk_control: ControlHeader = None,
+) -> AsyncIterator[str]:
+    """The write needs control (the controlword also the dead-man); re-read limits after it."""
     op = operation(request.app)
-    op.control.check_write(sid, x_servodesk_client)
+    op.motion.manager.get(sid)  # An unknown session is a 404 before anything else.
+    if _energising_write(request):
+        holder = op.control.check_energise(sid, x_servodesk_control, "writing the controlword")
+    else:
+        holder = op.control.check(sid, x_servodesk_control, "this write")
     op.motion.invalidate_limits(sid)
     try:
-        yield x_servodesk_client
+        yield _label(x_servodesk_client, holder)
     finally:
         op.motion.invalidate_limits(sid)
 
 
 async def require_state_command(
-    sid: str, request: Request, x_servodesk_client: ClientHeader = None
-) -> AsyncIterator[str | None]:
-    """Like :func:`require_write`, except that quick stop is never refused."""
+    sid: str,
+    request: Request,
+    x_servodesk_client: ClientHeader = None,
+    x_servodesk_control: ControlHeader = None,
+) -> AsyncIterator[str]:
+    """State commands need control, servo on the dead-man too; quick stop is never refused."""
     command = None
     with contextlib.suppress(Exception):  # A bad body is the route's 422, not ours.
         body = await request.json()
         command = body.get("command") if isinstance(body, dict) else None
-    if command != "quick_stop":
-        operation(request.app).control.check_write(sid, x_servodesk_client)
-    yield x_servodesk_client
+    control = operation(request.app).control
+    if command == "quick_stop":
+        yield x_servodesk_client or "unknown"
+        return
+    if command in _ENERGISING_COMMANDS:
+        holder = control.check_energise(sid, x_servodesk_control, f"{command!r}")
+    else:
+        holder = control.check(sid, x_servodesk_control, f"{command!r}")
+    yield _label(x_servodesk_client, holder)
 
 
 async def require_close(
-    sid: str, request: Request, x_servodesk_client: ClientHeader = None
+    sid: str,
+    request: Request,
+    x_servodesk_client: ClientHeader = None,
+    x_servodesk_control: ControlHeader = None,
 ) -> AsyncIterator[str | None]:
-    """Closing a session someone else controls is refused; its motion stops first."""
+    """Closing a session someone holds needs their control; its motion stops first."""
     op = operation(request.app)
-    op.control.check_write(sid, x_servodesk_client)
+    if op.control.owner(sid) is not None:
+        op.control.check(sid, x_servodesk_control, "closing the session")
     await op.motion.stop_session(sid, "the session is being closed")
     try:
         yield x_servodesk_client
@@ -109,11 +167,21 @@ async def require_close(
         op.control.forget_session(sid)
 
 
-def require_motion(sid: str, request: Request, x_servodesk_client: RequiredClientHeader) -> str:
-    """Motion needs control and a live WebSocket of the same client."""
+def require_motion(
+    sid: str,
+    request: Request,
+    x_servodesk_client: ClientHeader = None,
+    x_servodesk_control: ControlHeader = None,
+) -> str:
+    """Motion needs control and a bound, open WebSocket (the dead-man)."""
     op = operation(request.app)
     op.motion.manager.get(sid)  # An unknown session is a 404 before anything else.
-    return op.control.check_motion(sid, x_servodesk_client)
+    holder = op.control.check_energise(sid, x_servodesk_control, "motion")
+    return _label(x_servodesk_client, holder)
+
+
+def control_token(x_servodesk_control: ControlHeader = None) -> str | None:
+    return x_servodesk_control
 
 
 def client_id(x_servodesk_client: ClientHeader = None) -> str | None:
@@ -124,9 +192,10 @@ def required_client_id(x_servodesk_client: RequiredClientHeader) -> str:
     return x_servodesk_client
 
 
-WriteControl = Annotated[str | None, Depends(require_write, scope="function")]
-StateControl = Annotated[str | None, Depends(require_state_command, scope="function")]
+WriteControl = Annotated[str, Depends(require_write, scope="function")]
+StateControl = Annotated[str, Depends(require_state_command, scope="function")]
 CloseControl = Annotated[str | None, Depends(require_close, scope="function")]
 MotionControl = Annotated[str, Depends(require_motion)]
 ClientId = Annotated[str | None, Depends(client_id)]
 RequiredClientId = Annotated[str, Depends(required_client_id)]
+ControlToken = Annotated[str | None, Depends(control_token)]

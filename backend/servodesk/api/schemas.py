@@ -496,9 +496,22 @@ class ControlRequest(BaseModel):
 
 class ControlOut(BaseModel):
     session: str
-    owner: str | None = Field(description="Client id holding control, or null")
+    owner: str | None = Field(description="Client id (label) of the holder, or null")
     since: float | None = Field(description="When it was taken (Unix time)")
-    you: bool = Field(description="The requesting client (X-Servodesk-Client) holds it")
+    you: bool = Field(description="The request's X-Servodesk-Control token is the holder's")
+    token: str | None = Field(
+        default=None,
+        description="The control token, only to its holder: send it as X-Servodesk-Control "
+        "and bind a WebSocket with it",
+    )
+    bound: bool = Field(
+        default=False, description="A WebSocket is bound to this control (the dead-man)"
+    )
+    orphaned: bool = Field(
+        default=False,
+        description="The holder's WebSocket closed: the drive was made safe and control "
+        "lapses unless the holder binds a socket again within the grace time",
+    )
 
 
 class JogRequest(BaseModel):
@@ -572,7 +585,8 @@ class MotionStatusOut(BaseModel):
     mode: int | None
     target: float | None
     state: str = Field(
-        description="idle, running, reached, done, halted, stopped, deadman or error"
+        description="idle, running, reached, done, halted, stopped, deadman, timeout (homing) "
+        "or error"
     )
     message: str
 
@@ -875,12 +889,78 @@ class HomingRequest(BaseModel):
     speed_zero: int | None = Field(default=None, ge=0, le=0xFFFFFFFF, description="6099h:02")
     acceleration: int | None = Field(default=None, ge=0, le=0xFFFFFFFF, description="609Ah")
     offset: int | None = Field(default=None, ge=-(2**31), le=2**31 - 1, description="607Ch")
+    max_travel: int | None = Field(
+        default=None,
+        gt=0,
+        le=2**32 - 1,
+        description="the span the searches may cover (position units) for the estimate; "
+        "default: the software position limits 607Dh, or the twin's switches",
+    )
+    timeout_s: float | None = Field(
+        default=None,
+        gt=0,
+        le=86400,
+        description="halt and quick-stop the run after this many seconds; default: twice the "
+        "estimate plus 30 s, within 60 s .. 1 h (300 s without an estimate)",
+    )
 
 
 class HomingBits(BaseModel):
     target_reached: bool
     homing_attained: bool
     homing_error: bool
+
+
+class HomingPhaseOut(BaseModel):
+    name: str
+    distance: float = Field(description="position units")
+    speed: float = Field(description="position units per s")
+    seconds: float
+    speed_object: str = Field(description='the object that sets the speed, e.g. "6099h:02"')
+
+
+class HomingEstimateOut(BaseModel):
+    seconds: float = Field(description="the longest a normal run takes from any start")
+    phases: list[HomingPhaseOut]
+    assumptions: list[str]
+
+
+HomingOutcome = Literal[
+    "running",
+    "attained",
+    "error",
+    "halted",
+    "stopped",
+    "deadman",
+    "control_lost",
+    "timeout",
+    "interrupted",
+]
+
+
+class HomingRunOut(BaseModel):
+    id: int
+    method: int
+    active: bool
+    outcome: HomingOutcome = Field(
+        description="how the run ended (running while it lasts): the motion's end, not only "
+        "the statusword (docs/api.md)"
+    )
+    message: str
+    watched: bool = Field(description="a motion under the client's dead-man")
+    started_at: float = Field(description="Unix time")
+    elapsed_s: float
+    phase: str | None = Field(description="what statusword bits 13/12/10 say (mode 6 only)")
+    estimate_s: float | None
+    estimate: HomingEstimateOut | None
+    basis: str = Field(description="where the travel came from, or why there is no estimate")
+    travel: float | None
+    speed_switch: float | None = Field(description="6099h:01 in position units per s")
+    speed_zero: float | None = Field(description="6099h:02 in position units per s")
+    acceleration: float | None = Field(description="609Ah in position units per s²")
+    timeout_s: float
+    timeout_source: Literal["user", "estimate", "default"]
+    warnings: list[str]
 
 
 class HomingStatus(BaseModel):
@@ -890,6 +970,9 @@ class HomingStatus(BaseModel):
     position: int | None
     statusword_bits: HomingBits
     message: str
+    run: HomingRunOut | None = Field(
+        default=None, description="the last run started through servodesk on this session"
+    )
 
 
 class EmcyLogEntry(BaseModel):

@@ -15,6 +15,7 @@ from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from servodesk import __version__
 from servodesk.api.control_deps import operation
 from servodesk.api.deps import AppState
+from servodesk.errors import ServodeskError
 
 log = logging.getLogger(__name__)
 
@@ -37,13 +38,14 @@ async def websocket(ws: WebSocket) -> None:
     await ws.accept(subprotocol=SUBPROTOCOL if offered else None)
     sub = state.hub.subscribe()
     sessions = state.manager
-    # Which client this socket belongs to (?client=<id>), for control and the dead-man
-    # heartbeat; a socket without one gets an id, told in the hello message.
+    # The label of the client this socket belongs to (?client=<id>), for people; a socket
+    # without one gets one, told in the hello message. It gives no authority: the socket
+    # becomes a holder's dead-man only by binding with the control token (services/control).
     client = ws.query_params.get("client") or ""
     if not _CLIENT_ID.match(client):
         client = f"tab-{secrets.token_hex(4)}"
     control = operation(ws.app).control
-    control.socket_opened(client)
+    connection = control.connect(client)
 
     def sessions_msg() -> dict[str, Any]:
         return {"type": "sessions", "sessions": [s.info() for s in sessions.all()]}
@@ -56,6 +58,7 @@ async def websocket(ws: WebSocket) -> None:
                     "version": __version__,
                     "protocol": PROTOCOL,
                     "client": client,
+                    "connection": connection,
                 }
             )
         )
@@ -71,7 +74,19 @@ async def websocket(ws: WebSocket) -> None:
     send_task = asyncio.create_task(sender())
     try:
         while True:
-            text = await ws.receive_text()
+            frame = await ws.receive()
+            if frame["type"] == "websocket.disconnect":
+                break
+            text = frame.get("text")
+            if text is None:
+                # A binary frame (receive_text() would fail on it with a KeyError and drop
+                # the socket): the protocol is JSON text frames; say so and keep the socket.
+                await ws.send_text(
+                    json.dumps(
+                        {"type": "error", "message": "binary frames are not read; send JSON text"}
+                    )
+                )
+                continue
             try:
                 msg = json.loads(text)
                 kind, sid = msg.get("type"), msg.get("session")
@@ -89,8 +104,24 @@ async def websocket(ws: WebSocket) -> None:
             elif kind == "unsubscribe" and isinstance(sid, str):
                 sub.sessions.discard(sid)
             elif kind == "heartbeat" and isinstance(sid, str):
-                # Dead-man: motion this client started runs while these arrive.
-                control.heartbeat(client, sid)
+                # Dead-man: the holder's motion runs while these arrive on a bound socket.
+                control.heartbeat(connection, sid)
+            elif kind == "bind" and isinstance(sid, str):
+                token = msg.get("token")
+                try:
+                    control.bind(connection, sid, token if isinstance(token, str) else None)
+                except ServodeskError as exc:
+                    sub.offer(
+                        {
+                            "type": "bind",
+                            "session": sid,
+                            "ok": False,
+                            "message": exc.message,
+                            "hint": exc.hint,
+                        }
+                    )
+                else:
+                    sub.offer({"type": "bind", "session": sid, "ok": True})
             elif kind == "ping":
                 sub.offer({"type": "pong", "time": msg.get("time")})
             else:
@@ -104,4 +135,4 @@ async def websocket(ws: WebSocket) -> None:
         with contextlib.suppress(asyncio.CancelledError, Exception):
             await send_task
         state.hub.unsubscribe(sub)
-        control.socket_closed(client)  # Stops the motion this client started.
+        control.disconnect(connection)  # The drives it was the dead-man of are made safe.

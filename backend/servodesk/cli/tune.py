@@ -137,14 +137,18 @@ async def _tune(ctx: _Context, args: argparse.Namespace) -> dict[str, Any]:
     control = ControlService(ctx.hub)
     motion = MotionService(ctx.manager, control, ctx.hub, deadman_s=Settings().deadman_ms / 1000.0)
     service = TuningService(ctx.manager, motion, ctx.hub)
+    token: str | None = None
     try:
         if args.undo is not None:
             undo = await service.undo(sid, who, args.undo)
             return {"ok": True, "session": sid, "undo": undo}
-        control.take(sid, who)
+        # The CLI is its own holder and its own dead-man connection (services/control).
+        token = control.take(sid, who)
+        connection = control.connect(who)
+        control.bind(connection, sid, token)
         if args.enable:
             await session.command("enable")
-        beats = asyncio.get_running_loop().create_task(_heartbeats(control, who, sid))
+        beats = asyncio.get_running_loop().create_task(_heartbeats(control, connection, sid))
         try:
             job = await service.start(
                 sid,
@@ -178,14 +182,14 @@ async def _tune(ctx: _Context, args: argparse.Namespace) -> dict[str, Any]:
             with contextlib.suppress(Exception):
                 await session.command("disable")
         with contextlib.suppress(Exception):
-            control.release(sid, who)
+            control.release(sid, token)
         control.close()
         await motion.shutdown()
 
 
-async def _heartbeats(control: Any, who: str, sid: str) -> None:
+async def _heartbeats(control: Any, connection: str, sid: str) -> None:
     while True:
-        control.heartbeat(who, sid)
+        control.heartbeat(connection, sid)
         await asyncio.sleep(HEARTBEAT_S)
 
 

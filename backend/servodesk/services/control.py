@@ -1,72 +1,104 @@
-"""Control ownership of drive sessions, connected clients and their heartbeats.
+"""Control of drive sessions: who may change a drive, and the connection that keeps it safe.
 
-One client holds control of a session at a time; everyone else watches (DESIGN.md, "Rules that
-hold everywhere"). A client is a browser tab or a script, named by the id it sends in the
-``X-Servodesk-Client`` header and the ``client`` query parameter of the WebSocket.
+One person holds control of a session at a time; everyone else watches (DESIGN.md, "Rules that
+hold everywhere"). This module is the one place that says what needs control; the API applies
+it through :mod:`servodesk.api.control_deps` and nothing else decides.
 
-The rules, as a commissioning engineer expects them:
+The rules, as a commissioning engineer at a live machine needs them:
 
-- Nobody holds control: any client may write objects, send state commands, store and restore
-  (a script or a second tab that only sets parameters need not take control first).
-- A client holds control: writes and state commands from every other client are refused with
-  409 naming the owner. Halt, quick stop (``motion/halt``, ``motion/stop``, the ``quick_stop``
-  state command) are never refused: anyone who sees the axis move may stop it.
-- Motion (jog, moves, velocity, torque, cyclic) needs control AND a live WebSocket of the same
-  client, because its dead-man heartbeat arrives over that socket.
-- ``take`` when another client holds control is refused (409 naming the owner); ``force_take``
-  needs ``confirm: true``. Taking control away, releasing it, or the owner's last WebSocket
-  closing stops the motion the owner started.
-- Control stays with a client whose WebSockets all closed for ``grace_s`` (a page reload keeps
-  it), then it is released. A client that never opened a WebSocket (a script) keeps control
-  until it releases it or someone force-takes it.
+- **Everything that can energise, move or change the drive needs control**: state requests,
+  motion, homing, tuning, object and parameter writes, restore, PDO apply and cyclic outputs,
+  alarm reset, save to EEPROM and restore defaults. Reads never do. Without it the request is
+  refused with 409 naming the holder (or saying nobody holds it) and nothing reaches the bus.
+- **Stopping is never refused**: halt, quick stop (``motion/halt``, ``motion/stop``, the
+  ``quick_stop`` state command) and stopping a tuning: anyone who sees the axis move may stop
+  it.
+- **Control is a server-issued token, not a name.** ``take`` answers with a random token
+  (128 bits, :func:`secrets.token_urlsafe`); every request that needs control presents it in
+  the ``X-Servodesk-Control`` header. The client id (``X-Servodesk-Client``) is only a label
+  for people and the audit log: knowing it gives nothing (before 2026-12-07 it was the
+  authority, and a second tab that sent the holder's id could move the axis).
+- **The dead-man belongs to a connection.** A WebSocket binds itself to control by sending the
+  token (``{"type": "bind", "session", "token"}``); only heartbeats from a bound socket count.
+  Energising (servo on, the controlword) and motion need a bound, open socket, because nothing
+  else would stop the axis if the holder vanished. A second socket opened with the holder's
+  client id is just a watcher.
+- **Losing the holder makes the drive safe.** When the holder's last bound socket closes, or
+  control is released, taken over or lapses, the listeners stop the motion (quick stop) and
+  bring the drive to Switch on disabled (:class:`~servodesk.services.motion.MotionService`).
+  Control itself is kept ``grace_s`` for a page reload: a new socket that binds with the same
+  token within it keeps control (the drive stays disabled: the user enables it again). After
+  that it is released.
+- ``take`` when another holds control is refused (409 naming the holder); ``force_take`` needs
+  ``confirm: true`` and makes the previous holder's drive safe as above. ``take`` by the holder
+  (its token presented) returns the same token.
+- A holder that never bound a socket (a script) keeps control until it releases it or someone
+  force-takes it; it may write parameters but not energise or move.
 """
 
 from __future__ import annotations
 
 import asyncio
+import hmac
 import logging
+import secrets
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
-from servodesk.errors import ConflictError, ValidationError
+from servodesk.errors import ConflictError
 from servodesk.services.events import EventHub
 
 log = logging.getLogger(__name__)
 
-#: Called as ``listener(session, previous_owner, reason)`` when a client loses control.
+#: Called as ``listener(session, previous_holder, reason)`` when the holder of a session is
+#: gone or changed: the drive is to be made safe (motion stopped, drive disabled).
 LostListener = Callable[[str, str, str], None]
-#: Called as ``listener(client)`` when a client's last WebSocket closed.
-GoneListener = Callable[[str], None]
+
+#: The header that carries the control token.
+CONTROL_HEADER = "X-Servodesk-Control"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class Holder:
-    client: str
+    client: str  # The label the holder gave (X-Servodesk-Client), for people and the audit log.
+    token: str
     since: float  # time.time() when control was taken
+    #: Connections bound to this control; empty for a script without a socket.
+    connections: set[str] = field(default_factory=set)
+    #: A bound socket existed and all closed: the drive was made safe, control waits for a
+    #: rebind until the timer releases it.
+    orphaned: bool = False
+
+
+@dataclass(slots=True)
+class Connection:
+    """One WebSocket (or the CLI's in-process stand-in) as the server knows it."""
+
+    id: str
+    client: str
+    bound: set[str] = field(default_factory=set)  # Sessions this connection is the dead-man of.
 
 
 class ControlService:
-    """Who holds which session, which clients are connected, and their last heartbeats."""
+    """Who holds which session, the connections bound to it, and their last heartbeats."""
 
     def __init__(self, hub: EventHub, *, grace_s: float = 5.0) -> None:
         self.hub = hub
         self.grace_s = grace_s
         self._holders: dict[str, Holder] = {}
-        self._sockets: dict[str, int] = {}
-        self._heartbeats: dict[tuple[str, str], float] = {}
+        self._connections: dict[str, Connection] = {}
+        #: Last heartbeat per session, from a connection bound to its holder (monotonic).
+        #: Read from the dead-man's thread: a dict read of a float is atomic in CPython.
+        self._heartbeats: dict[str, float] = {}
         self._release_timers: dict[str, asyncio.TimerHandle] = {}
         self._lost: list[LostListener] = []
-        self._gone: list[GoneListener] = []
 
     # Listeners --------------------------------------------------------------------------
 
     def on_lost(self, listener: LostListener) -> None:
         self._lost.append(listener)
-
-    def on_gone(self, listener: GoneListener) -> None:
-        self._gone.append(listener)
 
     # Ownership --------------------------------------------------------------------------
 
@@ -74,76 +106,115 @@ class ControlService:
         h = self._holders.get(sid)
         return h.client if h else None
 
-    def info(self, sid: str, client: str | None) -> dict[str, Any]:
+    def holds(self, sid: str, token: str | None) -> bool:
         h = self._holders.get(sid)
+        return h is not None and _same(h.token, token)
+
+    def info(self, sid: str, token: str | None) -> dict[str, Any]:
+        h = self._holders.get(sid)
+        you = h is not None and _same(h.token, token)
         return {
             "session": sid,
             "owner": h.client if h else None,
             "since": h.since if h else None,
-            "you": h is not None and client is not None and h.client == client,
+            "you": you,
+            "token": h.token if (h is not None and you) else None,
+            "bound": bool(h.connections) if h else False,
+            "orphaned": h.orphaned if h else False,
         }
 
-    def take(self, sid: str, client: str) -> None:
+    def take(self, sid: str, client: str, token: str | None = None) -> str:
+        """Take control; the holder presenting its token gets the same one back.
+
+        A client that already holds control of other drives and presents that token gets
+        the same token for this one too: one token per tab or script, however many axes it
+        holds (an integrator commissions several at once)."""
         h = self._holders.get(sid)
-        if h is not None and h.client != client:
+        if h is not None:
+            if _same(h.token, token):
+                return h.token
             raise ConflictError(
-                f"client {h.client!r} holds control of {sid}",
+                f"{_who(h)} holds control of {sid}",
                 hint='ask them to release it, or send {"action": "force_take", "confirm": true}',
             )
-        if h is None:
-            self._set(sid, client)
+        return self._set(sid, client, self._live(token))
 
-    def force_take(self, sid: str, client: str, confirm: bool) -> None:
+    def force_take(self, sid: str, client: str, confirm: bool, token: str | None = None) -> str:
         h = self._holders.get(sid)
-        if h is not None and h.client != client and not confirm:
+        if h is not None and _same(h.token, token):
+            return h.token
+        if h is not None and not confirm:
             raise ConflictError(
-                f"client {h.client!r} holds control of {sid}; taking it over stops the "
-                "motion it started and needs confirmation",
+                f"{_who(h)} holds control of {sid}; taking it over stops its motion, "
+                "disables the drive and needs confirmation",
                 hint='send {"action": "force_take", "confirm": true} to go ahead',
             )
-        if h is not None and h.client == client:
-            return
-        self._set(sid, client)
+        new = self._set(sid, client, self._live(token))
         if h is not None:
-            self._notify_lost(sid, h.client, f"control taken over by client {client!r}")
+            self._notify_lost(sid, h.client, f"control taken over by {client!r}")
+        return new
 
-    def release(self, sid: str, client: str) -> None:
+    def release(self, sid: str, token: str | None) -> None:
         h = self._holders.get(sid)
         if h is None:
             return
-        if h.client != client:
+        if not _same(h.token, token):
             raise ConflictError(
-                f"client {h.client!r} holds control of {sid}, not {client!r}",
-                hint="only the owner can release control; force_take takes it over",
+                f"{_who(h)} holds control of {sid}; only the holder can release it",
+                hint="force_take takes it over",
             )
-        self._set(sid, None)
-        self._notify_lost(sid, client, f"client {client!r} released control")
+        self._drop(sid)
+        self._notify_lost(sid, h.client, f"{h.client!r} released control")
 
     def forget_session(self, sid: str) -> None:
         """The session closed: nobody holds it any more."""
-        if self._holders.pop(sid, None) is not None:
-            self._publish(sid)
-        for key in [k for k in self._heartbeats if k[1] == sid]:
-            del self._heartbeats[key]
+        h = self._holders.get(sid)
+        if h is not None:
+            self._drop(sid)
+        for conn in self._connections.values():
+            conn.bound.discard(sid)
 
-    def _set(self, sid: str, client: str | None) -> None:
-        if client is None:
-            self._holders.pop(sid, None)
-        else:
-            self._holders[sid] = Holder(client, time.time())
-        log.info("control of %s: %s", sid, client or "released")
+    def _live(self, token: str | None) -> str | None:
+        """``token`` when it holds control of some session now, else None."""
+        for h in self._holders.values():
+            if _same(h.token, token):
+                return h.token
+        return None
+
+    def _set(self, sid: str, client: str, token: str | None = None) -> str:
+        token = token or secrets.token_urlsafe(16)
+        self._holders[sid] = Holder(client, token, time.time())
+        self._heartbeats.pop(sid, None)
+        log.info("control of %s: %s", sid, client)
+        self._publish(sid)
+        return token
+
+    def _drop(self, sid: str) -> None:
+        h = self._holders.pop(sid, None)
+        self._heartbeats.pop(sid, None)
+        timer = self._release_timers.pop(sid, None)
+        if timer is not None:
+            timer.cancel()
+        if h is not None:
+            for cid in h.connections:
+                conn = self._connections.get(cid)
+                if conn is not None:
+                    conn.bound.discard(sid)
+        log.info("control of %s: released", sid)
         self._publish(sid)
 
     def _publish(self, sid: str) -> None:
         h = self._holders.get(sid)
         # Everyone sees who holds control (not only the session's watchers): the session list
-        # of every tab shows it.
+        # of every tab shows it. Never the token.
         self.hub.publish(
             {
                 "type": "control",
                 "session": sid,
                 "owner": h.client if h else None,
                 "since": h.since if h else None,
+                "bound": bool(h.connections) if h else False,
+                "orphaned": h.orphaned if h else False,
             }
         )
 
@@ -154,88 +225,113 @@ class ControlService:
             except Exception:  # A listener's bug must not keep control in a half state.
                 log.exception("control listener failed")
 
-    # Checks used by the API -------------------------------------------------------------
+    # The checks: the one rule -----------------------------------------------------------
 
-    def check_write(self, sid: str, client: str | None) -> None:
-        """Writes are refused only when another client holds control."""
-        h = self._holders.get(sid)
-        if h is not None and h.client != client:
-            raise ConflictError(
-                f"client {h.client!r} holds control of {sid}; this write was not sent",
-                hint="take control first (they must release it, or use force_take)",
-            )
-
-    def check_motion(self, sid: str, client: str | None) -> str:
-        """Motion needs control and a live WebSocket of the same client (the dead-man)."""
-        if not client:
-            raise ValidationError(
-                "motion needs a client id",
-                field="X-Servodesk-Client",
-                hint="send the header X-Servodesk-Client: <id> and connect the WebSocket "
-                "with ?client=<id>",
-            )
+    def check(self, sid: str, token: str | None, what: str = "this request") -> str:
+        """Control is needed: the token must be the holder's. Returns the holder's label."""
         h = self._holders.get(sid)
         if h is None:
             raise ConflictError(
-                f"nobody holds control of {sid}; motion needs control",
-                hint='take control first: POST /control {"action": "take"}',
+                f"nobody holds control of {sid}; {what} needs control and was not sent",
+                hint='take control first: POST /control {"action": "take"}, then send its '
+                f"token in the {CONTROL_HEADER} header",
             )
-        if h.client != client:
+        if not _same(h.token, token):
             raise ConflictError(
-                f"client {h.client!r} holds control of {sid}; motion refused",
-                hint="only the client holding control can start motion",
+                f"{_who(h)} holds control of {sid}; {what} was not sent",
+                hint="only the holder of control can change the drive; they must release it, "
+                "or use force_take",
             )
-        if not self._sockets.get(client):
+        return h.client
+
+    def check_energise(self, sid: str, token: str | None, what: str = "this request") -> str:
+        """Control and a bound, open socket (the dead-man) are needed: servo on and motion."""
+        client = self.check(sid, token, what)
+        h = self._holders[sid]
+        if not h.connections:
             raise ConflictError(
-                f"client {client!r} has no open WebSocket; motion needs its dead-man heartbeat",
-                hint=f"connect /api/v1/ws?client={client} and send heartbeats every 100 ms",
+                f"{what} on {sid} needs a dead-man: no WebSocket is bound to your control",
+                hint='connect /api/v1/ws, send {"type": "bind", "session": ..., "token": ...} '
+                "and heartbeats every 100 ms",
             )
         return client
 
-    # Clients and heartbeats -------------------------------------------------------------
+    # Connections and heartbeats ----------------------------------------------------------
 
-    def connected(self, client: str) -> bool:
-        return self._sockets.get(client, 0) > 0
+    def connect(self, client: str) -> str:
+        """A WebSocket opened: its server-issued connection id."""
+        cid = secrets.token_urlsafe(12)
+        self._connections[cid] = Connection(cid, client)
+        return cid
 
-    def socket_opened(self, client: str) -> None:
-        self._sockets[client] = self._sockets.get(client, 0) + 1
-        timer = self._release_timers.pop(client, None)
-        if timer is not None:
-            timer.cancel()
+    def bind(self, cid: str, sid: str, token: str | None) -> None:
+        """Make connection ``cid`` the dead-man of the holder of ``sid`` (token needed)."""
+        conn = self._connections.get(cid)
+        if conn is None:
+            raise ConflictError("this connection is closed", hint="reconnect the WebSocket")
+        self.check(sid, token, "binding the dead-man")
+        h = self._holders[sid]
+        h.connections.add(cid)
+        conn.bound.add(sid)
+        if h.orphaned:
+            h.orphaned = False
+            timer = self._release_timers.pop(sid, None)
+            if timer is not None:
+                timer.cancel()
+            log.info("control of %s: %s is back (the drive stays disabled)", sid, h.client)
+        self._heartbeats[sid] = time.monotonic()
+        self._publish(sid)
 
-    def socket_closed(self, client: str) -> None:
-        n = self._sockets.get(client, 0) - 1
-        if n > 0:
-            self._sockets[client] = n
+    def disconnect(self, cid: str) -> None:
+        """A WebSocket closed: the holders it was the last dead-man of lose their drive."""
+        conn = self._connections.pop(cid, None)
+        if conn is None:
             return
-        self._sockets.pop(client, None)
-        for key in [k for k in self._heartbeats if k[0] == client]:
-            del self._heartbeats[key]
-        # Motion stops at once (the tab is gone); control is kept a moment for a reload.
-        for cb in list(self._gone):
+        for sid in list(conn.bound):
+            h = self._holders.get(sid)
+            if h is None:
+                continue
+            h.connections.discard(cid)
+            if h.connections:
+                continue
+            h.orphaned = True
+            self._heartbeats.pop(sid, None)
+            self._notify_lost(sid, h.client, f"the WebSocket of {h.client!r} closed")
             try:
-                cb(client)
-            except Exception:
-                log.exception("client listener failed")
-        if any(h.client == client for h in self._holders.values()):
-            loop = asyncio.get_running_loop()
-            self._release_timers[client] = loop.call_later(self.grace_s, self._release_gone, client)
+                loop = asyncio.get_running_loop()
+            except RuntimeError:
+                self._drop(sid)
+                continue
+            self._release_timers[sid] = loop.call_later(self.grace_s, self._lapse, sid, h.token)
+            self._publish(sid)
 
-    def _release_gone(self, client: str) -> None:
-        self._release_timers.pop(client, None)
-        if self.connected(client):
-            return
-        for sid, h in list(self._holders.items()):
-            if h.client == client:
-                self._set(sid, None)
+    def _lapse(self, sid: str, token: str) -> None:
+        self._release_timers.pop(sid, None)
+        h = self._holders.get(sid)
+        if h is not None and h.token == token and not h.connections:
+            self._drop(sid)
 
-    def heartbeat(self, client: str, sid: str) -> None:
-        self._heartbeats[(client, sid)] = time.monotonic()
+    def heartbeat(self, cid: str, sid: str) -> bool:
+        """A heartbeat from connection ``cid``; counts only when it is bound to ``sid``."""
+        conn = self._connections.get(cid)
+        if conn is None or sid not in conn.bound:
+            return False
+        self._heartbeats[sid] = time.monotonic()
+        return True
 
-    def last_heartbeat(self, client: str, sid: str) -> float | None:
-        return self._heartbeats.get((client, sid))
+    def last_heartbeat(self, sid: str) -> float | None:
+        return self._heartbeats.get(sid)
 
     def close(self) -> None:
         for timer in self._release_timers.values():
             timer.cancel()
         self._release_timers.clear()
+
+
+def _same(a: str, b: str | None) -> bool:
+    """Compare tokens in constant time (a timing side channel must not reveal one)."""
+    return b is not None and hmac.compare_digest(a.encode(), b.encode())
+
+
+def _who(h: Holder) -> str:
+    return f"client {h.client!r}"

@@ -130,6 +130,15 @@ FALLBACK_STOP_S = 0.5
 #: A homing run whose statusword already shows an end state (a drive with an absolute encoder
 #: keeps bit 12 set) is taken as ended only when it stays so this long without running.
 HOMING_SETTLE_S = 0.3
+#: Losing the holder: how long the axis gets to come to standstill before the power stage is
+#: switched off anyway (a drive whose quick stop does not end; it then coasts).
+SAFE_STOP_S = 5.0
+#: States with the power stage on or about to be (CiA 402-2 §6.2, figure 9).
+_ENERGISED = {
+    cia402.State.SWITCHED_ON,
+    cia402.State.OPERATION_ENABLED,
+    cia402.State.QUICK_STOP_ACTIVE,
+}
 
 
 @dataclass(frozen=True, slots=True)
@@ -224,7 +233,6 @@ class MotionService:
         self._axes: dict[str, _Axis] = {}
         self._background: set[asyncio.Task[None]] = set()
         control.on_lost(self._control_lost)
-        control.on_gone(self._client_gone)
 
     # Axes and limits ----------------------------------------------------------------------
 
@@ -829,19 +837,36 @@ class MotionService:
         speed_zero: int | None = None,
         acceleration: int | None = None,
         offset: int | None = None,
+        max_travel: int | None = None,
+        timeout_s: float | None = None,
     ) -> dict[str, Any]:
         """Start a homing run (services/homing.py) under the client's dead-man, like a jog.
 
         A run on an enabled drive moves the axis: it is a motion of kind ``homing`` that ends
         when the statusword shows homing attained or a homing error (CiA 402-2 §6.8.1), and a
         missing heartbeat, the client's socket closing, losing control or the backend shutting
-        down halt it (the halt bit interrupts homing) and then quick-stop it. A method the
-        family runs without Operation enabled (quirk ``homing_without_enable``) on a drive
-        that is not enabled does not move anything and is not watched.
+        down halt it (the halt bit interrupts homing) and then quick-stop it. So does its
+        time-out (``timeout_s``; by default from the estimated duration, domain/homing.py),
+        which ends it ``timeout``. However the motion ends, the run's end is published as the
+        last ``homing`` message. A method the family runs without Operation enabled (quirk
+        ``homing_without_enable``) on a drive that is not enabled does not move anything and
+        is not watched.
         """
         started = time.monotonic()
         axis = self._axis(sid)
         s = axis.session
+        lim = await self.limits(sid)
+        # The estimate and the time-out before anything is sent (a bad timeout_s is refused).
+        plan = await homing.plan(
+            s,
+            method,
+            speed_switch=speed_switch,
+            speed_zero=speed_zero,
+            acceleration=acceleration,
+            max_travel=max_travel,
+            timeout_s=timeout_s,
+            limits=(lim.position_min, lim.position_max),
+        )
         async with self._starting(axis) as epoch:
             enabled = (
                 cia402.decode_state(await self._statusword(axis)) is cia402.State.OPERATION_ENABLED
@@ -863,13 +888,22 @@ class MotionService:
                 client=client,
                 set_mode=set_mode if enabled else None,
                 go=go,
+                plan_=plan,
+                watched=enabled,
             )
             axis.last_target = None  # Homing moves the position's origin.
+            run = homing.current_run(s)
             if enabled:
-                self._begin(
-                    axis,
-                    Motion("homing", client, HM, None, started, message=f"homing method {method}"),
-                )
+                motion = Motion("homing", client, HM, None, started, message=plan.summary())
+                if run is not None:
+
+                    def ended(m: Motion) -> None:
+                        # Taken over or released: the halt was a loss of control.
+                        lost = self.control.owner(sid) != m.owner
+                        homing.end_with_motion(run, m.state, m.message, control_lost=lost)
+
+                    motion.on_end.append(ended)
+                self._begin(axis, motion)
         return await homing.status(s)
 
     async def _wait_bits(self, axis: _Axis, mask: int, on: bool, timeout: float) -> bool:
@@ -1272,7 +1306,7 @@ class MotionService:
         limit = self.deadman_s
         grace_until = 0.0
         while motion.active:
-            hb = self.control.last_heartbeat(motion.owner, axis.sid)
+            hb = self.control.last_heartbeat(axis.sid)
             last = max(hb or 0.0, motion.started)
             now = time.monotonic()
             due = max(last + limit, grace_until)
@@ -1336,6 +1370,24 @@ class MotionService:
                 self._end(axis, motion, "reached", f"target reached at {pos}")
                 return
             if motion.kind == "homing":
+                run = homing.current_run(s)
+                if run is not None and run.timed_out(now):
+                    # The run's time-out (the user's, or from the estimate): stop it as the
+                    # dead-man does, halt (bit 4 low interrupts homing, CiA 402-2 §6.8.1)
+                    # then quick stop, and say so.
+                    late = run.timeout_message(now)
+                    log.warning("homing on %s: %s", axis.sid, late)
+                    try:
+                        await self._stop_axis(
+                            axis,
+                            quick=True,
+                            state="timeout",
+                            message=late,
+                            who="servodesk (homing time-out)",
+                        )
+                    except ServodeskError as exc:
+                        self._end(axis, motion, "error", f"{late}; the stop failed: {exc.message}")
+                    return
                 hs = homing.decode(sw, mode)
                 if hs == "running":
                     seen_running, settled_since = True, None
@@ -1381,20 +1433,75 @@ class MotionService:
         self._background.add(task)
         task.add_done_callback(self._background.discard)
 
-    def _client_gone(self, client: str) -> None:
-        now = time.monotonic()
-        for axis in list(self._axes.values()):
-            m = axis.motion
-            if m is not None and m.active and m.owner == client:
-                self._spawn(
-                    self._lost_operator(axis, m, f"the WebSocket of client {client!r} closed", now)
-                )
-
     def _control_lost(self, sid: str, client: str, reason: str) -> None:
-        axis = self._axes.get(sid)
-        m = axis.motion if axis is not None else None
-        if axis is not None and m is not None and m.active and m.owner == client:
-            self._spawn(self._stop_axis(axis, quick=False, state="halted", message=reason))
+        """The holder is gone or changed (services/control): make the drive safe."""
+        self._spawn(self.make_safe(sid, client, reason))
+
+    async def make_safe(self, sid: str, client: str, reason: str) -> str | None:
+        """Stop the axis and bring the drive to Switch on disabled; the state it ended in.
+
+        The motion (if any) ends as the dead-man ends it: halt, then quick stop. The power
+        stage is switched off only at standstill (or once the drive left Operation enabled
+        by itself): disable voltage while the axis still brakes would let it coast (CiA 402-2
+        §6.2, transition 12 from Quick stop active, 9 from Operation enabled). A drive that
+        was never enabled is left alone. Nobody is in control meanwhile, so nothing the user
+        asks can race it; a new holder's start waits for the axis lock.
+        """
+        since = time.monotonic()
+        try:
+            session = self.manager.get(sid)
+        except ServodeskError:
+            return None  # The session closed meanwhile: its close stopped the motion.
+        axis = self._axis(sid)
+        m = axis.motion
+        moving = m is not None and m.active
+        if m is not None and m.active:
+            await self._lost_operator(axis, m, reason, since)
+        try:
+            state = cia402.decode_state(await self._statusword(axis))
+            acted = moving or state in _ENERGISED
+            if state in _ENERGISED:
+                if state is cia402.State.OPERATION_ENABLED and not await self._standstill(axis):
+                    await session.command("quick_stop")
+                end = time.monotonic() + SAFE_STOP_S
+                while not await self._standstill(axis):
+                    if time.monotonic() > end:
+                        break
+                    await asyncio.sleep(0.02)  # Polling the drive: no event to wait on.
+                await session.command("disable")
+            final = cia402.decode_state(await self._statusword(axis))
+        except ServodeskError as exc:
+            log.error("making %s safe failed: %s", sid, exc.message)
+            # To every client, not only the session's watchers: it is about control, which
+            # every tab shows, and the holder's own tab may have closed.
+            self.hub.publish(
+                {
+                    "type": "safe_state",
+                    "session": sid,
+                    "reason": reason,
+                    "client": client,
+                    "ok": False,
+                    "message": f"the drive could not be disabled: {exc.message}",
+                }
+            )
+            return None
+        if acted:
+            log.warning("%s: %s; the drive is now %s", sid, reason, final.value)
+            # To every client, not only the session's watchers: it is about control, which
+            # every tab shows, and the holder's own tab may have closed.
+            self.hub.publish(
+                {
+                    "type": "safe_state",
+                    "session": sid,
+                    "reason": reason,
+                    "client": client,
+                    "ok": final is cia402.State.SWITCH_ON_DISABLED,
+                    "state": final.value,
+                    "message": f"{reason}: the axis was stopped and the drive disabled "
+                    f"({final.value})",
+                }
+            )
+        return final.value
 
     async def stop_session(self, sid: str, reason: str) -> None:
         """The session is about to close: stop its motion first."""

@@ -7,8 +7,10 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Header, Query, Request, Response
 
-from servodesk.api.control_deps import WriteControl, operation
+from servodesk.api.control_deps import ControlToken, WriteControl, operation
 from servodesk.api.deps import AppState, StateDep
+from servodesk.api.downloads import content_disposition
+from servodesk.api.uploads import openapi_file_body, read_file
 from servodesk.api.schemas import (
     ERROR_RESPONSES,
     AuditEntry,
@@ -43,9 +45,6 @@ ClientHeader = Annotated[
     ),
 ]
 
-_MAX_UPLOAD = 32 * 1024 * 1024
-
-
 @router.post("/sessions/{sid}/backups", status_code=201, operation_id="create_backup")
 async def create_backup(sid: str, body: BackupCreate, state: StateDep) -> BackupInfo:
     """Read every configurable parameter of the drive into a new backup (progress on the WS)."""
@@ -63,17 +62,21 @@ async def list_backups(
     return [BackupInfo.model_validate(r) for r in rows]
 
 
-@router.post("/backups/upload", status_code=201, operation_id="upload_backup")
+@router.post(
+    "/backups/upload",
+    status_code=201,
+    operation_id="upload_backup",
+    openapi_extra=openapi_file_body(json_too=True),
+)
 async def upload_backup(
     request: Request,
     state: StateDep,
     filename: str = Query(min_length=1, max_length=255, description="x.json or x.dcf"),
     profile: str | None = Query(None, max_length=200, description="profile of a foreign DCF"),
 ) -> BackupInfo:
-    """Store a backup file (servodesk JSON, or a DCF's ParameterValues); its text is the body."""
-    body = await request.body()
-    if len(body) > _MAX_UPLOAD:
-        raise ValidationError("the file is larger than 32 MiB", field="body")
+    """Store a backup file (servodesk JSON, or a DCF's ParameterValues): the file as
+    multipart/form-data field ``file``, or a JSON backup as an application/json body."""
+    body = await read_file(request, json_too=True)  # At most 32 MiB (api/uploads.py).
     if not body.strip():
         raise ValidationError("the request body is empty", field="body", hint="send the file")
     return BackupInfo.model_validate(state.backups.import_bytes(body, filename, profile))
@@ -106,7 +109,7 @@ async def download_backup(
     return Response(
         content=data,
         media_type=media,
-        headers={"Content-Disposition": f'attachment; filename="{name}"'},
+        headers={"Content-Disposition": content_disposition(name)},
     )
 
 
@@ -191,16 +194,14 @@ def _session_for(state: AppState, rec: dict[str, Any]) -> Session:
 
 @router.post("/restores/{rid}/resume", operation_id="resume_restore")
 async def resume_restore(
-    rid: str, request: Request, state: StateDep, client: ClientHeader = None
+    rid: str, request: Request, state: StateDep, token: ControlToken
 ) -> RestoreReport:
     """Continue an interrupted restore: check every item, write what is missing."""
     rec = state.backups.store.get_restore(rid)
     session = _session_for(state, rec)
     # Writes need control of the drive, as every other write route (control_deps).
-    operation(request.app).control.check_write(session.id, client)
-    return RestoreReport.model_validate(
-        await state.restores.resume(rid, session, client=client or "unknown")
-    )
+    holder = operation(request.app).control.check(session.id, token, "resuming the restore")
+    return RestoreReport.model_validate(await state.restores.resume(rid, session, client=holder))
 
 
 @router.get("/audit", operation_id="list_audit")

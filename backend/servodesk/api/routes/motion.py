@@ -14,6 +14,7 @@ from fastapi import APIRouter, FastAPI
 
 from servodesk.api.control_deps import (
     ClientId,
+    ControlToken,
     MotionControl,
     OperationDep,
     RequiredClientId,
@@ -52,23 +53,26 @@ def _status(d: dict[str, Any]) -> MotionStatusOut:
 
 
 @router.get("/sessions/{sid}/control", operation_id="get_control")
-async def get_control(sid: str, op: OperationDep, client: ClientId) -> ControlOut:
+async def get_control(sid: str, op: OperationDep, token: ControlToken) -> ControlOut:
     op.motion.manager.get(sid)  # 404 for an unknown session.
-    return ControlOut.model_validate(op.control.info(sid, client))
+    return ControlOut.model_validate(op.control.info(sid, token))
 
 
 @router.post("/sessions/{sid}/control", operation_id="set_control")
 async def set_control(
-    sid: str, body: ControlRequest, op: OperationDep, client: RequiredClientId
+    sid: str, body: ControlRequest, op: OperationDep, client: RequiredClientId, token: ControlToken
 ) -> ControlOut:
+    """Take, release or force-take control. Taking answers with the control token (only to
+    the taker): send it as ``X-Servodesk-Control`` with every request that changes the drive,
+    and bind a WebSocket with it for the dead-man."""
     op.motion.manager.get(sid)
     if body.action == "take":
-        op.control.take(sid, client)
+        token = op.control.take(sid, client, token)
     elif body.action == "release":
-        op.control.release(sid, client)
+        op.control.release(sid, token)
     else:
-        op.control.force_take(sid, client, body.confirm)
-    return ControlOut.model_validate(op.control.info(sid, client))
+        token = op.control.force_take(sid, client, body.confirm, token)
+    return ControlOut.model_validate(op.control.info(sid, token))
 
 
 @router.post("/sessions/{sid}/motion/jog", operation_id="jog")
