@@ -5,9 +5,12 @@ with heartbeats over the WebSocket, then stops sending them. A plain python-can 
 same channel timestamps the first controlword download carrying halt (bit 8) or quick stop;
 the simulated drive tells when the axis stands (|velocity| within 606Fh, 1000 inc/s). The
 figures include the configured dead-man time (SERVODESK_DEADMAN_MS, 250 ms by default);
-``over_deadline`` is what the backend adds to it.
+``over_deadline`` is what the backend adds to it. Two cases, in the same process: the event
+loop idle (the baseline), and the loop held from the last heartbeat on for ``--hold-s``, as
+a heavy request holds it (the dead-man's thread must not wait for it: services/deadman.py).
 
-    python bench/bench_deadman.py [--runs 20] [--deadman-ms 250] [--velocity 200000] [--json]
+    python bench/bench_deadman.py [--runs 20] [--deadman-ms 250] [--velocity 200000]
+        [--hold-s 1] [--json]
 """
 
 from __future__ import annotations
@@ -60,8 +63,9 @@ class Spy:
         self.bus.shutdown()
 
 
-def one_run(client: TestClient, ws: Any, drive: Any, spy: Spy, velocity: int) -> dict[str, float]:
-    h = {"X-Servodesk-Client": "bench"}
+def one_run(
+    client: TestClient, ws: Any, drive: Any, spy: Spy, velocity: int, h: dict[str, str], hold: float
+) -> dict[str, float]:
     r = client.post(f"/api/v1/sessions/{SID}/state", json={"command": "enable"}, headers=h)
     r.raise_for_status()
     r = client.post(
@@ -77,13 +81,21 @@ def one_run(client: TestClient, ws: Any, drive: Any, spy: Spy, velocity: int) ->
         ws.send_json({"type": "heartbeat", "session": SID})
         time.sleep(0.05)
     n = len(spy.stops)
-    t_end = time.monotonic() + 3.0
+    holder = None
+    if hold > 0:
+        # The event loop held as a heavy request holds it (a large backup parsed, a CSV
+        # imported): the whole time, from the last heartbeat on.
+        holder = threading.Thread(target=client.portal.call, args=(time.sleep, hold))
+        holder.start()
+    t_end = time.monotonic() + 3.0 + hold
     standstill = None
     while time.monotonic() < t_end:
         if standstill is None and abs(drive.velocity) <= STANDSTILL and len(spy.stops) > n:
             standstill = time.time()
             break
         time.sleep(0.0005)
+    if holder is not None:
+        holder.join()
     if standstill is None or len(spy.stops) <= n:
         status = client.get(f"/api/v1/sessions/{SID}/motion").json()
         raise RuntimeError(
@@ -109,11 +121,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--runs", type=int, default=20)
     ap.add_argument("--deadman-ms", type=int, default=250)
     ap.add_argument("--velocity", type=int, default=200_000, help="jog velocity, inc/s")
+    ap.add_argument(
+        "--hold-s", type=float, default=1.0, help="how long the loop is held in the second case"
+    )
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     channel = f"bench-deadman-{os.getpid()}"
     spy = Spy(channel)
-    runs: list[dict[str, float]] = []
+    runs: dict[str, list[dict[str, float]]] = {"idle": [], "loop_held": []}
     try:
         with tempfile.TemporaryDirectory() as tmp:
             settings = Settings(
@@ -123,6 +138,7 @@ def main(argv: list[str] | None = None) -> int:
                 data_dir=tmp,
                 deadman_ms=args.deadman_ms,
                 viewer_port=0,  # No 3D viewer: it would only compete for the CPU.
+                allowed_hosts="testserver",  # Starlette's TestClient's Host (api/hosts.py).
             )
             app = create_app(settings)
             with TestClient(app) as client:
@@ -133,32 +149,52 @@ def main(argv: list[str] | None = None) -> int:
                     headers={"X-Servodesk-Client": "bench"},
                 )
                 r.raise_for_status()
+                token = r.json()["token"]
+                h = {"X-Servodesk-Client": "bench", "X-Servodesk-Control": token}
                 with client.websocket_connect("/api/v1/ws?client=bench") as ws:
-                    for i in range(args.runs):
-                        # Alternate directions: the axis stays clear of the simulated
-                        # limit switches.
-                        v = args.velocity if i % 2 == 0 else -args.velocity
-                        runs.append(one_run(client, ws, drive, spy, v))
-                        time.sleep(0.05)
+                    ws.send_json({"type": "bind", "session": SID, "token": token})
+                    while ws.receive_json().get("type") != "bind":
+                        pass
+                    for case, hold in (("idle", 0.0), ("loop_held", args.hold_s)):
+                        for i in range(args.runs):
+                            # Alternate directions: the axis stays clear of the simulated
+                            # limit switches.
+                            v = args.velocity if i % 2 == 0 else -args.velocity
+                            runs[case].append(one_run(client, ws, drive, spy, v, h, hold))
+                            time.sleep(0.05)
     finally:
         spy.close()
-    bus = [r["to_bus_ms"] for r in runs]
-    still = [r["to_standstill_ms"] for r in runs]
-    result = {
-        "runs": len(runs),
+    result: dict[str, Any] = {
+        "runs": args.runs,
         "deadman_ms": args.deadman_ms,
         "velocity": args.velocity,
-        "heartbeat_to_stop_on_bus_ms": summary(bus),
-        "heartbeat_to_standstill_ms": summary(still),
-        "over_deadline_ms": summary([b - args.deadman_ms for b in bus]),
+        "hold_s": args.hold_s,
     }
+    for case, rs in runs.items():
+        bus = [r["to_bus_ms"] for r in rs]
+        still = [r["to_standstill_ms"] for r in rs]
+        result[case] = {
+            "heartbeat_to_stop_on_bus_ms": summary(bus),
+            "heartbeat_to_standstill_ms": summary(still),
+            "over_deadline_ms": summary([b - args.deadman_ms for b in bus]),
+        }
+    # The held loop against the idle baseline, run in the same process.
+    result["held_over_idle_median_ratio"] = round(
+        result["loop_held"]["heartbeat_to_stop_on_bus_ms"]["median"]
+        / result["idle"]["heartbeat_to_stop_on_bus_ms"]["median"],
+        3,
+    )
     if args.json:
         print(json.dumps(result, indent=2))
     else:
-        b, s = result["heartbeat_to_stop_on_bus_ms"], result["heartbeat_to_standstill_ms"]
-        print(f"dead-man {args.deadman_ms} ms, {len(runs)} runs, jog {args.velocity} inc/s")
-        print(f"  last heartbeat -> stop on the bus: median {b['median']} ms, worst {b['worst']}")
-        print(f"  last heartbeat -> standstill:      median {s['median']} ms, worst {s['worst']}")
+        print(f"dead-man {args.deadman_ms} ms, {args.runs} runs a case, jog {args.velocity} inc/s")
+        for case in runs:
+            b = result[case]["heartbeat_to_stop_on_bus_ms"]
+            s_ = result[case]["heartbeat_to_standstill_ms"]
+            print(
+                f"  {case}: last heartbeat -> stop on the bus: median {b['median']} ms, "
+                f"worst {b['worst']}; -> standstill: median {s_['median']} ms, worst {s_['worst']}"
+            )
     return 0
 
 

@@ -300,6 +300,16 @@ class DriveLink(ObjectAccess):
         """Seconds since the device's last heartbeat, or None when none was seen."""
         return None
 
+    def stop_frame(self) -> Callable[[], None] | None:
+        """A function that puts a quick stop (controlword 6040h = 0002h, CiA 402-2 §6.2.1
+        table 28) on the wire without the event loop, safe to call from any thread; None
+        where this fieldbus has no such path (the stop then goes through the loop).
+
+        The dead-man's thread (services/deadman.py) calls it when the heartbeats stop, so a
+        held event loop does not delay the stop. It is fire-and-forget: the loop sends the
+        orderly stop through the link afterwards and sees the drive's answer there."""
+        return None
+
     # Events -----------------------------------------------------------------------------
 
     def add_event_callback(self, cb: EventCallback) -> None:

@@ -126,6 +126,10 @@ pool = NetworkPool()
 _MAX_SEGMENTED = 1 << 20
 #: Heartbeats read this soon after an NMT command may predate it (see _on_heartbeat).
 HEARTBEAT_STALE_S = 0.05
+#: Controlword quick stop (CiA 402-2 §6.2.1, table 28: 0xxx x01xb) and the scs bits of a
+#: download's answer (CiA 301 §7.2.4.3.3: initiate download response, scs = 3).
+QUICK_STOP_WORD = 0x0002
+DOWNLOAD_ANSWER = 0x60
 
 
 class _Doorbell:
@@ -352,6 +356,26 @@ class CanopenLink(DriveLink):
                 del self._owed[i]
                 return True
         return False
+
+    def stop_frame(self) -> Callable[[], None] | None:
+        """An expedited SDO download of 6040h:00 = 0002h (quick stop) straight onto the bus.
+
+        canopen's Network.send_message holds the network's send lock, so it is safe from the
+        dead-man's thread beside the loop's own requests. The drive answers it like any
+        download; that answer is owed (:meth:`_owe`), so it is not taken for the answer of
+        the loop's next write of 6040h (CiA 301 SDO has no transaction id)."""
+        network, loop = self._network, self._loop
+        if network is None or loop is None:
+            return None
+        cob_id = 0x600 + self.params.node_id
+        frame = sdo.initiate_download(0x6040, 0, QUICK_STOP_WORD.to_bytes(2, "little"))
+
+        def send() -> None:
+            network.send_message(cob_id, frame)
+            if not loop.is_closed():
+                loop.call_soon_threadsafe(self._owe, frame, DOWNLOAD_ANSWER)
+
+        return send
 
     def _abandon(self) -> None:
         """End the request in flight now: the link is closing, no answer will be awaited."""

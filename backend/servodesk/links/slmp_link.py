@@ -25,6 +25,7 @@ from __future__ import annotations
 import asyncio
 import errno
 import socket
+from collections.abc import Callable
 
 from servodesk.domain import slmp
 from servodesk.domain.address import ObjectAddress
@@ -41,6 +42,8 @@ from servodesk.links.base import DriveLink, Identity, LinkParams, object_identit
 
 #: The interface name of this link (the transport: SLMP 4E binary frames on UDP).
 INTERFACE = "slmp"
+#: Controlword quick stop (CiA 402-2 §6.2.1, table 28: 0xxx x01xb).
+QUICK_STOP_WORD = 0x0002
 #: Axes of one station: node id 1..4 -> multidrop no. 0..3 (003 §4-2).
 AXES = 4
 #: The end code of a request to a network, station or multidrop no. that does not exist.
@@ -125,6 +128,30 @@ class SlmpLink(DriveLink):
 
     async def identity(self) -> Identity:
         return await object_identity(self)
+
+    def stop_frame(self) -> Callable[[], None] | None:
+        """An SLMP SDO download of 6040h:00 = 0002h (quick stop) from a socket of its own.
+
+        Its own socket, so that its answer never reaches the loop's requests (their serials
+        are the loop's; 003 §4-4 answers to the sender's port). Blocking sendto from the
+        dead-man's thread; the answer is not awaited."""
+        if self._sock is None:
+            return None
+        target = (self.host, self.port)
+        frame = slmp.build_request(
+            0xFFFF,
+            self.route,
+            slmp.CMD_OBJECT,
+            slmp.SUB_DOWNLOAD,
+            slmp.download_data(0x6040, 0, QUICK_STOP_WORD.to_bytes(2, "little")),
+            timer=4,
+        )
+
+        def send() -> None:
+            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+                sock.sendto(frame, target)
+
+        return send
 
     # Requests ------------------------------------------------------------------------
 

@@ -1,10 +1,13 @@
 """Motion of a drive session: jog, moves, velocity, torque, cyclic set-points, homing, dead-man.
 
-Every motion is started by the client that holds control (:mod:`servodesk.services.control`)
-and lives while that client's WebSocket heartbeats arrive: one watchdog task per active motion
-checks the last heartbeat every few ms and, once it is ``deadman_s`` old, halts (controlword
-bit 8) and then quick-stops the axis. Closing the socket and shutting the backend down stop it
-the same way.
+Every motion is started by the holder of control (:mod:`servodesk.services.control`) and
+lives while the heartbeats of its bound WebSocket arrive. The dead-man's watch runs on a
+thread of its own (:mod:`servodesk.services.deadman`): once the last heartbeat is
+``deadman_s`` old it puts a quick stop on the wire without the event loop where the link can
+(``DriveLink.stop_frame``), and the loop then halts (controlword bit 8) and quick-stops the
+axis through the link as before. Losing the holder (its socket closing, release, force take)
+and shutting the backend down stop it the same way, and losing the holder also disables the
+drive at standstill (:meth:`MotionService.make_safe`).
 
 Before anything is sent, a request is checked against the family's modes (profile) and the
 drive's own limits, read from the drive and cached per session (refreshed after any write
@@ -68,6 +71,7 @@ from servodesk.errors import (
 )
 from servodesk.services import homing
 from servodesk.services.control import ControlService
+from servodesk.services.deadman import DeadmanWatch
 from servodesk.services.events import EventHub
 from servodesk.services.manager import SessionManager
 from servodesk.services.session import Session
@@ -114,12 +118,6 @@ SW_SETPOINT_ACK = 1 << 12
 PP, PV, TQ, HM, CSP, CSV, CST = 1, 3, 4, 6, 8, 9, 10
 INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
 CYCLIC_MODES = {"csp": CSP, "csv": CSV, "cst": CST}
-#: The dead-man's watchdog woke this much later than it asked to: the backend itself stalled
-#: (a garbage collection, a starved CPU on a busy laptop), not the client.
-STALL_S = 0.05
-#: After such a stall, the heartbeats the client sent meanwhile still wait unread in its
-#: socket; they get this long to be read before the silence counts against the client.
-STALL_GRACE_S = 0.1
 #: Standstill when |velocity| is within 606Fh; this when the drive has no 606Fh (inc/s).
 DEFAULT_STANDSTILL = 1000
 #: Continuous motion (jog, profile velocity) near a software position limit: the monitor
@@ -232,6 +230,8 @@ class MotionService:
         self.cyclic_period = cyclic_period
         self._axes: dict[str, _Axis] = {}
         self._background: set[asyncio.Task[None]] = set()
+        #: The dead-man's watch, on a thread of its own (services/deadman.py).
+        self._deadman = DeadmanWatch(period_s=min(watchdog_period, 0.005))
         control.on_lost(self._control_lost)
 
     # Axes and limits ----------------------------------------------------------------------
@@ -586,13 +586,12 @@ class MotionService:
         if old is not None and old.active:
             self._cancel_tasks(old)
             old.active = False
+            self._deadman.disarm(old)
             old.state, old.message = "replaced", f"replaced by {motion.kind}"
             self._notify_end(old)
         axis.motion = motion
         loop = asyncio.get_running_loop()
-        motion.tasks.append(
-            loop.create_task(self._watchdog(axis, motion), name=f"deadman {axis.sid}")
-        )
+        self._arm(axis, motion, loop)
         motion.tasks.append(
             loop.create_task(self._monitor(axis, motion), name=f"motion {axis.sid}")
         )
@@ -600,6 +599,41 @@ class MotionService:
             motion.tasks.append(loop.create_task(make(), name=f"setpoints {axis.sid}"))
         log.info("%s on %s by %s: %s", motion.kind, axis.sid, motion.owner, motion.message)
         self._publish(axis)
+
+    def _arm(self, axis: _Axis, motion: Motion, loop: asyncio.AbstractEventLoop) -> None:
+        """Hand the motion to the dead-man's thread: it stops the axis when the holder's
+        heartbeats (services/control) are ``deadman_s`` old, without the event loop."""
+        sid, control = axis.sid, self.control
+
+        def last() -> float:
+            return max(control.last_heartbeat(sid) or 0.0, motion.started)
+
+        def fired(since: float, sent: float | None) -> None:
+            if not loop.is_closed():
+                loop.call_soon_threadsafe(self._deadman_fired, axis, motion, since, sent)
+
+        self._deadman.arm(
+            motion,
+            deadline_s=self.deadman_s,
+            last=last,
+            stop=axis.session.link.stop_frame(),
+            fired=fired,
+        )
+
+    def _deadman_fired(self, axis: _Axis, motion: Motion, since: float, sent: float | None) -> None:
+        """On the loop, after the thread's stop frame: the orderly rest of the stop."""
+        if not motion.active:
+            return
+        ms = round((time.monotonic() - since) * 1000)
+        self._spawn(
+            self._lost_operator(
+                axis,
+                motion,
+                f"no heartbeat from client {motion.owner!r} for {ms} ms",
+                since,
+                frame_at=sent,
+            )
+        )
 
     @staticmethod
     def _cancel_tasks(motion: Motion) -> None:
@@ -614,6 +648,7 @@ class MotionService:
         motion.active = False
         motion.state = state
         motion.message = message
+        self._deadman.disarm(motion)
         self._cancel_tasks(motion)
         log.info("motion on %s ended: %s (%s)", axis.sid, state, message)
         self._notify_end(motion)
@@ -1254,8 +1289,19 @@ class MotionService:
         self._publish(axis)
         return sent
 
-    async def _lost_operator(self, axis: _Axis, motion: Motion, reason: str, since: float) -> None:
-        """Dead-man: halt, then quick stop; report the latency from ``since``."""
+    async def _lost_operator(
+        self,
+        axis: _Axis,
+        motion: Motion,
+        reason: str,
+        since: float,
+        *,
+        frame_at: float | None = None,
+    ) -> None:
+        """Dead-man: halt, then quick stop; report the latency from ``since``.
+
+        ``frame_at``: when the dead-man's thread already put a quick stop on the wire
+        (monotonic); the halt is then skipped by itself (the drive left Operation enabled)."""
         try:
             t0 = time.monotonic()
             axis.epoch += 1
@@ -1282,6 +1328,8 @@ class MotionService:
             )
             return
         first = t_halt if halted else t_stop
+        if frame_at is not None:
+            first = min(first, frame_at)
         msg = {
             "type": "deadman",
             "session": axis.sid,
@@ -1290,42 +1338,11 @@ class MotionService:
             "latency_ms": round((first - since) * 1000.0, 1),
             "detect_ms": round((t0 - since) * 1000.0, 1),
             "quick_stop_ms": round((t_stop - since) * 1000.0, 1),
+            "stop_frame_ms": None if frame_at is None else round((frame_at - since) * 1000.0, 1),
+            "from": "dead-man thread" if frame_at is not None else "event loop",
         }
         log.warning("dead-man on %s: %s (%s ms)", axis.sid, reason, msg["latency_ms"])
         self.hub.publish(msg, session=axis.sid)
-
-    async def _watchdog(self, axis: _Axis, motion: Motion) -> None:
-        """Fires within a few ms of the dead-man deadline (no bus traffic until then).
-
-        A stall of the backend is not a lost client: when the watchdog itself wakes more than
-        :data:`STALL_S` late, the event loop was held, and the client's heartbeats of that time
-        wait unread in its socket. The deadline then moves to :data:`STALL_GRACE_S` after the
-        stall (before, a 1-2 s stall of the test process on a busy machine tripped the dead-man
-        of tests whose heartbeats never stopped). A client that really went silent is stopped
-        that much later, and only after such a stall."""
-        limit = self.deadman_s
-        grace_until = 0.0
-        while motion.active:
-            hb = self.control.last_heartbeat(axis.sid)
-            last = max(hb or 0.0, motion.started)
-            now = time.monotonic()
-            due = max(last + limit, grace_until)
-            if now >= due:
-                ms = round((now - last) * 1000)
-                await self._lost_operator(
-                    axis, motion, f"no heartbeat from client {motion.owner!r} for {ms} ms", last
-                )
-                return
-            nap = min(self.watchdog_period, due - now)
-            await asyncio.sleep(nap)
-            woke = time.monotonic()
-            if woke - (now + nap) > STALL_S:
-                log.warning(
-                    "the backend stalled for %.0f ms; heartbeats get %.0f ms to arrive",
-                    (woke - now) * 1000.0,
-                    STALL_GRACE_S * 1000.0,
-                )
-                grace_until = woke + STALL_GRACE_S
 
     async def _monitor(self, axis: _Axis, motion: Motion) -> None:
         """Ends a move at its target, a homing run at its end, and any motion when the drive
@@ -1529,6 +1546,7 @@ class MotionService:
         for axis in self._axes.values():
             if axis.motion is not None:
                 self._cancel_tasks(axis.motion)
+        self._deadman.close()
 
     # Status -------------------------------------------------------------------------------
 
