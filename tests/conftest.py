@@ -11,6 +11,10 @@ import pytest
 # The 3D viewer binds a TCP port per app; tests that want it (tests/viewer, the viewer page)
 # set their own free port, every other app in the suite runs without it.
 os.environ.setdefault("SERVODESK_VIEWER_PORT", "0")
+# The server answers only to its own host names (docs/security.md): beside the loopback
+# names, those the suite's clients send: Starlette's TestClient ("testserver") and the httpx
+# ASGITransport clients' base URLs ("http://test", "http://t").
+os.environ.setdefault("SERVODESK_ALLOWED_HOSTS", "testserver,test,t")
 
 _counter = itertools.count()
 

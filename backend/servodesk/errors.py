@@ -16,6 +16,12 @@ can render one clear message without parsing strings::
      +-- DriveStateError            a CiA 402 command is not possible in this state
      +-- NotFoundError              no such session, profile or object
      +-- ConflictError              another client holds control of the drive
+     +-- RequestRefused             an HTTP request refused before any route sees it
+          +-- Unauthorized          no valid token where the server requires one (401)
+          +-- HostNotAllowed        Host names no name this server answers to (400)
+          +-- OriginNotAllowed      a state change or WebSocket from another site (403)
+          +-- PayloadTooLarge       the body is past the route's limit (413)
+          +-- UnsupportedMediaType  not JSON (or multipart where a file is uploaded) (415)
 """
 
 from __future__ import annotations
@@ -168,3 +174,30 @@ class ObjectAccessError(ServodeskError):
 
 class DriveStateError(ServodeskError):
     """A CiA 402 command or operation is not possible in the drive's current state."""
+
+
+class RequestRefused(ServodeskError):
+    """An HTTP request (or WebSocket upgrade) refused by servodesk's request checks before any
+    route sees it (docs/security.md); the subclass says why, api/errors.py the status."""
+
+
+class Unauthorized(RequestRefused):
+    """The server requires a token (bound beyond loopback, or --token) and the request has
+    none that matches."""
+
+
+class HostNotAllowed(RequestRefused):
+    """The request's Host is not a name this server answers to (DNS rebinding)."""
+
+
+class OriginNotAllowed(RequestRefused):
+    """A state-changing request or a WebSocket from a page of another origin (cross-site)."""
+
+
+class PayloadTooLarge(RequestRefused):
+    """The request body is larger than the route takes."""
+
+
+class UnsupportedMediaType(RequestRefused):
+    """A state-changing request whose body is not JSON (or multipart/form-data where a file
+    is uploaded)."""

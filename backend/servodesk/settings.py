@@ -4,8 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pydantic import Field
+from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
+
+from servodesk import hosts
 
 
 class Settings(BaseSettings):
@@ -16,6 +18,11 @@ class Settings(BaseSettings):
     #: Required on every request when ``host`` is not a loopback address; generated and
     #: printed at start-up when not set.
     token: str | None = None
+    #: Host names the server answers to beside localhost, 127.0.0.1, [::1], ``host`` and
+    #: (beyond loopback) the machine's name: comma-separated ``name`` or ``name:port`` (a
+    #: port: pages of that origin may change things whatever port the server has, e.g.
+    #: behind a proxy or a mapped container port). docs/security.md.
+    allowed_hosts: str = ""
     #: Start one simulated drive per family profile on a virtual bus.
     sim: bool = False
     sim_interface: str = "virtual"
@@ -70,6 +77,13 @@ class Settings(BaseSettings):
         """Where imported device descriptions are saved as profiles."""
         return self.data_dir / "profiles"
 
+    @field_validator("allowed_hosts")
+    @classmethod
+    def _hosts(cls, v: str) -> str:
+        hosts.parse_allowed_hosts(v)  # A bad entry is refused at start-up, not ignored.
+        return v
+
     @property
     def is_loopback(self) -> bool:
-        return self.host in ("127.0.0.1", "localhost", "::1") or self.host.startswith("127.")
+        """Only this machine can reach the server (no token needed): hosts.is_loopback."""
+        return hosts.is_loopback(self.host)

@@ -246,7 +246,8 @@ def test_malformed_esi_gives_a_precise_profile_error(text: str, message: str) ->
 
 
 def test_truncated_esi_never_escapes_as_a_traceback() -> None:
-    text = export_esi(load("cia402-generic"))
+    # Cut inside the document: a cut that drops only the closing newline leaves it whole.
+    text = export_esi(load("cia402-generic")).rstrip()
     for cut in range(0, len(text), max(1, len(text) // 40)):
         with pytest.raises(ProfileError):
             import_esi(text[:cut], profile_id="x")

@@ -18,7 +18,6 @@ from servodesk.api.control_deps import operation
 from servodesk.settings import Settings
 from tests.operation.support import (
     BusSpy,
-    Heartbeats,
     headers,
     is_stop,
     operation_app,
@@ -57,14 +56,14 @@ def _home(client: Any, speed: int, **extra: int) -> dict[str, Any]:
 def test_homing_runs_as_a_motion_and_ends_at_the_switch(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
     with operation_app(channel, tmp_path, "hiwin-e") as (client, sim):
         drive = sim.drives[0]
-        take_and_enable(client, SID, "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
-            beats = Heartbeats(ws, SID)
+            beats = take_and_enable(client, SID, "A", ws)
             _home(client, 3 * REV, offset=1000)
             done = wait_motion(client, SID, 10.0)
+            # Read while the socket is bound: closing it disables the drive (docs/safety.md).
+            st = client.get(f"/api/v1/sessions/{SID}/homing").json()
             beats.stop()
         assert done["state"] == "done" and "attained" in done["message"], done
-        st = client.get(f"/api/v1/sessions/{SID}/homing").json()
         assert st["state"] == "attained" and abs(st["position"] - 1000) < REV // 1000, st
         # 000 §3.2.4 method 17: home is where the negative limit switch turns on (-1.7 rev).
         assert abs(drive.plant.encoder_counts / REV + 1.7) < 0.01
@@ -75,9 +74,8 @@ def test_missing_heartbeats_stop_homing_within_the_deadline(channel, tmp_path) -
     try:
         with operation_app(channel, tmp_path, "hiwin-e", deadman_ms=DEADMAN_MS) as (client, sim):
             drive = sim.drives[0]
-            take_and_enable(client, SID, "A")
             with client.websocket_connect("/api/v1/ws?client=A") as ws:
-                beats = Heartbeats(ws, SID, period=0.05)
+                beats = take_and_enable(client, SID, "A", ws)
                 t_start = time.time()
                 _home(client, REV)
                 # Heartbeats for longer than the dead-man time keep the run going.
@@ -91,9 +89,9 @@ def test_missing_heartbeats_stop_homing_within_the_deadline(channel, tmp_path) -
                     lambda: any(d.value & 0x86 == 0x02 for d in spy.controlwords(NODE, last)), 1.0
                 )
                 stops = [d for d in spy.controlwords(NODE, last) if is_stop(d.value)]
-                # Halt (bit 8, still enabled; bit 4 low interrupts homing), then quick stop.
-                assert stops[0].value & 0x011F == 0x010F, hex(stops[0].value)
-                assert any(d.value & 0x0086 == 0x0002 for d in stops[1:])
+                # Quick stop first, from the dead-man's thread (services/deadman.py): it
+                # interrupts homing as the halt did (CiA 402-2 §6.8.1).
+                assert stops[0].value & 0x0086 == 0x0002, hex(stops[0].value)
                 latency_ms = (stops[0].time - last) * 1000.0
                 standstill_ms = (stopped_at - last) * 1000.0
                 assert DEADMAN_MS <= latency_ms <= DEADMAN_MS + 50, latency_ms
@@ -113,9 +111,8 @@ def test_closing_the_socket_or_losing_control_stops_homing(channel, tmp_path) ->
     try:
         with operation_app(channel, tmp_path, "hiwin-e", deadman_ms=DEADMAN_MS) as (client, sim):
             drive = sim.drives[0]
-            take_and_enable(client, SID, "A")
             with client.websocket_connect("/api/v1/ws?client=A") as ws:
-                beats = Heartbeats(ws, SID)
+                beats = take_and_enable(client, SID, "A", ws)
                 _home(client, REV)
                 assert wait_until(lambda: drive.velocity < -0.5 * REV, 1.0)
                 closing = time.time()
@@ -128,9 +125,8 @@ def test_closing_the_socket_or_losing_control_stops_homing(channel, tmp_path) ->
             assert stops and (stops[0].time - closed) * 1000.0 < 100
 
             # Losing control: another client force-takes it while A homes.
-            take_and_enable(client, SID, "A")
             with client.websocket_connect("/api/v1/ws?client=A") as ws:
-                beats = Heartbeats(ws, SID)
+                beats = take_and_enable(client, SID, "A", ws)
                 _home(client, REV)
                 assert wait_until(lambda: drive.velocity < -0.5 * REV, 1.0)
                 r = client.post(
@@ -141,7 +137,8 @@ def test_closing_the_socket_or_losing_control_stops_homing(channel, tmp_path) ->
                 assert r.status_code == 200, r.text
                 assert wait_until(lambda: abs(drive.velocity) <= STANDSTILL, 1.0)
                 st = client.get(f"/api/v1/sessions/{SID}/motion").json()
-                assert st["state"] == "halted" and "taken over" in st["message"], st
+                # Losing control stops the axis as the dead-man does (docs/safety.md).
+                assert st["state"] == "deadman" and "taken over" in st["message"], st
                 beats.stop()
     finally:
         spy.close()
@@ -161,25 +158,28 @@ async def test_backend_shutdown_stops_homing(channel, tmp_path) -> None:  # type
         )
         app = create_app(settings)
         async with app.router.lifespan_context(app):
-            operation(app).control.socket_opened("A")
+            control = operation(app).control
+            connection = control.connect("A")
             transport = httpx.ASGITransport(app=app)
             async with httpx.AsyncClient(transport=transport, base_url="http://t") as c:
                 r = await c.post(
                     f"/api/v1/sessions/{SID}/control", json={"action": "take"}, headers=A
                 )
                 assert r.status_code == 200
+                control.bind(connection, SID, r.json()["token"])
+                h = {**A, "X-Servodesk-Control": r.json()["token"]}
                 r = await c.post(
-                    f"/api/v1/sessions/{SID}/state", json={"command": "enable"}, headers=A
+                    f"/api/v1/sessions/{SID}/state", json={"command": "enable"}, headers=h
                 )
                 assert r.json()["state"] == "Operation enabled"
                 r = await c.post(
                     f"/api/v1/sessions/{SID}/homing",
                     json={"method": 17, "speed_switch": REV, "acceleration": 10 * REV},
-                    headers=A,
+                    headers=h,
                 )
                 assert r.status_code == 200, r.text
                 t_home = time.time()
-                operation(app).control.heartbeat("A", SID)
+                control.heartbeat(connection, SID)
                 await asyncio.sleep(0.05)
                 assert (await c.get(f"/api/v1/sessions/{SID}/motion")).json()["kind"] == "homing"
             t_shutdown = time.time()

@@ -216,7 +216,11 @@ def test_a_script_holds_control_but_cannot_energise_without_a_dead_man(channel, 
         token = take(client, SID, "script")
         # Taking again with the token is idempotent; the token is only told to its holder.
         assert take(client, SID, "script") == token
-        assert client.get(f"{BASE}/control").json()["token"] is None
+        seen = client.get(f"{BASE}/control").json()
+        assert seen["token"] is None
+        # The page says what stops the axis: here the dead-man's own thread on CANopen.
+        assert seen["protection"]["stop_path"] == "dead-man thread"
+        assert seen["protection"]["deadman_ms"] == 1000
         r = client.put(f"{BASE}/objects/0x6081", json={"value": 90000}, headers=headers("script"))
         assert r.status_code == 200, r.text
         assert drive.read(0x6081) == 90000

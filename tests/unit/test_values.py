@@ -25,7 +25,11 @@ def test_range_from_the_profile_with_units() -> None:
     with pytest.raises(ValidationError, match=r"above the maximum 3000") as info:
         encode_write(ObjectAddress(0x6072), spec(0x6072), 5000)
     assert "0.1 %" in info.value.message
-    assert encode_write(ObjectAddress(0x6072), spec(0x6072), "0x3E8") == b"\xe8\x03"
+    assert encode_write(ObjectAddress(0x6072), spec(0x6072), 1000) == b"\xe8\x03"
+    # A number in hex goes as the bytes (raw_hex); text is no number (docs/api.md, PUT objects).
+    assert encode_write(ObjectAddress(0x6072), spec(0x6072), raw_hex="e803") == b"\xe8\x03"
+    with pytest.raises(ValidationError, match="UNSIGNED16: it takes a number"):
+        encode_write(ObjectAddress(0x6072), spec(0x6072), "0x3E8")
 
 
 def test_modes_outside_the_list_are_refused() -> None:

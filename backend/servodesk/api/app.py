@@ -13,8 +13,9 @@ from fastapi.responses import HTMLResponse
 from fastapi.staticfiles import StaticFiles
 
 from servodesk import __version__
-from servodesk.api import errors
+from servodesk.api import access_log, errors
 from servodesk.api.auth import TokenMiddleware
+from servodesk.api.body_limit import BodyLimit
 from servodesk.api.deps import AppState
 from servodesk.api.routes import (
     backups,
@@ -28,9 +29,11 @@ from servodesk.api.routes import (
     tuning,
     viewer,
 )
+from servodesk.api.same_origin import SameOriginGuard
 from servodesk.api.scope_ws import router as scope_ws_router
 from servodesk.api.ws import router as ws_router
 from servodesk.domain.profile_loader import ProfileCatalog, default_profile_dirs
+from servodesk.hosts import HostPolicy
 from servodesk.services.backup import BackupService
 from servodesk.services.events import EventHub
 from servodesk.services.manager import SessionManager
@@ -140,6 +143,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         async def no_ui() -> HTMLResponse:
             return HTMLResponse(_NO_UI)
 
+    # Outermost last: the same-origin checks, then the token, then the body limit, so that
+    # nothing reads a body of a request refused before (docs/security.md).
+    app.add_middleware(BodyLimit)
     if settings.token:
         app.add_middleware(TokenMiddleware, token=settings.token)
+    app.add_middleware(
+        SameOriginGuard,
+        policy=HostPolicy.for_server(settings.host, settings.allowed_hosts),
+        port=settings.port,
+    )
+    access_log.install()  # ?token= never reaches uvicorn's log.
     return app

@@ -119,6 +119,7 @@ async def require_write(
     op.motion.manager.get(sid)  # An unknown session is a 404 before anything else.
     if _energising_write(request):
         holder = op.control.check_energise(sid, x_servodesk_control, "writing the controlword")
+        await op.motion.settled(sid)
     else:
         holder = op.control.check(sid, x_servodesk_control, "this write")
     op.motion.invalidate_limits(sid)
@@ -145,6 +146,7 @@ async def require_state_command(
         return
     if command in _ENERGISING_COMMANDS:
         holder = control.check_energise(sid, x_servodesk_control, f"{command!r}")
+        await operation(request.app).motion.settled(sid)
     else:
         holder = control.check(sid, x_servodesk_control, f"{command!r}")
     yield _label(x_servodesk_client, holder)
@@ -167,7 +169,7 @@ async def require_close(
         op.control.forget_session(sid)
 
 
-def require_motion(
+async def require_motion(
     sid: str,
     request: Request,
     x_servodesk_client: ClientHeader = None,
@@ -177,6 +179,7 @@ def require_motion(
     op = operation(request.app)
     op.motion.manager.get(sid)  # An unknown session is a 404 before anything else.
     holder = op.control.check_energise(sid, x_servodesk_control, "motion")
+    await op.motion.settled(sid)
     return _label(x_servodesk_client, holder)
 
 

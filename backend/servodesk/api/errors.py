@@ -2,24 +2,31 @@
 
 from __future__ import annotations
 
+import json
 import logging
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
+from starlette.types import Receive, Scope, Send
 
 from servodesk.domain import profidrive
 from servodesk.errors import (
     ConflictError,
     DriveStateError,
+    HostNotAllowed,
     LinkError,
     LinkTimeoutError,
     NotFoundError,
     ObjectAccessError,
+    OriginNotAllowed,
+    PayloadTooLarge,
     PdoRefused,
     ProfileError,
     ServodeskError,
+    Unauthorized,
+    UnsupportedMediaType,
     ValidationError,
 )
 
@@ -60,7 +67,64 @@ def status_for(exc: ServodeskError) -> int:
         return 504
     if isinstance(exc, LinkError):
         return 502
+    # The request checks of docs/security.md (RFC 9110 §15.5.2, §15.5.4, §15.5.14, §15.5.16).
+    if isinstance(exc, Unauthorized):
+        return 401
+    if isinstance(exc, OriginNotAllowed):
+        return 403
+    if isinstance(exc, PayloadTooLarge):
+        return 413
+    if isinstance(exc, UnsupportedMediaType):
+        return 415
+    if isinstance(exc, HostNotAllowed):
+        return 400
     return 400
+
+
+#: WebSocket close codes of refused upgrades (RFC 6455 §7.4.2: 4000-4999 are the
+#: application's): the HTTP status + 4000, as 4401 for a missing token (docs/api.md).
+def close_code(exc: ServodeskError) -> int:
+    return 4000 + status_for(exc)
+
+
+async def refuse_websocket(
+    scope: Scope, receive: Receive, send: Send, code: int, reason: str
+) -> None:
+    """Accept the upgrade, then close it with ``code`` and ``reason``.
+
+    Refusing the upgrade itself would give the client only an HTTP 403 and a browser page
+    only close code 1006; accepted and closed, it sees why. Accepted with the subprotocol
+    the client asked for, since a browser drops a socket that answers without it. Nothing
+    else is sent on it.
+    """
+    message = await receive()
+    if message["type"] != "websocket.connect":
+        return
+    offered = scope.get("subprotocols") or []
+    await send({"type": "websocket.accept", "subprotocol": offered[0] if offered else None})
+    # A close frame's reason has room for 123 bytes (RFC 6455 §5.5).
+    text = reason.encode("utf-8")[:123].decode("utf-8", errors="ignore")
+    await send({"type": "websocket.close", "code": code, "reason": text})
+
+
+async def send_error(
+    send: Send, exc: ServodeskError, headers: list[tuple[bytes, bytes]] | None = None
+) -> None:
+    """Answer ``exc`` as its JSON error from plain ASGI middleware, which runs outside the
+    exception handlers :func:`install` registers (they see only what the routes raise)."""
+    body = json.dumps(exc.to_dict()).encode()
+    await send(
+        {
+            "type": "http.response.start",
+            "status": status_for(exc),
+            "headers": [
+                (b"content-type", b"application/json"),
+                (b"content-length", str(len(body)).encode()),
+                *(headers or []),
+            ],
+        }
+    )
+    await send({"type": "http.response.body", "body": body})
 
 
 def install(app: FastAPI) -> None:

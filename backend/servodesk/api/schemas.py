@@ -28,8 +28,11 @@ ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
     code: {"model": ErrorOut, "description": text}
     for code, text in (
         (400, "Bad value or refused by the drive (with the protocol code)"),
+        (403, "A state change or WebSocket from a page of another origin"),
         (404, "No such session, profile, object or node"),
         (409, "Not possible in the present state, or control held by another client"),
+        (413, "The request body is larger than the route takes"),
+        (415, "The body is not application/json (multipart/form-data for a file)"),
         (502, "Bus failure"),
         (504, "The drive did not answer in time"),
     )
@@ -391,8 +394,12 @@ class ObjectValueOut(BaseModel):
 class WriteRequest(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
-    value: int | float | str | None = Field(
-        default=None, description="Typed value (decimal, or text like 0x1F for integers)"
+    # bool first: pydantic would otherwise make true an int 1 before the kind is checked.
+    value: bool | int | float | str | None = Field(
+        default=None,
+        description="Typed value of the object's kind: a number (integer, real), true/false "
+        "or 0/1 (BOOLEAN), text (VISIBLE_STRING, UNICODE_STRING), hex text (OCTET_STRING, "
+        "DOMAIN). A number in hex goes as raw_hex.",
     )
     raw_hex: str | None = Field(
         default=None, max_length=2048, description="Raw bytes, little-endian, as hex"
@@ -494,6 +501,19 @@ class ControlRequest(BaseModel):
     )
 
 
+class ProtectionOut(BaseModel):
+    deadman_ms: int = Field(description="Heartbeats older than this stop the axis")
+    stop_path: Literal["dead-man thread", "event loop"] = Field(
+        description="Where the dead-man's quick stop is sent from: its own thread straight "
+        "onto the fieldbus, or the event loop (fieldbuses without such a path)"
+    )
+    drive_watchdog: str | None = Field(
+        description="The drive's own watchdog armed by servodesk (a dead PC stops the axis), "
+        "or null: none is armed"
+    )
+    summary: str = Field(description="One sentence for people")
+
+
 class ControlOut(BaseModel):
     session: str
     owner: str | None = Field(description="Client id (label) of the holder, or null")
@@ -511,6 +531,9 @@ class ControlOut(BaseModel):
         default=False,
         description="The holder's WebSocket closed: the drive was made safe and control "
         "lapses unless the holder binds a socket again within the grace time",
+    )
+    protection: ProtectionOut | None = Field(
+        default=None, description="What stops this drive when its operator is lost"
     )
 
 
@@ -938,7 +961,22 @@ HomingOutcome = Literal[
 ]
 
 
-class HomingRunOut(BaseModel):
+class HomingPlanOut(BaseModel):
+    """What a run is expected to take: the estimate and the time-out (domain/homing.py)."""
+
+    estimate_s: float | None
+    estimate: HomingEstimateOut | None
+    basis: str = Field(description="where the travel came from, or why there is no estimate")
+    travel: float | None
+    speed_switch: float | None = Field(description="6099h:01 in position units per s")
+    speed_zero: float | None = Field(description="6099h:02 in position units per s")
+    acceleration: float | None = Field(description="609Ah in position units per s²")
+    timeout_s: float
+    timeout_source: Literal["user", "estimate", "default"]
+    warnings: list[str]
+
+
+class HomingRunOut(HomingPlanOut):
     id: int
     method: int
     active: bool
@@ -951,16 +989,6 @@ class HomingRunOut(BaseModel):
     started_at: float = Field(description="Unix time")
     elapsed_s: float
     phase: str | None = Field(description="what statusword bits 13/12/10 say (mode 6 only)")
-    estimate_s: float | None
-    estimate: HomingEstimateOut | None
-    basis: str = Field(description="where the travel came from, or why there is no estimate")
-    travel: float | None
-    speed_switch: float | None = Field(description="6099h:01 in position units per s")
-    speed_zero: float | None = Field(description="6099h:02 in position units per s")
-    acceleration: float | None = Field(description="609Ah in position units per s²")
-    timeout_s: float
-    timeout_source: Literal["user", "estimate", "default"]
-    warnings: list[str]
 
 
 class HomingStatus(BaseModel):

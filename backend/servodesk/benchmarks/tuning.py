@@ -59,6 +59,7 @@ from servodesk.domain.tuning.search import (
     rank_gains,
     reference_move,
 )
+from servodesk.files import write_atomic
 from servodesk.sim import replay
 from servodesk.sim.plantfile import PlantSpec, load_plant_file
 
@@ -376,9 +377,8 @@ def cached_oracle(spec: PlantSpec, cache: Path | None) -> tuple[ServoGains, bool
     g = oracle_gains(spec)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp")
-        tmp.write_text(json.dumps({"gains": g.as_dict(), "plant": spec.canonical()}))
-        os.replace(tmp, path)
+        doc = {"gains": g.as_dict(), "plant": spec.canonical()}
+        write_atomic(path, json.dumps(doc).encode("utf-8"))  # No leftover on a failure.
     return g, False
 
 

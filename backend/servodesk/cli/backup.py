@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 from servodesk.domain.paramset import ParameterSet
 from servodesk.errors import ConflictError, NotFoundError, ValidationError
+from servodesk.files import read_bounded
 
 if TYPE_CHECKING:
     from servodesk.domain.profile_loader import ProfileCatalog
@@ -172,10 +173,14 @@ def _dump(data: object) -> None:
     sys.stdout.write("\n")
 
 
+#: The largest file the CLI reads (a backup, DCF or PDO layout), as POST /backups/upload.
+MAX_FILE = 32 << 20
+
+
 def _read_file(path: str) -> bytes:
     p = Path(path)
     try:
-        return p.read_bytes()
+        return read_bounded(p, MAX_FILE)  # /dev/zero or a huge file: exit 2, not MemoryError.
     except FileNotFoundError:
         raise NotFoundError(f"{path}: no such file", hint="check the path") from None
     except OSError as exc:
@@ -238,7 +243,7 @@ def run_restore(args: argparse.Namespace) -> int:
         session = await ctx.session()
         if args.resume:
             return await ctx.restores.resume(args.resume, session, client=client_id())
-        bid = _import(ctx, data, args.file)
+        bid = await _import(ctx, session, data, args.file)
         return await ctx.restores.restore(
             session,
             bid,
@@ -269,13 +274,22 @@ def run_restore(args: argparse.Namespace) -> int:
     return 0 if rep["finished"] and not c["failed"] and not c["pending"] else 1
 
 
-def _import(ctx: _Context, data: bytes, filename: str) -> str:
-    """The store id of the file's backup (imported once; the same bytes reuse the record)."""
+async def _import(ctx: _Context, session: Any, data: bytes, filename: str) -> str:
+    """The store id of the file's backup (imported once; the same bytes reuse the record).
+
+    A file new to the store is checked against the drive first: a restore the preflight
+    refuses must leave no record (and no file) behind, however often it is tried.
+    """
+    from servodesk.services.restore import refusal
+
     digest = hashlib.sha256(data).hexdigest()
     for info in ctx.backups.store.list_backups(limit=100_000):
         if info["sha256"] == digest:
             return str(info["id"])
     ps = ctx.backups.parse(data, filename, ctx.args.profile)
+    pf, _ = await ctx.restores.preflight(session, ps, map_names=ctx.args.map_by_name)
+    if not pf.ok:
+        raise refusal(pf)
     if Path(filename).suffix.lower() == ".json":
         # Keep the file byte for byte: the store's copy is the user's file.
         return str(_save_exact(ctx, ps, data))
@@ -283,12 +297,13 @@ def _import(ctx: _Context, data: bytes, filename: str) -> str:
 
 
 def _save_exact(ctx: _Context, ps: ParameterSet, data: bytes) -> str:
+    from servodesk.domain.ids import check_id
     from servodesk.services.backup import new_id
     from servodesk.services.store import write_new_file
 
     bid = new_id()
-    name = f"{bid}-{ps.profile_id}.json"
-    write_new_file(ctx.backups.store.backups_dir / name, data)
+    name = f"{bid}-{check_id(ps.profile_id, 'profile.id')}.json"  # domain/ids.py
+    write_new_file(ctx.backups.store.backup_file(name), data)
     ctx.backups.store.add_backup(
         {
             "id": bid,
@@ -347,14 +362,35 @@ def run_diff(args: argparse.Namespace) -> int:
     files = {x: _read_file(x) for x in (args.a, args.b) if x != "drive"}
 
     async def body(ctx: _Context) -> dict[str, Any]:
+        parsed = {x: ctx.backups.parse(data, x, args.profile) for x, data in files.items()}
+        session = await ctx.session() if "drive" in (args.a, args.b) else None
+
+        def profile_of(x: str) -> str:
+            if x in parsed:
+                return parsed[x].profile_id
+            assert session is not None
+            return str(session.profile.id)
+
+        pa, pb = profile_of(args.a), profile_of(args.b)
+        if pa != pb:
+            # Objects at one address of two profiles need not mean the same (a vendor's
+            # 2000h is anything): compared by address, "0 differences" could be a lie.
+            a = "the drive" if args.a == "drive" else args.a
+            b = "the drive" if args.b == "drive" else args.b
+            raise ValidationError(
+                f"{a} is of profile {pa}, {b} of profile {pb}: sets of different profiles "
+                "are not compared",
+                field="b",
+                hint="compare sets of one profile; to carry settings to a drive of another "
+                "family, see servodesk restore FILE --map-by-name --dry-run",
+            )
         sets: list[tuple[str, ParameterSet]] = []
-        session = None
         for name in (args.a, args.b):
             if name == "drive":
-                session = session or await ctx.session()
+                assert session is not None
                 sets.append(("drive", await ctx.backups.read_set(session, operation=None)))
             else:
-                sets.append((name, ctx.backups.parse(files[name], name, args.profile)))
+                sets.append((name, parsed[name]))
         return ctx.backups.compare(sets[0], sets[1], include_same=args.all)
 
     cmp = _run(args, body)

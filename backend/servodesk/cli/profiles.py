@@ -11,6 +11,7 @@ from typing import Any
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.profile import DeviceProfile, ObjectSpec
 from servodesk.domain.profile_loader import ProfileCatalog, check_profile, save_profile
+from servodesk.files import write_atomic
 from servodesk.settings import Settings
 
 
@@ -158,10 +159,8 @@ def _export(p: DeviceProfile, args: argparse.Namespace) -> int:
         print(f"servodesk: error: {out} exists; nothing was written", file=sys.stderr)
         print("  hint: choose another file or add --force", file=sys.stderr)
         return 2
-    tmp = out.with_name(out.name + ".tmp")
     try:
-        tmp.write_text(text, encoding="utf-8")
-        tmp.replace(out)  # Atomic: never a half-written file.
+        write_atomic(out, text.encode("utf-8"))  # Never half-written, no leftovers.
     except OSError as exc:
         print(f"servodesk: error: cannot write {out}: {exc.strerror}", file=sys.stderr)
         return 2

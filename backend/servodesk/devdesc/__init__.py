@@ -25,6 +25,7 @@ from servodesk.devdesc.esi import export_esi, import_esi
 from servodesk.devdesc.xdd import import_xdd
 from servodesk.domain.profile import DeviceProfile
 from servodesk.errors import NotFoundError, ProfileError, ValidationError
+from servodesk.files import read_bounded
 
 __all__ = [
     "SUPPORTED_SUFFIXES",
@@ -51,9 +52,13 @@ SUPPORTED_SUFFIXES: dict[str, str] = {
 }
 
 
+#: The largest device description read (as POST /profiles/import takes).
+MAX_FILE = 16 << 20
+
+
 def _read_text(path: Path) -> str:
     try:
-        data = path.read_bytes()
+        data = read_bounded(path, MAX_FILE)  # Never read a device (/dev/zero) to the end.
     except FileNotFoundError:
         raise NotFoundError(f"{path}: no such file", hint="check the path") from None
     except OSError as exc:

@@ -24,6 +24,7 @@ from typing import Any
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, codec
 from servodesk.domain.encoder_units import INCREMENT_UNITS
+from servodesk.domain.ids import check_id
 from servodesk.domain.profile import DeviceProfile, ObjectSpec
 from servodesk.domain.values import check_value
 from servodesk.errors import ServodeskError, ValidationError
@@ -319,6 +320,14 @@ def loads(data: bytes, source: str = "backup") -> ParameterSet:
             "checksum mismatch: the file was changed or damaged after it was written",
             "use an intact copy of the backup (files are never edited by servodesk)",
         )
+    profile = doc.get("profile")
+    if isinstance(profile, dict) and "id" in profile:
+        # The profile id names the stored file (services/backup.py): checked before anything
+        # else is read from the document.
+        try:
+            check_id(profile["id"], "profile.id")
+        except ValidationError as exc:
+            raise _bad(source, exc.message, exc.hint or "", "profile.id") from None
     try:
         return _from_document(doc)
     except (KeyError, TypeError, ValueError, ServodeskError) as exc:

@@ -15,9 +15,11 @@ from typing import Any
 import pydantic
 import yaml
 
+from servodesk import files
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType
 from servodesk.domain.encoder_units import INCREMENT_UNITS
+from servodesk.domain.ids import check_id
 from servodesk.domain.profile import DeviceProfile, resolve_value
 from servodesk.errors import NotFoundError, ProfileError, ServodeskError
 
@@ -343,7 +345,8 @@ def profile_to_yaml(p: DeviceProfile) -> str:
 
 def save_profile(p: DeviceProfile, directory: Path, *, overwrite: bool = False) -> Path:
     """Write ``directory/<id>/profile.yaml`` atomically; an existing one is kept unless asked."""
-    folder = directory / p.id
+    # The id names the folder: checked, and the folder confirmed inside ``directory``.
+    folder = files.inside(directory, check_id(p.id, "profile id"))
     target = folder / PROFILE_FILE
     if target.exists() and not overwrite:
         raise ProfileError(
@@ -352,9 +355,8 @@ def save_profile(p: DeviceProfile, directory: Path, *, overwrite: bool = False) 
             hint="choose another profile id",
         )
     folder.mkdir(parents=True, exist_ok=True)
-    tmp = target.with_suffix(".yaml.tmp")
-    tmp.write_text(profile_to_yaml(p), encoding="utf-8")
-    tmp.replace(target)  # Atomic on POSIX: never a half-written profile.
+    files.remove_stale_temp_files(folder)
+    files.write_atomic(target, profile_to_yaml(p).encode("utf-8"))  # Never half-written.
     return target
 
 

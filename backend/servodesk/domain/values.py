@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from servodesk.domain.address import ObjectAddress
-from servodesk.domain.datatypes import Value, codec, coerce_float, coerce_int
+from servodesk.domain.datatypes import DataType, Value, codec, coerce_float, coerce_int
 from servodesk.domain.profile import ObjectSpec
 from servodesk.domain.sdo_abort import ABORT_CODES
 from servodesk.errors import ObjectAccessError, ValidationError
@@ -89,6 +89,8 @@ def encode_write(
             address=str(address),
             hint="choose a writable object",
         )
+    if value is not None and spec is not None:
+        check_kind(spec, value)
     if raw_hex is not None:
         try:
             data = bytes.fromhex(raw_hex.replace(" ", "").removeprefix("0x"))
@@ -120,6 +122,46 @@ def encode_write(
         return codec(dt).encode(checked)
     except ValidationError as exc:
         raise ValidationError(f"{address} {spec.name}: {exc.message}", field="value") from exc
+
+
+def check_kind(spec: ObjectSpec, value: Value) -> None:
+    """Refuse a written value that is not of the object's kind (docs/api.md, PUT objects).
+
+    JSON has true/false, numbers and text, and each goes only where it means what it says:
+    true/false (or 0/1, CiA 301 §7.1.4.1) to BOOLEAN, numbers to integer and real objects,
+    text to string objects, hex text (the form a read shows them in) to OCTET_STRING and
+    DOMAIN. So ``true`` is never written as 1 to an integer object, nor "0x10" as 16: a
+    number in hex goes as ``raw_hex``, the bytes as the drive holds them.
+    """
+    dt = spec.data_type
+    number = isinstance(value, int | float) and not isinstance(value, bool)
+    if dt is DataType.BOOLEAN:
+        ok, expected = isinstance(value, bool) or (number and value in (0, 1)), "true or false"
+    elif dt.is_numeric:
+        ok, expected = number, "a number"
+    elif dt.is_string:
+        ok, expected = isinstance(value, str), "text"
+    else:
+        ok, expected = isinstance(value, str | bytes), "hex text of its bytes"
+    if not ok:
+        raise ValidationError(
+            f"{spec.address} {spec.name} is {dt.name}: it takes {expected}, not {value!r}",
+            field="value",
+            hint='send a JSON number such as {"value": 16}, or the bytes as raw_hex '
+            '(little-endian, e.g. {"raw_hex": "10000000"})'
+            if dt.is_numeric
+            else f"send {expected}",
+        )
+    if dt is DataType.VISIBLE_STRING and isinstance(value, str):
+        try:
+            value.encode("latin-1")  # What the codec sends; it would put "?" for the rest.
+        except UnicodeEncodeError:
+            raise ValidationError(
+                f"{spec.address} {spec.name} is VISIBLE_STRING: {value!r} has characters it "
+                "cannot hold",
+                field="value",
+                hint="use ASCII characters",
+            ) from None
 
 
 def check_value(spec: ObjectSpec, value: Value) -> Value:

@@ -300,6 +300,25 @@ class DriveLink(ObjectAccess):
         """Seconds since the device's last heartbeat, or None when none was seen."""
         return None
 
+    async def arm_watchdog(self) -> str | None:
+        """Arm the drive's own watchdog on servodesk's sign of life, so that a dead PC stops
+        the axis without servodesk; a sentence naming it for people, or None where this link
+        arms none (then only servodesk's dead-man stops the axis)."""
+        return None
+
+    async def disarm_watchdog(self) -> None:
+        """Put back what :meth:`arm_watchdog` changed."""
+
+    @property
+    def watchdog(self) -> str | None:
+        """The sentence :meth:`arm_watchdog` returned while it is armed, else None."""
+        return None
+
+    @contextlib.asynccontextmanager
+    async def watchdog_paused(self) -> AsyncIterator[None]:
+        """The drive's own settings in place for a store (the arming must not be saved)."""
+        yield
+
     def stop_frame(self) -> Callable[[], None] | None:
         """A function that puts a quick stop (controlword 6040h = 0002h, CiA 402-2 §6.2.1
         table 28) on the wire without the event loop, safe to call from any thread; None

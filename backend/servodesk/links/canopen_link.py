@@ -20,7 +20,7 @@ import sys
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import AsyncIterator, Callable
 from typing import Any
 
 import can
@@ -34,6 +34,8 @@ from servodesk.errors import (
     LinkError,
     LinkTimeoutError,
     NotFoundError,
+    ObjectAccessError,
+    ServodeskError,
     ValidationError,
 )
 from servodesk.links.base import DriveLink, Identity, LinkParams, object_identity
@@ -62,6 +64,9 @@ class _SharedNetwork:
     def __init__(self, network: canopen.Network) -> None:
         self.network = network
         self.users = 0
+        #: servodesk's own heartbeat (COB-ID 700h + MASTER_NODE_ID) and how many links use it.
+        self.heartbeat: Any = None
+        self.heartbeat_users = 0
 
 
 class NetworkPool:
@@ -104,6 +109,38 @@ class NetworkPool:
             shared.users += 1
             return shared.network
 
+    def start_heartbeat(self, params: LinkParams) -> None:
+        """servodesk produces a heartbeat on this bus (CiA 301 §7.2.8.3.2.2: NMT state
+        operational, 05h) for the drives whose consumer (1016h) it arms. python-can sends it
+        periodically on its own (a kernel task on SocketCAN, a thread elsewhere): it goes on
+        while the process lives, whatever its event loop does, and ends with it."""
+        with self._lock:
+            shared = self._nets[params.bus_key()]
+            if shared.heartbeat is None:
+                msg = can.Message(
+                    arbitration_id=0x700 + MASTER_NODE_ID, data=[0x05], is_extended_id=False
+                )
+                bus = shared.network.bus
+                if bus is None:
+                    raise LinkError("the CAN bus is not connected")
+                shared.heartbeat = bus.send_periodic(msg, HEARTBEAT_PERIOD_S)
+            shared.heartbeat_users += 1
+
+    def stop_heartbeat(self, params: LinkParams) -> None:
+        with self._lock:
+            shared = self._nets.get(params.bus_key())
+            if shared is None or shared.heartbeat is None:
+                return
+            shared.heartbeat_users -= 1
+            if shared.heartbeat_users <= 0:
+                shared.heartbeat.stop()
+                shared.heartbeat, shared.heartbeat_users = None, 0
+
+    def producing(self, params: LinkParams) -> bool:
+        with self._lock:
+            shared = self._nets.get(params.bus_key())
+            return shared is not None and shared.heartbeat is not None
+
     def release(self, params: LinkParams) -> None:
         key = params.bus_key()
         with self._lock:
@@ -113,6 +150,8 @@ class NetworkPool:
             shared.users -= 1
             if shared.users <= 0:
                 del self._nets[key]
+                if shared.heartbeat is not None:
+                    shared.heartbeat.stop()
                 try:
                     shared.network.disconnect()
                 except Exception:  # Closing a dead adapter must not mask the caller's error.
@@ -121,6 +160,15 @@ class NetworkPool:
 
 pool = NetworkPool()
 
+
+#: servodesk's node id as a heartbeat producer (CiA 301 allows 1-127; the top one, where
+#: commissioning masters usually sit, keeps the drives' range free). The bus scan does not
+#: list it while servodesk produces on that bus.
+MASTER_NODE_ID = 0x7F
+HEARTBEAT_PERIOD_S = 0.1
+#: The drives' consumer time: four periods, so that one late or lost frame is no event.
+CONSUMER_TIME_MS = 400
+CONSUMER = ObjectAddress(0x1016, 1)
 
 #: Longest segmented upload accepted (a DOMAIN could be larger; servodesk does not read those).
 _MAX_SEGMENTED = 1 << 20
@@ -226,6 +274,9 @@ class CanopenLink(DriveLink):
         self._deadline = 0.0
         self.last_heartbeat: float | None = None
         self.nmt_state: str = "unknown"
+        #: The drive's 1016h:01 before servodesk armed it (None: not armed).
+        self._watchdog_original: bytes | None = None
+        self._watchdog_text: str | None = None
         #: When servodesk last commanded an NMT state (monotonic), see _on_heartbeat.
         self._nmt_commanded_at = -math.inf
 
@@ -256,6 +307,11 @@ class CanopenLink(DriveLink):
     def _close(self) -> None:
         network, node = self._network, self._node
         self._network = self._node = None
+        if self._watchdog_original is not None:
+            # Closed while armed (the session's close writes the entry back first): the
+            # heartbeat it asked for ends with it.
+            self._watchdog_original = self._watchdog_text = None
+            pool.stop_heartbeat(self.params)
         if network is not None and node is not None:
             network.unsubscribe(0x580 + self.params.node_id, self._on_sdo_frame)
             # Give canopen back its own subscription so that remove_network() can drop it.
@@ -376,6 +432,64 @@ class CanopenLink(DriveLink):
                 loop.call_soon_threadsafe(self._owe, frame, DOWNLOAD_ANSWER)
 
         return send
+
+    # The drive's own watchdog: its heartbeat consumer on servodesk's heartbeat --------------
+
+    async def arm_watchdog(self) -> str | None:
+        """Make the drive watch servodesk's heartbeat (1016h:01, CiA 301 §7.5.2.17), so that a
+        dead PC stops the axis by the drive's abort connection option code 6007h. None where
+        the drive has no consumer entry (an SDO abort). The entry it had is kept and written
+        back by :meth:`disarm_watchdog` (and around a store, :meth:`watchdog_paused`)."""
+        if self._watchdog_original is not None:
+            return self._watchdog_text
+        try:
+            original = await self.read(CONSUMER)
+        except ObjectAccessError:
+            return None
+        pool.start_heartbeat(self.params)
+        entry = (MASTER_NODE_ID << 16) | CONSUMER_TIME_MS
+        try:
+            await self.write(CONSUMER, entry.to_bytes(4, "little"))
+        except ServodeskError:
+            pool.stop_heartbeat(self.params)
+            raise
+        self._watchdog_original = original
+        self._watchdog_text = (
+            f"CiA 301 heartbeat consumer 1016h:01 = {entry:08X}h: the drive watches "
+            f"servodesk's heartbeat (node {MASTER_NODE_ID}, every "
+            f"{HEARTBEAT_PERIOD_S * 1000:.0f} ms) and reacts per 6007h when it lapses for "
+            f"{CONSUMER_TIME_MS} ms"
+        )
+        return self._watchdog_text
+
+    async def disarm_watchdog(self) -> None:
+        original, self._watchdog_original = self._watchdog_original, None
+        self._watchdog_text = None
+        if original is None:
+            return
+        try:
+            await self.write(CONSUMER, original)
+        finally:
+            pool.stop_heartbeat(self.params)
+
+    @property
+    def watchdog(self) -> str | None:
+        return self._watchdog_text
+
+    @contextlib.asynccontextmanager
+    async def watchdog_paused(self) -> AsyncIterator[None]:
+        """The drive's own entry back in place for a store: servodesk's arming is not to be
+        saved in the drive's non-volatile memory (it would fault without servodesk)."""
+        original = self._watchdog_original
+        if original is None:
+            yield
+            return
+        armed = await self.read(CONSUMER)
+        await self.write(CONSUMER, original)
+        try:
+            yield
+        finally:
+            await self.write(CONSUMER, armed)
 
     def _abandon(self) -> None:
         """End the request in flight now: the link is closing, no answer will be awaited."""
@@ -638,6 +752,7 @@ def scan(params: LinkParams, timeout: float = 0.5) -> list[int]:
         network.scanner.reset()
         network.scanner.search()
         time.sleep(timeout)
-        return sorted(set(network.scanner.nodes))
+        own = {MASTER_NODE_ID} if pool.producing(params) else set()
+        return sorted(set(network.scanner.nodes) - own)
     finally:
         pool.release(params)

@@ -26,6 +26,7 @@ from servodesk.domain import paramset
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import Value, codec
 from servodesk.domain.encoder_units import rescaled
+from servodesk.domain.ids import check_id
 from servodesk.domain.paramset import Entry, ParameterSet, Unreadable
 from servodesk.domain.profile import DeviceProfile
 from servodesk.domain.profile_loader import ProfileCatalog
@@ -200,9 +201,10 @@ class BackupService:
     def save(self, ps: ParameterSet, source: str = "drive") -> dict[str, Any]:
         """Write the file (atomic, new name) then its record; returns the BackupInfo."""
         bid = new_id()
+        # The profile id becomes part of the file name (domain/ids.py).
+        name = f"{bid}-{check_id(ps.profile_id, 'profile.id')}.json"
+        path = self.store.backup_file(name)
         data = paramset.dumps(ps, ps.tool or TOOL)
-        name = f"{bid}-{ps.profile_id}.json"
-        path = self.store.backups_dir / name
         write_new_file(path, data)
         info = {
             "id": bid,
@@ -230,7 +232,7 @@ class BackupService:
 
     def file_bytes(self, bid: str) -> bytes:
         info = self.store.get_backup(bid)
-        path = self.store.backups_dir / str(info["file"])
+        path = self.store.backup_file(str(info["file"]))
         try:
             data: bytes = path.read_bytes()
         except FileNotFoundError:

@@ -56,6 +56,9 @@ log = logging.getLogger(__name__)
 #: gone or changed: the drive is to be made safe (motion stopped, drive disabled).
 LostListener = Callable[[str, str, str], None]
 
+#: Called as ``listener(session)`` when a holder's first socket is bound (the dead-man is on).
+BoundListener = Callable[[str], None]
+
 #: The header that carries the control token.
 CONTROL_HEADER = "X-Servodesk-Control"
 
@@ -94,11 +97,15 @@ class ControlService:
         self._heartbeats: dict[str, float] = {}
         self._release_timers: dict[str, asyncio.TimerHandle] = {}
         self._lost: list[LostListener] = []
+        self._bound: list[BoundListener] = []
 
     # Listeners --------------------------------------------------------------------------
 
     def on_lost(self, listener: LostListener) -> None:
         self._lost.append(listener)
+
+    def on_bound(self, listener: BoundListener) -> None:
+        self._bound.append(listener)
 
     # Ownership --------------------------------------------------------------------------
 
@@ -271,6 +278,7 @@ class ControlService:
             raise ConflictError("this connection is closed", hint="reconnect the WebSocket")
         self.check(sid, token, "binding the dead-man")
         h = self._holders[sid]
+        first = not h.connections
         h.connections.add(cid)
         conn.bound.add(sid)
         if h.orphaned:
@@ -281,6 +289,12 @@ class ControlService:
             log.info("control of %s: %s is back (the drive stays disabled)", sid, h.client)
         self._heartbeats[sid] = time.monotonic()
         self._publish(sid)
+        if first:
+            for cb in list(self._bound):
+                try:
+                    cb(sid)
+                except Exception:
+                    log.exception("control listener failed")
 
     def disconnect(self, cid: str) -> None:
         """A WebSocket closed: the holders it was the last dead-man of lose their drive."""

@@ -52,7 +52,7 @@ import contextlib
 import logging
 import math
 import time
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator, Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -74,7 +74,7 @@ from servodesk.services.control import ControlService
 from servodesk.services.deadman import DeadmanWatch
 from servodesk.services.events import EventHub
 from servodesk.services.manager import SessionManager
-from servodesk.services.session import Session
+from servodesk.services.session import BORROW, Borrowed, Session
 
 log = logging.getLogger(__name__)
 
@@ -205,6 +205,8 @@ class _Axis:
     #: A start sent its "go" after a stop began: the stop sends its commands again.
     rehalt: bool = False
     last_target: float | None = None
+    #: The settings the axis's motions wrote and give back when they end (session.BORROW).
+    borrowed: Borrowed = field(default_factory=dict)
 
     @property
     def sid(self) -> str:
@@ -229,10 +231,13 @@ class MotionService:
         self.watchdog_period = watchdog_period
         self.cyclic_period = cyclic_period
         self._axes: dict[str, _Axis] = {}
-        self._background: set[asyncio.Task[None]] = set()
+        self._background: set[asyncio.Task[Any]] = set()
+        #: Making a drive safe after its holder was lost, per session (make_safe).
+        self._safing: dict[str, asyncio.Task[str | None]] = {}
         #: The dead-man's watch, on a thread of its own (services/deadman.py).
         self._deadman = DeadmanWatch(period_s=min(watchdog_period, 0.005))
         control.on_lost(self._control_lost)
+        control.on_bound(self._control_bound)
 
     # Axes and limits ----------------------------------------------------------------------
 
@@ -559,16 +564,73 @@ class MotionService:
     async def _write_all(
         self, axis: _Axis, writes: list[tuple[ObjectAddress, Value]], who: str
     ) -> None:
-        for address, value in writes:
-            await axis.session.write_object(address, value, client=who)
+        with self._borrowing(axis):
+            for address, value in writes:
+                await axis.session.write_object(address, value, client=who)
+
+    @staticmethod
+    @contextlib.contextmanager
+    def _borrowing(axis: _Axis) -> Iterator[None]:
+        """The settings written in this block are the motion's: given back when it ends."""
+        token = BORROW.set(axis.borrowed)
+        try:
+            yield
+        finally:
+            BORROW.reset(token)
+
+    async def _give_back(self, axis: _Axis) -> None:
+        """Put back the settings the ended motion wrote (6081h, 6083h, 6084h, 6098h, ...).
+
+        Issue "Motion safety" item 6: after a jog the CTMM04x's 6081h read 819 instead of the
+        5000 the user had saved, and the next "Save to EEPROM" stored it with the user's own
+        edit. They go back once the axis stands (a halt ramps down with 6084h, CiA 402-2
+        §6.4.3) and not while another motion runs (that one gives them back when it ends). A
+        setting that cannot be put back stays marked as written since the last save, and the
+        clients are told which."""
+        async with axis.lock:
+            if not axis.borrowed or (axis.motion is not None and axis.motion.active):
+                return
+            end = time.monotonic() + SAFE_STOP_S
+            with contextlib.suppress(ServodeskError):
+                while not await self._standstill(axis):
+                    if time.monotonic() > end:
+                        break
+                    await asyncio.sleep(0.02)  # Polling the drive: no event to wait on.
+            given: list[str] = []
+            kept: list[str] = []
+            for address, (raw, _was_dirty) in list(axis.borrowed.items()):
+                del axis.borrowed[address]
+                if raw is None:
+                    axis.session.dirty.add(address)
+                    kept.append(f"{address}: it could not be read before the motion")
+                    continue
+                try:
+                    await axis.session.write_raw(address, raw)
+                    given.append(str(address))
+                except ServodeskError as exc:
+                    axis.session.dirty.add(address)
+                    kept.append(f"{address}: {exc.message}")
+            log.info("%s: settings given back %s, kept %s", axis.sid, given, kept)
+            self.hub.publish(
+                {"type": "motion_settings", "session": axis.sid, "restored": given, "kept": kept},
+                session=axis.sid,
+            )
+            if kept:
+                self.hub.publish({"type": "sessions_changed"})
 
     async def _controlword(self, axis: _Axis, word: int, who: str) -> None:
         await axis.session.write_object(CONTROLWORD, word, client=who)
 
     @contextlib.asynccontextmanager
     async def _starting(self, axis: _Axis) -> AsyncIterator[int]:
-        async with axis.lock:
-            yield axis.epoch
+        try:
+            async with axis.lock:
+                yield axis.epoch
+        finally:
+            m = axis.motion
+            if axis.borrowed and (m is None or not m.active):
+                # The start failed after writing its settings: nothing runs to give them back.
+                self._spawn(self._give_back(axis))
 
     async def _go(self, axis: _Axis, epoch: int, word: int, who: str) -> None:
         """Send a controlword that starts motion, unless a stop came meanwhile."""
@@ -650,6 +712,8 @@ class MotionService:
         motion.message = message
         self._deadman.disarm(motion)
         self._cancel_tasks(motion)
+        if axis.borrowed:
+            self._spawn(self._give_back(axis))
         log.info("motion on %s ended: %s (%s)", axis.sid, state, message)
         self._notify_end(motion)
         self._publish(axis)
@@ -913,19 +977,22 @@ class MotionService:
             async def go(word: int) -> None:
                 await self._go(axis, epoch, word, client)
 
-            await homing.begin(
-                s,
-                method,
-                speed_switch=speed_switch,
-                speed_zero=speed_zero,
-                acceleration=acceleration,
-                offset=offset,
-                client=client,
-                set_mode=set_mode if enabled else None,
-                go=go,
-                plan_=plan,
-                watched=enabled,
-            )
+            # A watched run's settings (6098h, 6099h, 609Ah, 607Ch) are given back at its end.
+            borrowing = self._borrowing(axis) if enabled else contextlib.nullcontext()
+            with borrowing:
+                await homing.begin(
+                    s,
+                    method,
+                    speed_switch=speed_switch,
+                    speed_zero=speed_zero,
+                    acceleration=acceleration,
+                    offset=offset,
+                    client=client,
+                    set_mode=set_mode if enabled else None,
+                    go=go,
+                    plan_=plan,
+                    watched=enabled,
+                )
             axis.last_target = None  # Homing moves the position's origin.
             run = homing.current_run(s)
             if enabled:
@@ -1450,9 +1517,53 @@ class MotionService:
         self._background.add(task)
         task.add_done_callback(self._background.discard)
 
+    def _control_bound(self, sid: str) -> None:
+        """The holder's dead-man is on: arm the drive's own watchdog too (a dead PC)."""
+        self._spawn(self._arm_watchdog(sid))
+
+    async def _arm_watchdog(self, sid: str) -> None:
+        try:
+            session = self.manager.get(sid)
+            await session.link.arm_watchdog()
+        except ServodeskError as exc:
+            log.warning("%s: the drive's watchdog was not armed: %s", sid, exc.message)
+        self._publish_protection(sid)
+
+    async def _disarm_watchdog(self, sid: str) -> None:
+        try:
+            session = self.manager.get(sid)
+        except ServodeskError:
+            return
+        if session.link.watchdog is None:
+            return
+        try:
+            await session.link.disarm_watchdog()
+        except ServodeskError as exc:
+            log.warning("%s: the drive's watchdog was not disarmed: %s", sid, exc.message)
+        self._publish_protection(sid)
+
+    def _publish_protection(self, sid: str) -> None:
+        with contextlib.suppress(ServodeskError):
+            self.hub.publish({"type": "protection", "session": sid, **self.protection(sid)})
+
     def _control_lost(self, sid: str, client: str, reason: str) -> None:
         """The holder is gone or changed (services/control): make the drive safe."""
-        self._spawn(self.make_safe(sid, client, reason))
+        try:
+            loop = asyncio.get_running_loop()
+        except RuntimeError:
+            return
+        task = loop.create_task(self.make_safe(sid, client, reason))
+        self._background.add(task)
+        task.add_done_callback(self._background.discard)
+        self._safing[sid] = task
+
+    async def settled(self, sid: str) -> None:
+        """Wait until making the drive safe after a lost holder is done: a servo on or a
+        motion of the next holder must not be undone by it a moment later."""
+        task = self._safing.get(sid)
+        if task is not None and not task.done():
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(asyncio.shield(task), SAFE_STOP_S + 2.0)
 
     async def make_safe(self, sid: str, client: str, reason: str) -> str | None:
         """Stop the axis and bring the drive to Switch on disabled; the state it ended in.
@@ -1502,6 +1613,9 @@ class MotionService:
                 }
             )
             return None
+        if self.control.owner(sid) is None or not self.control.info(sid, None)["bound"]:
+            # Nobody's dead-man is on any more: the drive's own watchdog goes back too.
+            await self._disarm_watchdog(sid)
         if acted:
             log.warning("%s: %s; the drive is now %s", sid, reason, final.value)
             # To every client, not only the session's watchers: it is about control, which
@@ -1522,6 +1636,7 @@ class MotionService:
 
     async def stop_session(self, sid: str, reason: str) -> None:
         """The session is about to close: stop its motion first."""
+        await self._disarm_watchdog(sid)
         axis = self._axes.get(sid)
         if axis is None:
             return
@@ -1540,6 +1655,8 @@ class MotionService:
                     await self._lost_operator(axis, m, "the server shuts down", time.monotonic())
                 except ServodeskError:
                     log.exception("stopping %s at shutdown", axis.sid)
+        for session in self.manager.all():
+            await self._disarm_watchdog(session.id)
         # Stops already under way (a socket that just closed) finish; nothing else runs on.
         if self._background:
             await asyncio.wait(list(self._background), timeout=2.0)
@@ -1549,6 +1666,31 @@ class MotionService:
         self._deadman.close()
 
     # Status -------------------------------------------------------------------------------
+
+    def protection(self, sid: str) -> dict[str, Any]:
+        """What stops this drive when its operator is lost, as the Operation page shows it."""
+        session = self.manager.get(sid)
+        thread = session.link.stop_frame() is not None
+        ms = round(self.deadman_s * 1000)
+        path = "dead-man thread" if thread else "event loop"
+        where = (
+            f"servodesk's own thread sends the quick stop on the {session.link.fieldbus} link"
+            if thread
+            else f"the quick stop goes out through the event loop ({session.link.fieldbus} "
+            "has no path beside it yet)"
+        )
+        return {
+            "deadman_ms": ms,
+            "stop_path": path,
+            "drive_watchdog": session.link.watchdog,
+            "summary": f"Heartbeats older than {ms} ms stop the axis: {where}. "
+            + (
+                f"If this PC dies: {session.link.watchdog}."
+                if session.link.watchdog
+                else "No drive-side watchdog is armed: if this PC dies, the drive's own "
+                "communication settings decide."
+            ),
+        }
 
     def status(self, sid: str) -> dict[str, Any]:
         axis = self._axes.get(sid)

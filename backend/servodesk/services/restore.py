@@ -77,7 +77,8 @@ class PreflightStateConflict(DriveStateError):
         return out
 
 
-def _refuse(pf: Preflight) -> ServodeskError:
+def refusal(pf: Preflight) -> ServodeskError:
+    """The error of a preflight that did not pass (409 when the drive's state is the problem)."""
     if any(p.address is None and "not enabled" in p.message for p in pf.problems):
         return PreflightStateConflict(pf.problems)
     return PreflightFailed(pf.problems)
@@ -171,7 +172,7 @@ class RestoreService:
         async with self._lock(session):
             pf, facts = await self.preflight(session, ps, map_names=map_by_name)
             if not pf.ok:
-                raise _refuse(pf)
+                raise refusal(pf)
             if rewrite_all:
                 pf = replace(
                     pf,
@@ -431,7 +432,7 @@ class RestoreService:
             subset = replace(ps, entries=tuple(e for e in ps.entries if e.address in missing))
             pf = paramset.preflight(subset, facts, map_names=bool(options.get("map_by_name")))
             if not pf.ok:
-                raise _refuse(pf)
+                raise refusal(pf)
             targets = {
                 a: bytes.fromhex(r["new_raw_hex"])
                 for r, a in zip(live, addresses, strict=True)

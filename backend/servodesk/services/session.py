@@ -10,6 +10,7 @@ from __future__ import annotations
 import asyncio
 import collections
 import contextlib
+import contextvars
 import logging
 import time
 from collections.abc import Callable
@@ -53,11 +54,21 @@ POSITION = ObjectAddress(0x6064)
 VELOCITY = ObjectAddress(0x606C)
 ERROR_CODE = ObjectAddress(0x603F)
 HEARTBEAT_TIME = ObjectAddress(0x1017)
+MODE_OF_OPERATION = ObjectAddress(0x6060)
 
 #: State commands of the API: single controlword commands, and goals walked step by step.
 COMMANDS: dict[str, cia402.Command] = {c.value: c for c in cia402.Command}
 #: Targets that make an enabled drive move by themselves (target velocity, target torque).
 _MOTION_TARGETS = (ObjectAddress(0x60FF), ObjectAddress(0x6071))
+
+#: What a motion borrows: each setting it writes (persisted, not process data), with its raw
+#: value before the first such write (None: unreadable) and whether it was already written
+#: since the last store. Set by services/motion.py around a motion's own writes (a context
+#: variable: only that task's writes are borrowed, not a user's write beside it).
+Borrowed = dict[ObjectAddress, tuple[bytes | None, bool]]
+BORROW: contextvars.ContextVar[Borrowed | None] = contextvars.ContextVar(
+    "servodesk_borrow", default=None
+)
 #: Commands that are always sent: stopping must never be refused.
 _ALWAYS = {cia402.Command.QUICK_STOP, cia402.Command.DISABLE_VOLTAGE}
 #: Where a single command leads, to suggest the step that is missing.
@@ -322,7 +333,18 @@ class Session:
         data = encode_write(address, spec, value, raw_hex)
         audit = self.hub.audit
         old: bytes | None = None
-        if audit is not None and (spec is None or (spec.access.readable and not spec.process)):
+        setting = spec is None or (spec.persist and not spec.process)
+        # The mode of operation is the motion's command, read back in 6061h (CiA 402-2
+        # §6.2.4), not a setting it borrows: the homing status reads it after the run.
+        borrow = BORROW.get() if setting and address != MODE_OF_OPERATION else None
+        if borrow is not None and address not in borrow:
+            # A motion's own setting (6081h profile velocity for a jog, 6098h for homing):
+            # it is given back when the motion ends (issue "Motion safety" item 6), so it
+            # is not a change the next "Save to EEPROM" would store behind the user's back.
+            with contextlib.suppress(ObjectAccessError):
+                old = await self.link.read(address)
+            borrow[address] = (old, address in self.dirty)
+        elif audit is not None and (spec is None or (spec.access.readable and not spec.process)):
             # The audit log records a parameter's value before the write (DESIGN: who, what,
             # old, new). Process objects (controlword, targets) skip the read: it would delay
             # every motion command, a halt included, by one SDO round trip.
@@ -338,7 +360,7 @@ class Session:
         if address == HEARTBEAT_TIME:
             self._heartbeat_ms = int.from_bytes(data[:2], "little")
         log.info("write %s %s = %s on %s", address, spec.name if spec else "?", data.hex(), self.id)
-        if spec is None or (spec.persist and not spec.process):
+        if setting and borrow is None:
             self.dirty.add(address)
         if spec is not None and not spec.access.readable:
             return describe(address, spec, data)
@@ -398,22 +420,26 @@ class Session:
         t0 = time.monotonic()
         self._progress("store", 0.0, f"saving parameters ({address} <- 0x{value:08X})")
         # Some drives answer the SDO only when the save is done: allow the whole duration.
-        await self.link.write(address, value.to_bytes(4, "little"), timeout=max(2.0, expected * 2))
-        # CiA 301: reading the store object gives 0 while it saves (HIWIN 000 §3.1 too).
-        while True:
-            try:
-                busy = (await self.link.read(address, timeout=1.0))[:1] == b"\x00"
-            except ServodeskError:
-                busy = False
-            elapsed = time.monotonic() - t0
-            if not busy or elapsed > max(30.0, expected * 3):
-                break
-            self._progress(
-                "store",
-                min(0.95, elapsed / expected) if expected else 0.5,
-                f"saving... {elapsed:.0f} s",
+        # The drive's watchdog as the drive had it, not as servodesk armed it (links/base.py).
+        async with self.link.watchdog_paused():
+            await self.link.write(
+                address, value.to_bytes(4, "little"), timeout=max(2.0, expected * 2)
             )
-            await asyncio.sleep(0.2)
+            # CiA 301: reading the store object gives 0 while it saves (HIWIN 000 §3.1 too).
+            while True:
+                try:
+                    busy = (await self.link.read(address, timeout=1.0))[:1] == b"\x00"
+                except ServodeskError:
+                    busy = False
+                elapsed = time.monotonic() - t0
+                if not busy or elapsed > max(30.0, expected * 3):
+                    break
+                self._progress(
+                    "store",
+                    min(0.95, elapsed / expected) if expected else 0.5,
+                    f"saving... {elapsed:.0f} s",
+                )
+                await asyncio.sleep(0.2)
         self.dirty.clear()
         duration = time.monotonic() - t0
         self._progress("store", 1.0, f"saved in {duration:.1f} s")

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from servodesk.errors import ConflictError, NotFoundError, ServodeskError
+from servodesk.files import inside, remove_stale_temp_files
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS backups (
@@ -181,6 +182,8 @@ class Store:
                 f"cannot use the data directory {self.data_dir}: {exc.strerror}",
                 hint="set SERVODESK_DATA_DIR to a directory you can write",
             ) from exc
+        # A crash in the middle of write_new_file can leave its temporary file behind.
+        remove_stale_temp_files(self.backups_dir)
         self.path = self.data_dir / "servodesk.db"
         self._lock = threading.RLock()
         try:
@@ -199,6 +202,11 @@ class Store:
     def close(self) -> None:
         with self._lock:
             self._db.close()
+
+    def backup_file(self, name: str) -> Path:
+        """The path of backup file ``name``, confirmed inside the backups directory (a name
+        from an old record or a bug must never reach another file)."""
+        return inside(self.backups_dir, name)
 
     @contextlib.contextmanager
     def _tx(self) -> Iterator[sqlite3.Connection]:

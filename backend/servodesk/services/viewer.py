@@ -34,6 +34,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from servodesk import hosts
 from servodesk.domain import cia402
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, codec
@@ -774,7 +775,7 @@ def _nice_step(raw: float) -> float:
 
 def is_loopback(host: str) -> bool:
     """The same rule as Settings.is_loopback: the addresses only this machine reaches."""
-    return host in ("127.0.0.1", "localhost", "::1") or host.startswith("127.")
+    return hosts.is_loopback(host)
 
 
 def _node_name(sid: str) -> str:

@@ -13,6 +13,8 @@ CiA 301 behaviour implemented here (beyond python-canopen's ``LocalNode``):
   heartbeat and NMT keep working.
 - Reset node reloads the stored parameters and restarts the drive; reset communication
   reloads the 1000h-1FFFh parameters; both send a boot-up message and enter PRE-OPERATIONAL.
+- A heartbeat consumer (1016h:01, :mod:`servodesk.sim.heartbeat_consumer`) watches the
+  producer it names once its first heartbeat arrived and reacts per 6007h when it lapses.
 - The heartbeat starts at boot when 1017h is non-zero, restarts on every write of 1017h, and
   carries the NMT state byte (0x7F pre-operational, 0x05 operational, 0x04 stopped).
 - Process data (:mod:`servodesk.sim.pdo`): SYNC, RPDOs and RTRs reach the drive's
@@ -37,6 +39,7 @@ from canopen.sdo.server import SdoServer
 
 from servodesk.domain.datatypes import Value
 from servodesk.sim.engine import K_HEARTBEAT, SimAbort, SimulatedDrive
+from servodesk.sim.heartbeat_consumer import HEARTBEAT_EVENT, HeartbeatConsumer
 from servodesk.sim.od_build import build_object_dictionary
 from servodesk.sim.pdo import PdoEngine
 
@@ -84,14 +87,18 @@ class _NmtSlave(NmtSlave):
 
 
 class _FrameListener(can.Listener):
-    """Every frame of the bus, remote frames included, to the process-data engine."""
+    """Every frame of the bus, remote frames included, to the process-data engine and the
+    heartbeat consumer."""
 
-    def __init__(self, engine: PdoEngine) -> None:
+    def __init__(self, engine: PdoEngine, consumer: HeartbeatConsumer) -> None:
         self._engine = engine
+        self._consumer = consumer
 
     def on_message_received(self, msg: can.Message) -> None:
         if msg.is_error_frame:
             return
+        if not msg.is_remote_frame:
+            self._consumer.on_frame(msg.arbitration_id)
         try:
             self._engine.on_frame(msg.arbitration_id, msg.data, msg.is_remote_frame)
         except Exception:  # An exception here would stop the notifier thread (and SDO).
@@ -113,7 +120,9 @@ class SimCanopenDevice(LocalNode):
         self._write_callbacks = []  # LocalNode's NmtSlave hook is replaced by _on_drive_write.
         #: The drive's process data (``pdo`` is python-canopen's own, unused PDO object).
         self.pdo_engine = PdoEngine(drive, self._send_frame, self._send_pdo_emcy)
-        self._listener = _FrameListener(self.pdo_engine)
+        self.heartbeat_consumer = HeartbeatConsumer(self._heartbeat_event)
+        self._listener = _FrameListener(self.pdo_engine, self.heartbeat_consumer)
+        self._configure_consumer()
         self._notifier: Any = None
         drive.on_emcy(self._on_emcy)
         drive.on_write(self._on_drive_write)
@@ -183,17 +192,41 @@ class SimCanopenDevice(LocalNode):
     def reset_node(self) -> None:
         self.nmt.stop_heartbeat()
         self.drive.reset_node()
+        self._configure_consumer()
         self.boot()
 
     def reset_communication(self) -> None:
         self.nmt.stop_heartbeat()
         self.drive.reset_communication()
+        self._configure_consumer()
         self.boot()
 
     def shutdown(self) -> None:
         """Stop the heartbeat and leave the network."""
         self.nmt.stop_heartbeat()
+        self.heartbeat_consumer.close()
         self.remove_network()
+
+    # Heartbeat consumer (CiA 301 §7.2.8.3.2.2) ------------------------------------------
+
+    def _configure_consumer(self) -> None:
+        if self.drive.has_object(0x1016, 1):
+            entry = self.drive.read(0x1016, 1)
+            self.heartbeat_consumer.configure(entry if isinstance(entry, int) else 0)
+
+    def _heartbeat_event(self, producer: int) -> None:
+        """The producer's heartbeat lapsed: EMCY 8130h and the reaction 6007h asks for."""
+        option = self.drive.read(0x6007) if self.drive.has_object(0x6007) else 1
+        log.warning(
+            "node %d: the heartbeat of node %d lapsed (6007h = %s)", self.node_id, producer, option
+        )
+        if option == 1:
+            self.drive.raise_fault(HEARTBEAT_EVENT)  # 603Fh, 1003h and the EMCY.
+            return
+        self._on_emcy(HEARTBEAT_EVENT, 0x11, bytes(5))  # Generic + communication error.
+        if option in (2, 3):
+            # As the commands would (CiA 402-2 table 28): disable voltage, or quick stop.
+            self.drive.write(0x6040, 0, 0x0000 if option == 2 else 0x0002)
 
     def _restart_heartbeat(self) -> None:
         period = 0
@@ -208,6 +241,8 @@ class SimCanopenDevice(LocalNode):
     def _on_drive_write(self, index: int, subindex: int, value: Value) -> None:
         if index << 8 | subindex == K_HEARTBEAT:
             self._restart_heartbeat()
+        if index == 0x1016 and subindex == 1 and isinstance(value, int):
+            self.heartbeat_consumer.configure(value)
         self.pdo_engine.on_object_written(index)
 
     # Process data -------------------------------------------------------------------------

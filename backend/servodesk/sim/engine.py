@@ -373,6 +373,10 @@ class SimulatedDrive:
         self._homing_no_enable = frozenset(
             coerce_int(m) for m in profile.quirk("homing_without_enable", None) or ()
         )
+        # Quirk homing_cancel_clears_status (CTMM04x 003 §4-4-7, "ホーミングモードキャンセル"):
+        # clearing bit 4 before the end leaves bits 13, 12 and 10 all 0, which CiA 402-2
+        # §6.8.1 reads as "in progress"; elsewhere bit 10 comes on once the axis stands.
+        self._homing_cancel_clears = bool(profile.quirk("homing_cancel_clears_status", False))
         #: Family fault codes and alarm objects (quirks sim_fault_codes, alarm_history).
         self.faults = FaultModel(profile)
 
@@ -953,6 +957,7 @@ class SimulatedDrive:
         self._csp_cycle = 0
         self._sp_ack = False
         self._homing_started = False
+        self._homing_cancelled = False
         self._homed = False
         self._homing: HomingProcedure | None = None
         self._homing_error = False
@@ -1285,6 +1290,7 @@ class SimulatedDrive:
         self._sp_ack = False
         self._pp_buffer = None
         self._homing_started = False
+        self._homing_cancelled = False
         self._homing = None
         self._homing_error = False
         self._pp_done = True
@@ -1319,6 +1325,7 @@ class SimulatedDrive:
                 self._home()
             elif not cw & 0x10 and self._homing_started and not self._homed:
                 self._homing_started = False  # Homing interrupted.
+                self._homing_cancelled = self._homing_cancel_clears and not self._homing_error
 
     def _clip(self, target: float) -> float:
         lo, hi = self._c[K_SW_LIMIT_MIN], self._c[K_SW_LIMIT_MAX]
@@ -1337,6 +1344,7 @@ class SimulatedDrive:
         """Start the homing method in 6098h (CiA 402-2 §6.8; sim/homing.py does the search)."""
         method = self._c[K_HOMING_METHOD]
         self._homing_started = True
+        self._homing_cancelled = False
         self._homed = False
         self._homing_error = False
         self._reached = False
@@ -1942,12 +1950,13 @@ class SimulatedDrive:
             self._reached = abs(self._torque_actual() - self._c[K_TARGET_TORQUE]) <= 10
         elif m == 6:
             # CiA 402-2 §6.8.1 bits 13/12/10: bit 10 when attained, not started, interrupted
-            # (once stopped), or after a homing error once the axis has stopped.
+            # (once stopped; not on a family that clears it on a cancel, quirk
+            # homing_cancel_clears_status), or after a homing error once the axis has stopped.
             stopped = self._homing is None and abs(v_act) <= self._c[K_VEL_THRESHOLD]
             at_home = abs(p_act - self._dp) <= self._c[K_POS_WINDOW]
             self._reached = (
                 (self._homed and at_home)
-                or (not self._homing_started and stopped)
+                or (not self._homing_started and stopped and not self._homing_cancelled)
                 or (self._homing_error and stopped)
             )
 

@@ -28,7 +28,13 @@ import math
 from collections.abc import Callable, Generator
 from dataclasses import dataclass
 
-from servodesk.domain.homing import HomingMethodInfo
+from servodesk.domain.homing import (
+    TWIN_HOME_HIGH_REVS,
+    TWIN_HOME_LOW_REVS,
+    TWIN_LIMIT_NEGATIVE_REVS,
+    TWIN_LIMIT_POSITIVE_REVS,
+    HomingMethodInfo,
+)
 from servodesk.domain.profile import SimSettings
 
 #: 60FDh bits (CiA 402-2 §6.9.1; 000 §3.2 60FDh; 003 §4-4-8 60FDh).
@@ -63,10 +69,10 @@ class SwitchLayout:
         off = not s.homing_switches
         return cls(
             counts_per_rev=rev,
-            limit_negative=None if off else pick(s.limit_negative, -1.7),
-            limit_positive=None if off else pick(s.limit_positive, 3.7),
-            home_low=None if off else pick(s.home_switch_low, 1.3),
-            home_high=None if off else pick(s.home_switch_high, 1.7),
+            limit_negative=None if off else pick(s.limit_negative, TWIN_LIMIT_NEGATIVE_REVS),
+            limit_positive=None if off else pick(s.limit_positive, TWIN_LIMIT_POSITIVE_REVS),
+            home_low=None if off else pick(s.home_switch_low, TWIN_HOME_LOW_REVS),
+            home_high=None if off else pick(s.home_switch_high, TWIN_HOME_HIGH_REVS),
             index_offset=s.index_offset,
         )
 

@@ -46,6 +46,7 @@ from pathlib import Path
 from typing import Any
 
 from servodesk.errors import ValidationError
+from servodesk.files import read_bounded
 from servodesk.sim.plant import PlantParams
 
 
@@ -92,6 +93,8 @@ _SCHEMA: dict[str, dict[str, _Key]] = {
 
 #: The resonance may be at most the loop rate over this (module docstring).
 RESONANCE_RATE_DIVISOR = 8
+#: The largest plant file read: a few kB of TOML; /dev/zero is refused, not read to the end.
+MAX_FILE = 1 << 20
 
 
 @dataclass(frozen=True, slots=True)
@@ -174,7 +177,7 @@ def load_plant_file(path: str | Path) -> PlantSpec:
     """Read and check a plant file; :class:`PlantFileError` names what is wrong."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = read_bounded(p, MAX_FILE).decode("utf-8")
     except OSError as exc:
         raise PlantFileError(
             f"plant file {p}: cannot read: {exc.strerror or exc}",

@@ -10,7 +10,6 @@ from fastapi import APIRouter, Header, Query, Request, Response
 from servodesk.api.control_deps import ControlToken, WriteControl, operation
 from servodesk.api.deps import AppState, StateDep
 from servodesk.api.downloads import content_disposition
-from servodesk.api.uploads import openapi_file_body, read_file
 from servodesk.api.schemas import (
     ERROR_RESPONSES,
     AuditEntry,
@@ -28,6 +27,7 @@ from servodesk.api.schemas import (
     SourceDefaults,
     SourceDrive,
 )
+from servodesk.api.uploads import openapi_file_body, read_file
 from servodesk.domain.paramset import ParameterSet
 from servodesk.errors import NotFoundError, ValidationError
 from servodesk.services.session import Session
@@ -44,6 +44,7 @@ ClientHeader = Annotated[
         description="client id for the audit log",
     ),
 ]
+
 
 @router.post("/sessions/{sid}/backups", status_code=201, operation_id="create_backup")
 async def create_backup(sid: str, body: BackupCreate, state: StateDep) -> BackupInfo:

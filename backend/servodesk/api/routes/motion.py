@@ -55,7 +55,9 @@ def _status(d: dict[str, Any]) -> MotionStatusOut:
 @router.get("/sessions/{sid}/control", operation_id="get_control")
 async def get_control(sid: str, op: OperationDep, token: ControlToken) -> ControlOut:
     op.motion.manager.get(sid)  # 404 for an unknown session.
-    return ControlOut.model_validate(op.control.info(sid, token))
+    return ControlOut.model_validate(
+        {**op.control.info(sid, token), "protection": op.motion.protection(sid)}
+    )
 
 
 @router.post("/sessions/{sid}/control", operation_id="set_control")
@@ -72,7 +74,9 @@ async def set_control(
         op.control.release(sid, token)
     else:
         token = op.control.force_take(sid, client, body.confirm, token)
-    return ControlOut.model_validate(op.control.info(sid, token))
+    return ControlOut.model_validate(
+        {**op.control.info(sid, token), "protection": op.motion.protection(sid)}
+    )
 
 
 @router.post("/sessions/{sid}/motion/jog", operation_id="jog")

@@ -6,7 +6,9 @@ with the client's dead-man heartbeat like a jog.
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from typing import Annotated
+
+from fastapi import APIRouter, Query
 
 from servodesk.api.control_deps import MotionControl, OperationDep, WriteControl
 from servodesk.api.deps import StateDep
@@ -15,6 +17,7 @@ from servodesk.api.schemas import (
     AlarmsOut,
     ClearHistoryRequest,
     HomingMethodOut,
+    HomingPlanOut,
     HomingRequest,
     HomingStatus,
 )
@@ -42,8 +45,41 @@ async def start_homing(
         speed_zero=body.speed_zero,
         acceleration=body.acceleration,
         offset=body.offset,
+        max_travel=body.max_travel,
+        timeout_s=body.timeout_s,
     )
     return HomingStatus.model_validate(out)
+
+
+U32 = 0xFFFFFFFF
+
+
+@router.get("/sessions/{sid}/homing/plan", operation_id="homing_plan")
+async def homing_plan(
+    sid: str,
+    op: OperationDep,
+    method: Annotated[int, Query(ge=-128, le=127)],
+    speed_switch: Annotated[int | None, Query(ge=0, le=U32)] = None,
+    speed_zero: Annotated[int | None, Query(ge=0, le=U32)] = None,
+    acceleration: Annotated[int | None, Query(ge=0, le=U32)] = None,
+    max_travel: Annotated[int | None, Query(gt=0, le=U32)] = None,
+    timeout_s: Annotated[float | None, Query(gt=0, le=86400)] = None,
+) -> HomingPlanOut:
+    """The estimate and the time-out a run with these settings would get (reads the drive's
+    speeds where none are given; writes nothing, needs no control)."""
+    session = op.motion.manager.get(sid)
+    lim = await op.motion.limits(sid)
+    p = await homing.plan(
+        session,
+        method,
+        speed_switch=speed_switch,
+        speed_zero=speed_zero,
+        acceleration=acceleration,
+        max_travel=max_travel,
+        timeout_s=timeout_s,
+        limits=(lim.position_min, lim.position_max),
+    )
+    return HomingPlanOut.model_validate(p.as_dict())
 
 
 @router.get("/sessions/{sid}/homing", operation_id="homing_status")

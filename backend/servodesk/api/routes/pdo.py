@@ -15,6 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from servodesk.api.control_deps import WriteControl
 from servodesk.api.deps import StateDep
+from servodesk.api.downloads import content_disposition
 from servodesk.api.schemas import ERROR_RESPONSES
 from servodesk.domain import pdo as pdomod
 from servodesk.services import pdo as pdosvc
@@ -149,7 +150,7 @@ async def pdo_export(
     return Response(
         text,
         media_type=_MEDIA[format],
-        headers={"Content-Disposition": f'attachment; filename="{sid}-pdo.{ext}"'},
+        headers={"Content-Disposition": content_disposition(f"{sid}-pdo.{ext}")},
     )
 
 

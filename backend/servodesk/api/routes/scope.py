@@ -18,7 +18,9 @@ from fastapi.responses import Response
 from pydantic import BaseModel, ConfigDict, Field
 
 from servodesk.api.deps import AppState, StateDep
+from servodesk.api.downloads import content_disposition
 from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.api.uploads import openapi_file_body, read_file
 from servodesk.domain import scope as core
 from servodesk.services import scope as scopesvc
 from servodesk.services.scope import ScopeService
@@ -131,16 +133,17 @@ async def scope_export(
     return Response(
         data,
         media_type=media,
-        headers={"Content-Disposition": f'attachment; filename="{filename}"'},
+        headers={"Content-Disposition": content_disposition(filename)},
     )
 
 
-@router.post("/scope/import", operation_id="scope_import")
+@router.post("/scope/import", operation_id="scope_import", openapi_extra=openapi_file_body())
 async def scope_import(
     request: Request,
     filename: Annotated[str, Query(min_length=1, max_length=255)] = "recording.csv",
 ) -> dict[str, Any]:
-    body = await request.body()
+    """Open a recording file (CSV or MDF4), sent as multipart/form-data field ``file``."""
+    body = await read_file(request)  # At most 64 MiB (api/uploads.py).
     return scope_of(request.app).import_recording(body, filename)
 
 

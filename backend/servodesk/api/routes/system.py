@@ -8,6 +8,7 @@ from fastapi import APIRouter, Query, Request, Response
 
 from servodesk import __version__
 from servodesk.api.deps import StateDep
+from servodesk.api.downloads import content_disposition
 from servodesk.api.schemas import (
     ERROR_RESPONSES,
     ErrorInfo,
@@ -22,6 +23,7 @@ from servodesk.api.schemas import (
     ProfileSummary,
     QuirkInfo,
 )
+from servodesk.api.uploads import openapi_file_body, read_file
 from servodesk.domain.profile import DeviceProfile, NetworkSpec, ObjectSpec
 from servodesk.domain.profile_loader import check_profile, save_profile
 from servodesk.errors import ConflictError, ValidationError
@@ -120,11 +122,16 @@ async def export_profile(
     return Response(
         text,
         media_type=media,
-        headers={"content-disposition": f'attachment; filename="{p.id}.{suffix}"'},
+        headers={"content-disposition": content_disposition(f"{p.id}.{suffix}")},
     )
 
 
-@router.post("/profiles/import", status_code=201, operation_id="import_profile")
+@router.post(
+    "/profiles/import",
+    status_code=201,
+    operation_id="import_profile",
+    openapi_extra=openapi_file_body(),
+)
 async def import_profile(
     request: Request,
     state: StateDep,
@@ -133,12 +140,11 @@ async def import_profile(
         None, pattern=r"^[a-z0-9][a-z0-9-]*$", max_length=64, description="default: from the name"
     ),
 ) -> ProfileSummary:
-    """Import an EDS, DCF, ESI or XDD file (its text is the request body) as a new profile."""
+    """Import an EDS, DCF, ESI or XDD file (multipart/form-data field ``file``) as a new
+    profile."""
     from servodesk import devdesc
 
-    body = await request.body()
-    if len(body) > 16 * 1024 * 1024:
-        raise ValidationError("the file is larger than 16 MiB", field="body")
+    body = await read_file(request)  # At most 16 MiB (api/uploads.py).
     text = body.decode("utf-8", errors="replace").lstrip("\ufeff")
     p = devdesc.import_text(text, filename, profile_id)
     if p.id in state.catalog.ids():
