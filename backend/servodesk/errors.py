@@ -46,6 +46,18 @@ class ServodeskError(Exception):
             out["hint"] = self.hint
         return out
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        # Raised in a worker process (api/offload.py) it comes back whole: pickle's default
+        # would call __init__ with the message alone and lose the hint, field, code, ...
+        return (_rebuild, (type(self), self.args, dict(self.__dict__)))
+
+
+def _rebuild(cls: type[ServodeskError], args: tuple[Any, ...], state: dict[str, Any]) -> Any:
+    err = cls.__new__(cls)
+    Exception.__init__(err, *args)
+    err.__dict__.update(state)
+    return err
+
 
 class ProfileError(ServodeskError):
     """A profile or imported device description is invalid.

@@ -82,9 +82,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         finally:
             await manager.close_all()
             backup_service.store.close()
+            from servodesk.api import offload
             from servodesk.services import tuning_worker
 
             tuning_worker.shutdown()
+            offload.shutdown()
             if state.sim is not None:
                 state.sim.stop()
                 state.sim = None

@@ -26,6 +26,7 @@ from __future__ import annotations
 import asyncio
 import collections
 import contextlib
+import json
 import logging
 import math
 import struct
@@ -1083,17 +1084,39 @@ class ScopeService:
         ext = "mf4" if fmt == "mdf4" else "csv"
         return data, media, f"scope-{window}-{stamp}.{ext}"
 
+    async def export_off_loop(self, fmt: str, window: str) -> tuple[bytes, str, str]:
+        """:meth:`export` with the recording taken on the loop (the buffers change there) and
+        the file formatted in a worker thread (api/offload.py)."""
+        rec = self._capture_recording() if window == "capture" else self.buffer_recording()
+        data, media = await asyncio.to_thread(export.export_recording, rec, fmt)
+        stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(rec.t_ref))
+        ext = "mf4" if fmt == "mdf4" else "csv"
+        return data, media, f"scope-{window}-{stamp}.{ext}"
+
     def import_recording(self, data: bytes, filename: str) -> dict[str, Any]:
         """A recording file (CSV or MDF4) as the JSON the page opens."""
-        if len(data) > MAX_IMPORT_BYTES:
-            raise ValidationError(
-                f"{filename}: {len(data)} bytes is above the {MAX_IMPORT_BYTES >> 20} MiB the "
-                "scope opens",
-                hint="export a shorter window",
-            )
-        if not data:
-            raise ValidationError(f"{filename}: the file is empty", hint="send the file's bytes")
-        return export.import_recording(data, filename).to_json()
+        return import_recording(data, filename)
+
+
+def import_recording(data: bytes, filename: str) -> dict[str, Any]:
+    """A recording file (CSV or MDF4) as the JSON the page opens."""
+    if len(data) > MAX_IMPORT_BYTES:
+        raise ValidationError(
+            f"{filename}: {len(data)} bytes is above the {MAX_IMPORT_BYTES >> 20} MiB the "
+            "scope opens",
+            hint="export a shorter window",
+        )
+    if not data:
+        raise ValidationError(f"{filename}: the file is empty", hint="send the file's bytes")
+    return export.import_recording(data, filename).to_json()
+
+
+def import_recording_json(data: bytes, filename: str) -> bytes:
+    """:func:`import_recording` as JSON bytes: what the documents' worker process returns
+    (api/offload.py), so that neither the parse nor the serialisation holds the loop."""
+    doc = import_recording(data, filename)
+    # As Starlette's JSONResponse renders it (to_json gives None for NaN).
+    return json.dumps(doc, ensure_ascii=False, allow_nan=False, separators=(",", ":")).encode()
 
 
 # Drive-side recorder ----------------------------------------------------------------------

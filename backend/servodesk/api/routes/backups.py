@@ -10,6 +10,7 @@ from fastapi import APIRouter, Header, Query, Request, Response
 from servodesk.api.control_deps import ControlToken, WriteControl, operation
 from servodesk.api.deps import AppState, StateDep
 from servodesk.api.downloads import content_disposition
+from servodesk.api.offload import in_worker, json_response
 from servodesk.api.schemas import (
     ERROR_RESPONSES,
     AuditEntry,
@@ -68,26 +69,33 @@ async def list_backups(
     status_code=201,
     operation_id="upload_backup",
     openapi_extra=openapi_file_body(json_too=True),
+    response_model=BackupInfo,
 )
 async def upload_backup(
     request: Request,
     state: StateDep,
     filename: str = Query(min_length=1, max_length=255, description="x.json or x.dcf"),
     profile: str | None = Query(None, max_length=200, description="profile of a foreign DCF"),
-) -> BackupInfo:
+) -> Response:
     """Store a backup file (servodesk JSON, or a DCF's ParameterValues): the file as
     multipart/form-data field ``file``, or a JSON backup as an application/json body."""
     body = await read_file(request, json_too=True)  # At most 32 MiB (api/uploads.py).
     if not body.strip():
         raise ValidationError("the request body is empty", field="body", hint="send the file")
-    return BackupInfo.model_validate(state.backups.import_bytes(body, filename, profile))
+    # Parsed, checked and stored in a worker: a 32 MiB file held the loop (api/offload.py).
+    return await json_response(
+        lambda: state.backups.import_bytes(body, filename, profile), BackupInfo, 201
+    )
 
 
-@router.get("/backups/{bid}", operation_id="get_backup")
-async def get_backup(bid: str, state: StateDep) -> BackupFile:
-    data = state.backups.file_bytes(bid)
-    state.backups.load(bid)  # Checks the file (schema, checksum) before it is shown.
-    return BackupFile.model_validate(json.loads(data))
+@router.get("/backups/{bid}", operation_id="get_backup", response_model=BackupFile)
+async def get_backup(bid: str, state: StateDep) -> Response:
+    def build() -> Any:
+        data = state.backups.file_bytes(bid)
+        state.backups.load(bid)  # Checks the file (schema, checksum) before it is shown.
+        return json.loads(data)
+
+    return await json_response(build, BackupFile)
 
 
 @router.get(
@@ -105,7 +113,9 @@ async def download_backup(
     if format == "json":
         data, media, suffix = state.backups.file_bytes(bid), "application/json", "json"
     else:
-        data, media, suffix = state.backups.export(state.backups.load(bid), format)
+        data, media, suffix = await in_worker(
+            lambda: state.backups.export(state.backups.load(bid), format)
+        )
     name = f"{bid}-{info['profile_id']}.{suffix}"
     return Response(
         content=data,
@@ -128,25 +138,31 @@ async def _source(
         ps = await state.backups.read_set(session, operation="compare")
         return f"drive {session.id}", ps
     if isinstance(src, SourceBackup):
-        return f"backup {src.id}", state.backups.load(src.id)
+        return f"backup {src.id}", await in_worker(state.backups.load, src.id)
     return f"defaults of {src.profile}", state.backups.defaults(src.profile, src.node_id)
 
 
-@router.post("/compare", operation_id="compare")
-async def compare(body: CompareRequest, state: StateDep) -> Comparison:
+@router.post("/compare", operation_id="compare", response_model=Comparison)
+async def compare(body: CompareRequest, state: StateDep) -> Response:
     """Drive vs backup, backup vs backup, drive vs profile defaults: what differs, grouped."""
     a = await _source(state, body.a)
     b = await _source(state, body.b)
-    return Comparison.model_validate(state.backups.compare(a, b, include_same=body.all))
+    return await json_response(
+        lambda: state.backups.compare(a, b, include_same=body.all), Comparison
+    )
 
 
-@router.post("/sessions/{sid}/restore/preflight", operation_id="restore_preflight")
-async def restore_preflight(sid: str, body: PreflightRequest, state: StateDep) -> PreflightOut:
+@router.post(
+    "/sessions/{sid}/restore/preflight",
+    operation_id="restore_preflight",
+    response_model=PreflightOut,
+)
+async def restore_preflight(sid: str, body: PreflightRequest, state: StateDep) -> Response:
     """What a restore would do and every problem that stops it; writes nothing."""
     session = state.manager.get(sid)
-    ps = state.backups.load(body.backup)
+    ps = await in_worker(state.backups.load, body.backup)
     pf, _ = await state.restores.preflight(session, ps, map_names=body.map_by_name)
-    return PreflightOut.model_validate(pf.to_dict())
+    return await json_response(pf.to_dict, PreflightOut)
 
 
 @router.post("/sessions/{sid}/restore", operation_id="restore")

@@ -19,6 +19,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from servodesk.api.deps import AppState, StateDep
 from servodesk.api.downloads import content_disposition
+from servodesk.api.offload import in_process
 from servodesk.api.schemas import ERROR_RESPONSES
 from servodesk.api.uploads import openapi_file_body, read_file
 from servodesk.domain import scope as core
@@ -129,7 +130,8 @@ async def scope_export(
     format: Annotated[Literal["csv", "mdf4"], Query()] = "csv",
     window: Annotated[Literal["capture", "buffer"], Query()] = "buffer",
 ) -> Response:
-    data, media, filename = scope_of(request.app).export(format, window)
+    # The file is formatted in a worker (api/offload.py): a long buffer held the loop.
+    data, media, filename = await scope_of(request.app).export_off_loop(format, window)
     return Response(
         data,
         media_type=media,
@@ -137,14 +139,22 @@ async def scope_export(
     )
 
 
-@router.post("/scope/import", operation_id="scope_import", openapi_extra=openapi_file_body())
+@router.post(
+    "/scope/import",
+    operation_id="scope_import",
+    openapi_extra=openapi_file_body(),
+    response_model=dict[str, Any],
+)
 async def scope_import(
     request: Request,
     filename: Annotated[str, Query(min_length=1, max_length=255)] = "recording.csv",
-) -> dict[str, Any]:
+) -> Response:
     """Open a recording file (CSV or MDF4), sent as multipart/form-data field ``file``."""
     body = await read_file(request)  # At most 64 MiB (api/uploads.py).
-    return scope_of(request.app).import_recording(body, filename)
+    # Parsed and turned into JSON in the documents' process: a 10 MB CSV held the loop (and,
+    # in a thread, the GIL) for seconds (api/offload.py).
+    data = await in_process(scopesvc.import_recording_json, body, filename)
+    return Response(data, media_type="application/json")
 
 
 @router.get("/sessions/{sid}/recorder", operation_id="scope_recorder")
