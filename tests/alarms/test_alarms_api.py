@@ -13,6 +13,7 @@ import pytest_asyncio
 
 from servodesk.api.app import create_app
 from servodesk.settings import Settings
+from tests.control_helpers import take_control
 
 _n = itertools.count()
 pytestmark = pytest.mark.asyncio(loop_scope="module")
@@ -31,6 +32,9 @@ async def api(tmp_path_factory) -> AsyncIterator[tuple[httpx.AsyncClient, str, o
         transport = httpx.ASGITransport(app=app)
         async with httpx.AsyncClient(transport=transport, base_url="http://test") as c:
             sid = (await c.get("/api/v1/sessions")).json()[0]["id"]
+            # Resetting alarms and clearing the history change the drive: the client holds
+            # its control, the token on every request.
+            await take_control(c, sid, "alarms-test")
             yield c, sid, app.state.servodesk.sim
 
 

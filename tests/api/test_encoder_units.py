@@ -21,8 +21,11 @@ from servodesk.domain.profile_loader import ProfileCatalog, check_profile
 from servodesk.settings import Settings
 from servodesk.sim.bus import SimulatedBus
 from servodesk.sim.plantfile import parse_plant_toml
+from tests.control_helpers import take_control
 
 GENERIC = "cia402-generic"
+#: A servodesk backup is a JSON file: uploaded as an application/json body (api/uploads.py).
+JSON_BODY = {"Content-Type": "application/json"}
 
 
 @pytest_asyncio.fixture
@@ -141,12 +144,22 @@ async def test_a_backup_keeps_the_drive_encoder_for_its_engineering_values(
         # The file says which encoder; uploaded again it gives the same figures.
         doc = (await api.get(f"/api/v1/backups/{bid}/download?format=json")).content
         assert json.loads(doc)["encoder"] == {"counts_per_rev": 1048576.0}
-        up = await api.post("/api/v1/backups/upload?filename=plant.json", content=doc)
+        up = await api.post(
+            "/api/v1/backups/upload?filename=plant.json", content=doc, headers=JSON_BODY
+        )
         assert up.status_code == 201, up.text
         csv2 = (await api.get(f"/api/v1/backups/{up.json()['id']}/download?format=csv")).text
         assert next(r for r in csv2.splitlines() if r.startswith("0x607F:00,")) == row
 
-        # A change is compared in the axis's own units.
+        # A change is compared in the axis's own units. It needs control: nobody holds it yet,
+        # so a write is refused and nothing is written (docs/api.md "Control and motion").
+        w = await api.put(
+            f"/api/v1/sessions/{sid}/objects/0x6081",
+            json={"value": 1_048_576},
+            headers={"X-Servodesk-Client": "encoder-test"},
+        )
+        assert w.status_code == 409 and "nobody holds control" in w.json()["message"], w.text
+        await take_control(api, sid, "encoder-test")
         w = await api.put(
             f"/api/v1/sessions/{sid}/objects/0x6081",
             json={"value": 1_048_576},
@@ -164,7 +177,9 @@ async def test_a_backup_keeps_the_drive_encoder_for_its_engineering_values(
         bad = json.loads(doc)
         bad["encoder"] = {"counts_per_rev": -5}
         bad["checksum"] = checksum(bad)
-        r = await api.post("/api/v1/backups/upload?filename=bad.json", content=json.dumps(bad))
+        r = await api.post(
+            "/api/v1/backups/upload?filename=bad.json", content=json.dumps(bad), headers=JSON_BODY
+        )
         assert r.status_code == 400 and "encoder.counts_per_rev" in r.json()["message"]
     finally:
         bus.stop()

@@ -87,18 +87,24 @@ async def test_every_format_exports(client: httpx.AsyncClient, fmt: str) -> None
 async def test_import_a_third_party_eds_as_a_profile(client: httpx.AsyncClient) -> None:
     text = (DATA / "acme_ad400.eds").read_text()
     r = await client.post(
-        "/api/v1/profiles/import?filename=acme.eds&profile_id=acme-test", content=text
+        "/api/v1/profiles/import?filename=acme.eds&profile_id=acme-test",
+        files={"file": ("acme.eds", text)},
     )
     assert r.status_code == 201, r.text
     assert r.json()["id"] == "acme-test" and r.json()["variables"] > 10
     assert (await client.get("/api/v1/profiles/acme-test")).status_code == 200
     r = await client.post(
-        "/api/v1/profiles/import?filename=acme.eds&profile_id=acme-test", content=text
+        "/api/v1/profiles/import?filename=acme.eds&profile_id=acme-test",
+        files={"file": ("acme.eds", text)},
     )
     assert r.status_code == 409
-    r = await client.post("/api/v1/profiles/import?filename=x.txt", content="hello")
+    r = await client.post(
+        "/api/v1/profiles/import?filename=x.txt", files={"file": ("x.txt", "hello")}
+    )
     assert r.status_code == 400 and ".eds" in r.json()["hint"]
-    r = await client.post("/api/v1/profiles/import?filename=bad.eds", content="[DeviceInfo\n")
+    r = await client.post(
+        "/api/v1/profiles/import?filename=bad.eds", files={"file": ("bad.eds", "[DeviceInfo\n")}
+    )
     assert r.status_code == 400
 
 

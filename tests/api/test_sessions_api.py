@@ -48,6 +48,16 @@ async def test_write_reads_back(client: httpx.AsyncClient) -> None:
     assert r.json()["value"] == 123456
     r = await client.put(f"/api/v1/sessions/{SID}/objects/0x6081", json={"raw_hex": "40e20100"})
     assert r.json()["value"] == 123456 and r.json()["raw_hex"] == "40e20100"
+    # Without the control token (the client holds control, conftest.py) the write is refused,
+    # naming the holder, and nothing reaches the drive.
+    req = client.build_request(
+        "PUT", f"/api/v1/sessions/{SID}/objects/0x6081", json={"value": 654321}
+    )
+    del req.headers["X-Servodesk-Control"]
+    r = await client.send(req)
+    assert r.status_code == 409 and "'api-test' holds control" in r.json()["message"], r.text
+    r = await client.get(f"/api/v1/sessions/{SID}/objects/0x6081")
+    assert r.json()["value"] == 123456
 
 
 async def test_write_to_read_only_is_4xx_with_abort_code_and_text(

@@ -10,6 +10,8 @@ from starlette.websockets import WebSocketDisconnect
 
 from servodesk.api.app import create_app
 from servodesk.settings import Settings
+from tests.control_helpers import take_control_sync
+from tests.operation.support import bind, headers, take
 
 
 @pytest.fixture
@@ -29,8 +31,15 @@ def test_hello_sessions_then_live_state_after_a_command(app_client: TestClient) 
         assert sessions["type"] == "sessions"
         assert [s["id"] for s in sessions["sessions"]] == ["cia402-generic-1"]
         ws.send_json({"type": "subscribe", "session": "cia402-generic-1"})
-        r = app_client.post("/api/v1/sessions/cia402-generic-1/state", json={"command": "enable"})
-        assert r.status_code == 200
+        # Servo on needs control and this socket bound as its dead-man.
+        take(app_client, "cia402-generic-1", "ws-test")
+        bind(ws, "cia402-generic-1", "ws-test")
+        r = app_client.post(
+            "/api/v1/sessions/cia402-generic-1/state",
+            json={"command": "enable"},
+            headers=headers("ws-test"),
+        )
+        assert r.status_code == 200, r.text
         seen = []
         for _ in range(50):
             msg = ws.receive_json()
@@ -54,6 +63,7 @@ def test_heartbeat_loss_is_reported(app_client: TestClient) -> None:
         ws.receive_json()
         ws.receive_json()
         ws.send_json({"type": "subscribe", "session": "cia402-generic-1"})
+        take_control_sync(app_client, "cia402-generic-1", "ws-test")
         r = app_client.put("/api/v1/sessions/cia402-generic-1/objects/0x1017", json={"value": 20})
         assert r.status_code == 200
         # The drive's heartbeat falls silent behind the session's back (as a hung drive's would).

@@ -13,10 +13,15 @@ import pytest_asyncio
 
 from servodesk.api.app import create_app
 from servodesk.settings import Settings
+from tests.control_helpers import bind_in_process, take_control
 
 pytestmark = pytest.mark.asyncio(loop_scope="module")
 _n = itertools.count()
 H = {"X-Servodesk-Client": "ui-test-tab"}
+#: A servodesk backup is a JSON file: uploaded as an application/json body (api/uploads.py).
+JSON_BODY = {"Content-Type": "application/json"}
+#: A servodesk backup is JSON: scripts may upload it as an application/json body.
+JSON = {"Content-Type": "application/json"}
 
 
 @pytest_asyncio.fixture(loop_scope="module", scope="module")
@@ -32,6 +37,11 @@ async def api(tmp_path_factory) -> AsyncIterator[httpx.AsyncClient]:  # type: ig
     async with app.router.lifespan_context(app):
         transport = httpx.ASGITransport(app=app)
         async with httpx.AsyncClient(transport=transport, base_url="http://t/api/v1") as c:
+            # The tab holds control (its token on every request) with an in-process
+            # connection bound as its dead-man: restoring and servo on change the drive.
+            s = await sid(c)
+            token = await take_control(c, s, H["X-Servodesk-Client"])
+            bind_in_process(app, s, token, H["X-Servodesk-Client"])
             yield c
 
 
@@ -67,7 +77,10 @@ async def test_upload_compare_restore_and_audit(api: httpx.AsyncClient) -> None:
     s = await sid(api)
     info = (await api.post(f"/sessions/{s}/backups", json={})).json()
     dl = (await api.get(f"/backups/{info['id']}/download", params={"format": "dcf"})).content
-    up = await api.post("/backups/upload", params={"filename": "drive.dcf"}, content=dl)
+    # A file goes as multipart/form-data, as the UI's FormData sends it (api/uploads.py).
+    up = await api.post(
+        "/backups/upload", params={"filename": "drive.dcf"}, files={"file": ("drive.dcf", dl)}
+    )
     assert up.status_code == 201, up.text
     w = await api.put(f"/sessions/{s}/objects/0x6081", json={"value": 123456}, headers=H)
     assert w.status_code == 200, w.text
@@ -115,14 +128,19 @@ async def test_upload_compare_restore_and_audit(api: httpx.AsyncClient) -> None:
 
 async def test_bad_uploads_and_refusals_are_4xx(api: httpx.AsyncClient) -> None:
     s = await sid(api)
-    r = await api.post("/backups/upload", params={"filename": "x.json"}, content=b'{"format": "x"')
+    r = await api.post(
+        "/backups/upload", params={"filename": "x.json"}, content=b'{"format": "x"', headers=JSON
+    )
     assert r.status_code == 400 and "truncated or corrupt" in r.json()["message"]
     info = (await api.post(f"/sessions/{s}/backups", json={})).json()
     doc = json.loads((await api.get(f"/backups/{info['id']}/download")).content)
     doc["schema_version"] = 99
-    r = await api.post("/backups/upload", params={"filename": "x.json"}, content=json.dumps(doc))
+    r = await api.post(
+        "/backups/upload", params={"filename": "x.json"}, content=json.dumps(doc), headers=JSON
+    )
     assert r.status_code == 400 and "schema version 99" in r.json()["message"]
-    await api.post(f"/sessions/{s}/state", json={"command": "enable"}, headers=H)
+    on = await api.post(f"/sessions/{s}/state", json={"command": "enable"}, headers=H)
+    assert on.status_code == 200, on.text
     try:
         r = await api.post(f"/sessions/{s}/restore", json={"backup": info["id"]}, headers=H)
         assert r.status_code == 409

@@ -18,7 +18,7 @@ from servodesk.links.base import LinkParams
 from servodesk.links.ethercat_link import EthercatLink
 from servodesk.sim.bus import SimulatedBus
 from servodesk.sim.veth import VethPair
-from tests.operation.support import headers, operation_app
+from tests.operation.support import headers, operation_app, take
 from tests.simproc import sim_subprocess
 
 A = headers("A")
@@ -62,6 +62,7 @@ def test_api_opens_a_session_on_an_ethercat_slave(
         assert r.status_code == 200 and r.json()["nmt_state"] == "preop", r.text
         r = client.get(f"/api/v1/sessions/{sid}/objects/0x6081:00")
         assert r.status_code == 200 and r.json()["value"] == line.drives[1].read(0x6081)
+        take(client, sid, "A")  # Every change of a drive needs its control token.
         r = client.put(f"/api/v1/sessions/{sid}/objects/0x6081:00", json={"value": 777}, headers=A)
         assert r.status_code == 200, r.text
         assert line.drives[1].read(0x6081) == 777 and line.drives[0].read(0x6081) != 777
@@ -69,7 +70,6 @@ def test_api_opens_a_session_on_an_ethercat_slave(
         assert r.status_code == 400 and r.json()["code"] == 0x06010002, r.text
 
         # A restore with a reset is refused before anything is restored: no NMT reset here.
-        client.post(f"/api/v1/sessions/{sid}/control", json={"action": "take"}, headers=A)
         r = client.post(
             f"/api/v1/sessions/{sid}/restore-defaults",
             json={"confirm": True, "reset": True},

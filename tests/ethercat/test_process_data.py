@@ -27,9 +27,10 @@ from servodesk.sim.ethercat_slave import EthercatSlaveProcess
 from servodesk.sim.runner import SimRunner
 from servodesk.sim.veth import VethPair
 from tests.operation.support import (
-    Heartbeats,
+    bind,
     headers,
     operation_app,
+    take,
     take_and_enable,
     wait_motion,
 )
@@ -235,69 +236,73 @@ def test_the_pdo_page_runs_cyclic_data_over_ethercat(app: tuple[TestClient, Any]
     assert info["link"] == "ethercat"
     status = client.get(f"/api/v1/sessions/{SID}/pdo/cyclic").json()
     assert status["unavailable"] is None
-    client.post(f"/api/v1/sessions/{SID}/control", json={"action": "take"}, headers=A)
-    r = client.put(f"/api/v1/sessions/{SID}/objects/0x6040:00", json={"value": 6}, headers=A)
-    assert r.status_code == 200, r.text
-    # Inputs only: SAFE-OP, where the slave ignores the output image (in OP a zero image
-    # would command controlword 0 every cycle).
-    r = client.post(
-        f"/api/v1/sessions/{SID}/pdo/cyclic",
-        json={"sync_period_ms": 2, "outputs": False},
-        headers=A,
-    )
-    assert r.status_code == 200, r.text
-    assert client.get(f"/api/v1/sessions/{SID}/state").json()["nmt_state"] == "safeop"
-    time.sleep(0.3)
-    status = client.get(f"/api/v1/sessions/{SID}/pdo/cyclic").json()
-    assert status["tx_pdos"][0]["count"] > 50, status
-    assert drive.read(0x6040) == 6
-    # Outputs on: OP, the image starting from the drive's present values.
-    r = client.post(
-        f"/api/v1/sessions/{SID}/pdo/cyclic",
-        json={"sync_period_ms": 2, "outputs": True},
-        headers=A,
-    )
-    assert r.status_code == 200, r.text
-    assert client.get(f"/api/v1/sessions/{SID}/state").json()["nmt_state"] == "op"
-    time.sleep(0.2)
-    assert drive.read(0x6040) == 6
-    # The inputs arrive every cycle: the statusword and the position as the drive has them.
-    deadline = time.monotonic() + 5
-    status: dict[str, Any] = {}
-    while time.monotonic() < deadline:
-        status = client.get(f"/api/v1/sessions/{SID}/pdo/cyclic").json()
-        if status["tx_pdos"] and status["tx_pdos"][0]["count"] > 50:
-            break
-        time.sleep(0.05)
-    assert status["running"] and status["tx_pdos"][0]["count"] > 50, status
-    values = status["values"]
-    assert values["0x6041:00"]["value"] == drive.statusword
-    # Outputs: the controlword through the RxPDO switches the drive on.
-    for cw in (0x06, 0x07):
-        r = client.put(
-            f"/api/v1/sessions/{SID}/pdo/cyclic/outputs",
-            json={"values": {"0x6040:00": cw}},
+    # Writing the controlword needs control and a WebSocket bound as the dead-man; closing it
+    # would make the drive safe (Switch on disabled), so it stays open throughout.
+    with client.websocket_connect("/api/v1/ws?client=A") as ws:
+        take(client, SID, "A")
+        bind(ws, SID, "A")
+        r = client.put(f"/api/v1/sessions/{SID}/objects/0x6040:00", json={"value": 6}, headers=A)
+        assert r.status_code == 200, r.text
+        # Inputs only: SAFE-OP, where the slave ignores the output image (in OP a zero image
+        # would command controlword 0 every cycle).
+        r = client.post(
+            f"/api/v1/sessions/{SID}/pdo/cyclic",
+            json={"sync_period_ms": 2, "outputs": False},
             headers=A,
         )
         assert r.status_code == 200, r.text
-        deadline = time.monotonic() + 3
-        while drive.read(0x6040) != cw and time.monotonic() < deadline:
-            time.sleep(0.01)
-        assert drive.read(0x6040) == cw
-    # The scope records the TxPDO's statusword at the cycle rate (source pdo).
-    r = client.put(
-        "/api/v1/scope/channels",
-        json={"channels": [{"id": 0, "session": SID, "address": "0x6041:00", "source": "pdo"}]},
-    )
-    assert r.status_code == 200 and r.json()["channels"][0]["source"] == "pdo", r.text
-    assert client.post("/api/v1/scope/run", json={"action": "start"}).status_code == 200
-    time.sleep(0.5)
-    st = client.post("/api/v1/scope/run", json={"action": "stop"}).json()
-    ch = st["channels"][0]
-    assert ch["samples"] > 100 and ch["rate_hz"] == pytest.approx(500, rel=0.3), ch
-    r = client.delete(f"/api/v1/sessions/{SID}/pdo/cyclic", headers=A)
-    assert r.status_code == 200, r.text
-    assert client.get(f"/api/v1/sessions/{SID}/state").json()["nmt_state"] == "preop"
+        assert client.get(f"/api/v1/sessions/{SID}/state").json()["nmt_state"] == "safeop"
+        time.sleep(0.3)
+        status = client.get(f"/api/v1/sessions/{SID}/pdo/cyclic").json()
+        assert status["tx_pdos"][0]["count"] > 50, status
+        assert drive.read(0x6040) == 6
+        # Outputs on: OP, the image starting from the drive's present values.
+        r = client.post(
+            f"/api/v1/sessions/{SID}/pdo/cyclic",
+            json={"sync_period_ms": 2, "outputs": True},
+            headers=A,
+        )
+        assert r.status_code == 200, r.text
+        assert client.get(f"/api/v1/sessions/{SID}/state").json()["nmt_state"] == "op"
+        time.sleep(0.2)
+        assert drive.read(0x6040) == 6
+        # The inputs arrive every cycle: the statusword and the position as the drive has them.
+        deadline = time.monotonic() + 5
+        status: dict[str, Any] = {}
+        while time.monotonic() < deadline:
+            status = client.get(f"/api/v1/sessions/{SID}/pdo/cyclic").json()
+            if status["tx_pdos"] and status["tx_pdos"][0]["count"] > 50:
+                break
+            time.sleep(0.05)
+        assert status["running"] and status["tx_pdos"][0]["count"] > 50, status
+        values = status["values"]
+        assert values["0x6041:00"]["value"] == drive.statusword
+        # Outputs: the controlword through the RxPDO switches the drive on.
+        for cw in (0x06, 0x07):
+            r = client.put(
+                f"/api/v1/sessions/{SID}/pdo/cyclic/outputs",
+                json={"values": {"0x6040:00": cw}},
+                headers=A,
+            )
+            assert r.status_code == 200, r.text
+            deadline = time.monotonic() + 3
+            while drive.read(0x6040) != cw and time.monotonic() < deadline:
+                time.sleep(0.01)
+            assert drive.read(0x6040) == cw
+        # The scope records the TxPDO's statusword at the cycle rate (source pdo).
+        r = client.put(
+            "/api/v1/scope/channels",
+            json={"channels": [{"id": 0, "session": SID, "address": "0x6041:00", "source": "pdo"}]},
+        )
+        assert r.status_code == 200 and r.json()["channels"][0]["source"] == "pdo", r.text
+        assert client.post("/api/v1/scope/run", json={"action": "start"}).status_code == 200
+        time.sleep(0.5)
+        st = client.post("/api/v1/scope/run", json={"action": "stop"}).json()
+        ch = st["channels"][0]
+        assert ch["samples"] > 100 and ch["rate_hz"] == pytest.approx(500, rel=0.3), ch
+        r = client.delete(f"/api/v1/sessions/{SID}/pdo/cyclic", headers=A)
+        assert r.status_code == 200, r.text
+        assert client.get(f"/api/v1/sessions/{SID}/state").json()["nmt_state"] == "preop"
 
 
 def test_the_pdo_page_runs_cyclic_data_in_dc_mode(app: tuple[TestClient, Any]) -> None:
@@ -306,7 +311,7 @@ def test_the_pdo_page_runs_cyclic_data_in_dc_mode(app: tuple[TestClient, Any]) -
     status = client.get(f"/api/v1/sessions/{SID}/pdo/cyclic").json()
     assert status["sync_modes"] == ["freerun", "dc"]
     assert status["dc_cycle_ns"] == [250_000, 4_000_000, 250_000]
-    client.post(f"/api/v1/sessions/{SID}/control", json={"action": "take"}, headers=A)
+    take(client, SID, "A")
     url = f"/api/v1/sessions/{SID}/pdo/cyclic"
     # A period that is no SYNC0 cycle of the drive is refused before anything is sent.
     r = client.post(url, json={"sync_period_ms": 1.1, "sync": "dc"}, headers=A)
@@ -341,7 +346,7 @@ def test_cyclic_data_starts_again_and_again_and_on_each_new_mapping(
     # none: working counter 0, no inputs.
     client, _sim = app
     url = f"/api/v1/sessions/{SID}/pdo/cyclic"
-    client.post(f"/api/v1/sessions/{SID}/control", json={"action": "take"}, headers=A)
+    take(client, SID, "A")
 
     def run_once() -> dict[str, Any]:
         r = client.post(url, json={"sync_period_ms": 2}, headers=A)
@@ -382,7 +387,7 @@ def test_dc_is_refused_where_there_are_no_distributed_clocks(tmp_path: Path) -> 
     with TestClient(create_app(s)) as client:
         sid = client.get("/api/v1/sessions").json()[0]["id"]
         assert client.get(f"/api/v1/sessions/{sid}/pdo/cyclic").json()["sync_modes"] == ["freerun"]
-        client.post(f"/api/v1/sessions/{sid}/control", json={"action": "take"}, headers=A)
+        take(client, sid, "A")
         r = client.post(
             f"/api/v1/sessions/{sid}/pdo/cyclic",
             json={"sync_period_ms": 1, "sync": "dc"},
@@ -407,16 +412,15 @@ def test_cyclic_set_points_move_the_axis_through_the_output_image(
     view = client.get(f"/api/v1/sessions/{SID}/pdo").json()
     rx = next(p for p in view["pdos"] if p["direction"] == "rx" and p["active"])
     assert "0x607A:00" in [e["address"] for e in rx["entries"]]
-    take_and_enable(client, SID, "A")
-    r = client.post(
-        f"/api/v1/sessions/{SID}/pdo/cyclic",
-        json={"sync_period_ms": 2, "outputs": True},
-        headers=A,
-    )
-    assert r.status_code == 200, r.text
     with client.websocket_connect("/api/v1/ws?client=A") as ws:
-        beats = Heartbeats(ws, SID)
+        beats = take_and_enable(client, SID, "A", ws)
         try:
+            r = client.post(
+                f"/api/v1/sessions/{SID}/pdo/cyclic",
+                json={"sync_period_ms": 2, "outputs": True},
+                headers=A,
+            )
+            assert r.status_code == 200, r.text
             start = drive.position
             seen: list[int] = []
             drive.on_cycle(lambda: seen.append(drive.position - start))

@@ -14,7 +14,7 @@ from fastapi.testclient import TestClient
 from servodesk.api.app import create_app
 from servodesk.settings import Settings
 from tests.ethercat.nobody import as_nobody, nobody_dir
-from tests.operation.support import Heartbeats, headers, take_and_enable, wait_motion
+from tests.operation.support import headers, take_and_enable, wait_motion
 
 A = headers("A")
 
@@ -50,9 +50,8 @@ def test_the_hiwin_twin_is_opened_and_moved_over_ethercat(channel, tmp_path) -> 
         assert info["note"] is None and info["nmt_state"] == "preop"
         assert info["identity"]["vendor_id"] == 0xAAAA
         drive = next(d for d in sim.drives if d.profile.id == "hiwin-e")  # type: ignore[attr-defined]
-        take_and_enable(client, "hiwin-e-1", "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
-            beats = Heartbeats(ws, "hiwin-e-1")
+            beats = take_and_enable(client, "hiwin-e-1", "A", ws)
             try:
                 start = drive.position
                 r = client.post(

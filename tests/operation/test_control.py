@@ -229,6 +229,9 @@ def test_a_script_holds_control_but_cannot_energise_without_a_dead_man(channel, 
             ("post", "state", {"command": "switch_on"}),
             ("put", "objects/0x6040", {"value": 0x0F}),
             ("post", "motion/jog", {"velocity": 1000, "acceleration": 100000}),
+            # Process data servodesk produces carries the controlword too.
+            ("put", "pdo/cyclic/outputs", {"values": {"0x6040:00": 0x0F}}),
+            ("post", "pdo/cyclic", {"sync_period_ms": 10, "outputs": True}),
         ):
             r = _send(client, method, path, body, headers("script"))
             assert r.status_code == 409, (path, r.text)

@@ -29,7 +29,7 @@ from tests.operation.support import (
 
 SID = "cia402-generic-1"
 BASE = f"/api/v1/sessions/{SID}"
-ARMED = (127 << 16) | 400
+ARMED = (127 << 16) | 1000
 
 
 def test_binding_arms_the_drives_heartbeat_consumer_and_releasing_puts_it_back(
@@ -102,8 +102,8 @@ def test_a_dead_pc_is_stopped_by_the_drive_itself(channel, tmp_path) -> None:  #
                 died = time.time()
                 stopped = wait_until(lambda: abs(drive.velocity) < 1000, 3.0)
                 assert stopped is not None, "the drive did not stop by itself"
-                # 400 ms consumer time, then the quick-stop ramp.
-                assert stopped - died < 1.5, stopped - died
+                # 1000 ms consumer time, then the quick-stop ramp.
+                assert 0.9 < stopped - died < 2.5, stopped - died
                 assert wait_until(lambda: 0x8130 in emcy, 1.0), emcy
                 assert drive.state.name != "OPERATION_ENABLED"
                 beats.stop()

@@ -28,6 +28,7 @@ from servodesk.domain import pdo as pdomod
 from servodesk.domain.address import ObjectAddress
 from servodesk.settings import Settings
 from servodesk.sim.engine import SimAbort
+from tests.control_helpers import bind_in_process, take_control
 from tests.pdo.support import layout_of
 
 pytestmark = pytest.mark.asyncio(loop_scope="module")
@@ -109,6 +110,12 @@ async def rig(tmp_path_factory) -> AsyncIterator[Rig]:  # type: ignore[no-untype
         async with httpx.AsyncClient(
             transport=transport, base_url="http://test", headers=HDR, timeout=30
         ) as c:
+            # Applying mappings and running cyclic data change the drives: the test client
+            # holds control of all of them (one token); servo on needs its dead-man, here an
+            # in-process connection bound as a browser tab's WebSocket would be.
+            for family in FAMILIES:
+                token = await take_control(c, sid(family), HDR["X-Servodesk-Client"])
+            bind_in_process(app, sid("cia402-generic"), token, HDR["X-Servodesk-Client"])
             try:
                 yield Rig(c, channel, spy, app)
             finally:
@@ -340,9 +347,11 @@ async def test_drive_abort_halfway_keeps_the_old_mapping_and_reports(rig: Rig) -
 
 async def test_cyclic_outputs_write_the_drive_and_follow_sdo_writes(rig: Rig) -> None:
     s = sid("cia402-generic")
-    # Outputs need control of the drive.
+    # Outputs need control of the drive: the client holds it (the rig took it), and taking
+    # it again with its token keeps it.
     r = await rig.client.post(f"/api/v1/sessions/{s}/control", json={"action": "take"})
     assert r.status_code in (200, 201), r.text
+    assert r.json()["token"] == rig.client.headers["X-Servodesk-Control"]
     try:
         r = await rig.client.post(
             f"/api/v1/sessions/{s}/pdo/cyclic", json={"sync_period_ms": 2, "outputs": True}
@@ -380,7 +389,6 @@ async def test_cyclic_outputs_write_the_drive_and_follow_sdo_writes(rig: Rig) ->
     finally:
         await rig.client.delete(f"/api/v1/sessions/{s}/pdo/cyclic")
         await rig.client.post(f"/api/v1/sessions/{s}/state", json={"command": "disable"})
-        await rig.client.post(f"/api/v1/sessions/{s}/control", json={"action": "release"})
 
 
 async def test_exports_name_every_mapped_object(rig: Rig) -> None:

@@ -19,9 +19,9 @@ import pytest
 from servodesk.cli import main
 from servodesk.sim.bus import SimulatedBus
 from tests.operation.support import (
-    Heartbeats,
     headers,
     operation_app,
+    take,
     take_and_enable,
     wait_motion,
 )
@@ -54,7 +54,9 @@ def test_serve_sim_opens_the_lecsn_over_profinet_and_moves_it(channel, tmp_path)
         assert info["identity"]["vendor_id"] == 540
         assert info["identity"]["device_name"] == "MR-J4-TM"
 
-        # A parameter written through the API lands in the drive, over PROFIdrive.
+        # A parameter written through the API lands in the drive, over PROFIdrive (as the
+        # holder of its control: every change of a drive needs the control token).
+        take(client, SID, "A")
         r = client.put(f"/api/v1/sessions/{SID}/objects/0x6081:00", json={"value": 4321}, headers=A)
         assert r.status_code == 200, r.text
         assert drive.read(0x6081) == 4321
@@ -96,10 +98,9 @@ def test_serve_sim_opens_the_lecsn_over_profinet_and_moves_it(channel, tmp_path)
         assert r.status_code == 404 and "PROFIdrive error 03h" in r.json()["message"], r.text
 
         # The state machine and a move run on parameter writes (6040h, 607Ah).
-        take_and_enable(client, SID, "A")
-        start = drive.position
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
-            beats = Heartbeats(ws, SID)
+            beats = take_and_enable(client, SID, "A", ws)
+            start = drive.position
             try:
                 r = client.post(
                     f"/api/v1/sessions/{SID}/motion/move",
@@ -112,6 +113,10 @@ def test_serve_sim_opens_the_lecsn_over_profinet_and_moves_it(channel, tmp_path)
                 assert abs(drive.position - start - 5000) <= 20
             finally:
                 beats.stop()
+
+        # The socket closed: the drive was made safe and control lapses after 5 s; A takes
+        # it again (the same token while it has not lapsed) for the refusals below.
+        take(client, SID, "A")
 
         # The telegram is the IO controller's: no cyclic data from a supervisor, and why.
         r = client.post(f"/api/v1/sessions/{SID}/pdo/cyclic", json={}, headers=A)

@@ -192,10 +192,7 @@ async def test_export_and_import_give_back_the_recording(fresh: Rig) -> None:
             rows = [row for row in csv.reader(io.StringIO(text)) if row and row[0] == "time_s"]
             assert rows, "a header row starting with time_s"
         back = await rig.client.post(
-            "/api/v1/scope/import",
-            params={"filename": name},
-            content=data,
-            headers={"Content-Type": "application/octet-stream"},
+            "/api/v1/scope/import", params={"filename": name}, files={"file": (name, data)}
         )
         assert back.status_code == 200, back.text
         rec = back.json()
@@ -205,9 +202,13 @@ async def test_export_and_import_give_back_the_recording(fresh: Rig) -> None:
             assert len(got[cid]["v"]) == n, (fmt, cid)
             assert got[cid]["v"] == v.tolist(), (fmt, cid)
             assert [rec["t_ref"] + x for x in got[cid]["t"]] == pytest.approx(t.tolist(), abs=1e-6)
-    r = await rig.client.post("/api/v1/scope/import", params={"filename": "x.txt"}, content=b"1")
+    r = await rig.client.post(
+        "/api/v1/scope/import", params={"filename": "x.txt"}, files={"file": ("x.txt", b"1")}
+    )
     assert r.status_code == 400 and "x.txt" in r.json()["message"]
-    r = await rig.client.post("/api/v1/scope/import", params={"filename": "x.csv"}, content=b"")
+    r = await rig.client.post(
+        "/api/v1/scope/import", params={"filename": "x.csv"}, files={"file": ("x.csv", b"")}
+    )
     assert r.status_code == 400
 
 
@@ -216,9 +217,11 @@ async def test_the_scope_socket_needs_the_token_when_the_server_has_one(
 ) -> None:
     settings = Settings(token="s3cret", data_dir=tmp_path_factory.mktemp("tok"), viewer_port=0)
     async with serve(settings) as r:
-        with pytest.raises(websockets.InvalidStatus):
-            async with websockets.connect(r.ws_url, subprotocols=[wire.SUBPROTOCOL]):  # type: ignore[list-item]
-                pass
+        # Accepted, then closed with 4401 and a reason (docs/api.md), as every WebSocket.
+        async with websockets.connect(r.ws_url, subprotocols=[wire.SUBPROTOCOL]) as ws:  # type: ignore[list-item]
+            with pytest.raises(websockets.ConnectionClosed) as info:
+                await asyncio.wait_for(ws.recv(), 5)
+            assert info.value.rcvd is not None and info.value.rcvd.code == 4401
         async with websockets.connect(
             r.ws_url + "?token=s3cret",
             subprotocols=[wire.SUBPROTOCOL],  # type: ignore[list-item]

@@ -37,6 +37,7 @@ from servodesk.api.routes.scope import scope_of
 from servodesk.services.scope import ScopeService
 from servodesk.settings import Settings
 from servodesk.sim.engine import SimulatedDrive
+from tests.control_helpers import take_control
 
 pytestmark = pytest.mark.asyncio(loop_scope="module")
 
@@ -105,6 +106,10 @@ async def serve(settings: Settings, *, sndbuf: int | None = None) -> AsyncIterat
         async with httpx.AsyncClient(
             base_url=f"http://127.0.0.1:{port}", headers=HDR, timeout=30
         ) as client:
+            if settings.sim:
+                # Applying PDOs and running cyclic data change the drive: the rig's client
+                # holds control of the generic twin, its token on every request.
+                await take_control(client, GENERIC, HDR["X-Servodesk-Client"])
             yield Rig(client, app, port)
     finally:
         server.should_exit = True

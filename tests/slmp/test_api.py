@@ -19,9 +19,9 @@ import pytest
 from servodesk.cli import main
 from servodesk.sim.bus import SimulatedBus
 from tests.operation.support import (
-    Heartbeats,
     headers,
     operation_app,
+    take,
     take_and_enable,
     wait_motion,
 )
@@ -52,7 +52,9 @@ def test_serve_sim_opens_the_ctmm04x_over_slmp_and_moves_it(channel, tmp_path) -
         )
         assert lecsn["link"] == "profinet" and lecsn["note"] is None
 
-        # A parameter written through the API lands in the drive, over SLMP.
+        # A parameter written through the API lands in the drive, over SLMP (as the holder of
+        # its control: every change of a drive needs the control token).
+        take(client, SID, "A")
         r = client.put(f"/api/v1/sessions/{SID}/objects/0x6081:00", json={"value": 4321}, headers=A)
         assert r.status_code == 200, r.text
         assert drive.read(0x6081) == 4321
@@ -61,7 +63,6 @@ def test_serve_sim_opens_the_ctmm04x_over_slmp_and_moves_it(channel, tmp_path) -
 
         # A restore of the defaults with a reset is refused before anything is restored:
         # the reset is the station manager's (NMT).
-        client.post(f"/api/v1/sessions/{SID}/control", json={"action": "take"}, headers=A)
         r = client.post(
             f"/api/v1/sessions/{SID}/restore-defaults",
             json={"confirm": True, "reset": True},
@@ -71,9 +72,8 @@ def test_serve_sim_opens_the_ctmm04x_over_slmp_and_moves_it(channel, tmp_path) -
         assert drive.read(0x6081) == 4321
 
         # The state machine and a move run on SLMP object writes (6040h, 607Ah).
-        take_and_enable(client, SID, "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
-            beats = Heartbeats(ws, SID)
+            beats = take_and_enable(client, SID, "A", ws)
             try:
                 r = client.post(
                     f"/api/v1/sessions/{SID}/motion/move",
@@ -86,6 +86,10 @@ def test_serve_sim_opens_the_ctmm04x_over_slmp_and_moves_it(channel, tmp_path) -
                 assert abs(drive.position - 5000) <= 10
             finally:
                 beats.stop()
+
+        # The socket closed: the drive was made safe and control lapses after 5 s; A takes
+        # it again (the same token while it has not lapsed) for the refusals below.
+        take(client, SID, "A")
 
         # Cyclic data and NMT belong to the station's manager: refused, with the reason.
         r = client.post(f"/api/v1/sessions/{SID}/pdo/cyclic", json={}, headers=A)

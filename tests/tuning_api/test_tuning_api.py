@@ -17,8 +17,10 @@ import pytest
 
 from tests.operation.support import (
     Heartbeats,
+    bind,
     headers,
     operation_app,
+    take,
     take_and_enable,
     wait_until,
 )
@@ -117,14 +119,18 @@ def test_refusals_move_nothing(channel, tmp_path) -> None:  # type: ignore[no-un
         # Nobody holds control: motion (and so tuning) needs it.
         r = start(client, "lecsn-t-1", "A")
         assert r.status_code == 409 and "control" in r.json()["message"]
-        client.post("/api/v1/sessions/lecsn-t-1/control", json={"action": "take"}, headers=A)
+        take(client, "lecsn-t-1", "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
+            bind(ws, "lecsn-t-1", "A")  # The dead-man: tuning start needs it.
             beats = Heartbeats(ws, "lecsn-t-1")
             # The servo is off.
             r = start(client, "lecsn-t-1", "A")
             assert r.status_code == 409, r.text
             assert "servo is off" in r.json()["message"]
-            take_and_enable(client, "lecsn-t-1", "A")
+            r = client.post(
+                "/api/v1/sessions/lecsn-t-1/state", json={"command": "enable"}, headers=A
+            )
+            assert r.status_code == 200 and r.json()["state"] == "Operation enabled", r.text
             # Software position limits 607Dh of +-0.1 rev: a 0.5 rev window does not fit.
             for sub, value in ((1, -REV // 10), (2, REV // 10)):
                 w = client.put(
@@ -152,6 +158,7 @@ def test_refusals_move_nothing(channel, tmp_path) -> None:  # type: ignore[no-un
                 assert r.status_code == 409 and "'A'" in r.json()["message"]
             # Kind none: plainly nothing to tune (400 naming the input "kind").
             client.post(f"/api/v1/sessions/{sid_ctmm}/control", json={"action": "take"}, headers=A)
+            bind(ws, sid_ctmm, "A")
             r = start(client, sid_ctmm, "A")
             assert r.status_code == 400 and r.json()["field"] == "kind"
             assert "Nothing to tune" in r.json()["message"]
@@ -184,11 +191,10 @@ def test_refusals_move_nothing(channel, tmp_path) -> None:  # type: ignore[no-un
 def test_builtin_run_result_undo_and_store(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
     with operation_app(channel, tmp_path, "lecsn-t") as (client, sim):
         drive = sim.drives[0]
-        take_and_enable(client, SID, "A")
-        start_pos = drive.position
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
             ws.send_json({"type": "subscribe", "session": SID})
-            beats = Heartbeats(ws, SID)
+            beats = take_and_enable(client, SID, "A", ws)
+            start_pos = drive.position
             r = start(client, SID, "A", travel=0.25, torque=80)
             assert r.status_code == 202, r.text
             started = r.json()
@@ -242,6 +248,9 @@ def test_builtin_run_result_undo_and_store(channel, tmp_path) -> None:  # type: 
         m = client.get(f"/api/v1/sessions/{SID}/motion").json()
         assert not m["active"] and m["state"] == "done"
 
+        # A's socket closed (the drive was made safe); undo and store need control, not the
+        # dead-man: A takes it again (the same token while it has not lapsed).
+        take(client, SID, "A")
         # Undo to the values before one-touch tuning (P11603 = 0001h), then to the defaults.
         tuned = pb(drive)
         r = client.post(f"/api/v1/sessions/{SID}/tuning/undo", json={"to": "before"}, headers=A)
@@ -271,9 +280,8 @@ def test_builtin_run_result_undo_and_store(channel, tmp_path) -> None:  # type: 
 def test_stop_from_any_client_puts_the_gains_back(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
     with operation_app(channel, tmp_path, "lecsn-t") as (client, sim):
         drive = sim.drives[0]
-        take_and_enable(client, SID, "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
-            beats = Heartbeats(ws, SID)
+            beats = take_and_enable(client, SID, "A", ws)
             assert start(client, SID, "A", travel=0.25).status_code == 202
             wait_progress(client, SID, 0.3)  # The drive's tuning runs (P11601 >= 20 %).
             assert drive.read(P11600, 0) == 1
@@ -304,11 +312,11 @@ def test_the_drives_error_code_is_decoded(channel, tmp_path) -> None:  # type: i
         assert client.post(f"/api/v1/sessions/{SID}/tuning/stop").status_code == 404
         # PA10 (in-position range) of 0 pulses: any overshoot fails the twin's check (C001h).
         # The low-response gains overshoot the tuning's moves by about 3 counts here.
-        w = client.put(f"/api/v1/sessions/{SID}/objects/0x200A:00", json={"value": 0})
+        take(client, SID, "A")
+        w = client.put(f"/api/v1/sessions/{SID}/objects/0x200A:00", json={"value": 0}, headers=A)
         assert w.status_code == 200, w.text
-        take_and_enable(client, SID, "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
-            beats = Heartbeats(ws, SID)
+            beats = take_and_enable(client, SID, "A", ws)
             assert start(client, SID, "A", travel=0.25, mode="low").status_code == 202
             end = wait_job(client, SID, 90.0)
             beats.stop()
@@ -333,9 +341,8 @@ def test_the_deadman_stops_a_tuning_motion(channel, tmp_path) -> None:  # type: 
     # 500 ms: on a busy 2-core machine the test's heartbeat thread can be late by 250 ms.
     with operation_app(channel, tmp_path, "lecsn-t", deadman_ms=500) as (client, sim):
         drive = sim.drives[0]
-        take_and_enable(client, SID, "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
-            beats = Heartbeats(ws, SID, period=0.05)
+            beats = take_and_enable(client, SID, "A", ws)  # Heartbeats every 50 ms.
             assert start(client, SID, "A", travel=0.25).status_code == 202
             wait_progress(client, SID, 0.3)
             assert drive.read(P11600, 0) == 1
@@ -365,9 +372,8 @@ def test_own_tuning_runs_on_the_generic_twin(channel, tmp_path) -> None:  # type
     # stop a tuning that runs for about 20 s.
     with operation_app(channel, tmp_path, deadman_ms=5000) as (client, sim):
         drive = sim.drives[0]
-        take_and_enable(client, sid, "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
-            beats = Heartbeats(ws, sid)
+            beats = take_and_enable(client, sid, "A", ws)
             # Ranked for the machine's own moves at 300 % of the rated torque; the tuning's
             # own moves stay within its 100 % limit (the peak torque below).
             r = start(client, sid, "A", travel=0.25, mode="basic", move_torque=300.0)
@@ -402,7 +408,12 @@ def test_own_tuning_runs_on_the_generic_twin(channel, tmp_path) -> None:  # type
         assert abs(drive.read(0x2101, 0) - kp_vel["raw_after"]) < 1e-6 * abs(kp_vel["raw_after"])
         after = res["step"]["after"]["metrics"]
         assert after["settling_100_s"] is not None and after["settling_100_s"] < 0.1
-        assert res["excursion_rev"] <= 0.5 + 1e-6  # Within +-0.25 rev of the start.
+        # A 0.25 rev window is +-0.125 rev around the start (docs/tuning.md "Travel window"):
+        # the job says so in revolutions and counts, and the axis stayed inside.
+        bound = res["travel"]
+        assert bound["half"] == 16384 and bound["text"].startswith("±0.125 rev")
+        assert bound["max_excursion"] <= bound["half"] and bound["software_limits"] is True
+        assert res["excursion_rev"] <= 0.25 + 1e-6
         assert res["peak_torque_pct"] <= 100.0 + 0.5  # The run's limit, not the move's 300 %.
         assert res["peak_torque_polled_s"] is None  # From the recordings, every tick.
         assert any("70 % of 300 % of the rated torque" in n for n in res["notes"]), res["notes"]
@@ -416,10 +427,9 @@ def test_a_closed_socket_or_a_fault_stops_the_tuning(channel, tmp_path) -> None:
     # socket's close the only way out.
     with operation_app(channel, tmp_path, "lecsn-t", deadman_ms=5000) as (client, sim):
         drive = sim.drives[0]
-        take_and_enable(client, SID, "A")
         # The page is closed (its socket goes): the axis stops, the tuning ends.
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
-            beats = Heartbeats(ws, SID)
+            beats = take_and_enable(client, SID, "A", ws)
             assert start(client, SID, "A", travel=0.25).status_code == 202
             wait_progress(client, SID, 0.3)
             beats.stop()
@@ -431,9 +441,8 @@ def test_a_closed_socket_or_a_fault_stops_the_tuning(channel, tmp_path) -> None:
         assert client.post(
             f"/api/v1/sessions/{SID}/alarms/reset", json={}, headers=A
         ).status_code in (200, 409)
-        take_and_enable(client, SID, "A")
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
-            beats = Heartbeats(ws, SID)
+            beats = take_and_enable(client, SID, "A", ws)
             assert start(client, SID, "A", travel=0.25).status_code == 202
             wait_progress(client, SID, 0.3)
             drive.raise_fault(0x8611)

@@ -17,6 +17,7 @@ from servodesk.api.app import create_app
 from servodesk.api.routes.viewer import viewer
 from servodesk.services.viewer import ViewerService
 from servodesk.settings import Settings
+from tests.control_helpers import bind_in_process, take_control
 
 _n = itertools.count()
 
@@ -61,4 +62,8 @@ async def twin(tmp_path_factory) -> AsyncIterator[Viewer]:  # type: ignore[no-un
     async with app.router.lifespan_context(app):
         transport = httpx.ASGITransport(app=app)
         async with httpx.AsyncClient(transport=transport, base_url="http://test") as c:
+            # The tests enable and move the generic drive: the client holds its control (the
+            # token on every request) with an in-process connection bound as its dead-man.
+            token = await take_control(c, "cia402-generic-1", "viewer-test")
+            bind_in_process(app, "cia402-generic-1", token, "viewer-test")
             yield Viewer(app, c, viewer(app), port)

@@ -183,6 +183,23 @@ async def require_motion(
     return _label(x_servodesk_client, holder)
 
 
+async def require_energise(
+    sid: str,
+    request: Request,
+    x_servodesk_client: ClientHeader = None,
+    x_servodesk_control: ControlHeader = None,
+) -> str:
+    """Process data servodesk produces (cyclic outputs: the controlword, the targets) can
+    energise and move the drive like the controlword written by SDO: control and the
+    dead-man."""
+    op = operation(request.app)
+    op.motion.manager.get(sid)
+    holder = op.control.check_energise(sid, x_servodesk_control, "cyclic outputs")
+    await op.motion.settled(sid)
+    op.motion.invalidate_limits(sid)
+    return _label(x_servodesk_client, holder)
+
+
 def control_token(x_servodesk_control: ControlHeader = None) -> str | None:
     return x_servodesk_control
 
@@ -199,6 +216,7 @@ WriteControl = Annotated[str, Depends(require_write, scope="function")]
 StateControl = Annotated[str, Depends(require_state_command, scope="function")]
 CloseControl = Annotated[str | None, Depends(require_close, scope="function")]
 MotionControl = Annotated[str, Depends(require_motion)]
+EnergiseControl = Annotated[str, Depends(require_energise)]
 ClientId = Annotated[str | None, Depends(client_id)]
 RequiredClientId = Annotated[str, Depends(required_client_id)]
 ControlToken = Annotated[str | None, Depends(control_token)]

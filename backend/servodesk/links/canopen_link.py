@@ -166,8 +166,10 @@ pool = NetworkPool()
 #: list it while servodesk produces on that bus.
 MASTER_NODE_ID = 0x7F
 HEARTBEAT_PERIOD_S = 0.1
-#: The drives' consumer time: four periods, so that one late or lost frame is no event.
-CONSUMER_TIME_MS = 400
+#: The drives' consumer time: ten periods. A drive-side backup for a dead PC (servodesk's own
+#: dead-man stops a lost client within 250 ms), so it must never fire while servodesk lives:
+#: at 400 ms a twin on a loaded 2-core machine saw a lapse and quick-stopped a tuning.
+CONSUMER_TIME_MS = 1000
 CONSUMER = ObjectAddress(0x1016, 1)
 
 #: Longest segmented upload accepted (a DOMAIN could be larger; servodesk does not read those).

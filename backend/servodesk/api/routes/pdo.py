@@ -9,16 +9,17 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Query
+from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
 from pydantic import BaseModel, ConfigDict, Field
 
-from servodesk.api.control_deps import WriteControl
+from servodesk.api.control_deps import EnergiseControl, WriteControl, require_energise
 from servodesk.api.deps import StateDep
 from servodesk.api.downloads import content_disposition
 from servodesk.api.schemas import ERROR_RESPONSES
 from servodesk.domain import pdo as pdomod
 from servodesk.services import pdo as pdosvc
+from servodesk.services.control import CONTROL_HEADER
 
 router = APIRouter(tags=["pdo"], responses=ERROR_RESPONSES)
 
@@ -161,8 +162,16 @@ async def pdo_cyclic_status(sid: str, state: StateDep) -> dict[str, Any]:
 
 @router.post("/sessions/{sid}/pdo/cyclic", operation_id="pdo_cyclic_start")
 async def pdo_cyclic_start(
-    sid: str, body: CyclicRequest, state: StateDep, client: WriteControl
+    sid: str, body: CyclicRequest, request: Request, state: StateDep, client: WriteControl
 ) -> dict[str, Any]:
+    if body.outputs:
+        # servodesk then produces the RPDOs: the controlword among them (control_deps).
+        await require_energise(
+            sid,
+            request,
+            request.headers.get("X-Servodesk-Client"),
+            request.headers.get(CONTROL_HEADER),
+        )
     return await pdosvc.start_cyclic(
         state.manager.get(sid), body.sync_period_ms, body.outputs, body.sync
     )
@@ -175,6 +184,6 @@ async def pdo_cyclic_stop(sid: str, state: StateDep, client: WriteControl) -> di
 
 @router.put("/sessions/{sid}/pdo/cyclic/outputs", operation_id="pdo_cyclic_outputs")
 async def pdo_cyclic_outputs(
-    sid: str, body: OutputsRequest, state: StateDep, client: WriteControl
+    sid: str, body: OutputsRequest, state: StateDep, client: EnergiseControl
 ) -> dict[str, Any]:
     return pdosvc.set_outputs(state.manager.get(sid), body.values)
