@@ -135,7 +135,11 @@ _MEDIA = {
     responses={
         200: {
             "description": "the layout as a file (CSV, DCF, ESI XML or JSON)",
-            "content": {m: {"schema": {"type": "string"}} for m in _MEDIA.values()},
+            # The JSON export is a document (domain/pdo_json.py), the others text files.
+            "content": {
+                m: {"schema": {"type": "object"} if m == "application/json" else {"type": "string"}}
+                for m in _MEDIA.values()
+            },
         }
     },
 )
