@@ -12,7 +12,13 @@ from collections.abc import Iterator
 import pytest
 from playwright.sync_api import Browser, Page, Playwright, sync_playwright
 
-from tests.browser.harness import CHROMIUM_ARGS, HarnessError, chromium_executable, running_server
+from tests.browser.harness import (
+    CHROMIUM_ARGS,
+    HarnessError,
+    chromium_executable,
+    release_control,
+    running_server,
+)
 
 
 @pytest.fixture(scope="package")
@@ -52,6 +58,9 @@ def fresh_page(browser: Browser, base_url: str) -> Iterator[Page]:
     errors: list[str] = []
     pg.on("pageerror", lambda exc: errors.append(str(exc)))
     yield pg
+    # Control the page took is released (the drive disabled) rather than left to lapse 5 s
+    # after the tab closes, where the next test would find it held.
+    release_control(pg)
     context.close()
     assert not errors, f"uncaught errors in the page: {errors}"
 

@@ -13,14 +13,21 @@ from pathlib import Path
 
 from playwright.sync_api import sync_playwright
 
-from tests.browser.harness import CHROMIUM_ARGS, chromium_executable, running_server
+from tests.browser.harness import (
+    CHROMIUM_ARGS,
+    chromium_executable,
+    running_server,
+    tab_control,
+    take_control,
+)
 
 
-def _put(base: str, sid: str, addr: str, value: int) -> None:
+def _put(base: str, sid: str, addr: str, value: int, token: str) -> None:
+    """Write with the page's control token (writes need control)."""
     req = urllib.request.Request(
         f"{base}/api/v1/sessions/{sid}/objects/{addr}",
         data=json.dumps({"value": value}).encode(),
-        headers={"Content-Type": "application/json"},
+        headers={"Content-Type": "application/json", "X-Servodesk-Control": token},
         method="PUT",
     )
     urllib.request.urlopen(req, timeout=5).read()
@@ -43,10 +50,17 @@ def main(out: Path) -> None:
         sid = page.locator('tr[data-profile="cia402-generic"]').first.get_attribute("data-testid")
         assert sid
         sid = sid.removeprefix("session-row-")
-        # Profile velocity mode with a target velocity, so enabling makes the axis turn.
-        _put(base, sid, "0x6060", 3)
-        _put(base, sid, "0x60FF", 200000)
         page.goto(f"/#/overview/{sid}")
+        page.get_by_test_id("control-take").wait_for()
+        page.wait_for_timeout(300)
+        page.screenshot(path=str(out / "overview-no-control.png"), full_page=False)
+        take_control(page, sid)
+        held = tab_control(page)
+        assert held
+        token = held["token"]
+        # Profile velocity mode with a target velocity, so enabling makes the axis turn.
+        _put(base, sid, "0x6060", 3, token)
+        _put(base, sid, "0x60FF", 200000, token)
         page.get_by_test_id("cmd-enable").click()
         page.get_by_test_id("drive-state").get_by_text("Operation enabled").wait_for()
         page.wait_for_timeout(4000)
@@ -88,10 +102,10 @@ def main(out: Path) -> None:
             ("0x6081", 2_000_000),
             ("0x6083", 10_000_000),
         ):
-            _put(base, sid, addr, value)
+            _put(base, sid, addr, value, token)
         page.get_by_test_id("cmd-enable").click()
         page.get_by_test_id("drive-state").get_by_text("Operation enabled").wait_for()
-        _put(base, sid, "0x6040", 0x1F)
+        _put(base, sid, "0x6040", 0x1F, token)
         page.get_by_test_id("fault").wait_for()
         page.wait_for_timeout(800)
         page.screenshot(path=str(out / "overview-fault.png"), full_page=False)

@@ -4,7 +4,8 @@ What a maintenance technician relies on: a real fault (a following error, provok
 following error window 6065h and a fast move started from the Operation page) shows on the
 Alarms page with its code, name, cause and remedy from the manual, in the EMCY log with its
 time and in the error history (1003h); the Fault reset button clears it following the
-family's procedure (shown on the page); clearing the history asks first.
+family's procedure (shown on the page); clearing the history asks first. All of it needs
+control of the drive, taken with the header's Take control.
 """
 
 from __future__ import annotations
@@ -15,23 +16,20 @@ from collections.abc import Iterator
 import pytest
 from playwright.sync_api import Page, expect
 
+from tests.browser.harness import control_headers, take_control
+
 pytestmark = pytest.mark.browser
 
 SID = "cia402-generic-1"
 WINDOW = "0x6065:00"  # Following error window
 
 
-def client_id(page: Page) -> str:
-    cid = page.evaluate("() => sessionStorage.getItem('servodesk.client')")
-    assert isinstance(cid, str) and cid
-    return cid
-
-
 def put(page: Page, addr: str, value: int) -> None:
+    """Write as the page's tab (its control token): a write needs control."""
     r = page.request.put(
         f"/api/v1/sessions/{SID}/objects/{addr}",
         data=json.dumps({"value": value}),
-        headers={"Content-Type": "application/json", "X-Servodesk-Client": client_id(page)},
+        headers=control_headers(page),
     )
     assert r.ok, r.text()
 
@@ -47,17 +45,16 @@ def operator(page: Page) -> Iterator[Page]:
     try:
         yield page
     finally:
-        headers = {"X-Servodesk-Client": client_id(page), "Content-Type": "application/json"}
-        put(page, WINDOW, original)
-        page.request.post(f"/api/v1/sessions/{SID}/alarms/reset", data="{}", headers=headers)
-        page.request.post(
-            f"/api/v1/sessions/{SID}/control", data='{"action":"release"}', headers=headers
-        )
+        headers = control_headers(page)
+        # The window was changed only after control was taken; the page fixture releases it.
+        if "X-Servodesk-Control" in headers:
+            put(page, WINDOW, original)
+            page.request.post(f"/api/v1/sessions/{SID}/alarms/reset", data="{}", headers=headers)
 
 
 def test_following_error_shown_and_reset(operator: Page) -> None:
     page = operator
-    page.get_by_test_id("control-take").click()
+    take_control(page, SID)
     expect(page.get_by_test_id("control-owner")).to_have_attribute("data-you", "true")
     state = page.get_by_test_id("op-state")
     expect(state).not_to_have_text("—")

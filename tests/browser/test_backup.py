@@ -4,7 +4,8 @@ What a commissioning engineer relies on: take a backup, change a parameter, see 
 parameter differ between the live drive and the backup (engineering value and raw bytes),
 restore the backup through the preflight-checked wizard, get a report that says the entry was
 written and verified, and see the comparison go back to "No differences". The write is in the
-audit log under this browser tab's client id.
+audit log under this browser tab's client id. Writing and restoring need control of the drive:
+the tab takes it with the header's Take control, and the test's own writes use its token.
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ import uuid
 
 import pytest
 from playwright.sync_api import Page, expect
+
+from tests.browser.harness import control_headers, take_control
 
 pytestmark = pytest.mark.browser
 
@@ -30,10 +33,11 @@ def read_raw(page: Page) -> tuple[int, str]:
 
 
 def write_value(page: Page, value: int) -> None:
+    """Write as the page's tab (its control token)."""
     r = page.request.put(
         f"/api/v1/sessions/{SID}/objects/{ADDR}",
         data=json.dumps({"value": value}),
-        headers={"Content-Type": "application/json", "X-Servodesk-Client": "test:browser"},
+        headers=control_headers(page),
     )
     assert r.ok, r.text()
 
@@ -54,6 +58,7 @@ def test_backup_change_compare_restore(page: Page) -> None:
     original, original_raw = read_raw(page)
     page.goto(f"/#/backup/{SID}")
     expect(page.get_by_test_id("backup-page")).to_be_visible()
+    take_control(page, SID)
 
     label = f"before change {uuid.uuid4().hex[:6]}"
     take_backup(page, label)
@@ -128,16 +133,18 @@ def test_note_edit_and_download(page: Page) -> None:
 
 
 def drive_command(page: Page, command: str) -> None:
+    """A state command as the page's tab: its token, and its socket bound (servo on)."""
     r = page.request.post(
         f"/api/v1/sessions/{SID}/state",
         data=json.dumps({"command": command}),
-        headers={"Content-Type": "application/json"},
+        headers=control_headers(page),
     )
     assert r.ok, r.text()
 
 
 def test_failed_preflight_lists_problems_and_disables_restore(page: Page) -> None:
     page.goto(f"/#/backup/{SID}")
+    take_control(page, SID)
     label = f"preflight {uuid.uuid4().hex[:6]}"
     take_backup(page, label)
     # A restore needs the drive not enabled: the preflight says so, with what to do.

@@ -5,7 +5,8 @@ What a commissioning engineer does there: find an object the way the manual writ
 read live values, and write one object from its detail panel. The object is 6083h Profile
 acceleration (PNU 24707): writable, limits 0..50000 ms in the lecsn-t profile (LECSN manual
 §20.9.3.10), so a value above the maximum is refused in the browser before anything is sent,
-and a good one is written and read back from the simulated drive.
+and a good one is written and read back from the simulated drive. Writing needs control of
+the drive, taken with the header's Take control.
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ import re
 import httpx
 import pytest
 from playwright.sync_api import Page, expect
+
+from tests.browser.harness import take_control
 
 pytestmark = pytest.mark.browser
 
@@ -78,6 +81,7 @@ def test_filters_narrow_the_list(page: Page, server_url: str) -> None:
 
 def test_write_refused_in_place_then_written_and_read_back(page: Page, server_url: str) -> None:
     open_dictionary(page, server_url)
+    take_control(page, SID)  # Writes need control of the drive.
     page.get_by_test_id("od-search").fill("P24707")
     page.get_by_test_id(f"od-row-{ADDR}").click()
     detail = page.get_by_test_id("od-detail")
@@ -109,6 +113,7 @@ def test_write_refused_in_place_then_written_and_read_back(page: Page, server_ur
 
 def test_read_values_and_differs_from_default(page: Page, server_url: str) -> None:
     open_dictionary(page, server_url)
+    take_control(page, SID)
     page.get_by_test_id("od-group").select_option("profile_position")
     page.get_by_test_id("od-search").fill("P24707")
     page.get_by_test_id(f"od-row-{ADDR}").click()

@@ -4,7 +4,8 @@ What a commissioning engineer relies on: take control, servo on, hold the jog bu
 the axis move, let go and see it stop within a second (the page sends a halt, and its
 heartbeats end); QUICK STOP works with one click; a second browser (another client) that tries
 to jog is refused with a message naming the client that holds control. The 3D view page shows
-the viewer or says why it cannot.
+the viewer or says why it cannot. Control is taken as a person takes it, with the header's
+Take control (tests/browser/test_control.py tests control itself).
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ from collections.abc import Iterator
 
 import pytest
 from playwright.sync_api import Browser, Page, expect
+
+from tests.browser.harness import release_control, take_control
 
 pytestmark = pytest.mark.browser
 
@@ -35,19 +38,6 @@ def api_state(page: Page) -> dict[str, object]:
     return body
 
 
-def release_everything(page: Page) -> None:
-    """Leave the drive as other tests expect it: nobody holds control, servo off."""
-    cid = client_id(page)
-    headers = {"X-Servodesk-Client": cid, "Content-Type": "application/json"}
-    page.request.post(f"/api/v1/sessions/{SID}/motion/halt", data="{}", headers=headers)
-    page.request.post(
-        f"/api/v1/sessions/{SID}/state", data='{"command":"disable"}', headers=headers
-    )
-    page.request.post(
-        f"/api/v1/sessions/{SID}/control", data='{"action":"release"}', headers=headers
-    )
-
-
 def open_operation(page: Page) -> None:
     page.goto(f"/#/operation/{SID}")
     expect(page.get_by_test_id("operation-page")).to_be_visible()
@@ -56,7 +46,8 @@ def open_operation(page: Page) -> None:
 
 
 def take_control_and_enable(page: Page) -> None:
-    page.get_by_test_id("control-take").click()
+    """Take control of the drive the page shows (the header's Take control), servo on."""
+    take_control(page)
     expect(page.get_by_test_id("control-owner")).to_have_attribute("data-you", "true")
     state = page.get_by_test_id("op-state")
     expect(state).not_to_have_text("—")
@@ -71,7 +62,8 @@ def operator(page: Page) -> Iterator[Page]:
     try:
         yield page
     finally:
-        release_everything(page)
+        # Leave the drive as other tests expect it: nobody holds control, servo off.
+        release_control(page)
 
 
 def shown_int(page: Page, testid: str) -> int:

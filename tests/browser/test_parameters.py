@@ -2,13 +2,16 @@
 
 A commissioning engineer changes 6081h Profile velocity on the generic CiA 402 drive, sees it
 marked as not yet saved, saves to EEPROM (CiA 301 1010h:01 <- "save") and sees the mark go;
-then restores the factory defaults, which asks first and says what it does.
+then restores the factory defaults, which asks first and says what it does. Writing needs
+control: the engineer takes it first with the header's Take control.
 """
 
 from __future__ import annotations
 
 import pytest
 from playwright.sync_api import Page, expect
+
+from tests.browser.harness import take_control
 
 pytestmark = pytest.mark.browser
 
@@ -19,6 +22,7 @@ ADDR = "0x6081:00"
 def open_velocity_group(page: Page) -> None:
     page.goto(f"/#/parameters/{SID}")
     expect(page.get_by_test_id("params-groups")).to_be_visible(timeout=15_000)
+    take_control(page, SID)
     page.get_by_test_id("group-tab-position").click()
     expect(page.get_by_test_id(f"param-row-{ADDR}")).to_be_visible()
     # The shown group is read from the drive: the value arrives in place of "…".

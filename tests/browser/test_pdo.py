@@ -4,7 +4,9 @@ What a commissioning engineer relies on (issue 6 "Done when"): drag an object fr
 into a TPDO, see the bit budget and the check follow, review the planned steps, apply them,
 start the cyclic data and see the mapped object's value update live next to it, raw and
 engineering side by side. The drive is left as it was found: the mapping is put back, cyclic
-data stopped, the axis disabled and control released.
+data stopped, the axis disabled and control released. Applying, starting the cyclic data and
+moving need control: the page takes it with the header's Take control, and the test's own
+requests (and a second socket of the page, the motion's dead-man) use the page's token.
 """
 
 from __future__ import annotations
@@ -17,14 +19,21 @@ from typing import Any
 import pytest
 from playwright.sync_api import Page, expect
 
+from tests.browser.harness import (
+    control_headers,
+    release_control,
+    start_mover,
+    stop_mover,
+    take_control,
+)
+
 pytestmark = pytest.mark.browser
 
 SID = "cia402-generic-1"
 PDO = f"/api/v1/sessions/{SID}/pdo"
-#: The client that moves the axis: its own id and WebSocket (for the dead-man heartbeat),
-#: so the page under test does not have to hold control.
+#: The label of the page's second WebSocket that carries the dead-man heartbeat of the motion
+#: the test starts over the API (bound to the page's own control token).
 MOVER = "pdo-test-mover"
-MOVER_HEADERS = {"X-Servodesk-Client": MOVER, "Content-Type": "application/json"}
 #: Target velocity (60FFh, raw counts/s): slow enough to stay far from the simulated
 #: drive's limit switches (-1.7 / +3.7 revolutions of 131072 counts) for the whole test.
 VELOCITY = 20_000
@@ -71,47 +80,17 @@ def post(page: Page, path: str, body: dict[str, Any], headers: dict[str, str] | 
     return r.json()
 
 
-def start_mover(page: Page) -> None:
-    """Open the mover's WebSocket in the page and heartbeat every 50 ms (the dead-man)."""
-    page.evaluate(
-        """([sid, client]) => new Promise((resolve, reject) => {
-            const url = new URL('/api/v1/ws', location.href);
-            url.protocol = location.protocol === 'https:' ? 'wss:' : 'ws:';
-            url.searchParams.set('client', client);
-            const ws = new WebSocket(url.toString(), 'servodesk.v1');
-            ws.onopen = () => {
-                const msg = JSON.stringify({type: 'heartbeat', session: sid});
-                const beat = () => ws.readyState === 1 && ws.send(msg);
-                beat();
-                window.__pdoMover = {ws, timer: setInterval(beat, 50)};
-                resolve(true);
-            };
-            ws.onerror = () => reject(new Error('the mover socket did not open'));
-        })""",
-        [SID, MOVER],
-    )
-
-
-def stop_mover(page: Page) -> None:
-    page.evaluate(
-        """() => {
-            const m = window.__pdoMover;
-            if (!m) return;
-            clearInterval(m.timer);
-            m.ws.close();
-            window.__pdoMover = null;
-        }"""
-    )
-
-
 @pytest.fixture
 def pdo_page(page: Page) -> Iterator[Page]:
     original = page.request.get(PDO)
     assert original.ok, f"GET {PDO}: {original.status} {original.text()}"
     restore = layout_of(original.json())
+    # Control first (an apply changes the drive), from the page's header.
+    page.goto(f"/#/overview/{SID}")
+    take_control(page, SID)
     # A known start, whatever ran before: TPDO1 carries the statusword only, event-driven.
     tpdo1 = {"direction": "tx", "number": 1, "entries": ["0x6041:00"], "transmission_type": 255}
-    report = post(page, f"{PDO}/apply", {"pdos": [tpdo1], "dry_run": False})
+    report = post(page, f"{PDO}/apply", {"pdos": [tpdo1], "dry_run": False}, control_headers(page))
     assert report["ok"], report
     page.goto(f"/#/pdo/{SID}")
     expect(page.get_by_test_id("pdo-page")).to_be_visible()
@@ -119,20 +98,17 @@ def pdo_page(page: Page) -> Iterator[Page]:
         yield page
     finally:
         # Leave the drive as the other tests expect it.
-        page.request.post(f"/api/v1/sessions/{SID}/motion/halt", data="{}", headers=MOVER_HEADERS)
+        headers = control_headers(page)
+        page.request.post(f"/api/v1/sessions/{SID}/motion/halt", data="{}", headers=headers)
         page.request.post(
-            f"/api/v1/sessions/{SID}/state", data='{"command":"disable"}', headers=MOVER_HEADERS
-        )
-        page.request.post(
-            f"/api/v1/sessions/{SID}/control", data='{"action":"release"}', headers=MOVER_HEADERS
+            f"/api/v1/sessions/{SID}/state", data='{"command":"disable"}', headers=headers
         )
         stop_mover(page)
-        page.request.delete(f"{PDO}/cyclic")
+        page.request.delete(f"{PDO}/cyclic", headers=headers)
         r = page.request.post(
-            f"{PDO}/apply",
-            data=json.dumps({**restore, "dry_run": False}),
-            headers={"Content-Type": "application/json"},
+            f"{PDO}/apply", data=json.dumps({**restore, "dry_run": False}), headers=headers
         )
+        release_control(page)
         assert r.ok and r.json()["ok"], f"putting the mapping back failed: {r.status} {r.text()}"
 
 
@@ -232,11 +208,12 @@ def test_drag_into_tpdo_apply_and_see_it_live(pdo_page: Page) -> None:
     expect(page.get_by_test_id(live)).to_contain_text("inc")
     expect(page.get_by_test_id(live)).to_contain_text("deg")
 
-    # Move the axis (another client, with its own dead-man heartbeat) ...
-    start_mover(page)
-    post(page, f"/api/v1/sessions/{SID}/control", {"action": "take"}, MOVER_HEADERS)
-    post(page, f"/api/v1/sessions/{SID}/state", {"command": "enable"}, MOVER_HEADERS)
-    post(page, f"/api/v1/sessions/{SID}/motion/velocity", {"velocity": VELOCITY}, MOVER_HEADERS)
+    # Move the axis (over the API with the page's token; a second socket of the page, bound
+    # to that control, carries the motion's dead-man heartbeat) ...
+    headers = control_headers(page)
+    start_mover(page, SID, headers["X-Servodesk-Control"], MOVER)
+    post(page, f"/api/v1/sessions/{SID}/state", {"command": "enable"}, headers)
+    post(page, f"/api/v1/sessions/{SID}/motion/velocity", {"velocity": VELOCITY}, headers)
 
     # ... and the value next to the mapped object follows, live.
     first = live_raw(page, live)

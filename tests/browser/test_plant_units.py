@@ -15,7 +15,7 @@ import pytest
 from playwright.sync_api import Browser, Page, expect
 
 from tests.browser.conftest import fresh_page
-from tests.browser.harness import HarnessError, running_server
+from tests.browser.harness import HarnessError, running_server, take_control
 
 pytestmark = pytest.mark.browser
 
@@ -45,6 +45,7 @@ def test_a_raw_value_is_previewed_in_the_axis_own_degrees(plant_page: Page) -> N
     page = plant_page
     page.goto(f"/#/parameters/{SID}")
     expect(page.get_by_test_id("params-groups")).to_be_visible(timeout=15_000)
+    take_control(page, SID)  # The write needs control of the drive.
     page.get_by_test_id("group-tab-position").click()
     row = page.get_by_test_id(f"param-row-{ADDR}")
     expect(row.get_by_test_id("param-value")).not_to_have_text("…")

@@ -21,13 +21,14 @@ from typing import Any
 import pytest
 from playwright.sync_api import Page, expect
 
+from tests.browser.harness import api_take_control, start_mover, stop_mover
+
 pytestmark = pytest.mark.browser
 
 SID = "cia402-generic-1"
-#: The client that moves the axis: its own id and WebSocket (for the dead-man heartbeat),
-#: so the page under test does not have to hold control.
+#: The client that moves the axis: a script with its own control token and a WebSocket bound
+#: to it (the dead-man heartbeat), so the page under test does not have to hold control.
 MOVER = "scope-test-mover"
-MOVER_HEADERS = {"X-Servodesk-Client": MOVER, "Content-Type": "application/json"}
 #: Target velocity (60FFh, raw inc/s): slow enough to stay far from the simulated drive's
 #: limit switches (-1.7 / +3.7 revolutions of 131072 inc) for the whole test.
 VELOCITY = 20_000
@@ -50,37 +51,41 @@ def put(page: Page, path: str, body: dict[str, Any]) -> Any:
     return r.json()
 
 
-def start_mover(page: Page) -> None:
-    """Open the mover's WebSocket in the page and heartbeat every 50 ms (the dead-man)."""
-    page.evaluate(
-        """([sid, client]) => new Promise((resolve, reject) => {
-            const url = new URL('/api/v1/ws', location.href);
-            url.protocol = location.protocol === 'https:' ? 'wss:' : 'ws:';
-            url.searchParams.set('client', client);
-            const ws = new WebSocket(url.toString(), 'servodesk.v1');
-            ws.onopen = () => {
-                const msg = JSON.stringify({type: 'heartbeat', session: sid});
-                const beat = () => ws.readyState === 1 && ws.send(msg);
-                beat();
-                window.__scopeMover = {ws, timer: setInterval(beat, 50)};
-                resolve(true);
-            };
-            ws.onerror = () => reject(new Error('the mover socket did not open'));
-        })""",
-        [SID, MOVER],
-    )
+class Mover:
+    """The script that moves the axis: takes control over the API, binds a WebSocket of the
+    page to it (harness.start_mover) and sends its requests with the token."""
 
+    def __init__(self, page: Page) -> None:
+        self.page = page
+        self.token: str | None = None
 
-def stop_mover(page: Page) -> None:
-    page.evaluate(
-        """() => {
-            const m = window.__scopeMover;
-            if (!m) return;
-            clearInterval(m.timer);
-            m.ws.close();
-            window.__scopeMover = null;
-        }"""
-    )
+    @property
+    def headers(self) -> dict[str, str]:
+        h = {"X-Servodesk-Client": MOVER, "Content-Type": "application/json"}
+        if self.token:
+            h["X-Servodesk-Control"] = self.token
+        return h
+
+    def start(self) -> None:
+        self.token = api_take_control(self.page, SID, MOVER)
+        start_mover(self.page, SID, self.token, MOVER)
+
+    def post(self, path: str, body: dict[str, Any]) -> Any:
+        return post(self.page, f"/api/v1/sessions/{SID}/{path}", body, self.headers)
+
+    def stop(self) -> None:
+        """Halt, servo off, release control, close the socket (quiet: cleanup)."""
+        base = f"/api/v1/sessions/{SID}"
+        self.page.request.post(f"{base}/motion/halt", data="{}", headers=self.headers)
+        if self.token:
+            self.page.request.post(
+                f"{base}/state", data='{"command":"disable"}', headers=self.headers
+            )
+            self.page.request.post(
+                f"{base}/control", data='{"action":"release"}', headers=self.headers
+            )
+        self.token = None
+        stop_mover(self.page)
 
 
 def reset_scope(page: Page) -> None:
@@ -89,6 +94,15 @@ def reset_scope(page: Page) -> None:
     )
     put(page, "/api/v1/scope/channels", {"channels": []})
     put(page, "/api/v1/scope/trigger", {"mode": "roll"})
+
+
+@pytest.fixture
+def mover(page: Page) -> Iterator[Mover]:
+    m = Mover(page)
+    try:
+        yield m
+    finally:
+        m.stop()
 
 
 @pytest.fixture
@@ -103,14 +117,6 @@ def scope_page(page: Page) -> Iterator[Page]:
     try:
         yield page
     finally:
-        page.request.post(f"/api/v1/sessions/{SID}/motion/halt", data="{}", headers=MOVER_HEADERS)
-        page.request.post(
-            f"/api/v1/sessions/{SID}/state", data='{"command":"disable"}', headers=MOVER_HEADERS
-        )
-        page.request.post(
-            f"/api/v1/sessions/{SID}/control", data='{"action":"release"}', headers=MOVER_HEADERS
-        )
-        stop_mover(page)
         reset_scope(page)
 
 
@@ -149,7 +155,9 @@ def import_file(page: Page, path: Path, name: str) -> None:
     )
 
 
-def test_scope_traces_trigger_export_and_reimport(scope_page: Page, tmp_path: Path) -> None:
+def test_scope_traces_trigger_export_and_reimport(
+    scope_page: Page, mover: Mover, tmp_path: Path
+) -> None:
     page = scope_page
 
     # Two channels of the drive the page was opened for, source chosen by the server.
@@ -174,17 +182,11 @@ def test_scope_traces_trigger_export_and_reimport(scope_page: Page, tmp_path: Pa
 
     # Move the axis (another client, with its own dead-man heartbeat), away from the nearer
     # limit switch.
-    start_mover(page)
+    mover.start()
     position = page.request.get(f"/api/v1/sessions/{SID}/objects/{POSITION}").json()["value"]
     direction = -1 if position > REVOLUTION else 1
-    post(page, f"/api/v1/sessions/{SID}/control", {"action": "take"}, MOVER_HEADERS)
-    post(page, f"/api/v1/sessions/{SID}/state", {"command": "enable"}, MOVER_HEADERS)
-    post(
-        page,
-        f"/api/v1/sessions/{SID}/motion/velocity",
-        {"velocity": direction * VELOCITY},
-        MOVER_HEADERS,
-    )
+    mover.post("state", {"command": "enable"})
+    mover.post("motion/velocity", {"velocity": direction * VELOCITY})
 
     # The traces follow: the stored samples grow and the newest position changes.
     samples0 = plot_int(page, "data-samples")

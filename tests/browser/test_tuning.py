@@ -16,18 +16,14 @@ from typing import Any
 import pytest
 from playwright.sync_api import Page, expect
 
+from tests.browser.harness import control_headers, release_control, take_control
+
 pytestmark = pytest.mark.browser
 
 LECSN = "lecsn-t-1"
 CTMM = "ctmm04x-1"  # Axis X of the twin's SLMP station (docs/slmp.md)
 GENERIC = "cia402-generic-1"
 PB_DEFAULTS = [700, 150, 370, 823, 337]
-
-
-def client_id(page: Page) -> str:
-    cid = page.evaluate("() => sessionStorage.getItem('servodesk.client')")
-    assert isinstance(cid, str) and cid, "the UI did not make a client id"
-    return cid
 
 
 def tuning_info(page: Page, sid: str) -> dict[str, Any]:
@@ -45,13 +41,9 @@ def tuning_page(page: Page, sid: str, kind: str) -> Iterator[Page]:
     try:
         yield page
     finally:
-        headers = {"X-Servodesk-Client": client_id(page), "Content-Type": "application/json"}
-        for path, body in (
-            ("tuning/stop", "{}"),
-            ("state", '{"command":"disable"}'),
-            ("control", '{"action":"release"}'),
-        ):
-            page.request.post(f"/api/v1/sessions/{sid}/{path}", data=body, headers=headers)
+        # Stopping a tuning is never refused; servo off and release need the tab's token.
+        page.request.post(f"/api/v1/sessions/{sid}/tuning/stop", data="{}")
+        release_control(page)
 
 
 @pytest.fixture
@@ -67,7 +59,7 @@ def test_lecsn_one_touch_tuning_from_the_page_then_undo(lecsn_page: Page) -> Non
     # Nothing can start before control, servo on and the confirmation.
     start = page.get_by_test_id("tuning-start")
     expect(start).to_be_disabled()
-    page.get_by_test_id("control-take").click()
+    take_control(page, LECSN)
     expect(page.get_by_test_id("control-owner")).to_have_attribute("data-you", "true")
     page.get_by_test_id("servo-on").click()
     expect(page.get_by_test_id("servo-on")).to_be_disabled(timeout=10_000)  # Enabled now.
@@ -150,7 +142,7 @@ def test_own_tuning_from_the_page_shows_what_it_found_then_undo(generic_page: Pa
     page = generic_page
     expect(page.get_by_test_id("tuning-kind-text")).to_contain_text("servodesk")
     before = [g["raw"] for g in tuning_info(page, GENERIC)["gains"]]
-    page.get_by_test_id("control-take").click()
+    take_control(page, GENERIC)
     expect(page.get_by_test_id("control-owner")).to_have_attribute("data-you", "true")
     page.get_by_test_id("servo-on").click()
     expect(page.get_by_test_id("servo-on")).to_be_disabled(timeout=10_000)
@@ -211,7 +203,7 @@ def test_own_tuning_from_the_page_shows_what_it_found_then_undo(generic_page: Pa
 
 def _start_lecsn_tuning(page: Page, mode: str) -> None:
     """Control, servo on, a quarter-revolution window confirmed, ``mode``, Start."""
-    page.get_by_test_id("control-take").click()
+    take_control(page, LECSN)
     expect(page.get_by_test_id("control-owner")).to_have_attribute("data-you", "true")
     page.get_by_test_id("servo-on").click()
     expect(page.get_by_test_id("servo-on")).to_be_disabled(timeout=10_000)
@@ -249,7 +241,8 @@ def test_lecsn_one_touch_tuning_error_decoded_on_the_page(lecsn_page: Page) -> N
     stay."""
     page = lecsn_page
     pa10 = f"/api/v1/sessions/{LECSN}/objects/0x200A:00"
-    headers = {"X-Servodesk-Client": client_id(page), "Content-Type": "application/json"}
+    take_control(page, LECSN)  # The write of PA10 needs control, as the tuning does.
+    headers = control_headers(page)
     r = page.request.get(pa10)
     assert r.ok, r.text()
     in_position = r.json()["value"]

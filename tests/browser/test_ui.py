@@ -3,7 +3,8 @@
 What a commissioning engineer does first: open the simulated drive's session from the
 Connect page, enable it and see "Operation enabled"; then read and write objects on the
 Object access page and get the drive's own refusal (SDO abort text) when writing a
-read-only object.
+read-only object. Changing a drive needs control: the engineer takes it first with the
+header's Take control.
 """
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ from pathlib import Path
 
 import pytest
 from playwright.sync_api import Page, expect
+
+from tests.browser.harness import take_control
 
 pytestmark = pytest.mark.browser
 
@@ -41,7 +44,8 @@ def open_generic_session(page: Page) -> str:
 
 
 def test_enable_reaches_operation_enabled(page: Page) -> None:
-    open_generic_session(page)
+    sid = open_generic_session(page)
+    take_control(page, sid)
     state = page.get_by_test_id("drive-state")
     expect(state).not_to_have_text("—")
 
@@ -59,8 +63,9 @@ def test_enable_reaches_operation_enabled(page: Page) -> None:
 
 
 def test_write_read_only_object_shows_abort(page: Page) -> None:
-    open_generic_session(page)
+    sid = open_generic_session(page)
     page.get_by_test_id("nav-objects").click()
+    take_control(page, sid)
     page.get_by_test_id("object-address").fill("0x6041")
     page.get_by_test_id("object-value").fill("1")
     page.get_by_test_id("object-write").click()
@@ -73,8 +78,9 @@ def test_write_read_only_object_shows_abort(page: Page) -> None:
 
 
 def test_write_6081_and_read_it_back(page: Page) -> None:
-    open_generic_session(page)
+    sid = open_generic_session(page)
     page.get_by_test_id("nav-objects").click()
+    take_control(page, sid)
     address = page.get_by_test_id("object-address")
     value = page.get_by_test_id("object-value")
 
@@ -352,6 +358,7 @@ def test_an_ethercat_line_is_opened_from_the_connect_page(page: Page) -> None:
         # Cyclic data over EtherCAT: the assigned TxPDO's values live on the PDO page.
         page.goto("/#/pdo/hiwin-e-1")
         expect(page.get_by_test_id("pdo-cyclic-unavailable")).to_have_count(0)
+        take_control(page, "hiwin-e-1")  # Starting the cyclic data changes the drive.
         page.get_by_test_id("pdo-cyclic-start").click()
         expect(page.get_by_test_id("pdo-cyclic-state")).to_have_attribute("data-running", "true")
         live = page.get_by_test_id("pdo-live-TxPDO 1A00h-0x6041:00")

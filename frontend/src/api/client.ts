@@ -6,6 +6,7 @@
  * instead of showing JSON.
  */
 import { getToken } from './auth';
+import { controlHeaders } from '../lib/controlToken';
 import type {
   ApiErrorBody,
   DcpDone,
@@ -102,13 +103,18 @@ async function request<T>(
   const token = getToken();
   if (token) headers.Authorization = `Bearer ${token}`;
   headers[CLIENT_HEADER] = tabClientId();
-  if (body !== undefined) headers['Content-Type'] = contentType;
+  // The control token, whenever this tab holds control: the server needs it on every request
+  // that changes a drive (docs/api.md "Control and motion as built"); reads ignore it.
+  Object.assign(headers, controlHeaders());
+  // A FormData body (a file upload) gets its multipart/form-data type, with the boundary,
+  // from the browser.
+  if (body !== undefined && !(body instanceof FormData)) headers['Content-Type'] = contentType;
   let res: Response;
   try {
     res = await fetch(API_BASE + path, {
       method,
       headers,
-      body: body === undefined ? null : typeof body === 'string' ? body : JSON.stringify(body),
+      body: body === undefined ? null : body instanceof FormData || typeof body === 'string' ? body : JSON.stringify(body),
     });
   } catch {
     throw new ApiError(action, 0, {
@@ -130,6 +136,17 @@ async function request<T>(
 }
 
 const seg = encodeURIComponent;
+
+/**
+ * A file upload's body: multipart/form-data with the file in field `file`. The server takes
+ * state-changing requests only as JSON, or as multipart where a file is uploaded
+ * (docs/security.md): a text/plain body is what a page of another site could post.
+ */
+export function fileForm(filename: string, content: BlobPart): FormData {
+  const form = new FormData();
+  form.append('file', new Blob([content]), filename);
+  return form;
+}
 
 export const api = {
   health: () => request<Health>('Check the server', 'GET', '/health'),
@@ -163,8 +180,7 @@ export const api = {
       `Import ${filename}`,
       'POST',
       `/profiles/import?filename=${seg(filename)}&profile_id=${seg(profileId)}`,
-      text,
-      'text/plain',
+      fileForm(filename, text),
     ),
   /** Read up to 512 objects; one failure does not stop the rest (answers in request order). */
   readMany: (sid: string, addresses: string[]) =>
@@ -234,7 +250,7 @@ export function filenameFromDisposition(header: string | null): string | null {
  * works on a server that requires a token, where a plain link would get 401.
  */
 async function fetchFile(action: string, path: string): Promise<DownloadedFile> {
-  const headers: Record<string, string> = { [CLIENT_HEADER]: tabClientId() };
+  const headers: Record<string, string> = { [CLIENT_HEADER]: tabClientId(), ...controlHeaders() };
   const token = getToken();
   if (token) headers.Authorization = `Bearer ${token}`;
   let res: Response;
@@ -271,7 +287,7 @@ export const backupApi = {
   download: (bid: string, format: BackupFormat) =>
     fetchFile(`Download backup as ${format.toUpperCase()}`, `/backups/${seg(bid)}/download?format=${format}`),
   upload: (filename: string, text: string) =>
-    request<BackupInfo>(`Upload ${filename}`, 'POST', `/backups/upload${query({ filename })}`, text, 'text/plain'),
+    request<BackupInfo>(`Upload ${filename}`, 'POST', `/backups/upload${query({ filename })}`, fileForm(filename, text)),
   patch: (bid: string, body: BackupPatch) =>
     request<BackupInfo>('Save the backup label and note', 'PATCH', `/backups/${seg(bid)}`, body),
   compare: (body: CompareRequest) => request<Comparison>('Compare', 'POST', '/compare', body),
@@ -295,6 +311,7 @@ import type {
   ControlAction,
   CyclicRequest,
   HomingMethod,
+  HomingPlan,
   HomingRequest,
   HomingStatus,
   JogRequest,
@@ -334,6 +351,19 @@ export const operationApi = {
   startHoming: (sid: string, body: HomingRequest) =>
     request<HomingStatus>(`Start homing (method ${body.method})`, 'POST', `/sessions/${seg(sid)}/homing`, body),
   homing: (sid: string) => request<HomingStatus>('Read the homing status', 'GET', `/sessions/${seg(sid)}/homing`),
+  homingPlan: (sid: string, req: HomingRequest) =>
+    request<HomingPlan>(
+      'Estimate the homing run',
+      'GET',
+      `/sessions/${seg(sid)}/homing/plan${query({
+        method: req.method,
+        speed_switch: req.speed_switch,
+        speed_zero: req.speed_zero,
+        acceleration: req.acceleration,
+        max_travel: req.max_travel,
+        timeout_s: req.timeout_s,
+      })}`,
+    ),
   alarms: (sid: string) => request<Alarms>('Read the alarms', 'GET', `/sessions/${seg(sid)}/alarms`),
   resetAlarms: (sid: string) => request<Alarms>('Fault reset', 'POST', `/sessions/${seg(sid)}/alarms/reset`, {}),
   clearAlarmHistory: (sid: string) =>

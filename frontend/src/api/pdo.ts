@@ -25,6 +25,7 @@ import type {
   PdoView,
 } from './types';
 import { CLIENT_HEADER, tabClientId } from '../lib/backupClientId';
+import { controlHeaders } from '../lib/controlToken';
 
 /** A mapping the server refused before writing anything, with the problems it named. */
 export class PdoRefusedError extends ApiError {
@@ -62,7 +63,7 @@ export function problemsOf(payload: unknown): PdoProblem[] {
 }
 
 function headers(json: boolean): Record<string, string> {
-  const h: Record<string, string> = { Accept: 'application/json', [CLIENT_HEADER]: tabClientId() };
+  const h: Record<string, string> = { Accept: 'application/json', [CLIENT_HEADER]: tabClientId(), ...controlHeaders() };
   const token = getToken();
   if (token) h.Authorization = `Bearer ${token}`;
   if (json) h['Content-Type'] = 'application/json';

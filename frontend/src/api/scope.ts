@@ -8,9 +8,10 @@
  * import sends the file's bytes as they are (CSV text or an MDF4 binary).
  */
 import { getToken } from './auth';
-import { API_BASE, ApiError, type DownloadedFile, filenameFromDisposition, normaliseErrorBody } from './client';
+import { API_BASE, ApiError, type DownloadedFile, fileForm, filenameFromDisposition, normaliseErrorBody } from './client';
 import type { ApiErrorBody } from './types';
 import { CLIENT_HEADER, tabClientId } from '../lib/backupClientId';
+import { controlHeaders } from '../lib/controlToken';
 
 /** Where a channel's samples come from; `auto` lets the server choose (docs/scope.md "Model"). */
 export type ScopeSource = 'auto' | 'pdo' | 'sdo' | 'recorder';
@@ -146,7 +147,7 @@ const NETWORK_ERROR: ApiErrorBody = {
 };
 
 function headers(contentType: string | null): Record<string, string> {
-  const h: Record<string, string> = { Accept: 'application/json', [CLIENT_HEADER]: tabClientId() };
+  const h: Record<string, string> = { Accept: 'application/json', [CLIENT_HEADER]: tabClientId(), ...controlHeaders() };
   const token = getToken();
   if (token) h.Authorization = `Bearer ${token}`;
   if (contentType) h['Content-Type'] = contentType;
@@ -198,7 +199,8 @@ export const scopeApi = {
   /** Send a recording file (CSV or MDF4) as it is; the answer is the recording to open. */
   import: async (filename: string, bytes: ArrayBuffer): Promise<ScopeRecording> => {
     const action = `Import ${filename}`;
-    const res = await send(action, 'POST', `/scope/import?filename=${encodeURIComponent(filename)}`, bytes, 'application/octet-stream');
+    // multipart/form-data (field `file`, docs/security.md); the browser sets the type.
+    const res = await send(action, 'POST', `/scope/import?filename=${encodeURIComponent(filename)}`, fileForm(filename, bytes), null);
     if (!res.ok) return fail(action, res);
     return (await res.json()) as ScopeRecording;
   },

@@ -10,6 +10,7 @@ import { getToken } from './auth';
 import { API_BASE, ApiError, normaliseErrorBody } from './client';
 import type { StoreResult } from './types';
 import { CLIENT_HEADER, tabClientId } from '../lib/backupClientId';
+import { controlHeaders } from '../lib/controlToken';
 
 export type TuningKind = 'builtin' | 'gains' | 'none';
 export type TuningMode = 'low' | 'basic' | 'high';
@@ -39,9 +40,30 @@ export interface TuningJob {
   message: string;
   error: TuningError | null;
   travel_window_rev: number;
+  /** The bound the window gives around where the axis stood (optional for an older server). */
+  bound?: TravelBound | null;
   torque_limit_pct: number;
   /** The peak torque of the machine's moves the gains were ranked for (null: the limit). */
   move_torque_pct?: number | null;
+}
+
+/** The travel bound: start ± half the window [position units] (docs/tuning.md "Travel window"). */
+export interface TravelBound {
+  start: number;
+  low: number;
+  high: number;
+  half: number;
+  half_rev: number | null;
+  raw_unit: string | null;
+  /** The bound in words, revolutions and units side by side. */
+  text?: string;
+  /** Servodesk's own tuning: how far the axis went (from the drive's recordings). */
+  lowest?: number;
+  highest?: number;
+  max_excursion?: number;
+  max_excursion_rev?: number;
+  /** Whether the drive's software position limits (607Dh) held the bound too. */
+  software_limits?: boolean;
 }
 
 export interface GainRow {
@@ -72,6 +94,8 @@ export interface TuningInfo {
   gains: GainRow[];
   loop_rate_hz: number | null;
   defaults: { mode: TuningMode; travel_window_rev: number; torque_limit_pct: number };
+  /** What the travel window means for this kind of tuning (optional for an older server). */
+  travel_rule?: string | null;
   limits: {
     travel_window_rev: { min: number; max: number };
     torque_limit_pct: { min: number; max: number };
@@ -206,7 +230,11 @@ export interface TuningResult {
   gains: ResultGain[];
   step: { before: StepResponse | null; after: StepResponse | null } | null;
   axis_time_s: number | null;
+  /** The span the axis moved over, highest less lowest [rev]. */
   excursion_rev: number | null;
+  /** The bound and, for servodesk's own tuning, how far from the start the axis went
+   * (optional for an older server). */
+  travel?: TravelBound | null;
   peak_torque_pct: number | null;
   /** Set where the peak is the largest of 6077h polls this many seconds apart (a drive's own
    * tuning): shorter peaks are not seen. Null where it comes from recordings. */
@@ -234,7 +262,7 @@ export interface UndoResult {
 }
 
 async function request<T>(action: string, method: string, path: string, body?: unknown): Promise<T> {
-  const headers: Record<string, string> = { Accept: 'application/json', [CLIENT_HEADER]: tabClientId() };
+  const headers: Record<string, string> = { Accept: 'application/json', [CLIENT_HEADER]: tabClientId(), ...controlHeaders() };
   const token = getToken();
   if (token) headers.Authorization = `Bearer ${token}`;
   if (body !== undefined) headers['Content-Type'] = 'application/json';

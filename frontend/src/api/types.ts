@@ -602,12 +602,32 @@ export type ControlAction = 'take' | 'release' | 'force_take';
 
 export interface Control {
   session: string;
-  /** Client id holding control, or null. */
+  /** The holder's client label (X-Servodesk-Client when it took control), or null. */
   owner: string | null;
   /** Unix time (s) when it was taken. */
   since: number | null;
-  /** The requesting client (X-Servodesk-Client) holds it. */
+  /** The request's X-Servodesk-Control token is the holder's. */
   you: boolean;
+  /** The control token: only in the answer to the holder (take / force_take, GET with it). */
+  token?: string | null;
+  /** A WebSocket is bound to this control as the drive's dead-man. */
+  bound?: boolean;
+  /** The holder's bound socket closed: the drive was made safe, control lapses after 5 s
+   * unless a reloaded page binds again with the token. */
+  orphaned?: boolean;
+  /** What stops this drive when its operator is lost (GET /control and the take answer). */
+  protection?: ControlProtection | null;
+}
+
+export interface ControlProtection {
+  /** Heartbeats older than this stop the axis. */
+  deadman_ms: number;
+  /** Where the dead-man's quick stop is sent from. */
+  stop_path: 'dead-man thread' | 'event loop';
+  /** The drive's own watchdog servodesk arms (a dead PC stops the axis), or null. */
+  drive_watchdog: string | null;
+  /** One sentence for people. */
+  summary: string;
 }
 
 export interface JogRequest {
@@ -710,6 +730,67 @@ export interface HomingRequest {
   speed_zero?: number | null;
   acceleration?: number | null;
   offset?: number | null;
+  /** The span the searches may cover (position units), for the estimate. */
+  max_travel?: number | null;
+  /** Halt and quick-stop the run after this many seconds (default: from the estimate). */
+  timeout_s?: number | null;
+}
+
+/** One part of a homing run at one speed (domain/homing.py). */
+export interface HomingPhase {
+  name: string;
+  distance: number;
+  speed: number;
+  seconds: number;
+  speed_object: string;
+}
+
+export interface HomingEstimate {
+  /** The longest a normal run takes from any start within the travel. */
+  seconds: number;
+  phases: HomingPhase[];
+  assumptions: string[];
+}
+
+/** What a run is expected to take: GET /homing/plan, and part of every run. */
+export interface HomingPlan {
+  estimate_s: number | null;
+  estimate: HomingEstimate | null;
+  /** Where the travel came from, or why there is no estimate. */
+  basis: string;
+  travel: number | null;
+  speed_switch: number | null;
+  speed_zero: number | null;
+  acceleration: number | null;
+  timeout_s: number;
+  timeout_source: 'user' | 'estimate' | 'default';
+  warnings: string[];
+}
+
+/** How a run ended (running while it lasts): the motion's end, not only the statusword. */
+export type HomingOutcome =
+  | 'running'
+  | 'attained'
+  | 'error'
+  | 'halted'
+  | 'stopped'
+  | 'deadman'
+  | 'control_lost'
+  | 'timeout'
+  | 'interrupted';
+
+export interface HomingRun extends HomingPlan {
+  id: number;
+  method: number;
+  active: boolean;
+  outcome: HomingOutcome;
+  message: string;
+  /** A motion under the client's dead-man. */
+  watched: boolean;
+  started_at: number;
+  elapsed_s: number;
+  /** What statusword bits 13/12/10 say (mode 6 only). */
+  phase: string | null;
 }
 
 export interface HomingBits {
@@ -728,6 +809,8 @@ export interface HomingStatus {
   /** The backend sends the decoded bits (an object), not a list. */
   statusword_bits: HomingBits;
   message: string;
+  /** The last run started through servodesk on this session. */
+  run?: HomingRun | null;
 }
 
 export interface EmcyLogEntry {

@@ -1,6 +1,7 @@
 /**
  * The header: product name, the drive in view (name, node, profile, state, simulated badge),
- * a drive switcher, and the WebSocket connection indicator.
+ * on session pages who holds control of it (Take / Release / Force take), a drive switcher,
+ * and the WebSocket connection indicator.
  */
 import type { SessionInfo } from '../api';
 import { nodeLabel } from '../lib/network';
@@ -8,6 +9,7 @@ import { useObservable } from '../state/observable';
 import { navigate, useRoute } from '../state/router';
 import { liveSession, sessions, socketStatus } from '../state/store';
 import { findPage } from '../pages/registry';
+import { ControlIndicator } from './ControlIndicator';
 import { StatePill } from './StatePill';
 
 function ConnectionIndicator() {
@@ -75,6 +77,7 @@ export function Header({ sid }: { sid: string | null }) {
         {session ? <DriveTitle session={session} /> : <span className="muted">no drive selected</span>}
       </div>
       <div className="header-right">
+        {session && page?.scope === 'session' && <ControlIndicator key={session.id} sid={session.id} />}
         {list.length > 0 && (
           <label className="session-switch">
             <span className="muted">Drive</span>

@@ -2,7 +2,8 @@
  * Write one object: an input in decimal or hex (the card web server takes hex, LECSN manual
  * §20.7), checked in the browser against the type range, the profile's min/max and the
  * enumeration before anything is sent, with the message in place; then PUT and the value the
- * drive reads back, or the refusal with its code, meaning, cause and remedy.
+ * drive reads back, or the refusal with its code, meaning, cause and remedy. While this tab
+ * does not hold control of the drive (`blocked`: why), Write is disabled and says why.
  */
 import { type FormEvent, useEffect, useRef, useState } from 'react';
 import type { ErrorInfo, ObjectInfo, ObjectScalar, ObjectValue, ObjectWrite } from '../api/types';
@@ -22,6 +23,7 @@ export function ValueEditor({
   onWritten,
   onCancel,
   autoFocus = false,
+  blocked = null,
 }: {
   obj: ObjectInfo;
   current: ObjectScalar | null | undefined;
@@ -32,6 +34,8 @@ export function ValueEditor({
   onWritten?: (v: ObjectValue) => void;
   onCancel?: () => void;
   autoFocus?: boolean;
+  /** Why a write would be refused now (this tab does not hold control), or null. */
+  blocked?: string | null;
 }) {
   const [text, setText] = useState(() => (current === null || current === undefined ? '' : valueToInput(current, mode, obj.data_type)));
   const [touched, setTouched] = useState(false);
@@ -64,7 +68,7 @@ export function ValueEditor({
     setTouched(true);
     setReadBack(null);
     setFailure(null);
-    if (!check.ok) return;
+    if (!check.ok || blocked) return;
     setBusy(true);
     try {
       const v = await write(check.body);
@@ -122,7 +126,7 @@ export function ValueEditor({
             </button>
           </div>
         )}
-        <button type="submit" className="primary" data-testid="value-write" disabled={busy}>
+        <button type="submit" className="primary" data-testid="value-write" disabled={busy || !!blocked} title={blocked ?? undefined}>
           {busy ? 'Writing…' : 'Write'}
         </button>
         {onCancel && (
@@ -131,6 +135,11 @@ export function ValueEditor({
           </button>
         )}
       </div>
+      {blocked && (
+        <div className="small warn-text" data-testid="value-blocked">
+          Write is disabled: {blocked}.
+        </div>
+      )}
       <div className="ve-meta small muted">
         {obj.data_type}
         {rangeText(obj, mode) ? ` · allowed ${rangeText(obj, mode)}` : ''}

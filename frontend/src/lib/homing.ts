@@ -4,7 +4,7 @@
  * mode (6061h = 6), the same table as backend/servodesk/services/homing.py, and the names of
  * the signals a method uses.
  */
-import type { HomingSignal, HomingState } from '../api/types';
+import type { HomingOutcome, HomingRun, HomingSignal, HomingState, HomingStatus, MotionStatus } from '../api/types';
 
 export const HOMING_MODE = 6;
 export const SW_TARGET_REACHED = 1 << 10;
@@ -38,4 +38,90 @@ export const SIGNAL_LABELS: Record<HomingSignal, string> = {
 
 export function signalLabel(s: string): string {
   return (SIGNAL_LABELS as Record<string, string>)[s] ?? s.replace(/_/g, ' ');
+}
+
+// The run: its end state, progress and time-out (backend services/homing.py) --------------
+
+/** What the panel says for each way a run ends (and while it runs). */
+export const HOMING_OUTCOME_LABEL: Record<HomingOutcome, string> = {
+  running: 'running',
+  attained: 'attained',
+  error: 'error',
+  halted: 'halted',
+  stopped: 'quick-stopped',
+  deadman: 'stopped by the dead-man',
+  control_lost: 'stopped: control lost',
+  timeout: 'timed out',
+  interrupted: 'interrupted',
+};
+
+/** The motion's end state (GET /motion, WebSocket `motion`) as the run's outcome. */
+const OUTCOME_OF_MOTION: Record<string, HomingOutcome> = {
+  done: 'attained',
+  reached: 'attained',
+  error: 'error',
+  halted: 'halted',
+  stopped: 'stopped',
+  deadman: 'deadman',
+  timeout: 'timeout',
+  replaced: 'interrupted',
+};
+
+export function outcomeOfMotion(state: string): HomingOutcome {
+  return OUTCOME_OF_MOTION[state] ?? 'interrupted';
+}
+
+/**
+ * The run as the motion that carried it says it ended, or null when the motion says nothing
+ * about it: the backend ends a watched run with its motion and publishes that end as the last
+ * `homing` message; this is the same end taken from the `motion` message, for a tab that
+ * missed the `homing` one. Only a homing motion that has ended ends a watched run still shown
+ * as running.
+ */
+export function endFromMotion(run: HomingRun, motion: Pick<MotionStatus, 'kind' | 'active' | 'state' | 'message'>): HomingRun | null {
+  if (!run.active || !run.watched || motion.kind !== 'homing' || motion.active) return null;
+  return { ...run, active: false, outcome: outcomeOfMotion(motion.state), message: motion.message };
+}
+
+/**
+ * Which of two homing statuses of the same session the panel keeps: a run never starts again,
+ * so an answer that shows a run running after that same run was seen ended is stale (a start
+ * request answered after the run's end arrived over the WebSocket).
+ */
+export function newerHoming(current: HomingStatus | null, next: HomingStatus): HomingStatus {
+  const a = current?.run;
+  const b = next.run;
+  if (current && a && b && a.id === b.id && !a.active && b.active) return current;
+  if (current && a && b && b.started_at < a.started_at) return current; // An older run's.
+  return next;
+}
+
+/** The panel's state chip: the run's outcome when servodesk started a run, else the live
+ * statusword's bits (polled at 20 Hz), else the last status read. */
+export function homingShown(homing: HomingStatus | null, decoded: HomingState | null): { key: string; label: string } {
+  const run = homing?.run;
+  if (run) return { key: run.outcome, label: HOMING_OUTCOME_LABEL[run.outcome] };
+  const state = decoded ?? homing?.state ?? 'idle';
+  return { key: state, label: state };
+}
+
+/** "2.5 s", "42 s", "3 min 20 s", "3 h 43 min" (the backend's format_seconds). */
+export function formatDuration(seconds: number): string {
+  const s = Math.max(0, seconds);
+  if (s < 10) return `${Number(s.toPrecision(2))} s`;
+  if (s < 100) return `${Math.round(s)} s`;
+  const r = Math.round(s);
+  const m = Math.floor(r / 60);
+  if (m < 60) return `${m} min ${r % 60} s`;
+  return `${Math.floor(m / 60)} h ${m % 60} min`;
+}
+
+/** The time-out field: empty = the default from the estimate; else 0 < s <= 86400. */
+export function parseTimeout(text: string): { value: number | null; error: string | null } {
+  const t = text.trim();
+  if (t === '') return { value: null, error: null };
+  const v = Number(t);
+  if (!Number.isFinite(v)) return { value: null, error: 'not a number' };
+  if (v <= 0 || v > 86400) return { value: null, error: 'between 0 and 86400 s' };
+  return { value: v, error: null };
 }

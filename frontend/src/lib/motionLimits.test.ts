@@ -151,6 +151,13 @@ describe('velocity, torque, cyclic, homing checks', () => {
     expect(checkHoming({ method: 37, offset: -5, speed_switch: 100 }, [35, 37])).toEqual([]);
     expect(byField(checkHoming({ method: 37, speed_zero: -1 }, [37])).speed_zero).toBeDefined();
   });
+
+  it('checks the maximum travel and the time-out of a homing run', () => {
+    expect(checkHoming({ method: 1, max_travel: 707788, timeout_s: 90.5 }, [1])).toEqual([]);
+    expect(byField(checkHoming({ method: 1, max_travel: 0 }, [1])).max_travel).toBeDefined();
+    expect(byField(checkHoming({ method: 1, timeout_s: 0 }, [1])).timeout_s).toBeDefined();
+    expect(byField(checkHoming({ method: 1, timeout_s: 90000 }, [1])).timeout_s).toBeDefined();
+  });
 });
 
 describe('defaults', () => {

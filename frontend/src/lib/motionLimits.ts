@@ -274,6 +274,10 @@ export function checkHoming(req: HomingRequest, methods: readonly number[]): Fie
     if (v !== null && v !== undefined) checkRange(out, field, v, 0, U32_MAX, field.replace('_', ' '));
   }
   if (req.offset !== null && req.offset !== undefined) checkRange(out, 'offset', req.offset, I32_MIN, I32_MAX, 'home offset');
+  if (req.max_travel !== null && req.max_travel !== undefined) checkRange(out, 'max_travel', req.max_travel, 1, U32_MAX, 'maximum travel');
+  if (req.timeout_s !== null && req.timeout_s !== undefined && !(req.timeout_s > 0 && req.timeout_s <= 86400)) {
+    out.push({ field: 'timeout_s', message: 'the time-out is between 0 and 86400 s' });
+  }
   return out;
 }
 

@@ -11,6 +11,7 @@ import { useCallback, useEffect, useState } from 'react';
 import { operationApi } from '../api/client';
 import type { Alarms } from '../api/types';
 import { ConfirmDialog } from '../components/ConfirmDialog';
+import { ControlNote, useWriteGate } from '../components/ControlNote';
 import { FailureBox } from '../components/FailureBox';
 import { StatePill } from '../components/StatePill';
 import '../components/operation/operation.css';
@@ -30,6 +31,8 @@ export function AlarmsPage({ sid }: PageProps) {
   const [actionFailure, setActionFailure] = useState<Failure | null>(null);
   const [busy, setBusy] = useState<'reset' | 'clear' | null>(null);
   const [confirmClear, setConfirmClear] = useState(false);
+  // Fault reset and clearing the history change the drive: they need control.
+  const noControl = useWriteGate(sid).write;
 
   const load = useCallback(() => {
     operationApi.alarms(sid).then(
@@ -152,7 +155,14 @@ export function AlarmsPage({ sid }: PageProps) {
         )}
         <div className="reset-box">
           <div>
-            <button type="button" className="primary" data-testid="fault-reset" disabled={busy !== null || !alarms} onClick={() => void reset()}>
+            <button
+              type="button"
+              className="primary"
+              data-testid="fault-reset"
+              disabled={busy !== null || !alarms || noControl !== null}
+              title={noControl ?? undefined}
+              onClick={() => void reset()}
+            >
               {busy === 'reset' ? 'Resetting…' : 'Fault reset'}
             </button>
           </div>
@@ -162,6 +172,7 @@ export function AlarmsPage({ sid }: PageProps) {
             <div className="muted">Remove the cause first: a fault whose cause is still there comes back at once.</div>
           </div>
         </div>
+        <ControlNote sid={sid} what="Fault reset and Clear history are disabled" />
         {actionFailure && <FailureBox f={actionFailure} testid="alarms-error" />}
       </section>
 
@@ -211,7 +222,14 @@ export function AlarmsPage({ sid }: PageProps) {
           Error history
           <span className="h2-side">
             {alarms?.can_clear_history ? (
-              <button type="button" className="small-btn" data-testid="clear-history" disabled={busy !== null} onClick={() => setConfirmClear(true)}>
+              <button
+                type="button"
+                className="small-btn"
+                data-testid="clear-history"
+                disabled={busy !== null || noControl !== null}
+                title={noControl ?? undefined}
+                onClick={() => setConfirmClear(true)}
+              >
                 Clear history…
               </button>
             ) : alarms ? (

@@ -22,6 +22,7 @@ import { notify, notifyError } from '../state/notify';
 import { useObservable } from '../state/observable';
 import { navigate } from '../state/router';
 import { refreshSessions, sessions } from '../state/store';
+import { forgetControl } from '../state/control';
 
 /** python-can interface names (python-can "Hardware interfaces"); virtual is the simulator's.
  * slmp is servodesk's SLMP link (CC-Link IE TSN), not a CAN interface. */
@@ -213,6 +214,8 @@ export function ConnectPage() {
   async function close(s: SessionInfo) {
     try {
       await api.closeSession(s.id);
+      // A closed session is held by nobody: the tab's token forgets it.
+      forgetControl(s.id);
       await refreshSessions();
       notify({ kind: 'info', title: `Closed ${s.id}`, message: '', detail: null, hint: null });
     } catch (e) {

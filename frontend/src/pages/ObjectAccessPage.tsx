@@ -8,6 +8,7 @@
 import { type FormEvent, useRef, useState } from 'react';
 import type { ObjectValue, ObjectWrite } from '../api';
 import { ApiError, api } from '../api/client';
+import { ControlNote, useWriteGate } from '../components/ControlNote';
 import { formatAddress, parseAddress } from '../lib/address';
 import {
   type NumberMode,
@@ -179,6 +180,11 @@ export function ObjectAccessPage({ sid }: PageProps) {
   const [valueText, setValueText] = useState('');
   const [mode, setMode] = useState<NumberMode>('dec');
   const [busy, setBusy] = useState<'read' | 'write' | null>(null);
+  const gate = useWriteGate(sid);
+  // Writes need control; the controlword (6040h) energises the drive, so it also needs this
+  // tab's WebSocket bound as the dead-man (docs/api.md "Control and motion as built").
+  const parsedForGate = parseAddress(address);
+  const blocked = parsedForGate.ok && parsedForGate.address.index === 0x6040 ? gate.energise : gate.write;
   const [result, setResult] = useState<ObjectValue | null>(null);
   const [failure, setFailure] = useState<Failure | null>(null);
   const [history, setHistory] = useState<HistoryEntry[]>([]);
@@ -296,6 +302,7 @@ export function ObjectAccessPage({ sid }: PageProps) {
 
   function onWrite(e: FormEvent) {
     e.preventDefault();
+    if (blocked) return;
     void write();
   }
 
@@ -370,10 +377,11 @@ export function ObjectAccessPage({ sid }: PageProps) {
                 Hex
               </button>
             </div>
-            <button type="submit" className="primary" data-testid="object-write" disabled={busy !== null}>
+            <button type="submit" className="primary" data-testid="object-write" disabled={busy !== null || blocked !== null} title={blocked ?? undefined}>
               {busy === 'write' ? 'Writing…' : 'Write'}
             </button>
           </form>
+          <ControlNote sid={sid} what="Write is disabled; Read works" />
           <div className="muted small">
             Writes are checked against the profile (type, range, access) before they go to the drive, and read back after.
           </div>

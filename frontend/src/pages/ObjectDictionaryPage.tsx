@@ -15,6 +15,7 @@ import { type KeyboardEvent, useCallback, useEffect, useMemo, useRef, useState }
 import { api } from '../api/client';
 import type { ObjectInfo, ObjectValue, ObjectWrite, ProfileDetail } from '../api/types';
 import { CodeInfo, FailureBox } from '../components/FailureBox';
+import { useWriteGate } from '../components/ControlNote';
 import { ProgressBar } from '../components/ProgressBar';
 import { ValueEditor } from '../components/ValueEditor';
 import { VirtualTable } from '../components/VirtualTable';
@@ -67,6 +68,8 @@ export function ObjectDictionaryPage({ sid }: PageProps) {
 function Dictionary({ sid, profile, dirtyList }: { sid: string; profile: ProfileDetail; dirtyList: readonly string[] }) {
   const objects = profile.object_list;
   const errors = profile.error_list;
+  // Writes need control of the drive: without it the editor's Write says why.
+  const blocked = useWriteGate(sid).write;
   const index = useMemo(() => buildSearchIndex(objects), [objects]);
   const groupNames = useMemo(() => new Map(profile.groups.map((g) => [g.id, g.name])), [profile]);
   const usedGroups = useMemo(() => {
@@ -343,6 +346,7 @@ function Dictionary({ sid, profile, dirtyList }: { sid: string; profile: Profile
             onMode={setMode}
             onRead={() => void readOne(selObj)}
             write={(body) => writeOne(selObj, body)}
+            blocked={blocked}
           />
         ) : (
           <>
@@ -365,6 +369,7 @@ function Detail({
   onMode,
   onRead,
   write,
+  blocked,
 }: {
   o: ObjectInfo;
   cell: Cell | null;
@@ -375,6 +380,7 @@ function Detail({
   onMode: (m: NumberMode) => void;
   onRead: () => void;
   write: (body: ObjectWrite) => Promise<ObjectValue>;
+  blocked: string | null;
 }) {
   useEffect(() => {
     // A selected object shows its live value: one read, not a batch.
@@ -502,7 +508,7 @@ function Detail({
       {isWritable(o) ? (
         <div className="od-write">
           <h3>Write</h3>
-          <ValueEditor key={o.address} obj={o} current={v?.value} mode={mode} onMode={onMode} errors={errors} write={write} />
+          <ValueEditor key={o.address} obj={o} current={v?.value} mode={mode} onMode={onMode} errors={errors} write={write} blocked={blocked} />
         </div>
       ) : (
         <div className="muted small od-write">{o.access === 'const' ? 'Constant: cannot be written.' : 'Read-only: cannot be written.'}</div>

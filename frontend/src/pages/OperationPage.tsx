@@ -3,15 +3,17 @@
  * and homing, with HALT and QUICK STOP always on screen, the limits that apply next to the
  * inputs, live position/velocity, and a compact 3D view (docs/api.md issue 4).
  *
- * Motion needs this tab to hold control and its WebSocket (connected with ?client=<id>) to be
- * open: while motion started here runs, the page sends a heartbeat every 50 ms and the server
- * stops the axis when they stop (the dead-man). When that happens the page shows why.
+ * Motion needs this tab to hold control (its token, taken in the header's control indicator)
+ * and its WebSocket to be bound to that control: while motion started here runs, the page
+ * sends a heartbeat every 50 ms and the server stops the axis when they stop (the dead-man).
+ * When that happens the page shows why. Closing the tab stops the axis and disables the drive.
  */
 import { useEffect, useState } from 'react';
 import { api, operationApi } from '../api/client';
 import type { Limits, ProfileSummary } from '../api/types';
 import { CyclicPanel } from '../components/operation/CyclicPanel';
 import { ControlCard } from '../components/operation/ControlCard';
+import { useWriteGate } from '../components/ControlNote';
 import { HomingPanel } from '../components/operation/HomingPanel';
 import { JogPanel } from '../components/operation/JogPanel';
 import { MovePanel } from '../components/operation/MovePanel';
@@ -112,6 +114,7 @@ export function OperationPage({ sid }: PageProps) {
   const live = useObservable(source);
   const ws = useObservable(socketStatus);
   const op = useObservable(operationLive(sid));
+  const gate = useWriteGate(sid);
   const state = live.state;
   const [limits, setLimits] = useState<Limits | null>(null);
   const [limitsFailure, setLimitsFailure] = useState<Failure | null>(null);
@@ -205,7 +208,9 @@ export function OperationPage({ sid }: PageProps) {
   }
 
   const socketOpen = ws.status === 'open';
-  const you = op.control?.owner === me();
+  // Holding control means holding its token (state/control), not only having the holder's
+  // label; motion also needs this tab's WebSocket bound as the dead-man.
+  const you = gate.view.you && gate.view.bind.state === 'bound';
   const modes = limits?.modes ?? profile?.modes ?? [];
   const ctx: PanelContext = { sid, limits, entry, state, you, socketOpen };
   const dm = op.deadman;
@@ -262,7 +267,7 @@ export function OperationPage({ sid }: PageProps) {
 
       <div className="op-grid">
         <div className="stack">
-          <ControlCard sid={sid} control={op.control} state={state} socketOpen={socketOpen} />
+          <ControlCard sid={sid} state={state} socketOpen={socketOpen} />
           <section className="card" data-testid="motion-card">
             <h2>
               Motion
@@ -299,9 +304,11 @@ export function OperationPage({ sid }: PageProps) {
             </div>
             {!you && (
               <div className="op-note" data-testid="no-control-note">
-                {op.control?.owner
-                  ? `Client ${op.control.owner} holds control: motion from this tab is refused until they release it (or you force-take it).`
-                  : 'Take control first: motion is only accepted from the client that holds control.'}
+                {gate.view.owner && !gate.view.you
+                  ? `Client ${gate.view.owner} holds control: motion from this tab is refused until they release it (or you force-take it at the top right).`
+                  : gate.view.you
+                    ? `Motion is disabled: ${gate.energise ?? "this tab's dead-man link is not bound"}.`
+                    : 'Take control first (Take control, top right): motion is only accepted from the tab that holds control.'}
               </div>
             )}
             {you && state && state.state !== 'Operation enabled' && (

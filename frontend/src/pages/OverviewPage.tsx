@@ -9,6 +9,7 @@
 import { type ReactElement, useEffect, useState } from 'react';
 import type { DriveState, ErrorInfo, Identity, SessionInfo, StateCommand } from '../api';
 import { api } from '../api/client';
+import { ControlNote, useWriteGate } from '../components/ControlNote';
 import { LivePlot } from '../components/LivePlot';
 import { StateDiagram } from '../components/StateDiagram';
 import { StatePill } from '../components/StatePill';
@@ -41,6 +42,9 @@ const COMMANDS: readonly CommandDef[] = [
   { command: 'disable_voltage', label: 'Disable voltage', transitions: 'transitions 7, 9, 10, 12' },
   { command: 'fault_reset', label: 'Fault reset', transitions: 'transition 15 (rising edge of controlword bit 7)' },
 ];
+
+/** Commands that power the motor (servo on): they need control and the bound dead-man link. */
+const ENERGISING: ReadonlySet<StateCommand> = new Set<StateCommand>(['enable', 'switch_on', 'enable_operation', 'switch_on_enable']);
 
 const QUICK_STOP: CommandDef = { command: 'quick_stop', label: 'Quick stop', transitions: 'transitions 7, 10, 11' };
 
@@ -216,7 +220,10 @@ export function OverviewPage({ sid }: PageProps) {
   const live = useObservable(source);
   const ws = useObservable(socketStatus);
   const [busy, setBusy] = useState<StateCommand | null>(null);
+  const gate = useWriteGate(sid);
   const state = live.state;
+  /** Why a command is refused now (no control, no dead-man), or null. */
+  const blockedFor = (c: CommandDef): string | null => (ENERGISING.has(c.command) ? gate.energise : gate.write);
 
   // Subscribe for live values, and load the state once so the page is complete at once.
   useEffect(() => {
@@ -283,6 +290,11 @@ export function OverviewPage({ sid }: PageProps) {
 
   return (
     <div className="stack">
+      <ControlNote
+        sid={sid}
+        energise
+        what={gate.write ? 'The state commands are disabled; Quick stop always works' : 'Enable, Switch on and Enable operation are disabled until it is bound'}
+      />
       <div className="command-bar" data-testid="command-bar">
         <div className="command-state">
           <span className="muted">State</span>
@@ -303,8 +315,8 @@ export function OverviewPage({ sid }: PageProps) {
               type="button"
               className={c.command === 'enable' ? 'go' : ''}
               data-testid={`cmd-${c.command}`}
-              title={c.transitions}
-              disabled={busy !== null}
+              title={blockedFor(c) ?? c.transitions}
+              disabled={busy !== null || blockedFor(c) !== null}
               onClick={() => void run(c)}
             >
               {busy === c.command ? `${c.label}…` : c.label}
@@ -317,8 +329,8 @@ export function OverviewPage({ sid }: PageProps) {
               type="button"
               className="small-btn"
               data-testid={`cmd-${c.command}`}
-              title={c.transitions}
-              disabled={busy !== null}
+              title={blockedFor(c) ?? c.transitions}
+              disabled={busy !== null || blockedFor(c) !== null}
               onClick={() => void run(c)}
             >
               {c.label}

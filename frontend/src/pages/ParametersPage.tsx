@@ -9,12 +9,15 @@
  * A dirty marker shows what was written since the last save (SessionInfo.dirty: those differ
  * from the drive's non-volatile copy), a second marker what differs from the default. "Save to
  * EEPROM" (POST /store; the LECSN takes up to ~25 s, §20.9.1) shows progress from the
- * WebSocket and the elapsed time; it is always allowed. "Restore defaults" asks first.
+ * WebSocket and the elapsed time. "Restore defaults" asks first. Writing, saving and
+ * restoring defaults need control of the drive (docs/api.md "Control and motion as built"):
+ * without it the buttons are disabled and a note says why and offers Take control.
  */
 import { useCallback, useEffect, useMemo, useRef, useState } from 'react';
 import { api } from '../api/client';
 import type { ObjectInfo, ObjectValue, ObjectWrite, ProfileDetail, StoreResult } from '../api/types';
 import { ConfirmDialog } from '../components/ConfirmDialog';
+import { ControlNote, useWriteGate } from '../components/ControlNote';
 import { FailureBox } from '../components/FailureBox';
 import { ProgressBar } from '../components/ProgressBar';
 import { ValueEditor } from '../components/ValueEditor';
@@ -85,6 +88,7 @@ export function ParametersPage({ sid }: PageProps) {
   const [store, setStore] = useState<StoreState | null>(null);
   const [restoreOpen, setRestoreOpen] = useState(false);
   const [restoring, setRestoring] = useState(false);
+  const blocked = useWriteGate(sid).write;
   const [restoreResult, setRestoreResult] = useState<string | null>(null);
   const [restoreFailure, setRestoreFailure] = useState<Failure | null>(null);
   const readToken = useRef(0);
@@ -240,17 +244,25 @@ export function ParametersPage({ sid }: PageProps) {
               type="button"
               className="primary"
               onClick={() => void save()}
-              disabled={store?.running === true}
+              disabled={store?.running === true || blocked !== null}
               data-testid="params-store"
-              title={`Store the drive's parameters in non-volatile memory: ${storeProc}`}
+              title={blocked ?? `Store the drive's parameters in non-volatile memory: ${storeProc}`}
             >
               {store?.running ? 'Saving…' : 'Save to EEPROM'}
             </button>
-            <button type="button" className="warn-outline" onClick={() => setRestoreOpen(true)} disabled={restoring} data-testid="params-restore">
+            <button
+              type="button"
+              className="warn-outline"
+              onClick={() => setRestoreOpen(true)}
+              disabled={restoring || blocked !== null}
+              title={blocked ?? undefined}
+              data-testid="params-restore"
+            >
               Restore defaults…
             </button>
           </div>
         </div>
+        <ControlNote sid={sid} what="Write, Save to EEPROM and Restore defaults are disabled; reading works" />
         {store && (
           <div className="store-status" data-testid="params-store-status">
             {store.running ? (
@@ -449,6 +461,7 @@ export function ParametersPage({ sid }: PageProps) {
                           errors={errors}
                           autoFocus
                           write={(body) => writeOne(o, body)}
+                          blocked={blocked}
                           onCancel={() => setEditing(null)}
                         />
                       </td>

@@ -21,11 +21,12 @@ import { FailureBox } from '../components/FailureBox';
 import { ProgressBar } from '../components/ProgressBar';
 import { StatePill } from '../components/StatePill';
 import { ControlCard } from '../components/operation/ControlCard';
+import { ControlNote, useWriteGate } from '../components/ControlNote';
 import { beginHeartbeat, heartbeatRunning, loadControl, me, operationLive, startAnswered, startOperationStore, stopHeartbeat } from '../components/operation/operationStore';
 import '../components/operation/operation.css';
 import { GainTable } from '../components/tuning/GainTable';
 import { BodePlot, StepPlot } from '../components/tuning/TuningPlots';
-import { type Inputs, checkInputs, fmtNumber, gainLines, isRunning, jobLabel, kindTitle, modeText, presentLines, refitLines, windowInUnits, withUnit } from '../components/tuning/tuningModel';
+import { type Inputs, boundText, checkInputs, confirmationText, fmtNumber, gainLines, isRunning, jobLabel, kindTitle, modeText, presentLines, refitLines, windowInUnits, withUnit } from '../components/tuning/tuningModel';
 import '../components/tuning/tuning.css';
 import { type Failure, failureOf } from '../lib/codes';
 import { notify, notifyError } from '../state/notify';
@@ -94,6 +95,7 @@ export function TuningPage({ sid }: PageProps) {
   const live = useObservable(liveSession(sid));
   const ws = useObservable(socketStatus);
   const op = useObservable(operationLive(sid));
+  const gate = useWriteGate(sid);
   const state = live.state;
   const [info, setInfo] = useState<TuningInfo | null>(null);
   const [infoFailure, setInfoFailure] = useState<Failure | null>(null);
@@ -179,7 +181,10 @@ export function TuningPage({ sid }: PageProps) {
   if (!info || !inputs) return <div className="muted">Reading what this drive can tune…</div>;
 
   const running = isRunning(job);
-  const you = op.control?.owner === me();
+  // Control is this tab's token (state/control); the tuning moves the axis, so it also needs
+  // this tab's WebSocket bound as the dead-man.
+  const you = gate.view.you && gate.view.bind.state === 'bound';
+  const writeOk = gate.write === null;
   const enabled = state?.state === 'Operation enabled';
   const socketOpen = ws.status === 'open';
   const pos = info.position;
@@ -323,9 +328,7 @@ export function TuningPage({ sid }: PageProps) {
                       data-testid="tuning-travel"
                     />
                     <span className="small" data-testid="tuning-window-units">
-                      {win
-                        ? `±${win.half} ${pos.raw_unit ?? ''} around ${pos.actual}: ${win.lo} … ${win.hi}`
-                        : 'position unknown'}
+                      {win ? `total width, centred where the axis stands: ${boundText(win, pos)}` : 'position unknown'}
                     </span>
                     {check?.travel && <span className="inline-error">{check.travel}</span>}
                   </label>
@@ -376,6 +379,11 @@ export function TuningPage({ sid }: PageProps) {
                     </label>
                   ))}
                 </div>
+                {info.travel_rule && (
+                  <div className="muted small" data-testid="tuning-travel-rule">
+                    {info.travel_rule}
+                  </div>
+                )}
                 <div className="muted small">
                   1 rev = {fmtNumber(pos.units_per_rev, 8)} {pos.raw_unit} ({pos.units_per_rev_source}). Software limits:{' '}
                   {pos.min === null && pos.max === null ? 'none' : `${pos.min ?? '−∞'} … ${pos.max ?? '+∞'}`}
@@ -388,9 +396,10 @@ export function TuningPage({ sid }: PageProps) {
                 )}
                 <label className="op-check tuning-confirm">
                   <input type="checkbox" checked={confirmed} disabled={running || !check?.ok} onChange={(e) => setConfirmed(e.target.checked)} data-testid="tuning-confirm" />
-                  <span>
-                    The axis may move {win ? `±${fmtNumber((check?.travelRev ?? 0) / 2)} rev (${win.lo} … ${win.hi} ${pos.raw_unit ?? ''})` : ''} around where it stands, with up to{' '}
-                    {check?.torquePct ?? '—'} % torque; the area is clear.
+                  <span data-testid="tuning-confirm-text">
+                    {win
+                      ? confirmationText(info.kind, win, pos, check?.torquePct ?? null)
+                      : `The axis moves inside the travel window around where it stands, with up to ${check?.torquePct ?? '—'} % torque; the area is clear.`}
                   </span>
                 </label>
               </Step>
@@ -398,7 +407,11 @@ export function TuningPage({ sid }: PageProps) {
               <Step n={3} title="Run" testid="tuning-run">
                 {!you && (
                   <div className="op-note" data-testid="tuning-no-control">
-                    {op.control?.owner ? `Client ${op.control.owner} holds control: tuning from this tab is refused.` : 'Take control first (below): the tuning moves the axis.'}
+                    {gate.view.owner && !gate.view.you
+                      ? `Client ${gate.view.owner} holds control: tuning from this tab is refused.`
+                      : gate.view.you
+                        ? `The tuning is disabled: ${gate.energise ?? "this tab's dead-man link is not bound"}.`
+                        : 'Take control first (Take control, top right): the tuning moves the axis.'}
                   </div>
                 )}
                 {you && !enabled && <div className="op-note">The servo is off ({state?.state ?? 'unknown'}): press Servo on below.</div>}
@@ -426,7 +439,7 @@ export function TuningPage({ sid }: PageProps) {
               </Step>
             </div>
             <div className="stack">
-              <ControlCard sid={sid} control={op.control} state={state} socketOpen={socketOpen} />
+              <ControlCard sid={sid} state={state} socketOpen={socketOpen} />
             </div>
           </div>
 
@@ -440,7 +453,10 @@ export function TuningPage({ sid }: PageProps) {
                     {result.status === 'done' ? 'Tuning finished normally.' : result.status === 'stopped' ? 'Tuning stopped.' : 'Tuning failed.'}
                   </strong>{' '}
                   <span className="muted">
-                    Mode {result.mode}; the axis moved for {withUnit(result.axis_time_s, 's')}, at most {withUnit(result.excursion_rev, 'rev')} from the start
+                    Mode {result.mode}; the axis moved for {withUnit(result.axis_time_s, 's')},{' '}
+                    {result.travel?.max_excursion_rev != null
+                      ? `at most ${withUnit(result.travel.max_excursion_rev, 'rev')} (${result.travel.max_excursion ?? '—'} ${result.travel.raw_unit ?? 'counts'}) from the start, within ${result.travel.text ?? `±${result.travel.half}`}`
+                      : `over a span of ${withUnit(result.excursion_rev, 'rev')}${result.travel?.text ? ` inside ${result.travel.text}` : ''}`}
                     {result.peak_torque_pct !== null
                       ? result.peak_torque_polled_s
                         ? `, peak torque ${fmtNumber(result.peak_torque_pct)} % of the rated torque in 6077h read every ${fmtNumber(result.peak_torque_polled_s)} s (a shorter peak, such as an acceleration's, is not seen)`
@@ -586,16 +602,29 @@ export function TuningPage({ sid }: PageProps) {
                   </div>
                 )}
                 <div className="op-row">
-                  <button type="button" disabled={running || busy !== null || !info.undo.before} onClick={() => setConfirm('undo-before')} data-testid="tuning-undo-before">
+                  <button
+                    type="button"
+                    disabled={running || busy !== null || !info.undo.before || !writeOk}
+                    title={gate.write ?? undefined}
+                    onClick={() => setConfirm('undo-before')}
+                    data-testid="tuning-undo-before"
+                  >
                     Undo: gains before tuning
                   </button>
-                  <button type="button" disabled={running || busy !== null || !info.undo.defaults} onClick={() => setConfirm('undo-defaults')} data-testid="tuning-undo-defaults">
+                  <button
+                    type="button"
+                    disabled={running || busy !== null || !info.undo.defaults || !writeOk}
+                    title={gate.write ?? undefined}
+                    onClick={() => setConfirm('undo-defaults')}
+                    data-testid="tuning-undo-defaults"
+                  >
                     Undo: default gains
                   </button>
-                  <button type="button" className="primary" disabled={running || busy !== null} onClick={() => setConfirm('store')} data-testid="tuning-store">
+                  <button type="button" className="primary" disabled={running || busy !== null || !writeOk} title={gate.write ?? undefined} onClick={() => setConfirm('store')} data-testid="tuning-store">
                     Store to EEPROM
                   </button>
                 </div>
+                <ControlNote sid={sid} what="Undo and Store to EEPROM are disabled" testid="tuning-result-control-note" />
               </div>
             )}
           </Step>

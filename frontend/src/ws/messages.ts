@@ -15,8 +15,10 @@ export interface HelloMessage {
   type: 'hello';
   version: string;
   protocol: number;
-  /** The client id the server took for this socket (from ?client=). */
+  /** The client id the server took for this socket (from ?client=): a label, no authority. */
   client?: string;
+  /** The server's id of this connection. */
+  connection?: string;
 }
 
 export interface SessionsMessage {
@@ -59,6 +61,33 @@ export interface ControlMessage {
   session: string;
   owner: string | null;
   since: number | null;
+  /** A WebSocket is bound to the holder's control as the dead-man. */
+  bound?: boolean;
+  /** The holder's socket closed: the drive was made safe; control lapses after 5 s. */
+  orphaned?: boolean;
+}
+
+/** The answer to this socket's `bind`: whether it is now the dead-man of the session. */
+export interface BindMessage {
+  type: 'bind';
+  session: string;
+  ok: boolean;
+  message?: string | null;
+  hint?: string | null;
+}
+
+/** Sent to every socket when a drive was made safe because its holder was lost (socket
+ * closed, control released or taken over): motion stopped, drive disabled. */
+export interface SafeStateMessage {
+  type: 'safe_state';
+  session: string;
+  reason: string;
+  client: string | null;
+  /** The drive reached Switch on disabled. */
+  ok: boolean;
+  /** The state it ended in (absent when reading it failed). */
+  state?: string | null;
+  message: string;
 }
 
 export type MotionMessage = { type: 'motion' } & MotionStatus;
@@ -94,6 +123,8 @@ export type ServerMessage =
   | LinkMessage
   | ProgressMessage
   | ControlMessage
+  | BindMessage
+  | SafeStateMessage
   | MotionMessage
   | DeadmanMessage
   | HomingMessage
@@ -104,7 +135,8 @@ export type MessageOf<T extends ServerMessageType> = Extract<ServerMessage, { ty
 export type ClientMessage =
   | { type: 'subscribe'; session: string }
   | { type: 'unsubscribe'; session: string }
-  | { type: 'heartbeat'; session: string };
+  | { type: 'heartbeat'; session: string }
+  | { type: 'bind'; session: string; token: string };
 
 const KNOWN: ReadonlySet<string> = new Set([
   'hello',
@@ -114,6 +146,8 @@ const KNOWN: ReadonlySet<string> = new Set([
   'link',
   'progress',
   'control',
+  'bind',
+  'safe_state',
   'motion',
   'deadman',
   'homing',

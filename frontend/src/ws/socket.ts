@@ -6,9 +6,16 @@
  * subscriptions after every reconnect so pages do not have to. A close with code 4000 means
  * the server speaks another protocol version: reconnecting would not help, so it stops and
  * reports why.
+ *
+ * The socket is the dead-man of the drives this tab holds control of (docs/api.md "Control
+ * and motion as built"): after every (re)connect it binds each session the tab holds with the
+ * tab's control token (`{"type":"bind","session","token"}`), and right after a take
+ * (`bind()`); the server's answer is kept per session (`bindStatus`, `onBind`). Only a bound
+ * socket's heartbeats count, and servo on and motion need one.
  */
 import { getToken } from '../api/auth';
 import { tabClientId } from '../lib/backupClientId';
+import { type HeldControl, tabControl } from '../lib/controlToken';
 import {
   type ClientMessage,
   type MessageOf,
@@ -30,6 +37,18 @@ export interface SocketStatusInfo {
 }
 
 type Handler<T extends ServerMessageType> = (msg: MessageOf<T>) => void;
+
+/** This socket's binding to a session's control: none, asked, confirmed, or refused. */
+export type BindState = 'unbound' | 'pending' | 'bound' | 'refused';
+
+export interface BindStatus {
+  state: BindState;
+  /** Why it is not bound (the server's refusal, or the socket being down). */
+  message: string | null;
+  hint: string | null;
+}
+
+export const UNBOUND: BindStatus = { state: 'unbound', message: null, hint: null };
 
 export function backoffDelay(attempt: number, random: () => number = Math.random): number {
   const base = Math.min(10_000, 500 * 2 ** Math.max(0, attempt));
@@ -55,8 +74,14 @@ export class ServodeskSocket {
   private readonly handlers = new Map<ServerMessageType, Set<(msg: never) => void>>();
   private readonly statusListeners = new Set<(s: SocketStatusInfo) => void>();
   private statusInfo: SocketStatusInfo = { status: 'closed', detail: null, retryIn: null };
+  private readonly binds = new Map<string, BindStatus>();
+  private readonly bindListeners = new Set<(session: string, status: BindStatus) => void>();
 
-  constructor(private readonly url: () => string = defaultSocketUrl) {}
+  constructor(
+    private readonly url: () => string = defaultSocketUrl,
+    /** What this tab holds control of: bound again after every (re)connect. */
+    private readonly held: () => HeldControl | null = () => tabControl.snapshot(),
+  ) {}
 
   get status(): SocketStatusInfo {
     return this.statusInfo;
@@ -73,6 +98,7 @@ export class ServodeskSocket {
     this.timer = null;
     this.ws?.close(1000, 'page closed');
     this.ws = null;
+    this.dropBinds('the WebSocket is closed');
     this.setStatus({ status: 'closed', detail: 'stopped', retryIn: null });
   }
 
@@ -117,6 +143,52 @@ export class ServodeskSocket {
     return this.send({ type: 'heartbeat', session });
   }
 
+  /**
+   * Make this socket the dead-man of `session` (this tab holds its control with `token`).
+   * False when the socket is not open: it binds every held session when it connects.
+   */
+  bind(session: string, token: string): boolean {
+    if (!this.send({ type: 'bind', session, token })) {
+      this.setBind(session, { state: 'unbound', message: 'the WebSocket is not connected: it binds when it connects', hint: null });
+      return false;
+    }
+    this.setBind(session, { state: 'pending', message: null, hint: null });
+    return true;
+  }
+
+  /** Control of `session` was released or lost: the server dropped the binding with it. */
+  unbind(session: string): void {
+    if (this.binds.has(session)) this.setBind(session, UNBOUND);
+  }
+
+  bindStatus(session: string): BindStatus {
+    return this.binds.get(session) ?? UNBOUND;
+  }
+
+  /** Called with every change of a session's binding; returns the unsubscribe. */
+  onBind(listener: (session: string, status: BindStatus) => void): () => void {
+    this.bindListeners.add(listener);
+    return () => this.bindListeners.delete(listener);
+  }
+
+  private setBind(session: string, status: BindStatus): void {
+    this.binds.set(session, status);
+    for (const l of this.bindListeners) l(session, status);
+  }
+
+  /** The socket closed: no binding survives it (the server made those drives safe). */
+  private dropBinds(why: string): void {
+    for (const [session, b] of this.binds) {
+      if (b.state !== 'unbound' || b.message !== why) this.setBind(session, { state: 'unbound', message: why, hint: null });
+    }
+  }
+
+  private bindHeld(): void {
+    const held = this.held();
+    if (!held) return;
+    for (const session of held.sessions) this.bind(session, held.token);
+  }
+
   private send(msg: ClientMessage): boolean {
     if (!this.ws || this.ws.readyState !== WebSocket.OPEN) return false;
     this.ws.send(JSON.stringify(msg));
@@ -142,11 +214,16 @@ export class ServodeskSocket {
       this.attempt = 0;
       this.setStatus({ status: 'open', detail: null, retryIn: null });
       for (const session of this.subscriptions.keys()) this.send({ type: 'subscribe', session });
+      // Control outlives a reconnect (and a reload) by the server's grace: bind again now.
+      this.bindHeld();
     };
     ws.onmessage = (ev: MessageEvent) => {
       if (typeof ev.data !== 'string') return;
       const msg = parseServerMessage(ev.data);
       if (!msg) return;
+      if (msg.type === 'bind') {
+        this.setBind(msg.session, msg.ok ? { state: 'bound', message: null, hint: null } : { state: 'refused', message: msg.message ?? 'the server refused the binding', hint: msg.hint ?? null });
+      }
       const set = this.handlers.get(msg.type);
       if (!set) return;
       for (const h of set) {
@@ -161,6 +238,7 @@ export class ServodeskSocket {
     ws.onclose = (ev: CloseEvent) => {
       if (this.ws !== ws) return;
       this.ws = null;
+      this.dropBinds('the WebSocket is closed: the drive was made safe; it binds again when it reconnects');
       if (this.stopped) return;
       if (ev.code === WS_CLOSE_VERSION) {
         this.setStatus({

@@ -4,7 +4,8 @@
  * name mapping for a backup of another family, opt-in) → options (dry run, store to
  * non-volatile memory, force) → run with per-item progress from the WebSocket → the report:
  * every entry's status, the abort code and its meaning for failures, "Resume" for an
- * interrupted restore, and the automatic pre-restore backup.
+ * interrupted restore, and the automatic pre-restore backup. A restore (dry run included) and
+ * a resume need control of the drive: without it Run and Resume are disabled and say why.
  */
 import { useEffect, useRef, useState } from 'react';
 import { ApiError, backupApi } from '../../api/client';
@@ -14,6 +15,7 @@ import { type ProgressItem, mergeProgressItem, watchBackupProgress } from '../..
 import { DEFAULT_OPTIONS, type RestoreOptions, canResume, mappedCount, reportVerdict, restoreBlocker, sortItems, statusClass, statusLabel } from '../../lib/backupRestore';
 import { type Failure, failureOf, findError } from '../../lib/codes';
 import { formatRawBytes } from '../../lib/format';
+import { ControlNote, useWriteGate } from '../ControlNote';
 import { FailureBox } from '../FailureBox';
 import { ProgressBar } from '../ProgressBar';
 
@@ -145,6 +147,7 @@ export function RestoreWizard({
   /** A restore (or dry run) finished or stopped: the drive, the history and the audit changed. */
   onFinished: (r: RestoreReport | null) => void;
 }) {
+  const gate = useWriteGate(sid);
   const [preflight, setPreflight] = useState<Preflight | null>(null);
   const [checking, setChecking] = useState(false);
   const [mapByName, setMapByName] = useState(false);
@@ -224,6 +227,7 @@ export function RestoreWizard({
   }
 
   const otherFamily = !!backup && !!profileId && backup.profile_id !== profileId;
+  const noControl = gate.write;
   const blocker = restoreBlocker(preflight, mapByName, otherFamily);
   const step = report ? 4 : running ? 3 : preflight ? (blocker ? 1 : 2) : selected ? 1 : 0;
   const counts = mappedCount(preflight?.mapping ?? null);
@@ -385,9 +389,9 @@ export function RestoreWizard({
               type="button"
               className={options.dryRun ? 'primary' : 'warn-btn'}
               data-testid="restore-run"
-              disabled={blocker !== null || running !== null || checking}
+              disabled={blocker !== null || running !== null || checking || noControl !== null}
               onClick={() => void execute(null)}
-              title={blocker ?? undefined}
+              title={blocker ?? noControl ?? undefined}
             >
               {running ? 'Restoring…' : options.dryRun ? 'Dry run' : `Restore ${preflight.to_write} entr${preflight.to_write === 1 ? 'y' : 'ies'}`}
             </button>
@@ -398,6 +402,7 @@ export function RestoreWizard({
             )}
             {!blocker && !options.dryRun && <span className="muted small">servodesk takes a backup of the drive first, so this can be undone.</span>}
           </div>
+          <ControlNote sid={sid} what="Restore (and its dry run) is disabled; the preflight works" testid="restore-control-note" />
         </div>
       )}
 
@@ -462,7 +467,14 @@ export function RestoreWizard({
           )}
           {canResume(report) && (
             <div className="bk-row" style={{ marginBottom: 6 }}>
-              <button type="button" className="warn-btn" data-testid="restore-resume" onClick={() => void execute(report.id)} disabled={running !== null}>
+              <button
+                type="button"
+                className="warn-btn"
+                data-testid="restore-resume"
+                onClick={() => void execute(report.id)}
+                disabled={running !== null || noControl !== null}
+                title={noControl ?? undefined}
+              >
                 Resume ({report.counts.pending} left)
               </button>
               <span className="muted small">continues with the entries not yet verified</span>

@@ -1,18 +1,21 @@
 /**
- * Control ownership and servo on/off. One client holds control of a drive at a time; others
- * watch (DESIGN.md). Take is refused while someone else holds it; Force-take asks first and
- * names the client it takes control from, since their motion stops. Servo on / off walk the
- * state machine (POST /state enable / disable).
+ * Control and servo on/off on the Operation and Tuning pages. One client holds control of a
+ * drive at a time; others watch (DESIGN.md). Take, Release and Force take are in the header's
+ * control indicator (components/ControlIndicator), the same on every page; this card says who
+ * holds control, whether this tab's WebSocket is bound as the dead-man, and switches the
+ * servo on and off (POST /state enable / disable). Servo on needs control and the bound
+ * dead-man link (docs/api.md "Control and motion as built"): without them the button is
+ * disabled and the card says why.
  */
 import { useState } from 'react';
-import { api, operationApi } from '../../api/client';
-import type { Control, ControlAction, DriveState } from '../../api/types';
+import { api } from '../../api/client';
+import type { DriveState } from '../../api/types';
 import { applyState } from '../../state/store';
 import { type Failure, failureOf } from '../../lib/codes';
-import { ConfirmDialog } from '../ConfirmDialog';
 import { FailureBox } from '../FailureBox';
 import { StatePill } from '../StatePill';
-import { me, setControl } from './operationStore';
+import { useWriteGate } from '../ControlNote';
+import { me } from './operationStore';
 
 function since(t: number | null): string {
   if (t === null) return '';
@@ -20,25 +23,13 @@ function since(t: number | null): string {
   return d.toLocaleTimeString();
 }
 
-export function ControlCard({ sid, control, state, socketOpen }: { sid: string; control: Control | null; state: DriveState | null; socketOpen: boolean }) {
+export function ControlCard({ sid, state, socketOpen }: { sid: string; state: DriveState | null; socketOpen: boolean }) {
   const [busy, setBusy] = useState<string | null>(null);
   const [failure, setFailure] = useState<Failure | null>(null);
-  const [confirmForce, setConfirmForce] = useState(false);
-  const owner = control?.owner ?? null;
-  const you = owner !== null && owner === me();
-
-  async function act(action: ControlAction, confirm = false) {
-    setBusy(action);
-    setFailure(null);
-    try {
-      setControl(sid, await operationApi.setControl(sid, action, confirm));
-      setConfirmForce(false);
-    } catch (e) {
-      setFailure(failureOf(e, action));
-    } finally {
-      setBusy(null);
-    }
-  }
+  const gate = useWriteGate(sid);
+  const control = gate.view;
+  const owner = control.owner;
+  const you = control.you;
 
   async function servo(command: 'enable' | 'disable') {
     setBusy(command);
@@ -56,39 +47,23 @@ export function ControlCard({ sid, control, state, socketOpen }: { sid: string; 
   return (
     <section className="card" data-testid="control-card">
       <h2>
-        Control <span className="h2-side muted">one client moves the drive; others watch</span>
+        Control <span className="h2-side muted">one client moves the drive; others watch · take it at the top right</span>
       </h2>
       <div className="control-row">
         <div className="control-owner" data-testid="control-owner" data-owner={owner ?? ''} data-you={you ? 'true' : 'false'}>
           {owner === null ? (
-            <span className="muted">Nobody holds control.</span>
+            <span className="muted">Nobody holds control: take it at the top right (Take control).</span>
           ) : you ? (
             <>
               <span className="badge badge-go">YOU</span> hold control <span className="mono muted">({owner})</span>{' '}
-              <span className="muted">since {since(control?.since ?? null)}</span>
+              <span className="muted">since {since(control.since)}</span>
             </>
           ) : (
             <>
               <span className="badge badge-warn">OTHER CLIENT</span> <span className="mono">{owner}</span> holds control{' '}
-              <span className="muted">since {since(control?.since ?? null)}</span>
+              <span className="muted">since {since(control.since)}</span>
+              {control.orphaned ? <span className="muted"> (its tab closed; control lapses within 5 s)</span> : null}
             </>
-          )}
-        </div>
-        <div className="control-buttons">
-          {!you && (
-            <button type="button" className="primary" data-testid="control-take" disabled={busy !== null} onClick={() => void act('take')}>
-              Take control
-            </button>
-          )}
-          {you && (
-            <button type="button" data-testid="control-release" disabled={busy !== null} onClick={() => void act('release')}>
-              Release control
-            </button>
-          )}
-          {owner !== null && !you && (
-            <button type="button" className="warn-btn" data-testid="control-force" disabled={busy !== null} onClick={() => setConfirmForce(true)}>
-              Force-take…
-            </button>
           )}
         </div>
       </div>
@@ -97,35 +72,54 @@ export function ControlCard({ sid, control, state, socketOpen }: { sid: string; 
           <span className="muted">Servo</span> <StatePill state={state?.state ?? null} testid="servo-state" />
         </div>
         <div className="control-buttons">
-          <button type="button" className="go" data-testid="servo-on" disabled={busy !== null || enabled} onClick={() => void servo('enable')}>
+          <button
+            type="button"
+            className="go"
+            data-testid="servo-on"
+            disabled={busy !== null || enabled || gate.energise !== null}
+            title={gate.energise ?? 'walk the state machine to Operation enabled'}
+            onClick={() => void servo('enable')}
+          >
             {busy === 'enable' ? 'Servo on…' : 'Servo on'}
           </button>
-          <button type="button" data-testid="servo-off" disabled={busy !== null} onClick={() => void servo('disable')}>
+          <button
+            type="button"
+            data-testid="servo-off"
+            disabled={busy !== null || gate.write !== null}
+            title={gate.write ?? 'disable the drive (Switch on disabled)'}
+            onClick={() => void servo('disable')}
+          >
             {busy === 'disable' ? 'Servo off…' : 'Servo off'}
           </button>
         </div>
       </div>
-      <div className="muted small control-client" data-testid="client-id">
-        This tab is client <span className="mono">{me()}</span> · dead-man link {socketOpen ? 'connected' : <strong className="bad-text">not connected</strong>}
-      </div>
-      {failure && <FailureBox f={failure} testid="control-error" />}
-      {confirmForce && owner !== null && (
-        <ConfirmDialog
-          title="Take control from another client?"
-          confirmLabel={`Take control from ${owner}`}
-          busy={busy === 'force_take'}
-          onCancel={() => setConfirmForce(false)}
-          onConfirm={() => void act('force_take', true)}
-          testid="force-dialog"
-        >
-          <p>
-            Client <strong className="mono" data-testid="force-dialog-owner">{owner}</strong> holds control of {sid}
-            {control?.since ? ` since ${since(control.since)}` : ''}. Taking it over stops the motion that client started, and
-            its writes are refused from then on.
-          </p>
-          <p className="muted">Make sure nobody at the machine is relying on that client right now.</p>
-        </ConfirmDialog>
+      {you && gate.energise && (
+        <div className="op-note" data-testid="servo-blocked">
+          Servo on is disabled: {gate.energise}.
+        </div>
       )}
+      <div className="muted small control-client" data-testid="client-id">
+        This tab is client <span className="mono">{me()}</span> · dead-man link{' '}
+        {!socketOpen ? (
+          <strong className="bad-text">not connected</strong>
+        ) : you ? (
+          <span data-testid="control-card-deadman" data-state={control.bind.state}>
+            {control.bind.state === 'bound'
+              ? 'bound to your control (closing this tab stops the axis and disables the drive)'
+              : control.bind.state === 'pending'
+                ? 'binding…'
+                : <strong className="bad-text">{`not bound${control.bind.message ? `: ${control.bind.message}` : ''}`}</strong>}
+          </span>
+        ) : (
+          'connected (bound when this tab takes control)'
+        )}
+      </div>
+      {control.protection && (
+        <div className="muted small" data-testid="control-protection" title={`stop path: ${control.protection.stop_path}; the drive's own watchdog: ${control.protection.drive_watchdog ?? 'none armed'}`}>
+          Protection: {control.protection.summary}
+        </div>
+      )}
+      {failure && <FailureBox f={failure} testid="control-error" />}
     </section>
   );
 }

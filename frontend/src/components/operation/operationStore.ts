@@ -16,6 +16,7 @@ import { HeartbeatLoop, type HeartbeatInfo } from '../../lib/heartbeat';
 import { Observable } from '../../state/observable';
 import { socket } from '../../state/store';
 import { Fresh } from '../../lib/fresh';
+import { endFromMotion, newerHoming } from '../../lib/homing';
 import type { DeadmanMessage } from '../../ws/messages';
 
 export interface OperationLive {
@@ -23,6 +24,8 @@ export interface OperationLive {
   motion: MotionStatus | null;
   deadman: DeadmanMessage | null;
   homing: HomingStatus | null;
+  /** performance.now() when `homing` arrived: the panel counts the elapsed time on from it. */
+  homingAt: number;
   heartbeat: HeartbeatInfo;
 }
 
@@ -36,6 +39,8 @@ interface Entry {
   /** The start request answered: a poll now tells the truth about that motion. */
   startAnswered: boolean;
   poll: ReturnType<typeof setInterval> | null;
+  /** The homing run shown was seen running as a motion: that motion's end ends it. */
+  homingMotionSeen: boolean;
 }
 
 const entries = new Map<string, Entry>();
@@ -53,13 +58,14 @@ function entry(sid: string): Entry {
       motion: null,
       deadman: null,
       homing: null,
+      homingAt: 0,
       heartbeat: loop.state,
     });
     const control = new Fresh<Control>((c) => {
       obs.update((v) => ({ ...v, control: c }));
       if (c.owner !== me()) stopHeartbeat(sid);
     });
-    const created: Entry = { obs, control, loop, seenActive: false, startAnswered: false, poll: null };
+    const created: Entry = { obs, control, loop, seenActive: false, startAnswered: false, poll: null, homingMotionSeen: false };
     loop.onChange((heartbeat) => obs.update((v) => ({ ...v, heartbeat })));
     entries.set(sid, created);
     e = created;
@@ -86,6 +92,7 @@ export function loadControl(sid: string): void {
 export function setMotion(sid: string, motion: MotionStatus): void {
   const e = entry(sid);
   e.obs.update((v) => ({ ...v, motion }));
+  followHomingMotion(e, motion);
   if (!e.loop.running) return;
   const mine = motion.owner === me();
   if (motion.active && mine) e.seenActive = true;
@@ -94,8 +101,38 @@ export function setMotion(sid: string, motion: MotionStatus): void {
   else if (e.seenActive || (motion.active && !mine)) stopHeartbeat(sid);
 }
 
+/**
+ * The panel follows the motion that carries a homing run: when that motion ends (attained,
+ * halted, quick stop, dead-man, loss of control, time-out), so does the run shown, even if
+ * the run's own last `homing` message was missed. Only a homing motion seen running while
+ * this run was shown ends it (a late "ended" of the previous motion does not).
+ */
+function followHomingMotion(e: Entry, motion: MotionStatus): void {
+  // A motion replaced by a new start is the run before: the backend ends that one itself.
+  if (motion.kind !== 'homing' || motion.state === 'replaced') return;
+  const h = e.obs.get().homing;
+  if (motion.active) {
+    if (h?.run?.active) e.homingMotionSeen = true;
+    return;
+  }
+  if (!e.homingMotionSeen || !h?.run) return;
+  e.homingMotionSeen = false;
+  const ended = endFromMotion(h.run, motion);
+  if (ended) e.obs.update((v) => ({ ...v, homing: { ...h, run: ended, message: ended.message }, homingAt: performance.now() }));
+}
+
 export function setHoming(sid: string, homing: HomingStatus): void {
-  entry(sid).obs.update((v) => ({ ...v, homing }));
+  const e = entry(sid);
+  const current = e.obs.get().homing;
+  const kept = newerHoming(current, homing);
+  if (kept === current) return;
+  if (kept.run && kept.run.id !== current?.run?.id) {
+    // Another run: whether its motion was seen running starts afresh. The motion shown now
+    // may still be the one before (its end can come later than this answer); the GET /motion
+    // that follows the start, or a `motion` message, says so next.
+    e.homingMotionSeen = false;
+  }
+  e.obs.update((v) => ({ ...v, homing: kept, homingAt: performance.now() }));
 }
 
 export function clearDeadman(sid: string): void {

@@ -11,6 +11,7 @@ import { PdoRefusedError, pdoApi } from '../../api/pdo';
 import type { ErrorInfo, PdoApplyReport, PdoLayout, PdoPlan, PdoProblem, PdoStep } from '../../api/types';
 import { type Failure, failureOf } from '../../lib/codes';
 import { watchProgress } from '../../ws/progress';
+import { ControlNote, useWriteGate } from '../ControlNote';
 import { FailureBox } from '../FailureBox';
 import { ProgressBar } from '../ProgressBar';
 
@@ -109,6 +110,8 @@ export function ApplyPanel({
   const [progress, setProgress] = useState<{ fraction: number; message: string | null } | null>(null);
   const [report, setReport] = useState<PdoApplyReport | null>(null);
   const mounted = useRef(true);
+  // A dry run and the apply run against the drive: they need control (the plan does not).
+  const noControl = useWriteGate(sid).write;
   useEffect(() => {
     mounted.current = true;
     return () => {
@@ -183,10 +186,10 @@ export function ApplyPanel({
         </button>
         <button
           type="button"
-          disabled={!!blocked || busy !== null}
+          disabled={!!blocked || busy !== null || noControl !== null}
           onClick={() => void apply(true)}
           data-testid="pdo-dry-run"
-          title={blocked ?? 'run the plan against the drive without writing'}
+          title={blocked ?? noControl ?? 'run the plan against the drive without writing'}
         >
           {busy === 'dry' ? 'Dry run…' : 'Dry run'}
         </button>
@@ -196,6 +199,7 @@ export function ApplyPanel({
           </span>
         )}
       </div>
+      <ControlNote sid={sid} what="Dry run and Write are disabled; Review shows the steps" testid="pdo-apply-control-note" />
       {failure && <FailureBox f={failure} testid="pdo-apply-failure" />}
       {current && !report && (
         <div className="stack pdo-plan" data-testid="pdo-plan">
@@ -206,7 +210,14 @@ export function ApplyPanel({
           </div>
           <StepTable steps={current.steps} done={null} failed={null} testid="pdo-plan-steps" />
           <div className="bk-row">
-            <button type="button" className="go" disabled={busy !== null || !!blocked} onClick={() => void apply(false)} data-testid="pdo-apply-confirm">
+            <button
+              type="button"
+              className="go"
+              disabled={busy !== null || !!blocked || noControl !== null}
+              title={noControl ?? undefined}
+              onClick={() => void apply(false)}
+              data-testid="pdo-apply-confirm"
+            >
               {busy === 'apply' ? 'Writing…' : `Write ${current.steps.length} steps to the drive`}
             </button>
             <button type="button" disabled={busy !== null} onClick={() => setPlan(null)} data-testid="pdo-plan-cancel">

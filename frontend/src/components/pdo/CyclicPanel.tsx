@@ -10,6 +10,7 @@ import type { ErrorInfo, PdoCyclicStatus, PdoRate } from '../../api/types';
 import { type Failure, failureOf } from '../../lib/codes';
 import { type SyncMode, dcCycleProblem, syncText } from '../../lib/sync';
 import { type Observable, useObservable } from '../../state/observable';
+import { ControlNote, useWriteGate } from '../ControlNote';
 import { FailureBox } from '../FailureBox';
 import { NumberBox, decimalParser } from './fields';
 import type { PdoLive } from './pdoLive';
@@ -52,6 +53,8 @@ export function CyclicPanel({
   const [sync, setSync] = useState<SyncMode>('freerun');
   const [busy, setBusy] = useState(false);
   const [failure, setFailure] = useState<Failure | null>(null);
+  // Starting, changing and stopping the cyclic data change the drive: they need control.
+  const noControl = useWriteGate(sid).write;
   const l = useObservable(live);
 
   const got = useCallback(
@@ -166,8 +169,8 @@ export function CyclicPanel({
           <button
             type="button"
             className="go"
-            disabled={busy || unavailable !== null || cycleProblem !== null}
-            title={unavailable ?? cycleProblem ?? undefined}
+            disabled={busy || unavailable !== null || cycleProblem !== null || noControl !== null}
+            title={unavailable ?? cycleProblem ?? noControl ?? undefined}
             onClick={() => void start()}
             data-testid="pdo-cyclic-start"
           >
@@ -177,8 +180,8 @@ export function CyclicPanel({
         {running && periodChanged && (
           <button
             type="button"
-            disabled={busy || cycleProblem !== null}
-            title={cycleProblem ?? undefined}
+            disabled={busy || cycleProblem !== null || noControl !== null}
+            title={cycleProblem ?? noControl ?? undefined}
             onClick={() => void start()}
             data-testid="pdo-cyclic-reconfigure"
           >
@@ -186,7 +189,7 @@ export function CyclicPanel({
           </button>
         )}
         {running && (
-          <button type="button" disabled={busy} onClick={() => void stop()} data-testid="pdo-cyclic-stop">
+          <button type="button" disabled={busy || noControl !== null} title={noControl ?? undefined} onClick={() => void stop()} data-testid="pdo-cyclic-stop">
             Stop
           </button>
         )}
@@ -213,6 +216,7 @@ export function CyclicPanel({
       ) : (
         <div className="muted small">Inputs only: the drive's TPDOs are read, no RPDO set-points are sent.</div>
       )}
+      <ControlNote sid={sid} what="Start and Stop are disabled" testid="pdo-cyclic-control-note" />
       {failure && <FailureBox f={failure} testid="pdo-cyclic-failure" />}
       {rates.length > 0 && (
         <table className="grid pdo-rates" data-testid="pdo-rates">
