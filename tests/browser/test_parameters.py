@@ -54,7 +54,12 @@ def test_write_marks_dirty_and_save_clears_it(page: Page) -> None:
     expect(row.get_by_test_id("differs-marker")).to_be_visible()
     expect(page.get_by_test_id("params-dirty-count")).to_contain_text("written since the last save")
 
+    # The save lists what it will store before it stores it.
     page.get_by_test_id("params-store").click()
+    dialog = page.get_by_test_id("store-dialog")
+    expect(dialog.get_by_test_id(f"store-dirty-{ADDR}")).to_be_visible()
+    expect(dialog.get_by_test_id("store-dirty-list").locator("li")).to_have_count(1)
+    dialog.get_by_role("button", name="Save", exact=True).click()
     expect(page.get_by_test_id("params-store-result")).to_contain_text("Saved", timeout=20_000)
     expect(page.get_by_test_id("params-store-result")).to_contain_text("0x1010:01")
     expect(row.get_by_test_id("dirty-marker")).to_have_count(0)

@@ -91,6 +91,9 @@ def test_a_dead_pc_is_stopped_by_the_drive_itself(channel, tmp_path) -> None:  #
             with client.websocket_connect("/api/v1/ws?client=A") as ws:
                 beats = take_and_enable(client, SID, "A", ws)
                 assert wait_until(lambda: drive.read(0x1016, 1) == ARMED, 2.0)
+                # CiA 301: the consumer watches from the first heartbeat after its entry was
+                # written; a heartbeat that dies before that is no event.
+                time.sleep(0.5)
                 r = client.post(
                     f"{BASE}/motion/jog",
                     json={"velocity": 60_000, "acceleration": 600_000},

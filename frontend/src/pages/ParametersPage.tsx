@@ -69,6 +69,12 @@ function procedureText(profile: ProfileDetail, quirk: string, index: number, val
   return `${index.toString(16).toUpperCase()}h:01 ← 0x${value.toString(16).toUpperCase()} ("${word}", CiA 301)`;
 }
 
+/** The object's name in the profile, for the list of what a save stores. */
+function objectName(profile: ProfileDetail, address: string): string {
+  const o = profile.object_list.find((x) => canonicalAddress(x.address) === address);
+  return o ? o.name : '';
+}
+
 export function ParametersPage({ sid }: PageProps) {
   const { info, refresh } = useSessionInfo(sid);
   const { profile, error: profileError } = useSessionProfile(info);
@@ -87,6 +93,8 @@ export function ParametersPage({ sid }: PageProps) {
   const [editing, setEditing] = useState<string | null>(null);
   const [store, setStore] = useState<StoreState | null>(null);
   const [restoreOpen, setRestoreOpen] = useState(false);
+  /** "Save to EEPROM" lists what it stores before it stores it (issue "Motion safety"). */
+  const [storeOpen, setStoreOpen] = useState(false);
   const [restoring, setRestoring] = useState(false);
   const blocked = useWriteGate(sid).write;
   const [restoreResult, setRestoreResult] = useState<string | null>(null);
@@ -243,12 +251,12 @@ export function ParametersPage({ sid }: PageProps) {
             <button
               type="button"
               className="primary"
-              onClick={() => void save()}
+              onClick={() => setStoreOpen(true)}
               disabled={store?.running === true || blocked !== null}
               data-testid="params-store"
               title={blocked ?? `Store the drive's parameters in non-volatile memory: ${storeProc}`}
             >
-              {store?.running ? 'Saving…' : 'Save to EEPROM'}
+              {store?.running ? 'Saving…' : 'Save to EEPROM…'}
             </button>
             <button
               type="button"
@@ -479,6 +487,42 @@ export function ParametersPage({ sid }: PageProps) {
         </section>
       </div>
 
+      {storeOpen && (
+        <ConfirmDialog
+          title="Save to EEPROM?"
+          confirmLabel="Save"
+          busy={store?.running === true}
+          onCancel={() => setStoreOpen(false)}
+          onConfirm={() => {
+            setStoreOpen(false);
+            void save();
+          }}
+          testid="store-dialog"
+        >
+          <p>
+            This tells <strong>{info.profile_name}</strong> (node {info.node_id}) to store the parameters it holds now in its
+            non-volatile memory: <span className="mono">{storeProc}</span>.
+          </p>
+          {dirty.size > 0 ? (
+            <>
+              <p>Written through servodesk since the last save ({dirty.size}):</p>
+              <ul className="mono small" data-testid="store-dirty-list">
+                {[...dirty].sort().map((a) => (
+                  <li key={a} data-testid={`store-dirty-${a}`}>
+                    {a} {objectName(profile, a)}
+                  </li>
+                ))}
+              </ul>
+            </>
+          ) : (
+            <p data-testid="store-dirty-none">Nothing was written through servodesk since the last save.</p>
+          )}
+          <p className="muted small">
+            Settings a jog, move or homing run needed are put back when it ends and are not in this list. The drive stores
+            everything it holds, also what other tools changed.
+          </p>
+        </ConfirmDialog>
+      )}
       {restoreOpen && (
         <ConfirmDialog
           title="Restore factory defaults?"
