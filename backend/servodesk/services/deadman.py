@@ -16,7 +16,9 @@ happen in normal use.
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import os
 import threading
 import time
 from collections.abc import Callable
@@ -85,6 +87,7 @@ class DeadmanWatch:
         self._thread = None
 
     def _run(self) -> None:
+        _raise_priority()
         while not self._stopping.wait(self.period_s):
             with self._lock:
                 entries = list(self._armed.items())
@@ -112,3 +115,16 @@ class DeadmanWatch:
                     entry.fired(last, sent)
                 except Exception:
                     log.exception("dead-man: the fired callback failed")
+
+
+def _raise_priority() -> None:
+    """Best effort: this thread at a real-time priority (Linux SCHED_FIFO 10), so that a
+    busy machine (a build, other servers on a 2-core laptop) does not keep it off the CPU
+    past the dead-man time. Needs root or CAP_SYS_NICE (RLIMIT_RTPRIO); otherwise it keeps
+    the normal priority. The thread sleeps between looks, so it cannot starve the machine."""
+    setter = getattr(os, "sched_setscheduler", None)
+    if setter is None or not hasattr(os, "SCHED_FIFO"):
+        return
+    with contextlib.suppress(OSError):
+        setter(threading.get_native_id(), os.SCHED_FIFO, os.sched_param(10))
+        log.debug("dead-man thread at SCHED_FIFO 10")
