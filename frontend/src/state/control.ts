@@ -17,7 +17,7 @@ import { tabClientId } from '../lib/backupClientId';
 import { type ControlView, emptyView, holdsControl } from '../lib/control';
 import { tabControl } from '../lib/controlToken';
 import { Fresh } from '../lib/fresh';
-import type { SafeStateMessage } from '../ws/messages';
+import type { MotionSettingsMessage, SafeStateMessage } from '../ws/messages';
 import { notify } from './notify';
 import { Observable, useObservable } from './observable';
 import { socket } from './store';
@@ -183,6 +183,18 @@ function safeStateNotice(m: SafeStateMessage): void {
   }, 30_000);
 }
 
+/** A motion's settings that could not be put back: the user must know they changed. */
+function motionSettingsNotice(m: MotionSettingsMessage): void {
+  if (m.kept.length === 0) return;
+  notify({
+    kind: 'warning',
+    title: `${m.session}: settings the motion changed were not put back`,
+    message: m.kept.join('; '),
+    detail: null,
+    hint: 'they stay marked as written since the last save: check them on the Parameters page before you save',
+  }, 30_000);
+}
+
 let started = false;
 
 /** Register the socket handlers once (the socket itself is started by the shared store). */
@@ -207,6 +219,7 @@ export function startControlStore(): void {
     if (status.state === 'refused') loadControl(sid);
   });
   socket.on('safe_state', safeStateNotice);
+  socket.on('motion_settings', motionSettingsNotice);
   tabControl.subscribe(() => {
     for (const sid of entries.keys()) refresh(sid);
   });

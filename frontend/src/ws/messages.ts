@@ -90,6 +90,15 @@ export interface SafeStateMessage {
   message: string;
 }
 
+/** After a motion ended: the settings it wrote (6081h, 6083h, ...) that were put back, and
+ * those that could not be (they stay marked as written since the last save). */
+export interface MotionSettingsMessage {
+  type: 'motion_settings';
+  session: string;
+  restored: string[];
+  kept: string[];
+}
+
 export type MotionMessage = { type: 'motion' } & MotionStatus;
 
 export interface DeadmanMessage {
@@ -125,6 +134,7 @@ export type ServerMessage =
   | ControlMessage
   | BindMessage
   | SafeStateMessage
+  | MotionSettingsMessage
   | MotionMessage
   | DeadmanMessage
   | HomingMessage
@@ -148,6 +158,7 @@ const KNOWN: ReadonlySet<string> = new Set([
   'control',
   'bind',
   'safe_state',
+  'motion_settings',
   'motion',
   'deadman',
   'homing',
