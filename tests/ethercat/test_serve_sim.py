@@ -14,7 +14,7 @@ from fastapi.testclient import TestClient
 from servodesk.api.app import create_app
 from servodesk.settings import Settings
 from tests.ethercat.nobody import as_nobody, nobody_dir
-from tests.operation.support import headers, take_and_enable, wait_motion
+from tests.operation.support import headers, take_and_enable, wait_motion, wait_until
 
 A = headers("A")
 
@@ -53,6 +53,20 @@ def test_the_hiwin_twin_is_opened_and_moved_over_ethercat(channel, tmp_path) -> 
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
             beats = take_and_enable(client, "hiwin-e-1", "A", ws)
             try:
+                # The drive's own watchdog is reported: the ESC's process data watchdog
+                # (the twin's default, 2498 x 1000 divider ticks), read by SOEM.
+                assert wait_until(
+                    lambda: (
+                        "SyncManager watchdog 100 ms"
+                        in str(
+                            client.get("/api/v1/sessions/hiwin-e-1/control").json()["protection"][
+                                "drive_watchdog"
+                            ]
+                        )
+                    ),
+                    5.0,
+                    step=0.1,
+                )
                 start = drive.position
                 r = client.post(
                     "/api/v1/sessions/hiwin-e-1/motion/move",

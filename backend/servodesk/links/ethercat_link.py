@@ -72,6 +72,9 @@ PROCESS_DATA_TIMEOUT_US = 2000
 NMT_AL_STATES = {"preop": 0x02, "stop": 0x01, "safeop": 0x04, "start": 0x08}
 #: Largest object servodesk reads in one SDO upload (pysoem's buffer).
 READ_BUFFER = 4096
+#: The process data watchdog servodesk switches on where a slave has it off: the ESC's
+#: usual default (2498 x 40 ns divider = 100 us, 1000 of them).
+SM_WATCHDOG_MS = 100.0
 #: How long a state request waits for the slave to get there (µs, SOEM's unit).
 STATE_TIMEOUT_US = 500_000
 #: How long a read AL state is reported before it is read again (s): the session polls the
@@ -210,6 +213,54 @@ class EthercatLink(DriveLink):
         #: (mode, SYNC0 cycle in ns).
         self._sync: tuple[str, int] = ("freerun", 0)
         self._applied: tuple[str, int] = ("freerun", 0)
+        #: The process data watchdog time before servodesk switched it on (None: untouched).
+        self._watchdog_original: float | None = None
+        self._watchdog_text: str | None = None
+
+    # The drive's own watchdog: the SyncManager (process data) watchdog ---------------------
+
+    async def arm_watchdog(self) -> str | None:
+        """The ESC's process data watchdog (registers 0400h divider, 0420h time; ETG.1000.4
+        and HIWIN 000 §2.10 table 2.10.1: error 001Bh, OP -> SAFE-OP and the drive's fault
+        reaction): a master that stops sending process data stops the drive. servodesk
+        switches it on (100 ms) where the slave has it off, and says it acts only while
+        cyclic process data runs in OP."""
+        return await self._call(self._arm_watchdog)
+
+    def _arm_watchdog(self) -> str | None:
+        shared, slave = self._master()
+        with shared.lock:
+            try:
+                ms = float(slave.get_watchdog("processdata"))
+                if ms <= 0:
+                    slave.set_watchdog("processdata", SM_WATCHDOG_MS)
+                    self._watchdog_original = ms
+                    ms = float(slave.get_watchdog("processdata"))
+            except Exception as exc:  # SOEM's register access: no answer from the ESC.
+                raise LinkError(f"the ESC's watchdog registers cannot be read: {exc}") from exc
+        if ms <= 0:
+            return None
+        self._watchdog_text = (
+            f"EtherCAT SyncManager watchdog {ms:g} ms (ESC 0420h): without servodesk's process "
+            "data the drive goes to SAFE-OP with error 001Bh and its fault reaction; it acts "
+            "only while cyclic process data runs (OP)"
+        )
+        return self._watchdog_text
+
+    async def disarm_watchdog(self) -> None:
+        original, self._watchdog_original = self._watchdog_original, None
+        self._watchdog_text = None
+        if original is not None:
+            await self._call(self._set_watchdog, original)
+
+    def _set_watchdog(self, ms: float) -> None:
+        shared, slave = self._master()
+        with shared.lock:
+            slave.set_watchdog("processdata", ms)
+
+    @property
+    def watchdog(self) -> str | None:
+        return self._watchdog_text
 
     def configure_sync(self, mode: str, period_s: float) -> None:
         """Synchronise the slave's process data by ``mode`` ("freerun" or "dc", SYNC0 every
