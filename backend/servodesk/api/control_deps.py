@@ -169,18 +169,26 @@ async def require_close(
         op.control.forget_session(sid)
 
 
+async def _energise(
+    sid: str, request: Request, client: str | None, token: str | None, what: str
+) -> str:
+    """Control and a bound, open WebSocket (the dead-man), once the drive is made safe after
+    a lost holder (MotionService.settled)."""
+    op = operation(request.app)
+    op.motion.manager.get(sid)  # An unknown session is a 404 before anything else.
+    holder = op.control.check_energise(sid, token, what)
+    await op.motion.settled(sid)
+    return _label(client, holder)
+
+
 async def require_motion(
     sid: str,
     request: Request,
     x_servodesk_client: ClientHeader = None,
     x_servodesk_control: ControlHeader = None,
 ) -> str:
-    """Motion needs control and a bound, open WebSocket (the dead-man)."""
-    op = operation(request.app)
-    op.motion.manager.get(sid)  # An unknown session is a 404 before anything else.
-    holder = op.control.check_energise(sid, x_servodesk_control, "motion")
-    await op.motion.settled(sid)
-    return _label(x_servodesk_client, holder)
+    """Motion (jog, moves, homing, tuning) needs control and the dead-man."""
+    return await _energise(sid, request, x_servodesk_client, x_servodesk_control, "motion")
 
 
 async def require_energise(
@@ -191,13 +199,10 @@ async def require_energise(
 ) -> str:
     """Process data servodesk produces (cyclic outputs: the controlword, the targets) can
     energise and move the drive like the controlword written by SDO: control and the
-    dead-man."""
-    op = operation(request.app)
-    op.motion.manager.get(sid)
-    holder = op.control.check_energise(sid, x_servodesk_control, "cyclic outputs")
-    await op.motion.settled(sid)
-    op.motion.invalidate_limits(sid)
-    return _label(x_servodesk_client, holder)
+    dead-man; the limits are read again after it."""
+    label = await _energise(sid, request, x_servodesk_client, x_servodesk_control, "cyclic outputs")
+    operation(request.app).motion.invalidate_limits(sid)
+    return label
 
 
 def control_token(x_servodesk_control: ControlHeader = None) -> str | None:

@@ -1461,16 +1461,9 @@ class MotionService:
                     # then quick stop, and say so.
                     late = run.timeout_message(now)
                     log.warning("homing on %s: %s", axis.sid, late)
-                    try:
-                        await self._stop_axis(
-                            axis,
-                            quick=True,
-                            state="timeout",
-                            message=late,
-                            who="servodesk (homing time-out)",
-                        )
-                    except ServodeskError as exc:
-                        self._end(axis, motion, "error", f"{late}; the stop failed: {exc.message}")
+                    await self._stop_for(
+                        axis, motion, late, quick=True, state="timeout", who="homing time-out"
+                    )
                     return
                 hs = homing.decode(sw, mode)
                 if hs == "running":
@@ -1494,17 +1487,28 @@ class MotionService:
                 last = (now, pos)
                 if why is not None and axis.motion is motion and motion.active:
                     log.warning("%s on %s: %s", motion.kind, axis.sid, why)
-                    try:
-                        await self._stop_axis(
-                            axis,
-                            quick=False,
-                            state="halted",
-                            message=why,
-                            who="servodesk (software position limit)",
-                        )
-                    except ServodeskError as exc:
-                        self._end(axis, motion, "error", f"{why}; the halt failed: {exc.message}")
+                    await self._stop_for(
+                        axis,
+                        motion,
+                        why,
+                        quick=False,
+                        state="halted",
+                        who="software position limit",
+                    )
                     return
+
+    async def _stop_for(
+        self, axis: _Axis, motion: Motion, why: str, *, quick: bool, state: str, who: str
+    ) -> None:
+        """The monitor stops the axis itself (halt, and quick stop when asked) for ``why``;
+        a stop that cannot be sent ends the motion in error saying so."""
+        try:
+            await self._stop_axis(
+                axis, quick=quick, state=state, message=why, who=f"servodesk ({who})"
+            )
+        except ServodeskError as exc:
+            what = "stop" if quick else "halt"
+            self._end(axis, motion, "error", f"{why}; the {what} failed: {exc.message}")
 
     # Clients and lifecycle ----------------------------------------------------------------
 
