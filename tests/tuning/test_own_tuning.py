@@ -645,25 +645,13 @@ def test_a_compliance_too_low_to_measure_is_refused_and_everything_put_back() ->
     fitted about the motor's inertia. Gains designed on that kept 5 deg of phase margin on the
     real axis, and the verification move did not show it (the motor settles; the load swings).
     The moves do not fit a rigid body, and that stops the tuning with a plain reason before any
-    new gain reaches the drive; its gains, limits and mode are as they were. In a 0.5 rev window
-    (+-0.25 rev) the factory gains overshoot so far on this axis that moves keeping inside it
-    would be 0.028 rev, too short to tell (services/tuning_own.py MIN_IDENT_SHARE): the tuning
-    stops there, before them; with room for the 0.2 rev moves (a 2 rev window) the moves'
-    rigid-body check does."""
+    new gain reaches the drive; its gains, limits and mode are as they were."""
     spec = PlantSpec(inertia_ratio=100.0, resonance_hz=30.0, damping=0.01)
-    for window, reason in (
-        (0.5, r"too short to identify"),
-        (2.0, r"do not fit a rigid axis.*compliance"),
-    ):
-        _refused_and_put_back(spec, window, reason)
-
-
-def _refused_and_put_back(spec: PlantSpec, window: float, reason: str) -> None:
     drive = build_drive(spec)
     before = [drive.read(i, s) for i, s in GAINS]
     limits = [drive.read(0x6072, 0), drive.read(0x6065, 0), drive.read(0x6060, 0)]
-    req = OwnTuningRequest("high", window, 175.0)
-    with pytest.raises(TuningFailed, match=reason) as err:
+    req = OwnTuningRequest("high", 0.5, 175.0)
+    with pytest.raises(TuningFailed, match=r"do not fit a rigid axis.*compliance") as err:
         asyncio.run(OwnTuning(SimIO(drive), req, offload=False).run())
     assert err.value.hint and "by hand" in err.value.hint
     assert [drive.read(i, s) for i, s in GAINS] == before
@@ -848,10 +836,7 @@ def _watched(
     """One step of the tuning on a twin of :data:`_WATCHED_AXIS`, after its safety settings,
     with the drive's demand watched during the step; (tuning, watch, what the step returned)."""
     sim = build_drive(_WATCHED_AXIS)
-    # A 1 rev window (+-0.5 rev): a verification move straight from the start keeps the reserve
-    # of gains that have not moved the axis (45 % of its 0.25 rev, services/tuning_travel.py)
-    # without the rest position below the start that the frequency response's way back sets.
-    tuning = OwnTuning(SimIO(sim), OwnTuningRequest("high", 1.0, 175.0))
+    tuning = OwnTuning(SimIO(sim), OwnTuningRequest("high", 0.5, 175.0))
     watch = _DemandWatch(sim)
 
     async def run() -> Any:
@@ -896,8 +881,5 @@ def test_the_axis_time_counts_the_frequency_responses_moves_in_full() -> None:
     their ramps (0.11 s short on this axis)."""
     tuning, watch, _ = _watched(lambda tuning, drive: tuning._measure_frf(drive))
     assert watch.seconds > 1.0  # It did travel, there and back.
-    # Measured: 2.163 s reported, 2.159 s sampled (the way up to the top of the travel with
-    # its gentle ramps, the travel, the way back to the rest below the start; since the first
-    # session of 2026-12-07); 1.785 / 1.782 s before (the travel up from the start and back);
-    # the old count was 1.675 s.
+    # Measured: 1.785 s reported, 1.782 s sampled; the old count was 1.675 s.
     assert tuning.axis_time_s == pytest.approx(watch.seconds, abs=0.005)

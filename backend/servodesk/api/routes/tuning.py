@@ -73,9 +73,7 @@ class StartRequest(BaseModel):
         gt=0,
         le=MAX_TRAVEL_REV,
         allow_inf_nan=False,
-        description="total width of the travel window [rev], centred on where the axis stands: "
-        "the axis stays within +- half of it, rounded down to whole position units (the job's "
-        "`bound` says it in revolutions and units)",
+        description="width of the window the axis may move in [rev], centred on where it stands",
     )
     torque_limit_pct: float = Field(
         gt=0,
