@@ -10,6 +10,7 @@ rate a client sees is measured by bench/bench_viewer.py.)
 
 from __future__ import annotations
 
+import contextlib
 import io
 import itertools
 import json
@@ -22,6 +23,7 @@ import numpy as np
 import pytest
 from PIL import Image
 from playwright.sync_api import Browser, Page
+from websockets.sync.client import connect
 
 pytestmark = pytest.mark.browser
 
@@ -32,13 +34,17 @@ STILL, MOVED = 20, 60
 DRAWN = 2000
 
 
+#: The control token this test holds (changing the drive needs it: docs/safety.md).
+HEADERS: dict[str, str] = {}
+
+
 def api(base: str, method: str, path: str, body: dict[str, Any] | None = None) -> Any:
     data = json.dumps(body).encode() if body is not None else None
     req = urllib.request.Request(
         f"{base}/api/v1{path}",
         data=data,
         method=method,
-        headers={"Content-Type": "application/json"},
+        headers={"Content-Type": "application/json", **HEADERS},
     )
     with urllib.request.urlopen(req, timeout=5) as r:
         return json.loads(r.read() or b"null")
@@ -82,7 +88,32 @@ def viewer_page(browser: Browser, server_url: str) -> Iterator[Page]:
     assert not errors, f"uncaught errors in the viewer page: {errors}"
 
 
+@contextlib.contextmanager
+def holding_control(server_url: str) -> Iterator[None]:
+    """Take control of the drive as a script and bind a WebSocket as its dead-man (servo on
+    needs one); the socket stays open for the block (closing it disables the drive)."""
+    base_ws = server_url.replace("http://", "ws://")
+    HEADERS.clear()
+    HEADERS["X-Servodesk-Client"] = "viewer-test"
+    with connect(f"{base_ws}/api/v1/ws?client=viewer-test", subprotocols=["servodesk.v1"]) as ws:  # type: ignore[list-item]
+        r = api(server_url, "POST", f"/sessions/{SID}/control", {"action": "take"})
+        HEADERS.update({"X-Servodesk-Client": "viewer-test", "X-Servodesk-Control": r["token"]})
+        ws.send(json.dumps({"type": "bind", "session": SID, "token": r["token"]}))
+        while json.loads(ws.recv(5)).get("type") != "bind":
+            pass
+        try:
+            yield
+        finally:
+            api(server_url, "POST", f"/sessions/{SID}/control", {"action": "release"})
+            HEADERS.clear()
+
+
 def test_viewer_page_connects_and_moves_with_the_axis(viewer_page: Page, server_url: str) -> None:
+    with holding_control(server_url):
+        _connects_and_moves(viewer_page, server_url)
+
+
+def _connects_and_moves(viewer_page: Page, server_url: str) -> None:
     page = viewer_page
     # Connected: the backend counts the browser as a viewer client.
     wait_for(lambda: api(server_url, "GET", "/viewer")["clients"] >= 1, 20, "the client")
