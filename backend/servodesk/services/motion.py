@@ -666,9 +666,14 @@ class MotionService:
         """Hand the motion to the dead-man's thread: it stops the axis when the holder's
         heartbeats (services/control) are ``deadman_s`` old, without the event loop."""
         sid, control = axis.sid, self.control
+        # The dead-man counts from when the motion really starts, not from the request: a
+        # start that waited (the axis lock held while the last motion's settings are given
+        # back at standstill) was otherwise stopped at once, its heartbeat older than the
+        # deadline (bench_deadman: 1 run in 20, the stop before the client's last heartbeat).
+        armed = time.monotonic()
 
         def last() -> float:
-            return max(control.last_heartbeat(sid) or 0.0, motion.started)
+            return max(control.last_heartbeat(sid) or 0.0, motion.started, armed)
 
         def fired(since: float, sent: float | None) -> None:
             if not loop.is_closed():
