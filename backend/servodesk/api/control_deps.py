@@ -116,15 +116,16 @@ async def require_write(
 ) -> AsyncIterator[str]:
     """The write needs control (the controlword also the dead-man); re-read limits after it."""
     op = operation(request.app)
-    op.motion.manager.get(sid)  # An unknown session is a 404 before anything else.
     if _energising_write(request):
-        holder = op.control.check_energise(sid, x_servodesk_control, "writing the controlword")
-        await op.motion.settled(sid)
+        label = await _energise(
+            sid, request, x_servodesk_client, x_servodesk_control, "writing the controlword"
+        )
     else:
-        holder = op.control.check(sid, x_servodesk_control, "this write")
+        op.motion.manager.get(sid)  # An unknown session is a 404 before anything else.
+        label = _label(x_servodesk_client, op.control.check(sid, x_servodesk_control, "this write"))
     op.motion.invalidate_limits(sid)
     try:
-        yield _label(x_servodesk_client, holder)
+        yield label
     finally:
         op.motion.invalidate_limits(sid)
 
@@ -140,16 +141,15 @@ async def require_state_command(
     with contextlib.suppress(Exception):  # A bad body is the route's 422, not ours.
         body = await request.json()
         command = body.get("command") if isinstance(body, dict) else None
-    control = operation(request.app).control
+    op = operation(request.app)
     if command == "quick_stop":
         yield x_servodesk_client or "unknown"
         return
     if command in _ENERGISING_COMMANDS:
-        holder = control.check_energise(sid, x_servodesk_control, f"{command!r}")
-        await operation(request.app).motion.settled(sid)
-    else:
-        holder = control.check(sid, x_servodesk_control, f"{command!r}")
-    yield _label(x_servodesk_client, holder)
+        yield await _energise(sid, request, x_servodesk_client, x_servodesk_control, f"{command!r}")
+        return
+    op.motion.manager.get(sid)  # An unknown session is a 404 before anything else.
+    yield _label(x_servodesk_client, op.control.check(sid, x_servodesk_control, f"{command!r}"))
 
 
 async def require_close(

@@ -344,7 +344,9 @@ class ControlService:
 
 def _same(a: str, b: str | None) -> bool:
     """Compare tokens in constant time (a timing side channel must not reveal one)."""
-    return b is not None and hmac.compare_digest(a.encode(), b.encode())
+    # surrogatepass: a token from a WebSocket's JSON may hold a lone surrogate; it is then
+    # simply not the holder's, never an exception in the socket's handler.
+    return b is not None and hmac.compare_digest(a.encode(), b.encode("utf-8", "surrogatepass"))
 
 
 def _who(h: Holder) -> str:
