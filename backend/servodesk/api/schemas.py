@@ -7,6 +7,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, JsonValue, field_validator
 
 from servodesk.links.registry import bus_interfaces, can_interfaces
+from servodesk.services.homing import Outcome
 
 Scalar = int | float | bool | str | None
 
@@ -948,17 +949,8 @@ class HomingEstimateOut(BaseModel):
     assumptions: list[str]
 
 
-HomingOutcome = Literal[
-    "running",
-    "attained",
-    "error",
-    "halted",
-    "stopped",
-    "deadman",
-    "control_lost",
-    "timeout",
-    "interrupted",
-]
+#: How a run ended, "running" while it lasts: the service's one list (services/homing.py).
+HomingOutcome = Outcome
 
 
 class HomingPlanOut(BaseModel):
