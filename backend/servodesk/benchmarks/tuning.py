@@ -420,6 +420,9 @@ def run_plant(
                 "notch_hz": [f for f in (gains.notch1_hz, gains.notch2_hz) if f > 0.0],
                 "tuning_axis_time_s": result["axis_time_s"],
                 "excursion_rev": result["excursion_rev"],
+                # How far from the start the axis went, against the travel window's +- half
+                # (the drive's recordings; docs/tuning.md "Travel window").
+                "travel_max_excursion_rev": (result.get("travel") or {}).get("max_excursion_rev"),
                 "tuning_peak_torque_of_peak": result["peak_torque_pct"]
                 * spec.rated_torque
                 / 100.0
@@ -526,6 +529,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "inertia_error_rigid_abs": stat_abs(rows, "inertia_error", rigid_only=True),
         "tuning_axis_time_s": stat("tuning_axis_time_s", "max"),
         "excursion_rev": stat("excursion_rev", "max"),
+        "travel_max_excursion_rev": stat("travel_max_excursion_rev", "max"),
         "settling_10_s": stat("settling_10_s", "max"),
         "oracle_settling_10_s": stat("oracle_settling_10_s", "max"),
     }

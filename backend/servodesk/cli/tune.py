@@ -4,11 +4,12 @@
     servodesk tune --node-id 5 --travel 0.5 --enable --store --json
     servodesk tune --node-id 5 --undo before
 
-The axis moves back and forth inside the travel window (revolutions, centred on where it
-stands) while the drive tunes. This process is the operator: it sends the dead-man heartbeat
-itself, so if it hangs the axis stops; Ctrl-C stops the tuning and the motion (the gains from
-before are put back). ``--enable`` switches the servo on first (otherwise a drive that is not
-in Operation enabled is refused). Nothing is stored unless ``--store`` is given.
+The axis moves inside the travel window while the drive tunes: its total width in revolutions,
+centred on where the axis stands (``--travel 0.5``: +-0.25 rev). This process is the operator:
+it sends the dead-man heartbeat itself, so if it hangs the axis stops; Ctrl-C stops the tuning
+and the motion (the gains from before are put back). ``--enable`` switches the servo on first
+(otherwise a drive that is not in Operation enabled is refused). Nothing is stored unless
+``--store`` is given.
 ``--undo before|defaults`` only returns the gains (no tuning).
 
 Exit codes: 0 done, 1 the tuning failed (the drive's code, decoded, or servodesk's reason),
@@ -46,7 +47,8 @@ def register(sub: Any) -> None:
         type=float,
         default=None,
         metavar="REV",
-        help="travel window in revolutions, centred on the present position (required to tune)",
+        help="travel window: its total width in revolutions, centred on the present position "
+        "(the axis stays within +- half of it; required to tune)",
     )
     p.add_argument(
         "--torque-limit",
@@ -90,7 +92,7 @@ def _check_args(args: argparse.Namespace) -> None:
         raise ValidationError(
             "--travel REV is required: the axis moves inside this window while it tunes",
             field="travel",
-            hint="e.g. --travel 0.5 (half a revolution around the present position)",
+            hint="e.g. --travel 0.5 (+-0.25 rev around the present position)",
         )
     # The service's own bounds, checked here so that a bad argument exits 2 before the bus
     # is opened.
@@ -158,6 +160,8 @@ async def _tune(ctx: _Context, args: argparse.Namespace) -> dict[str, Any]:
                 torque_limit_pct=args.torque_limit,
                 move_torque_pct=args.move_torque,
             )
+            if not args.json and job.get("bound"):
+                print(f"travel window: {job['bound']['text']}", file=sys.stderr)
             job = await _follow(service, sid, quiet=args.json)
         except asyncio.CancelledError:
             # Ctrl-C: stop the tuning and the motion, put the gains back, then leave.

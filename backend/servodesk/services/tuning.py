@@ -23,10 +23,16 @@ only when asked.
 
 Choices where the manual leaves room (documented once):
 
-- The travel window is centred on the position where the axis stands when the job starts; the
-  axis moves between its two ends. Position units per revolution come from 6064h's unit
-  (``deg``: 360 / scale) or else the profile's simulation setting (``counts_per_rev``), which
-  the info names as the source: on a real drive the electronic gear decides.
+- The travel window is a total width centred on the position where the axis stands when the
+  job starts: the bound is start +- half of it, rounded down to whole position units
+  (domain/tuning/travel.py), and the job, the page and the result say it in revolutions and in
+  units side by side. servodesk's own tuning keeps every move's overshoot and a stop's run-out
+  inside it and sets the drive's software limits 607Dh there (services/tuning_travel.py); the
+  drive's one-touch tuning is commanded between the two ends, and what it overshoots past them
+  is the drive's (the job's message says so). Position units per revolution come from 6064h's
+  unit (``deg``: 360 / scale) or else the profile's simulation setting (``counts_per_rev``,
+  608Fh's once the session read it), which the info names as the source: on a real drive the
+  electronic gear decides.
 - The back-and-forth runs at :data:`TUNING_SPEED_RPS` (600 r/min; MR-J4's one-touch tuning
   asks for at least 150 r/min [general product knowledge, unverified here]), lower where
   607Fh says so, converted to 6081h's unit (``r/min`` with its scale, else position units per
@@ -57,6 +63,7 @@ from servodesk.domain.datatypes import DataType, Value, codec, coerce_int
 from servodesk.domain.profile import DeviceProfile, ObjectSpec, RecorderSpec
 from servodesk.domain.ramps import ramp_kind
 from servodesk.domain.tuning.promise import mode_promise
+from servodesk.domain.tuning.travel import TravelBound, bound_text, half_window
 from servodesk.errors import (
     ConflictError,
     DriveStateError,
@@ -93,6 +100,21 @@ BUILTIN_LABELS = {
 
 #: The safety inputs the UI and the CLI start from.
 DEFAULTS: dict[str, Any] = {"mode": "basic", "travel_window_rev": 0.5, "torque_limit_pct": 100.0}
+#: What the travel window means, per kind of tuning (GET .../tuning ``travel_rule``).
+TRAVEL_RULE: dict[str, str] = {
+    "gains": (
+        "The travel window is the total width, centred on where the axis stands: the axis "
+        "stays within ± half of it (rounded down to whole position units). servodesk sizes "
+        "every move so that its overshoot and a stop's run-out stay inside, and sets the "
+        "drive's software position limits (607Dh) there for the run where the drive has them."
+    ),
+    "builtin": (
+        "The travel window is the total width, centred on where the axis stands: servodesk "
+        "commands the axis between its two ends (± half of it, rounded down to whole position "
+        "units). The drive tunes its own gains meanwhile, and how far it overshoots those ends "
+        "is the drive's: keep room beyond them."
+    ),
+}
 MAX_TRAVEL_REV = 100.0
 MAX_TORQUE_PCT = 300.0
 #: The peak torque of the machine's moves the own tuning ranks its gains for (% of rated): only
@@ -395,6 +417,8 @@ class Job:
     abort: tuple[str, str] | None = None
     #: The job ends its own motion now: the motion's end is not an abort.
     closing_motion: bool = False
+    #: The travel bound the window gives around the start (``bound`` of the job's JSON).
+    bound: dict[str, Any] | None = None
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -411,6 +435,7 @@ class Job:
             "message": self.message,
             "error": self.error,
             "travel_window_rev": self.travel_window_rev,
+            "bound": self.bound,
             "torque_limit_pct": self.torque_limit_pct,
             "move_torque_pct": self.move_torque_pct,
         }
@@ -517,6 +542,8 @@ class TuningService:
             "gains": gains,
             "loop_rate_hz": await self._loop_rate(session) if kind != "none" else None,
             "defaults": dict(DEFAULTS),
+            # How the window becomes the bound (the page computes the same, tuningModel.ts).
+            "travel_rule": TRAVEL_RULE[kind] if kind != "none" else None,
             "limits": {
                 "travel_window_rev": {"min": 0.0, "max": MAX_TRAVEL_REV},
                 "torque_limit_pct": {"min": 0.0, "max": MAX_TORQUE_PCT},
@@ -707,10 +734,7 @@ class TuningService:
                 field="kind",
             )
         lim = await self.motion.limits(sid)
-        run.upr, _ = units_per_rev(p)
-        run.start = await self._read_int(session, POSITION) or 0
-        half = max(1, round(job.travel_window_rev * run.upr / 2.0))
-        run.window = (run.start - half, run.start + half)
+        half = await self._bound(job, run)
         self._check_window(p, lim, run, job.travel_window_rev)
         run.step = max(1, min(round(STEP_REV * run.upr), half // 2))
         rps = TUNING_SPEED_RPS
@@ -742,11 +766,40 @@ class TuningService:
             sid,
             job.owner,
             window=run.window,
-            message=f"one-touch tuning ({job.mode}) within ±{job.travel_window_rev / 2:g} rev",
+            message=f"one-touch tuning ({job.mode}) between the ends of "
+            f"{self._bound_text(run)}; how far the drive's own tuning overshoots them is the "
+            "drive's",
             on_end=self._on_motion_end(job),
         )
         self._jobs[sid] = job
         return lambda: self._builtin(job, run)
+
+    async def _bound(self, job: Job, run: _Run) -> int:
+        """The travel bound around where the axis stands (module docstring): into ``run``
+        and the job; returns half the window in position units."""
+        p = run.session.profile
+        run.upr, _ = units_per_rev(p)
+        run.start = await self._read_int(run.session, POSITION) or 0
+        half = half_window(job.travel_window_rev, run.upr)
+        run.window = (run.start - half, run.start + half)
+        spec = p.spec(POSITION)
+        bound = TravelBound(run.start, half)
+        job.bound = {
+            **bound.as_dict(run.upr, spec.raw_unit if spec else None),
+            "text": self._bound_text(run),
+        }
+        return half
+
+    def _bound_text(self, run: _Run) -> str:
+        """The bound in words, revolutions and position units side by side."""
+        spec = run.session.profile.spec(POSITION)
+        return bound_text(
+            TravelBound(run.start, run.window[1] - run.start),
+            run.upr,
+            spec.raw_unit if spec else None,
+            unit=spec.unit if spec else None,
+            scale=spec.scale if spec else None,
+        )
 
     def _check_window(self, p: DeviceProfile, lim: Limits, run: _Run, travel: float) -> None:
         lo, hi = run.window
@@ -771,8 +824,8 @@ class TuningService:
             )
             fits = max(0.0, 2.0 * room / run.upr)
             raise ValidationError(
-                f"travel_window_rev {travel:g} (from {lo} to {hi} around the position "
-                f"{run.start}) does not fit {what}: {mn} .. {mx}; nothing was sent",
+                f"travel_window_rev {travel:g} ({self._bound_text(run)}) does not fit {what}: "
+                f"{mn} .. {mx}; nothing was sent",
                 field="travel_window_rev",
                 hint=f"at most {math.floor(fits * 1000) / 1000:g} rev fits here; choose a "
                 "smaller window or move the axis away from the limit",
@@ -785,17 +838,14 @@ class TuningService:
         sid = session.id
         # servodesk's own tuning moves the axis inside the window too: the same check.
         lim = await self.motion.limits(sid)
-        run.upr, _ = units_per_rev(session.profile)
-        run.start = await self._read_int(session, POSITION) or 0
-        half = max(1, round(job.travel_window_rev * run.upr / 2.0))
-        run.window = (run.start - half, run.start + half)
+        await self._bound(job, run)
         self._check_window(session.profile, lim, run, job.travel_window_rev)
         run.before = await self._read_raw(session, run.refs)
         job.motion = await self.motion.start_tuning_motion(
             sid,
             job.owner,
             window=None,
-            message=f"servodesk tuning ({job.mode})",
+            message=f"servodesk tuning ({job.mode}) within {self._bound_text(run)}",
             on_end=self._on_motion_end(job),
         )
         self._jobs[sid] = job
@@ -886,6 +936,14 @@ class TuningService:
         if problems:
             message = f"{message}; " + "; ".join(problems)
             job.message = message
+        p = s.profile
+        soft = [p.spec(ObjectAddress(0x607D, n)) for n in (1, 2)]
+        if job.kind == "gains" and not all(x is not None and x.access.writable for x in soft):
+            # What the tuning's own result says when it ends done (tuning_own._set_safety).
+            run.notes.append(
+                f"{p.name} has no writable software position limits (607Dh): only servodesk's "
+                f"own bound ({self._bound_text(run)}) applied, not the drive's"
+            )
         if exc is not None:
             error = _reason_error(type(exc).__name__, exc.message, exc.hint)
         elif state == "stopped":
@@ -977,6 +1035,8 @@ class TuningService:
             "step": {"before": run.step_before, "after": run.step_after},
             "axis_time_s": round(run.axis_time_s, 3),
             "excursion_rev": round(run.excursion / run.upr, 4) if run.upr else None,
+            # The bound the window gave (servodesk's own tuning adds what it reached).
+            "travel": dict(job.bound) if job.bound else None,
             "peak_torque_pct": run.peak_torque_pct,
             # The largest 6077h of the polls while the drive tuned: the drive has no recorder
             # servodesk reads, so a torque peak shorter than a poll period goes unseen (a
@@ -1288,6 +1348,9 @@ class TuningService:
             travel_window_rev=job.travel_window_rev,
             torque_limit_pct=job.torque_limit_pct,
             move_torque_pct=job.move_torque_pct,
+            # Exactly the bound the job confirmed (in 6064h's units), not one recomputed from
+            # the encoder's counts per revolution.
+            half_window_counts=run.window[1] - run.start,
         )
 
         def progress(fraction: float, step: str) -> None:
@@ -1299,7 +1362,12 @@ class TuningService:
             await self.motion.end_tuning_motion(s.id, job.motion, "done", "tuning done")
         after = await self._read_raw(s, run.refs)
         base = self._result(job, run, "done", None, after, applied=True)
-        result = {**base, **(out if isinstance(out, dict) else {})}
+        own = out if isinstance(out, dict) else {}
+        result = {**base, **own}
+        # The job's notes and the tuning's; what the moves reached, with the bound as the job
+        # confirmed it (in 6064h's units and words).
+        result["notes"] = [*base["notes"], *own.get("notes", [])]
+        result["travel"] = {**(own.get("travel") or {}), **(base["travel"] or {})}
         result.setdefault("stored", False)
         status = str(result.get("status") or "done")
         if status not in ("done", "failed", "stopped"):

@@ -26,7 +26,7 @@ import { beginHeartbeat, heartbeatRunning, loadControl, me, operationLive, start
 import '../components/operation/operation.css';
 import { GainTable } from '../components/tuning/GainTable';
 import { BodePlot, StepPlot } from '../components/tuning/TuningPlots';
-import { type Inputs, checkInputs, fmtNumber, gainLines, isRunning, jobLabel, kindTitle, modeText, presentLines, refitLines, windowInUnits, withUnit } from '../components/tuning/tuningModel';
+import { type Inputs, boundText, checkInputs, confirmationText, fmtNumber, gainLines, isRunning, jobLabel, kindTitle, modeText, presentLines, refitLines, windowInUnits, withUnit } from '../components/tuning/tuningModel';
 import '../components/tuning/tuning.css';
 import { type Failure, failureOf } from '../lib/codes';
 import { notify, notifyError } from '../state/notify';
@@ -328,9 +328,7 @@ export function TuningPage({ sid }: PageProps) {
                       data-testid="tuning-travel"
                     />
                     <span className="small" data-testid="tuning-window-units">
-                      {win
-                        ? `±${win.half} ${pos.raw_unit ?? ''} around ${pos.actual}: ${win.lo} … ${win.hi}`
-                        : 'position unknown'}
+                      {win ? `total width, centred where the axis stands: ${boundText(win, pos)}` : 'position unknown'}
                     </span>
                     {check?.travel && <span className="inline-error">{check.travel}</span>}
                   </label>
@@ -399,8 +397,9 @@ export function TuningPage({ sid }: PageProps) {
                 <label className="op-check tuning-confirm">
                   <input type="checkbox" checked={confirmed} disabled={running || !check?.ok} onChange={(e) => setConfirmed(e.target.checked)} data-testid="tuning-confirm" />
                   <span data-testid="tuning-confirm-text">
-                    The axis may move {win ? `±${fmtNumber((check?.travelRev ?? 0) / 2)} rev (${win.lo} … ${win.hi} ${pos.raw_unit ?? ''})` : ''} around where it stands, with up to{' '}
-                    {check?.torquePct ?? '—'} % torque; the area is clear.
+                    {win
+                      ? confirmationText(info.kind, win, pos, check?.torquePct ?? null)
+                      : `The axis moves inside the travel window around where it stands, with up to ${check?.torquePct ?? '—'} % torque; the area is clear.`}
                   </span>
                 </label>
               </Step>
@@ -433,6 +432,11 @@ export function TuningPage({ sid }: PageProps) {
                     <div className="small" data-testid="tuning-step-text">
                       {job.step}
                     </div>
+                    {job.bound?.text && (
+                      <div className="small muted" data-testid="tuning-job-bound">
+                        Travel bound as the server holds it: {job.bound.text}
+                      </div>
+                    )}
                     {job.state !== 'running' && job.message && <div className="small muted">{job.message}</div>}
                   </div>
                 )}

@@ -73,7 +73,9 @@ class StartRequest(BaseModel):
         gt=0,
         le=MAX_TRAVEL_REV,
         allow_inf_nan=False,
-        description="width of the window the axis may move in [rev], centred on where it stands",
+        description="total width of the travel window [rev], centred on where the axis stands: "
+        "the axis stays within +- half of it, rounded down to whole position units (the job's "
+        "`bound` says it in revolutions and units)",
     )
     torque_limit_pct: float = Field(
         gt=0,

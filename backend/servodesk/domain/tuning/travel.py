@@ -66,14 +66,15 @@ def bound_text(
     scale: float | None = None,
 ) -> str:
     """The bound in words, engineering units and raw counts side by side: "+-0.25 rev (+-90
-    deg) = +-32768 inc of 1000: -31768 .. 33768 inc". ``unit`` and ``scale``: the position's own
+    deg) = +-32768 inc around 1000: -31768 .. 33768 inc". ``unit`` and ``scale``: the position's own
     engineering unit (6064h), shown where it is not revolutions."""
     raw = f" {raw_unit}" if raw_unit else ""
     parts = [f"±{_g(bound.half / units_per_rev)} rev"]
     if unit and scale and unit not in ("rev", "r"):
         parts.append(f"(±{_g(bound.half * scale)} {unit})")
     return (
-        f"{' '.join(parts)} = ±{bound.half}{raw} of {bound.start}: {bound.low} … {bound.high}{raw}"
+        f"{' '.join(parts)} = ±{bound.half}{raw} around {bound.start}: "
+        f"{bound.low} … {bound.high}{raw}"
     )
 
 

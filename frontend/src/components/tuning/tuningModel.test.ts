@@ -2,7 +2,9 @@ import { describe, expect, it } from 'vitest';
 import type { Bode, ResultGain, StepResponse, TuningInfo } from '../../api/tuning';
 import {
   bodeSeries,
+  boundText,
   changeText,
+  confirmationText,
   decadeLabel,
   checkInputs,
   fmtNumber,
@@ -47,6 +49,34 @@ describe('safety inputs', () => {
   it('centres the window on the position, in position units', () => {
     expect(windowInUnits(0.5, 131072, 1000)).toEqual({ half: 32768, lo: 1000 - 32768, hi: 1000 + 32768 });
     expect(windowInUnits(1e-9, 131072, 0).half).toBe(1);
+  });
+
+  it('rounds half the window down, as the server does, so the bound is never wider than confirmed', () => {
+    // 0.3 rev of 100001 units: 15000.15 either side; domain/tuning/travel.py half_window gives 15000.
+    expect(windowInUnits(0.3, 100001, 0).half).toBe(15000);
+    expect(windowInUnits(0.1, 1 << 20, 0).half).toBe(52428); // 52428.8
+  });
+
+  it('says the bound in revolutions, the position unit and raw units side by side, as the server', () => {
+    const pos = { actual: 1000, raw_unit: 'inc', unit: 'deg', scale: 360 / 131072, units_per_rev: 131072 };
+    const win = windowInUnits(0.5, 131072, 1000);
+    // The same text as bound_text in tests/tuning/test_tuning_travel.py.
+    expect(boundText(win, pos)).toBe('±0.25 rev (±90 deg) = ±32768 inc around 1000: -31768 … 33768 inc');
+    expect(boundText(win, { ...pos, unit: null, raw_unit: null })).toBe('±0.25 rev = ±32768 around 1000: -31768 … 33768');
+  });
+
+  it('confirms exactly what is enforced, per kind of tuning', () => {
+    const pos = { actual: 0, raw_unit: 'inc', unit: null, scale: 1, units_per_rev: 131072 };
+    const win = windowInUnits(0.5, 131072, 0);
+    const own = confirmationText('gains', win, pos, 100);
+    expect(own).toContain('The axis stays within ±0.25 rev = ±32768 inc around 0: -32768 … 32768 inc');
+    expect(own).toContain('607Dh');
+    expect(own).toContain('up to 100 % torque');
+    // The drive's own tuning: servodesk commands the ends, the drive's overshoot is its own.
+    const builtin = confirmationText('builtin', win, pos, 50);
+    expect(builtin).toContain('between the ends of ±0.25 rev');
+    expect(builtin).toContain('may overshoot');
+    expect(builtin).not.toContain('stays within');
   });
 
   it('names the largest window the software limits allow', () => {

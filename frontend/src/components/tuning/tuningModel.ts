@@ -36,16 +36,50 @@ export function parseDecimal(text: string): number | null {
 }
 
 export interface Window {
-  /** Half the window in position units (the axis moves start ± half). */
+  /** Half the window in position units (the axis stays within start ± half). */
   half: number;
   lo: number;
   hi: number;
 }
 
-/** The travel window in position units, centred on ``actual`` (the server's rule). */
+/** The travel window in position units, centred on ``actual``: the window is its total width,
+ * and half of it is rounded down so that the bound is never wider than confirmed. The server's
+ * rule to the count, with the same floating-point operations (domain/tuning/travel.py
+ * ``half_window``): the counts shown are those the drive's software limits get. */
 export function windowInUnits(travelRev: number, unitsPerRev: number, actual: number): Window {
-  const half = Math.max(1, Math.round((travelRev * unitsPerRev) / 2));
+  const half = Math.max(1, Math.floor((travelRev * unitsPerRev) / 2));
   return { half, lo: actual - half, hi: actual + half };
+}
+
+/** Up to 6 significant digits, as the server writes its figures (Python's ``:.6g``). */
+function g6(v: number): string {
+  return String(Number(v.toPrecision(6)));
+}
+
+/** The bound in revolutions, in the position's own unit where that is not revolutions, and in
+ * raw units side by side: "±0.25 rev (±90 deg) = ±32768 inc around 1000: -31768 … 33768 inc". The
+ * server says it in the same words (domain/tuning/travel.py ``bound_text``, the job's
+ * ``bound.text``). */
+export function boundText(win: Window, pos: Pick<TuningInfo['position'], 'actual' | 'raw_unit' | 'unit' | 'scale' | 'units_per_rev'>): string {
+  const raw = pos.raw_unit ? ` ${pos.raw_unit}` : '';
+  const own = pos.unit && pos.scale && pos.unit !== 'rev' && pos.unit !== 'r' ? ` (±${g6(win.half * pos.scale)} ${pos.unit})` : '';
+  return `±${g6(win.half / pos.units_per_rev)} rev${own} = ±${win.half}${raw} around ${pos.actual ?? '?'}: ${win.lo} … ${win.hi}${raw}`;
+}
+
+/** The confirmation the user ticks before a tuning: exactly the bound that is enforced, and by
+ * what (docs/tuning.md, "Travel window"). */
+export function confirmationText(kind: TuningKind, win: Window, pos: Parameters<typeof boundText>[1], torquePct: number | null): string {
+  const torque = `with up to ${torquePct ?? '—'} % torque; the area is clear.`;
+  if (kind === 'builtin') {
+    return (
+      `servodesk moves the axis between the ends of ${boundText(win, pos)} while the drive tunes itself; ` +
+      `the drive's own tuning may overshoot those ends: leave room beyond them. ${torque}`
+    );
+  }
+  return (
+    `The axis stays within ${boundText(win, pos)} (where it stands now): servodesk keeps every move, its overshoot ` +
+    `and a stop inside, and sets the drive's software position limits (607Dh) there while it tunes. ${torque}`
+  );
 }
 
 /** The largest window [rev] that fits the software limits around ``actual``; null: no limit. */
