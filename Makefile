@@ -58,7 +58,7 @@ netutils:
 	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends util-linux >/dev/null; }
 
 demo: setup
-	$(VENV)/bin/servodesk serve --sim --host $(HOST) --port $(PORT)
+	$(VENV)/bin/servodesk serve --sim --single-user --host $(HOST) --port $(PORT)
 
 lint: $(VENV)/.synced
 	$(VENV)/bin/ruff check backend tests bench scripts

@@ -16,8 +16,11 @@ can render one clear message without parsing strings::
      +-- DriveStateError            a CiA 402 command is not possible in this state
      +-- NotFoundError              no such session, profile or object
      +-- ConflictError              another client holds control of the drive
+     +-- WorkerFailed               a worker process ended before its answer (503)
+ +-- Forbidden                  the caller's role lacks the right the request needs (403)
      +-- RequestRefused             an HTTP request refused before any route sees it
-          +-- Unauthorized          no valid token where the server requires one (401)
+          +-- Unauthorized          no valid login session or API token where needed (401)
+          +-- LockedOut             too many failed logins: refused until a time (429)
           +-- HostNotAllowed        Host names no name this server answers to (400)
           +-- OriginNotAllowed      a state change or WebSocket from another site (403)
           +-- PayloadTooLarge       the body is past the route's limit (413)
@@ -184,6 +187,26 @@ class ObjectAccessError(ServodeskError):
         return out
 
 
+class Forbidden(ServodeskError):
+    """The caller is known but their role lacks the right the request needs
+    (domain/roles.py); the message names the right and the role."""
+
+    def __init__(self, message: str, *, right: str, role: str, hint: str | None = None):
+        super().__init__(message, hint=hint)
+        self.right = right
+        self.role = role
+
+    def to_dict(self) -> dict[str, object]:
+        out = super().to_dict()
+        out.update(right=self.right, role=self.role)
+        return out
+
+
+class WorkerFailed(ServodeskError):
+    """A worker process (documents, tuning: api/offload.py) ended before it answered, e.g.
+    killed for memory by a huge file; the next request starts a new one."""
+
+
 class DriveStateError(ServodeskError):
     """A CiA 402 command or operation is not possible in the drive's current state."""
 
@@ -194,8 +217,22 @@ class RequestRefused(ServodeskError):
 
 
 class Unauthorized(RequestRefused):
-    """The server requires a token (bound beyond loopback, or --token) and the request has
-    none that matches."""
+    """The server requires a login (bound beyond loopback, or accounts exist) and the request
+    has no valid session cookie or API token (docs/security.md, Users)."""
+
+
+class LockedOut(RequestRefused):
+    """Too many failed logins for an account or from an address: logins are refused until
+    ``until`` (Unix time), even with the right password."""
+
+    def __init__(self, message: str, *, until: float, hint: str | None = None):
+        super().__init__(message, hint=hint)
+        self.until = until
+
+    def to_dict(self) -> dict[str, object]:
+        out = super().to_dict()
+        out["until"] = self.until
+        return out
 
 
 class HostNotAllowed(RequestRefused):

@@ -15,9 +15,13 @@ class Settings(BaseSettings):
 
     host: str = "127.0.0.1"
     port: int = Field(default=8000, ge=1, le=65535)
-    #: Required on every request when ``host`` is not a loopback address; generated and
-    #: printed at start-up when not set.
-    token: str | None = None
+    #: On loopback, stay in the single-user mode (no login, the caller may do everything)
+    #: even when accounts exist (``serve --single-user``). Ignored beyond loopback.
+    single_user: bool = False
+    #: A login session unused this long (no HTTP request) ends: IEC 62443-4-2 CR 2.5.
+    session_idle_s: float = Field(default=900.0, gt=0, le=86400)
+    #: How long an account (or address) stays locked after too many failed logins (s).
+    lockout_s: float = Field(default=300.0, gt=0, le=86400)
     #: Host names the server answers to beside localhost, 127.0.0.1, [::1], ``host`` and
     #: (beyond loopback) the machine's name: comma-separated ``name`` or ``name:port`` (a
     #: port: pages of that origin may change things whatever port the server has, e.g.
@@ -65,6 +69,14 @@ class Settings(BaseSettings):
     #: when this is set (anyone who reaches host:viewer_port then sees the 3D view).
     viewer_public: bool = False
     log_level: str = "info"
+    #: HTTPS (servodesk/tls.py, docs/security.md "TLS"): the certificate (PEM) and its key.
+    #: ``servodesk serve`` beyond loopback fills them with a self-signed pair made in
+    #: ``data_dir/tls`` when they are not given; set, the server speaks only HTTPS.
+    tls_cert: Path | None = None
+    tls_key: Path | None = None
+    #: Serve plain HTTP beyond loopback (``serve --insecure-http``): logins and tokens then
+    #: cross the network in clear text.
+    insecure_http: bool = False
 
     def profile_paths(self) -> list[Path]:
         """User profile directories: SERVODESK_PROFILE_DIRS, then imported ones in data_dir."""
@@ -82,6 +94,11 @@ class Settings(BaseSettings):
     def _hosts(cls, v: str) -> str:
         hosts.parse_allowed_hosts(v)  # A bad entry is refused at start-up, not ignored.
         return v
+
+    @property
+    def https(self) -> bool:
+        """The server speaks HTTPS (cookies get Secure, responses HSTS)."""
+        return self.tls_cert is not None
 
     @property
     def is_loopback(self) -> bool:

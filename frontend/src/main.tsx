@@ -1,21 +1,37 @@
-/** Entry point: take the API token from the URL, start the shared socket, render the shell. */
+/**
+ * Entry point: ask the server who is logged in (GET /auth/me); on 401 show the login page,
+ * otherwise start the shared socket and render the shell.
+ */
 import { StrictMode } from 'react';
 import { createRoot } from 'react-dom/client';
 import 'uplot/dist/uPlot.min.css';
 import './styles.css';
-import { captureTokenFromUrl } from './api/auth';
+import { captureTokenFromUrl, me, refreshMe } from './api/auth';
 import { App } from './App';
+import { LoginPage } from './components/auth/LoginPage';
+import { useObservable } from './state/observable';
 import { startControlStore } from './state/control';
 import { startStore } from './state/store';
 
 captureTokenFromUrl();
-startStore();
-startControlStore();
+
+/** The login page while nobody is logged in (a login reloads the page), else the app. */
+function Root() {
+  const who = useObservable(me);
+  if (who === undefined) return null;
+  return who === null ? <LoginPage /> : <App />;
+}
 
 const root = document.getElementById('root');
 if (!root) throw new Error('index.html has no #root element');
-createRoot(root).render(
-  <StrictMode>
-    <App />
-  </StrictMode>,
-);
+void refreshMe().then((who) => {
+  if (who !== null) {
+    startStore();
+    startControlStore();
+  }
+  createRoot(root).render(
+    <StrictMode>
+      <Root />
+    </StrictMode>,
+  );
+});

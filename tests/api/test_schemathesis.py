@@ -127,6 +127,10 @@ ENV = {
     "SERVODESK_SIM_PROFILES": "cia402-generic",
     "SERVODESK_VIEWER_PORT": "0",
     "SERVODESK_LOG_LEVEL": "warning",
+    # The run may well add an account through POST /auth/users: the loopback server stays in
+    # the single-user mode all the same (docs/security.md, Users), so the rest of the run is
+    # not suddenly answered 401.
+    "SERVODESK_SINGLE_USER": "1",
 }
 
 

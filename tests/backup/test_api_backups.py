@@ -110,7 +110,7 @@ async def test_upload_compare_restore_and_audit(api: httpx.AsyncClient) -> None:
     assert (await api.get(f"/restores/{body['id']}")).json() == body
     res = (await api.post(f"/restores/{body['id']}/resume", json={}, headers=H)).json()
     assert res["finished"]
-    audit = (await api.get("/audit", params={"session": s})).json()
+    audit = (await api.get("/audit/writes", params={"session": s})).json()
     mine = [a for a in audit if a["client"] == "ui-test-tab" and a["address"] == "0x6081:00"]
     assert mine[0]["old_value"] == 123456  # the restore's write, newest first
     assert mine[-1]["new_value"] == 123456

@@ -106,6 +106,9 @@ def running_server(
                 status, _ = _get(f"{base}/api/v1/health")
                 if status == 200:
                     break
+            except urllib.error.HTTPError as exc:
+                if exc.code == 401:  # Up, and requires a login (accounts exist).
+                    break
             except (urllib.error.URLError, ConnectionError, TimeoutError, OSError):
                 pass
             if time.monotonic() > deadline:

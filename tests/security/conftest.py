@@ -1,5 +1,5 @@
 """Fixtures of the security tests: apps as a default loopback server builds them, a valid backup
-file, and one real uvicorn server with a token shared by the tests that need one."""
+file, and one real uvicorn server with an account, shared by the tests that need a login."""
 
 from __future__ import annotations
 
@@ -14,8 +14,6 @@ from servodesk.domain import paramset
 from servodesk.domain.paramset import ParameterSet
 from servodesk.settings import Settings
 from tests.security.server import LiveServer, serve
-
-TOKEN = "s3cret-Token-4-security-tests"
 
 
 @pytest.fixture
@@ -35,6 +33,7 @@ def backup_bytes(profile_id: str = "cia402-generic") -> bytes:
 
 @pytest.fixture(scope="package")
 def token_server() -> Iterator[LiveServer]:
-    """``servodesk serve --token ...`` on 127.0.0.1 (uvicorn, access log at info)."""
-    with serve(token=TOKEN) as server:
+    """``servodesk serve`` on 127.0.0.1 with an administrator account, so that every request
+    needs a login or an API token (``server.token``; uvicorn, access log at info)."""
+    with serve(accounts={"admin": "administrator"}) as server:
         yield server

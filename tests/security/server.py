@@ -11,33 +11,60 @@ import sys
 import tempfile
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import httpx
 
 from tests.live import free_port
 
+#: The password of every account :func:`serve` makes.
+PASSWORD = "correct horse battery"
+
 
 @dataclass
 class LiveServer:
     base: str
     port: int
+    #: The administrator's API token (``accounts``), sent as Authorization: Bearer.
     token: str | None
     log_path: Path
+    data_dir: Path
+    #: Account name -> its API token (one account per role asked for).
+    tokens: dict[str, str] = field(default_factory=dict)
 
     def log(self) -> str:
         return self.log_path.read_text(encoding="utf-8", errors="replace")
 
 
+def make_accounts(data_dir: Path, roles: dict[str, str]) -> dict[str, str]:
+    """Accounts ``name -> role`` (password :data:`PASSWORD`) in ``data_dir``'s store, as
+    ``servodesk users add`` makes them; their API tokens."""
+    from servodesk.services.users import UserStore
+
+    users = UserStore(data_dir)
+    try:
+        out = {}
+        for name, role in roles.items():
+            if users.get(name) is None:
+                users.add(name, role, PASSWORD)
+            out[name] = users.create_token(name, "tests")[1]
+        return out
+    finally:
+        users.close()
+
+
 @contextlib.contextmanager
 def serve(
-    *args: str, token: str | None = None, env: dict[str, str] | None = None
+    *args: str, accounts: dict[str, str] | None = None, env: dict[str, str] | None = None
 ) -> Iterator[LiveServer]:
-    """``servodesk serve`` (no simulated drives: it starts in seconds) on a free port."""
+    """``servodesk serve`` (no simulated drives: it starts in seconds) on a free port; with
+    ``accounts`` (name -> role) made first, so that it requires a login (docs/security.md)."""
     port = free_port()
     work = Path(tempfile.mkdtemp(prefix="servodesk-security-"))
     log_path = work / "server.log"
+    tokens = make_accounts(work / "data", accounts) if accounts else {}
+    token = next(iter(tokens.values()), None)
     full_env = {
         **os.environ,
         "SERVODESK_DATA_DIR": str(work / "data"),
@@ -46,8 +73,6 @@ def serve(
         **(env or {}),
     }
     cmd = [sys.executable, "-m", "servodesk", "serve", "--port", str(port), *args]
-    if token:
-        cmd += ["--token", token]
     base = f"http://127.0.0.1:{port}"
     headers = {"Authorization": f"Bearer {token}"} if token else {}
     with open(log_path, "w") as log:
@@ -68,7 +93,7 @@ def serve(
             if time.monotonic() > deadline:
                 raise RuntimeError(f"servodesk serve did not come up:\n{log_path.read_text()}")
             time.sleep(0.2)
-        yield LiveServer(base, port, token, log_path)
+        yield LiveServer(base, port, token, log_path, work / "data", tokens)
     finally:
         proc.terminate()
         try:

@@ -16,18 +16,20 @@ import pytest
 from servodesk.api.app import create_app
 from servodesk.api.routes.viewer import viewer
 from servodesk.settings import Settings
+from tests.security.server import make_accounts
 
 from .conftest import free_port, port_is_bound
 
-TOKEN = "s3cret"
-AUTH = {"Authorization": f"Bearer {TOKEN}"}
+AUTH: dict[str, str] = {}
 
 
 def _app(tmp_path: Path, port: int, public: bool) -> object:
+    # Beyond loopback every request needs a login: an account and its API token.
+    token = make_accounts(tmp_path, {"admin": "administrator"})["admin"]
+    AUTH["Authorization"] = f"Bearer {token}"
     return create_app(
         Settings(
             host="0.0.0.0",
-            token=TOKEN,
             data_dir=tmp_path,
             viewer_port=port,
             viewer_public=public,

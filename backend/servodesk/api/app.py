@@ -7,17 +7,22 @@ import logging
 from collections.abc import AsyncIterator
 from pathlib import Path
 
-from fastapi import FastAPI
+from fastapi import Depends, FastAPI
 from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import HTMLResponse
 from fastapi.staticfiles import StaticFiles
 
 from servodesk import __version__
 from servodesk.api import access_log, errors
-from servodesk.api.auth import TokenMiddleware
+from servodesk.api.audit_requests import AuditRequests
+from servodesk.api.auth import Auth, AuthMiddleware
 from servodesk.api.body_limit import BodyLimit
 from servodesk.api.deps import AppState
+from servodesk.api.hsts import Hsts
+from servodesk.api.rights import check_route_right
 from servodesk.api.routes import (
+    audit,
+    auth,
     backups,
     dcp,
     motion,
@@ -34,11 +39,14 @@ from servodesk.api.scope_ws import router as scope_ws_router
 from servodesk.api.ws import router as ws_router
 from servodesk.domain.profile_loader import ProfileCatalog, default_profile_dirs
 from servodesk.hosts import HostPolicy
+from servodesk.services.audit import AuditLog
 from servodesk.services.backup import BackupService
 from servodesk.services.events import EventHub
+from servodesk.services.logins import LoginService
 from servodesk.services.manager import SessionManager
 from servodesk.services.restore import RestoreService
 from servodesk.services.store import Store
+from servodesk.services.users import UserStore
 from servodesk.settings import Settings
 
 log = logging.getLogger(__name__)
@@ -69,7 +77,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         manager=manager,
         backups=backup_service,
         restores=RestoreService(backup_service),
+        # Beside the store, in the same database (docs/security.md, Audit log).
+        audit=AuditLog(backup_service.store.path),
     )
+    backup_service.audit = state.audit
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -82,6 +93,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         finally:
             await manager.close_all()
             backup_service.store.close()
+            state.audit.close()
             from servodesk.api import offload
             from servodesk.services import tuning_worker
 
@@ -98,13 +110,22 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         lifespan=lifespan,
         docs_url=None,
         redoc_url=None,
+        # Every route's right, from one table (api/rights.py, docs/security.md "Roles").
+        dependencies=[Depends(check_route_right)],
     )
     app.state.servodesk = state
+    app.state.servodesk_auth = Auth(
+        settings,
+        UserStore(settings.data_dir),
+        LoginService(idle_s=settings.session_idle_s, lockout_s=settings.lockout_s),
+    )
     errors.install(app)
     app.include_router(system.router, prefix="/api/v1")
+    app.include_router(auth.router, prefix="/api/v1")  # Users, login sessions, API tokens.
     app.include_router(sessions.router, prefix="/api/v1")
     app.include_router(dcp.router, prefix="/api/v1")
     app.include_router(backups.router, prefix="/api/v1")
+    app.include_router(audit.router, prefix="/api/v1")
     app.include_router(ws_router, prefix="/api/v1")
     app.include_router(operation.router, prefix="/api/v1")
     app.include_router(viewer.router, prefix="/api/v1")  # Starts and stops the 3D viewer.
@@ -145,15 +166,18 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         async def no_ui() -> HTMLResponse:
             return HTMLResponse(_NO_UI)
 
-    # Outermost last: the same-origin checks, then the token, then the body limit, so that
-    # nothing reads a body of a request refused before (docs/security.md).
+    # Outermost last: the same-origin checks, then authentication, then the body limit, so
+    # that nothing reads a body of a request refused before (docs/security.md).
     app.add_middleware(BodyLimit)
-    if settings.token:
-        app.add_middleware(TokenMiddleware, token=settings.token)
+    app.add_middleware(AuthMiddleware, auth=app.state.servodesk_auth)
     app.add_middleware(
         SameOriginGuard,
         policy=HostPolicy.for_server(settings.host, settings.allowed_hosts),
         port=settings.port,
     )
+    if settings.https:
+        app.add_middleware(Hsts)
+    # Outermost: it records what every check inside refuses (docs/security.md, Audit log).
+    app.add_middleware(AuditRequests, audit=state.audit)
     access_log.install()  # ?token= never reaches uvicorn's log.
     return app

@@ -19,6 +19,7 @@ from typing import Annotated, Any
 from fastapi import Depends, Header, Request
 
 from servodesk.api.deps import AppState
+from servodesk.api.identity import identity_of
 from servodesk.domain.address import ObjectAddress
 from servodesk.errors import ValidationError
 from servodesk.services.control import CONTROL_HEADER, ControlService
@@ -55,7 +56,7 @@ def operation(app: Any) -> Operation:
     op: Operation | None = getattr(app.state, "servodesk_operation", None)
     if op is None:
         state: AppState = app.state.servodesk
-        control = ControlService(state.hub)
+        control = ControlService(state.hub, audit=state.audit)
         motion = MotionService(
             state.manager,
             control,
@@ -98,6 +99,12 @@ def _label(client: str | None, holder: str) -> str:
     return holder if not client or client == holder else f"{holder} (as {client})"
 
 
+def _user(request: Request) -> str:
+    """The account of the request: control is held by a user, and only their requests may
+    use its token (api/identity.py)."""
+    return identity_of(request).user
+
+
 def _energising_write(request: Request) -> bool:
     raw = request.path_params.get("address")
     if not isinstance(raw, str):
@@ -122,7 +129,8 @@ async def require_write(
         )
     else:
         op.motion.manager.get(sid)  # An unknown session is a 404 before anything else.
-        label = _label(x_servodesk_client, op.control.check(sid, x_servodesk_control, "this write"))
+        holder = op.control.check(sid, x_servodesk_control, "this write", _user(request))
+        label = _label(x_servodesk_client, holder)
     op.motion.invalidate_limits(sid)
     try:
         yield label
@@ -149,7 +157,8 @@ async def require_state_command(
         yield await _energise(sid, request, x_servodesk_client, x_servodesk_control, f"{command!r}")
         return
     op.motion.manager.get(sid)  # An unknown session is a 404 before anything else.
-    yield _label(x_servodesk_client, op.control.check(sid, x_servodesk_control, f"{command!r}"))
+    holder = op.control.check(sid, x_servodesk_control, f"{command!r}", _user(request))
+    yield _label(x_servodesk_client, holder)
 
 
 async def require_close(
@@ -161,7 +170,7 @@ async def require_close(
     """Closing a session someone holds needs their control; its motion stops first."""
     op = operation(request.app)
     if op.control.owner(sid) is not None:
-        op.control.check(sid, x_servodesk_control, "closing the session")
+        op.control.check(sid, x_servodesk_control, "closing the session", _user(request))
     await op.motion.stop_session(sid, "the session is being closed")
     try:
         yield x_servodesk_client
@@ -176,7 +185,7 @@ async def _energise(
     a lost holder (MotionService.settled)."""
     op = operation(request.app)
     op.motion.manager.get(sid)  # An unknown session is a 404 before anything else.
-    holder = op.control.check_energise(sid, token, what)
+    holder = op.control.check_energise(sid, token, what, _user(request))
     await op.motion.settled(sid)
     return _label(client, holder)
 

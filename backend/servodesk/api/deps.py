@@ -8,6 +8,7 @@ from typing import Annotated, Any
 from fastapi import Depends, Request
 
 from servodesk.domain.profile_loader import ProfileCatalog
+from servodesk.services.audit import AuditLog
 from servodesk.services.backup import BackupService
 from servodesk.services.events import EventHub
 from servodesk.services.manager import SessionManager
@@ -23,6 +24,8 @@ class AppState:
     manager: SessionManager
     backups: BackupService
     restores: RestoreService
+    #: The audit log (services/audit.py): ``state.audit.record("access.login", who=...)``.
+    audit: AuditLog
     sim: Any = None
     #: The PROFINET vendor and device ID each MAC answered the last DCP Identify with.
     dcp_seen: dict[str, tuple[int | None, int | None]] = field(default_factory=dict)

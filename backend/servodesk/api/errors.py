@@ -15,9 +15,11 @@ from servodesk.domain import profidrive
 from servodesk.errors import (
     ConflictError,
     DriveStateError,
+    Forbidden,
     HostNotAllowed,
     LinkError,
     LinkTimeoutError,
+    LockedOut,
     NotFoundError,
     ObjectAccessError,
     OriginNotAllowed,
@@ -28,6 +30,7 @@ from servodesk.errors import (
     Unauthorized,
     UnsupportedMediaType,
     ValidationError,
+    WorkerFailed,
 )
 
 log = logging.getLogger(__name__)
@@ -43,6 +46,10 @@ def status_for(exc: ServodeskError) -> int:
         return 404
     if isinstance(exc, ConflictError | DriveStateError):
         return 409
+    if isinstance(exc, Forbidden):
+        return 403
+    if isinstance(exc, WorkerFailed):
+        return 503  # RFC 9110 §15.6.4: the server cannot now; the next try may work.
     if isinstance(exc, ObjectAccessError):
         if exc.protocol == "profidrive":
             # PROFIdrive error numbers (004 §20.4.2): no such parameter / subindex / drive
@@ -70,6 +77,8 @@ def status_for(exc: ServodeskError) -> int:
     # The request checks of docs/security.md (RFC 9110 §15.5.2, §15.5.4, §15.5.14, §15.5.16).
     if isinstance(exc, Unauthorized):
         return 401
+    if isinstance(exc, LockedOut):
+        return 429  # RFC 6585 §4, with Retry-After (services/users.py, lock-out)
     if isinstance(exc, OriginNotAllowed):
         return 403
     if isinstance(exc, PayloadTooLarge):

@@ -29,7 +29,12 @@ ERROR_RESPONSES: dict[int | str, dict[str, Any]] = {
     code: {"model": ErrorOut, "description": text}
     for code, text in (
         (400, "Bad value or refused by the drive (with the protocol code)"),
-        (403, "A state change or WebSocket from a page of another origin"),
+        (401, "Not logged in: no valid session cookie or API token (docs/security.md)"),
+        (
+            403,
+            "The role lacks the route's right (Forbidden), or a state change or WebSocket "
+            "from a page of another origin",
+        ),
         (404, "No such session, profile, object or node"),
         (409, "Not possible in the present state, or control held by another client"),
         (413, "The request body is larger than the route takes"),
@@ -58,6 +63,16 @@ class ProfileSummary(BaseModel):
     errors: int
     modes: list[int]
     homing_methods: list[int]
+
+
+class ImportedProfile(ProfileSummary):
+    """POST /profiles/import: the new profile and what the import left out or changed."""
+
+    warnings: list[str] = Field(
+        default_factory=list,
+        description="One line per thing the file holds that the profile does not (skipped "
+        "modules, values outside their type, ...); docs/device-descriptions.md",
+    )
 
 
 class ObjectInfo(BaseModel):
@@ -518,6 +533,10 @@ class ProtectionOut(BaseModel):
 class ControlOut(BaseModel):
     session: str
     owner: str | None = Field(description="Client id (label) of the holder, or null")
+    user: str | None = Field(
+        default=None,
+        description='The account holding control ("local" in the single-user mode), or null',
+    )
     since: float | None = Field(description="When it was taken (Unix time)")
     you: bool = Field(description="The request's X-Servodesk-Control token is the holder's")
     token: str | None = Field(
@@ -676,6 +695,16 @@ class BackupBus(BaseModel):
     node_id: int | None = None
 
 
+class UnreadableOut(BaseModel):
+    """An object the drive refused when the set was read: the set lacks it."""
+
+    address: str
+    name: str
+    code: int | None
+    code_hex: str | None
+    message: str
+
+
 class BackupInfo(BaseModel):
     id: str
     time: str
@@ -691,6 +720,14 @@ class BackupInfo(BaseModel):
     file: str = Field(description="File name in the data directory's backups/ folder")
     sha256: str
     source: str = Field(description="drive, upload or pre-restore (taken before a restore)")
+    unreadable: list[UnreadableOut] = Field(
+        default_factory=list,
+        description="objects the drive refused when the backup was read (with the abort "
+        "code and error text): the backup lacks them",
+    )
+    complete: bool = Field(
+        default=True, description="false when the backup lacks unreadable objects"
+    )
 
 
 class BackupEntryOut(BaseModel):
@@ -700,14 +737,6 @@ class BackupEntryOut(BaseModel):
     raw_hex: str
     value: int | float | bool | str | None
     unit: str | None
-
-
-class UnreadableOut(BaseModel):
-    address: str
-    name: str
-    code: int | None
-    code_hex: str | None
-    message: str
 
 
 class BackupProfileRef(BaseModel):
@@ -786,6 +815,12 @@ class Comparison(BaseModel):
     equal: bool
     differences: list[DifferenceOut]
     same: int
+    a_unreadable: list[UnreadableOut] = Field(
+        default_factory=list, description="objects A lacks (unreadable): not compared"
+    )
+    b_unreadable: list[UnreadableOut] = Field(
+        default_factory=list, description="objects B lacks (unreadable): not compared"
+    )
 
 
 class PreflightRequest(BaseModel):
@@ -817,6 +852,10 @@ class PreflightOut(BaseModel):
     unchanged: int
     read_only_skipped: int
     mapping: list[MappingOut] | None
+    unreadable: list[UnreadableOut] = Field(
+        default_factory=list,
+        description="objects the backup lacks (unreadable when taken): a restore cannot set them",
+    )
 
 
 class RestoreRequest(BaseModel):
@@ -872,6 +911,11 @@ class RestoreReport(BaseModel):
     counts: RestoreCounts
     items: list[RestoreItemOut]
     steps: list[RestoreStepOut] = Field(description="the writes in order (a dry run: planned)")
+    unreadable: list[UnreadableOut] = Field(
+        default_factory=list,
+        description="objects the backup lacks (unreadable when taken): this restore did not "
+        "set them",
+    )
 
 
 class AuditEntry(BaseModel):
@@ -1027,6 +1071,8 @@ class AlarmsOut(BaseModel):
     history: list[AlarmHistoryEntry]
     reset_procedure: str
     can_clear_history: bool
+    #: POST /alarms/reset: what the reset did (nothing is sent outside Fault, CiA 402-2 §6.2.1).
+    message: str | None = None
 
 
 class ClearHistoryRequest(BaseModel):

@@ -15,6 +15,7 @@ from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from servodesk import __version__
 from servodesk.api.control_deps import operation
 from servodesk.api.deps import AppState
+from servodesk.api.identity import identity_of
 from servodesk.errors import ServodeskError
 
 log = logging.getLogger(__name__)
@@ -46,6 +47,7 @@ async def websocket(ws: WebSocket) -> None:
         client = f"tab-{secrets.token_hex(4)}"
     control = operation(ws.app).control
     connection = control.connect(client)
+    caller = identity_of(ws).user  # Only the holder's account may bind its control.
 
     def sessions_msg() -> dict[str, Any]:
         return {"type": "sessions", "sessions": [s.info() for s in sessions.all()]}
@@ -109,7 +111,7 @@ async def websocket(ws: WebSocket) -> None:
             elif kind == "bind" and isinstance(sid, str):
                 token = msg.get("token")
                 try:
-                    control.bind(connection, sid, token if isinstance(token, str) else None)
+                    control.bind(connection, sid, token if isinstance(token, str) else None, caller)
                 except ServodeskError as exc:
                     sub.offer(
                         {

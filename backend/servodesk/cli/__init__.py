@@ -16,7 +16,20 @@ from servodesk import __version__
 from servodesk.errors import NotFoundError, ServodeskError
 
 #: Command modules in the order ``--help`` lists them.
-COMMANDS = ["serve", "sim", "profiles", "openapi", "scan", "backup", "pdo", "tune", "dcp", "bench"]
+COMMANDS = [
+    "serve",
+    "sim",
+    "profiles",
+    "openapi",
+    "scan",
+    "backup",
+    "pdo",
+    "tune",
+    "dcp",
+    "bench",
+    "users",
+    "audit",
+]
 
 
 class _Parser(argparse.ArgumentParser):

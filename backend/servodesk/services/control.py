@@ -48,6 +48,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from servodesk.errors import ConflictError
+from servodesk.services.audit import DISCARD, Recorder
 from servodesk.services.events import EventHub
 
 log = logging.getLogger(__name__)
@@ -73,6 +74,9 @@ class Holder:
     #: A bound socket existed and all closed: the drive was made safe, control waits for a
     #: rebind until the timer releases it.
     orphaned: bool = False
+    #: The account that took control (api/identity.py; "local" in the single-user mode):
+    #: only that user's requests may use the token, and people see this name.
+    user: str = ""
 
 
 @dataclass(slots=True)
@@ -87,7 +91,7 @@ class Connection:
 class ControlService:
     """Who holds which session, the connections bound to it, and their last heartbeats."""
 
-    def __init__(self, hub: EventHub, *, grace_s: float = 5.0) -> None:
+    def __init__(self, hub: EventHub, *, grace_s: float = 5.0, audit: Recorder = DISCARD) -> None:
         self.hub = hub
         self.grace_s = grace_s
         self._holders: dict[str, Holder] = {}
@@ -98,6 +102,8 @@ class ControlService:
         self._release_timers: dict[str, asyncio.TimerHandle] = {}
         self._lost: list[LostListener] = []
         self._bound: list[BoundListener] = []
+        #: The audit log (IEC 62443-4-2 CR 2.8: control taken, released, forced, lost).
+        self.audit = audit
 
     # Listeners --------------------------------------------------------------------------
 
@@ -113,6 +119,11 @@ class ControlService:
         h = self._holders.get(sid)
         return h.client if h else None
 
+    def holder_user(self, sid: str) -> str | None:
+        """The account holding control of ``sid`` (None: nobody holds it)."""
+        h = self._holders.get(sid)
+        return h.user if h else None
+
     def holds(self, sid: str, token: str | None) -> bool:
         h = self._holders.get(sid)
         return h is not None and _same(h.token, token)
@@ -123,6 +134,7 @@ class ControlService:
         return {
             "session": sid,
             "owner": h.client if h else None,
+            "user": h.user if h else None,
             "since": h.since if h else None,
             "you": you,
             "token": h.token if (h is not None and you) else None,
@@ -130,7 +142,7 @@ class ControlService:
             "orphaned": h.orphaned if h else False,
         }
 
-    def take(self, sid: str, client: str, token: str | None = None) -> str:
+    def take(self, sid: str, client: str, token: str | None = None, user: str = "") -> str:
         """Take control; the holder presenting its token gets the same one back.
 
         A client that already holds control of other drives and presents that token gets
@@ -138,17 +150,23 @@ class ControlService:
         holds (an integrator commissions several at once)."""
         h = self._holders.get(sid)
         if h is not None:
-            if _same(h.token, token):
+            if _same(h.token, token) and h.user == user:
                 return h.token
             raise ConflictError(
                 f"{_who(h)} holds control of {sid}",
                 hint='ask them to release it, or send {"action": "force_take", "confirm": true}',
             )
-        return self._set(sid, client, self._live(token))
+        new = self._set(sid, client, self._live(token, user), user)
+        self.audit.record("control.taken", drive=sid, details={"client": client})
+        return new
 
-    def force_take(self, sid: str, client: str, confirm: bool, token: str | None = None) -> str:
+    def force_take(
+        self, sid: str, client: str, confirm: bool, token: str | None = None, user: str = ""
+    ) -> str:
+        """Take control over (the caller's right to take it from another user is checked by
+        the API: only an administrator may, api/routes/motion.py)."""
         h = self._holders.get(sid)
-        if h is not None and _same(h.token, token):
+        if h is not None and _same(h.token, token) and h.user == user:
             return h.token
         if h is not None and not confirm:
             raise ConflictError(
@@ -156,9 +174,15 @@ class ControlService:
                 "disables the drive and needs confirmation",
                 hint='send {"action": "force_take", "confirm": true} to go ahead',
             )
-        new = self._set(sid, client, self._live(token))
+        new = self._set(sid, client, self._live(token, user), user)
         if h is not None:
             self._notify_lost(sid, h.client, f"control taken over by {client!r}")
+        # Recorded after the previous holder's drive was made safe (never in its way).
+        self.audit.record(
+            "control.forced" if h else "control.taken",
+            drive=sid,
+            details={"client": client, "previous": h.client if h is not None else None},
+        )
         return new
 
     def release(self, sid: str, token: str | None) -> None:
@@ -172,6 +196,7 @@ class ControlService:
             )
         self._drop(sid)
         self._notify_lost(sid, h.client, f"{h.client!r} released control")
+        self.audit.record("control.released", drive=sid, details={"client": h.client})
 
     def forget_session(self, sid: str) -> None:
         """The session closed: nobody holds it any more."""
@@ -181,16 +206,16 @@ class ControlService:
         for conn in self._connections.values():
             conn.bound.discard(sid)
 
-    def _live(self, token: str | None) -> str | None:
-        """``token`` when it holds control of some session now, else None."""
+    def _live(self, token: str | None, user: str = "") -> str | None:
+        """``token`` when ``user`` holds control of some session with it now, else None."""
         for h in self._holders.values():
-            if _same(h.token, token):
+            if _same(h.token, token) and h.user == user:
                 return h.token
         return None
 
-    def _set(self, sid: str, client: str, token: str | None = None) -> str:
+    def _set(self, sid: str, client: str, token: str | None = None, user: str = "") -> str:
         token = token or secrets.token_urlsafe(16)
-        self._holders[sid] = Holder(client, token, time.time())
+        self._holders[sid] = Holder(client, token, time.time(), user=user)
         self._heartbeats.pop(sid, None)
         log.info("control of %s: %s", sid, client)
         self._publish(sid)
@@ -219,6 +244,7 @@ class ControlService:
                 "type": "control",
                 "session": sid,
                 "owner": h.client if h else None,
+                "user": h.user if h else None,
                 "since": h.since if h else None,
                 "bound": bool(h.connections) if h else False,
                 "orphaned": h.orphaned if h else False,
@@ -234,8 +260,11 @@ class ControlService:
 
     # The checks: the one rule -----------------------------------------------------------
 
-    def check(self, sid: str, token: str | None, what: str = "this request") -> str:
-        """Control is needed: the token must be the holder's. Returns the holder's label."""
+    def check(
+        self, sid: str, token: str | None, what: str = "this request", user: str | None = None
+    ) -> str:
+        """Control is needed: the token must be the holder's, presented by the holder's user
+        (``user`` None: not checked, an in-process caller). Returns the holder's label."""
         h = self._holders.get(sid)
         if h is None:
             raise ConflictError(
@@ -243,7 +272,7 @@ class ControlService:
                 hint='take control first: POST /control {"action": "take"}, then send its '
                 f"token in the {CONTROL_HEADER} header",
             )
-        if not _same(h.token, token):
+        if not _same(h.token, token) or (user is not None and user != h.user):
             raise ConflictError(
                 f"{_who(h)} holds control of {sid}; {what} was not sent",
                 hint="only the holder of control can change the drive; they must release it, "
@@ -251,9 +280,11 @@ class ControlService:
             )
         return h.client
 
-    def check_energise(self, sid: str, token: str | None, what: str = "this request") -> str:
+    def check_energise(
+        self, sid: str, token: str | None, what: str = "this request", user: str | None = None
+    ) -> str:
         """Control and a bound, open socket (the dead-man) are needed: servo on and motion."""
-        client = self.check(sid, token, what)
+        client = self.check(sid, token, what, user)
         h = self._holders[sid]
         if not h.connections:
             raise ConflictError(
@@ -271,12 +302,12 @@ class ControlService:
         self._connections[cid] = Connection(cid, client)
         return cid
 
-    def bind(self, cid: str, sid: str, token: str | None) -> None:
+    def bind(self, cid: str, sid: str, token: str | None, user: str | None = None) -> None:
         """Make connection ``cid`` the dead-man of the holder of ``sid`` (token needed)."""
         conn = self._connections.get(cid)
         if conn is None:
             raise ConflictError("this connection is closed", hint="reconnect the WebSocket")
-        self.check(sid, token, "binding the dead-man")
+        self.check(sid, token, "binding the dead-man", user)
         h = self._holders[sid]
         first = not h.connections
         h.connections.add(cid)
@@ -310,7 +341,9 @@ class ControlService:
                 continue
             h.orphaned = True
             self._heartbeats.pop(sid, None)
-            self._notify_lost(sid, h.client, f"the WebSocket of {h.client!r} closed")
+            reason = f"the WebSocket of {h.client!r} closed"
+            self._notify_lost(sid, h.client, reason)
+            self.audit.record("control.lost", drive=sid, ok=False, message=reason)
             try:
                 loop = asyncio.get_running_loop()
             except RuntimeError:
@@ -324,6 +357,12 @@ class ControlService:
         h = self._holders.get(sid)
         if h is not None and h.token == token and not h.connections:
             self._drop(sid)
+            self.audit.record(
+                "control.lapsed",
+                drive=sid,
+                message=f"no WebSocket came back within {self.grace_s:g} s",
+                details={"client": h.client},
+            )
 
     def heartbeat(self, cid: str, sid: str) -> bool:
         """A heartbeat from connection ``cid``; counts only when it is bound to ``sid``."""
@@ -350,4 +389,8 @@ def _same(a: str, b: str | None) -> bool:
 
 
 def _who(h: Holder) -> str:
+    # The user is who people know; the client label tells their tabs apart.
+    # In the single-user mode everyone is "local": the client label alone says who.
+    if h.user and h.user != "local":
+        return f"user {h.user!r} (client {h.client!r})"
     return f"client {h.client!r}"

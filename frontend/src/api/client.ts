@@ -5,7 +5,7 @@
  * can say what failed, why (message, protocol code and its meaning) and what to do (hint)
  * instead of showing JSON.
  */
-import { getToken } from './auth';
+import { authLost, getToken } from './auth';
 import { controlHeaders } from '../lib/controlToken';
 import type {
   ApiErrorBody,
@@ -88,7 +88,7 @@ export function normaliseErrorBody(status: number, statusText: string, payload: 
   return {
     error: `HTTP ${status}`,
     message: text || `the server answered ${status} ${statusText}`.trim(),
-    hint: status === 401 ? 'open the page with ?token=<token> as printed by servodesk serve' : null,
+    hint: status === 401 ? 'log in again (your session ended)' : null,
   };
 }
 
@@ -131,6 +131,8 @@ async function request<T>(
   } catch {
     // Keep the text; normaliseErrorBody shows it if it is short.
   }
+  // The login is gone (logged out elsewhere, idle time-out, ended by an administrator).
+  if (res.status === 401) authLost('your session ended: log in again');
   if (!res.ok) throw new ApiError(action, res.status, normaliseErrorBody(res.status, res.statusText, payload));
   return payload as T;
 }
@@ -298,7 +300,7 @@ export const backupApi = {
   report: (rid: string) => request<RestoreReport>(`Load restore report ${rid}`, 'GET', `/restores/${seg(rid)}`),
   resume: (rid: string) => request<RestoreReport>('Resume the restore', 'POST', `/restores/${seg(rid)}/resume`, {}),
   audit: (sid: string, limit = 100) =>
-    request<AuditEntry[]>('Load the audit log', 'GET', `/audit${query({ session: sid, limit })}`),
+    request<AuditEntry[]>('Load the audit log', 'GET', `/audit/writes${query({ session: sid, limit })}`),
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -369,4 +371,30 @@ export const operationApi = {
   clearAlarmHistory: (sid: string) =>
     request<Alarms>('Clear the alarm history', 'POST', `/sessions/${seg(sid)}/alarms/clear-history`, { confirm: true }),
   viewer: () => request<ViewerInfo>('Ask for the 3D viewer', 'GET', '/viewer'),
+};
+
+// ---------------------------------------------------------------------------------------------
+// Audit log (issue 45) — docs/api.md "Audit log".
+// ---------------------------------------------------------------------------------------------
+import type { AuditFilter, AuditRecord, AuditVerdict } from './types';
+
+export const auditApi = {
+  /** Newest first, every given filter applied. */
+  list: (f: AuditFilter) =>
+    request<AuditRecord[]>(
+      'Load the audit log',
+      'GET',
+      `/audit${query({
+        category: f.category,
+        user: f.user,
+        drive: f.drive,
+        since: f.since,
+        until: f.until,
+        before: f.before,
+        limit: f.limit,
+      })}`,
+    ),
+  verify: () => request<AuditVerdict>('Verify the audit log', 'GET', '/audit/verify'),
+  export: (format: 'jsonl' | 'csv', since?: string | null) =>
+    fetchFile(`Export the audit log as ${format.toUpperCase()}`, `/audit/export${query({ format, since })}`),
 };

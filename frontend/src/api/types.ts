@@ -399,6 +399,15 @@ export interface BackupBus {
   node_id: number;
 }
 
+/** An object the drive refused when a set was read: the set lacks it (issue 48). */
+export interface UnreadableEntry {
+  address: string;
+  name: string;
+  code: number | null;
+  code_hex: string | null;
+  message: string;
+}
+
 /** One stored backup (the file's metadata; the file itself never changes). */
 export interface BackupInfo {
   id: string;
@@ -416,6 +425,10 @@ export interface BackupInfo {
   entries: number;
   file: string;
   sha256: string;
+  /** What the drive refused to give when it was read: the backup lacks these. */
+  unreadable: UnreadableEntry[];
+  /** False when `unreadable` is not empty. */
+  complete: boolean;
 }
 
 export interface BackupRequest {
@@ -495,6 +508,9 @@ export interface Comparison {
   differences: Difference[];
   /** Entries equal on both sides. */
   same: number;
+  /** Objects a side lacks (unreadable when it was read): not compared. */
+  a_unreadable: UnreadableEntry[];
+  b_unreadable: UnreadableEntry[];
 }
 
 export interface PreflightRequest {
@@ -528,6 +544,8 @@ export interface Preflight {
   mapping: NameMapping[] | null;
   /** Things to know that do not block the restore (backend addition, not in docs/api.md). */
   warnings?: string[];
+  /** What the backup lacks (unreadable when it was taken): a restore cannot set these. */
+  unreadable: UnreadableEntry[];
 }
 
 export interface RestoreRequest {
@@ -577,6 +595,8 @@ export interface RestoreReport {
   message?: string | null;
   /** The preflight's warnings (backend addition, not in docs/api.md). */
   warnings?: string[];
+  /** What the backup lacks: this restore did not set these. */
+  unreadable: UnreadableEntry[];
 }
 
 export interface AuditEntry {
@@ -604,6 +624,8 @@ export interface Control {
   session: string;
   /** The holder's client label (X-Servodesk-Client when it took control), or null. */
   owner: string | null;
+  /** The account holding control ("local" in the single-user mode), or null. */
+  user?: string | null;
   /** Unix time (s) when it was taken. */
   since: number | null;
   /** The request's X-Servodesk-Control token is the holder's. */
@@ -844,6 +866,8 @@ export interface Alarms {
   history: AlarmHistoryEntry[];
   reset_procedure: string;
   can_clear_history: boolean;
+  /** POST /alarms/reset only: what the reset did (nothing is sent outside Fault). */
+  message?: string | null;
 }
 
 /** GET /viewer: the viser 3D viewer. */
@@ -1075,6 +1099,22 @@ export interface PdoRate {
   rate_hz: number | null;
   /** Backend addition: frames that could not be decoded. */
   errors?: number;
+  /** Why this TPDO sends nothing now and what makes it send (issue 48); null: it sends. */
+  idle?: PdoIdle | null;
+}
+
+/** One change that makes a silent event-driven TPDO send: a PDO change (needs control). */
+export interface PdoIdleFix {
+  label: string;
+  /** The new transmission type, or null to keep it. */
+  transmission_type: number | null;
+  /** The new event timer [ms], or null to keep it. */
+  event_timer: number | null;
+}
+
+export interface PdoIdle {
+  why: string;
+  fixes: PdoIdleFix[];
 }
 
 /** One mapped object's latest value from the cyclic data. */
@@ -1123,3 +1163,56 @@ export interface PdoCyclicRequest {
 }
 
 export type PdoExportFormat = 'csv' | 'dcf' | 'esi' | 'json';
+
+// --- Audit log (issue 45; docs/api.md "Audit log") ------------------------------------------
+
+export type AuditCategory =
+  | 'access_control'
+  | 'request_error'
+  | 'control'
+  | 'motion'
+  | 'write'
+  | 'backup'
+  | 'restore'
+  | 'configuration'
+  | 'user_admin';
+
+/** One audit record (GET /audit), with its place in the hash chain. */
+export interface AuditRecord {
+  seq: number;
+  /** ISO 8601 UTC, e.g. 2026-12-07T08:30:00.123456Z */
+  time: string;
+  user: string;
+  /** The source address of the request (empty for the system: the dead-man, timers). */
+  address: string;
+  category: AuditCategory;
+  /** Stable id, e.g. control.taken, motion.stopped, request.refused. */
+  event: string;
+  drive: string | null;
+  result: 'success' | 'failure';
+  message: string;
+  details: Record<string, unknown>;
+  prev: string;
+  hash: string;
+}
+
+export interface AuditFilter {
+  category?: AuditCategory | null;
+  user?: string | null;
+  drive?: string | null;
+  /** ISO 8601 (UTC). */
+  since?: string | null;
+  until?: string | null;
+  /** Only records older than this seq (the next page). */
+  before?: number | null;
+  limit?: number;
+}
+
+/** GET /audit/verify: the chain recomputed. */
+export interface AuditVerdict {
+  ok: boolean;
+  records: number;
+  head: string;
+  broken: number | null;
+  problem: string | null;
+}

@@ -11,7 +11,9 @@
 import { useState } from 'react';
 import { createPortal } from 'react-dom';
 import { tabClientId } from '../lib/backupClientId';
-import { deadmanText, energiseBlocked } from '../lib/control';
+import { me, rightBlocked } from '../api/auth';
+import { deadmanText, energiseBlocked, holderText } from '../lib/control';
+import { useObservable } from '../state/observable';
 import { forgetControl, releaseControl, takeControl, useControl } from '../state/control';
 import { notifyError } from '../state/notify';
 import { ConfirmDialog } from './ConfirmDialog';
@@ -27,6 +29,13 @@ export function ControlIndicator({ sid }: { sid: string }) {
   const [confirmForce, setConfirmForce] = useState(false);
   const owner = v.owner;
   const bound = v.you && v.bind.state === 'bound';
+  const who = useObservable(me);
+  // Issue 45: control belongs to a user. A role without take_control only watches; taking it
+  // over from another user needs force_control (administrators).
+  const takeBlocked = rightBlocked('take_control');
+  const otherUser = v.user !== null && who != null && v.user !== who.user;
+  const forceBlocked = takeBlocked ?? (otherUser ? rightBlocked('force_control') : null);
+  const holderName = owner === null ? null : v.user && v.user !== 'local' ? v.user : owner;
 
   async function act(what: 'take' | 'release' | 'force') {
     setBusy(what);
@@ -45,7 +54,7 @@ export function ControlIndicator({ sid }: { sid: string }) {
   const title = v.you
     ? `This tab (${tabClientId()}) holds control of ${sid} since ${since(v.since)}. ${energiseBlocked(v) ?? "Its WebSocket is the drive's dead-man: closing the tab stops the axis and disables the drive."}`
     : owner
-      ? `Client ${owner} holds control of ${sid} since ${since(v.since)}${v.orphaned ? ' (its tab closed: the drive was made safe, control lapses within 5 s)' : ''}. Only the holder can change the drive.`
+      ? `${holderText(owner, v.user)} holds control of ${sid} since ${since(v.since)}${v.orphaned ? ' (its tab closed: the drive was made safe, control lapses within 5 s)' : ''}. Only the holder can change the drive.`
       : `Nobody holds control of ${sid}. Take control to change the drive (writes, servo on, motion).`;
 
   return (
@@ -55,6 +64,7 @@ export function ControlIndicator({ sid }: { sid: string }) {
       data-session={sid}
       data-known={v.known ? 'true' : 'false'}
       data-owner={owner ?? ''}
+      data-user={v.user ?? ''}
       data-you={v.you ? 'true' : 'false'}
       data-bound={bound ? 'true' : 'false'}
       data-orphaned={v.orphaned ? 'true' : 'false'}
@@ -62,7 +72,7 @@ export function ControlIndicator({ sid }: { sid: string }) {
     >
       <span className="ctl-label">Control</span>
       <span className="ctl-holder" data-testid="control-holder">
-        {!v.known ? '…' : v.you ? 'you' : owner ? owner : 'nobody'}
+        {!v.known ? '…' : v.you ? 'you' : holderName ?? 'nobody'}
       </span>
       {v.you && (
         <span className={`ctl-dm ctl-dm-${v.bind.state}`} data-testid="control-deadman" data-state={v.bind.state}>
@@ -71,7 +81,14 @@ export function ControlIndicator({ sid }: { sid: string }) {
       )}
       {!v.you && owner && v.orphaned && <span className="ctl-dm ctl-dm-refused">tab closed</span>}
       {v.known && !v.you && owner === null && (
-        <button type="button" className="ctl-btn ctl-take" data-testid="control-take" disabled={busy !== null} onClick={() => void act('take')}>
+        <button
+          type="button"
+          className="ctl-btn ctl-take"
+          data-testid="control-take"
+          disabled={busy !== null || takeBlocked !== null}
+          title={takeBlocked ?? undefined}
+          onClick={() => void act('take')}
+        >
           {busy === 'take' ? 'Taking…' : 'Take control'}
         </button>
       )}
@@ -81,7 +98,14 @@ export function ControlIndicator({ sid }: { sid: string }) {
         </button>
       )}
       {v.known && !v.you && owner !== null && (
-        <button type="button" className="ctl-btn ctl-force" data-testid="control-force" disabled={busy !== null} onClick={() => setConfirmForce(true)}>
+        <button
+          type="button"
+          className="ctl-btn ctl-force"
+          data-testid="control-force"
+          disabled={busy !== null || forceBlocked !== null}
+          title={forceBlocked ?? undefined}
+          onClick={() => setConfirmForce(true)}
+        >
           Force take…
         </button>
       )}
@@ -97,7 +121,8 @@ export function ControlIndicator({ sid }: { sid: string }) {
           testid="force-dialog"
         >
           <p>
-            Client <strong className="mono" data-testid="force-dialog-owner">{owner}</strong> holds control of {sid}
+            {v.user && v.user !== 'local' ? `User ${v.user}, client ` : 'Client '}
+            <strong className="mono" data-testid="force-dialog-owner">{owner}</strong> holds control of {sid}
             {v.since ? ` since ${since(v.since)}` : ''}.
           </p>
           <p>

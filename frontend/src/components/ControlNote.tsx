@@ -5,7 +5,9 @@
  * same sentence as their tooltip (useWriteGate), instead of sending and showing a 409.
  */
 import { useState } from 'react';
+import { me, rightBlocked } from '../api/auth';
 import { type ControlView, energiseBlocked, writeBlocked } from '../lib/control';
+import { useObservable } from '../state/observable';
 import { takeControl, useControl } from '../state/control';
 import { notifyError } from '../state/notify';
 import './control.css';
@@ -17,11 +19,30 @@ export interface WriteGate {
   write: string | null;
   /** Why servo on / motion are refused now (null: allowed). */
   energise: string | null;
+  /** The refusal is the role's (it lacks the right), not control's. */
+  byRole: { write: boolean; energise: boolean };
 }
 
-export function useWriteGate(sid: string): WriteGate {
+/**
+ * The rights (docs/security.md "Roles") the page's writes and its servo on / motion need;
+ * a role without them sees the buttons disabled with the reason, whoever holds control.
+ */
+export interface GateRights {
+  write?: string;
+  energise?: string;
+}
+
+export function useWriteGate(sid: string, rights: GateRights = {}): WriteGate {
   const view = useControl(sid);
-  return { view, write: writeBlocked(view), energise: energiseBlocked(view) };
+  useObservable(me); // Re-render when the login (and so the rights) is known.
+  const writeRole = rightBlocked(rights.write ?? 'take_control');
+  const energiseRole = rightBlocked(rights.energise ?? 'jog_home');
+  return {
+    view,
+    write: writeRole ?? writeBlocked(view),
+    energise: energiseRole ?? energiseBlocked(view),
+    byRole: { write: writeRole !== null, energise: energiseRole !== null },
+  };
 }
 
 export function ControlNote({
@@ -29,6 +50,7 @@ export function ControlNote({
   what,
   energise = false,
   testid = 'control-note',
+  rights = {},
 }: {
   sid: string;
   /** What the page disables meanwhile, as a sentence: "Write, Save to EEPROM and Restore defaults are disabled". */
@@ -36,12 +58,29 @@ export function ControlNote({
   /** The page also energises or moves the drive: say when the dead-man link is missing. */
   energise?: boolean;
   testid?: string;
+  /** The rights the page's buttons need (useWriteGate). */
+  rights?: GateRights;
 }) {
-  const gate = useWriteGate(sid);
+  const gate = useWriteGate(sid, rights);
   const [busy, setBusy] = useState(false);
   const v = gate.view;
-  const why = energise ? gate.energise : gate.write;
-  if (!why || !v.known) return null;
+  const blocked = energise ? gate.energise : gate.write;
+  if (!blocked || !v.known) return null;
+  // The note has a Take control button of its own, to the right of this sentence: point there
+  // rather than to the header's (issue 48: the sentence named a button that was elsewhere).
+  const offersTake = !v.you && v.owner === null;
+  const why = offersTake ? blocked.replace('(Take control, top right)', '(Take control, on the right)') : blocked;
+  const byRole = energise ? gate.byRole.energise : gate.byRole.write;
+  if (byRole) {
+    return (
+      <div className="control-note" role="note" data-testid={testid} data-reason="role">
+        <span>
+          <strong>Your role may not do this.</strong> {what}.{' '}
+          <span data-testid={`${testid}-reason`}>{why.charAt(0).toUpperCase() + why.slice(1)}.</span>
+        </span>
+      </div>
+    );
+  }
 
   async function take() {
     setBusy(true);

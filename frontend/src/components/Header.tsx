@@ -10,6 +10,7 @@ import { navigate, useRoute } from '../state/router';
 import { liveSession, sessions, socketStatus } from '../state/store';
 import { findPage } from '../pages/registry';
 import { ControlIndicator } from './ControlIndicator';
+import { UserMenu } from './auth/UserMenu';
 import { StatePill } from './StatePill';
 
 function ConnectionIndicator() {
@@ -71,7 +72,9 @@ export function Header({ sid }: { sid: string | null }) {
           ▮
         </span>
         servodesk
-        <span className="brand-sub">drive commissioning</span>
+        {/* Who is logged in (or the single-user mode) where the tagline was: the right side
+            of the header needs its room for the drive's state on a laptop screen. */}
+        <UserMenu />
       </div>
       <div className="header-drive">
         {session ? <DriveTitle session={session} /> : <span className="muted">no drive selected</span>}

@@ -15,6 +15,8 @@ export interface ControlView {
   known: boolean;
   /** The holder's client label, or null. */
   owner: string | null;
+  /** The account holding control (issue 45: control belongs to a user), or null. */
+  user: string | null;
   since: number | null;
   /** Some WebSocket is bound to the holder's control (the server's view). */
   bound: boolean;
@@ -29,7 +31,7 @@ export interface ControlView {
 }
 
 export function emptyView(session: string, bind: BindStatus): ControlView {
-  return { session, known: false, owner: null, since: null, bound: false, orphaned: false, you: false, bind, protection: null };
+  return { session, known: false, owner: null, user: null, since: null, bound: false, orphaned: false, you: false, bind, protection: null };
 }
 
 /**
@@ -41,9 +43,12 @@ export function holdsControl(known: boolean, owner: string | null, me: string, t
   return known && tokenHolds && owner !== null && owner === me;
 }
 
-/** "client ui-3f2a… holds control" as a person reads it. */
-export function holderText(owner: string): string {
-  return `client ${owner}`;
+/**
+ * "user eve (client ui-3f2a…) holds control" as a person reads it; in the single-user mode
+ * (everyone is "local") the client alone.
+ */
+export function holderText(owner: string, user: string | null = null): string {
+  return user && user !== 'local' ? `user ${user} (client ${owner})` : `client ${owner}`;
 }
 
 /**
@@ -55,7 +60,7 @@ export function writeBlocked(v: ControlView): string | null {
   if (!v.known) return `reading who holds control of ${v.session}…`;
   if (v.owner === null) return `nobody holds control of ${v.session}: take control first (Take control, top right)`;
   const lapse = v.orphaned ? ' (its tab closed; control lapses within 5 s)' : '';
-  return `${holderText(v.owner)} holds control of ${v.session}${lapse}: only the holder can change the drive; ask them to release it, or force-take it (top right)`;
+  return `${holderText(v.owner, v.user)} holds control of ${v.session}${lapse}: only the holder can change the drive; ask them to release it, or force-take it (top right)`;
 }
 
 /**

@@ -180,7 +180,7 @@ export function ObjectAccessPage({ sid }: PageProps) {
   const [valueText, setValueText] = useState('');
   const [mode, setMode] = useState<NumberMode>('dec');
   const [busy, setBusy] = useState<'read' | 'write' | null>(null);
-  const gate = useWriteGate(sid);
+  const gate = useWriteGate(sid, { write: 'write_parameters' });
   // Writes need control; the controlword (6040h) energises the drive, so it also needs this
   // tab's WebSocket bound as the dead-man (docs/api.md "Control and motion as built").
   const parsedForGate = parseAddress(address);
@@ -381,7 +381,7 @@ export function ObjectAccessPage({ sid }: PageProps) {
               {busy === 'write' ? 'Writing…' : 'Write'}
             </button>
           </form>
-          <ControlNote sid={sid} what="Write is disabled; Read works" />
+          <ControlNote sid={sid} what="Write is disabled; Read works" rights={{ write: 'write_parameters' }} />
           <div className="muted small">
             Writes are checked against the profile (type, range, access) before they go to the drive, and read back after.
           </div>

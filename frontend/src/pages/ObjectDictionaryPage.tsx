@@ -69,7 +69,7 @@ function Dictionary({ sid, profile, dirtyList }: { sid: string; profile: Profile
   const objects = profile.object_list;
   const errors = profile.error_list;
   // Writes need control of the drive: without it the editor's Write says why.
-  const blocked = useWriteGate(sid).write;
+  const blocked = useWriteGate(sid, { write: 'write_parameters' }).write;
   const index = useMemo(() => buildSearchIndex(objects), [objects]);
   const groupNames = useMemo(() => new Map(profile.groups.map((g) => [g.id, g.name])), [profile]);
   const usedGroups = useMemo(() => {

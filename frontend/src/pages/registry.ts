@@ -8,6 +8,7 @@
  */
 import type { ComponentType } from 'react';
 import { AlarmsPage } from './AlarmsPage';
+import { AuditPage } from './AuditPage';
 import { BackupPage } from './BackupPage';
 import { ConnectPage } from './ConnectPage';
 import { NetworkPage } from './NetworkPage';
@@ -19,6 +20,7 @@ import { ParametersPage } from './ParametersPage';
 import { PdoPage } from './PdoPage';
 import { ScopePage } from './ScopePage';
 import { TuningPage } from './TuningPage';
+import { UsersPage } from './UsersPage';
 import { ViewerPage } from './ViewerPage';
 
 export interface PageProps {
@@ -50,6 +52,8 @@ export const PAGES: readonly PageDef[] = [
   { id: 'pdo', title: 'PDO mapping', group: 'Data', scope: 'session', description: 'Process data layout the PLC needs', component: PdoPage },
   { id: 'backup', title: 'Backup & restore', group: 'Service', scope: 'session', description: 'Back up, restore and compare parameters', component: BackupPage },
   { id: 'view3d', title: '3D view', group: 'Service', scope: 'session', description: 'Live 3D twin of the axes', component: ViewerPage },
+  { id: 'audit', title: 'Audit log', group: 'Service', scope: 'global', description: 'Who did what, when, from where; hash-chained', component: AuditPage },
+  { id: 'users', title: 'Users', group: 'Service', scope: 'global', description: 'Accounts, login sessions, API tokens', component: UsersPage },
 ];
 
 /** The pages that work now, in navigation order. */

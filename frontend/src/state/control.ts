@@ -25,6 +25,7 @@ import { socket } from './store';
 interface ServerControl {
   known: boolean;
   owner: string | null;
+  user: string | null;
   since: number | null;
   bound: boolean;
   orphaned: boolean;
@@ -56,7 +57,7 @@ function derive(sid: string, server: ServerControl): ControlView {
 function entry(sid: string): Entry {
   let e = entries.get(sid);
   if (!e) {
-    const server: ServerControl = { known: false, owner: null, since: null, bound: false, orphaned: false, protection: null };
+    const server: ServerControl = { known: false, owner: null, user: null, since: null, bound: false, orphaned: false, protection: null };
     const obs = new Observable<ControlView>(derive(sid, server));
     const created: Entry = {
       server,
@@ -81,6 +82,7 @@ function applyControl(sid: string, c: Control): void {
   e.server = {
     known: true,
     owner: c.owner,
+    user: c.user ?? null,
     since: c.since,
     bound: c.bound ?? false,
     orphaned: c.orphaned ?? false,
@@ -206,6 +208,7 @@ export function startControlStore(): void {
     e.fresh.set({
       session: m.session,
       owner: m.owner,
+      user: m.user ?? null,
       since: m.since,
       // A message never carries the token: who holds it is decided by derive().
       you: false,

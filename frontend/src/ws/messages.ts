@@ -60,6 +60,8 @@ export interface ControlMessage {
   type: 'control';
   session: string;
   owner: string | null;
+  /** The account holding control ("local" in the single-user mode), or null. */
+  user?: string | null;
   since: number | null;
   /** A WebSocket is bound to the holder's control as the dead-man. */
   bound?: boolean;

@@ -13,7 +13,7 @@
  * (`bind()`); the server's answer is kept per session (`bindStatus`, `onBind`). Only a bound
  * socket's heartbeats count, and servo on and motion need one.
  */
-import { getToken } from '../api/auth';
+import { authLost, getToken } from '../api/auth';
 import { tabClientId } from '../lib/backupClientId';
 import { type HeldControl, tabControl } from '../lib/controlToken';
 import {
@@ -249,7 +249,9 @@ export class ServodeskSocket {
         return;
       }
       if (ev.code === WS_CLOSE_TOKEN) {
-        this.scheduleReconnect('token required: open the URL servodesk serve printed (it ends in ?token=…)');
+        // The login session ended (logout, idle time-out, an administrator): log in again.
+        authLost(ev.reason || 'your session ended: log in again');
+        this.scheduleReconnect(ev.reason || 'log in again');
         return;
       }
       this.scheduleReconnect(ev.reason || (ev.code === 1006 ? 'connection lost' : `closed (${ev.code})`));

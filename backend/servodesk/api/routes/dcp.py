@@ -3,7 +3,8 @@ address, flash a device's LED, reset it to factory settings (docs/profinet.md, "
 
 DCP is layer 2: the calls open a raw socket on the interface (root or CAP_NET_RAW) and block
 for their time-out, so they run in a thread. A name, an address or a reset the device
-acknowledged goes to the audit log (``GET /audit``), with the X-Servodesk-Client header.
+acknowledged goes to the audit log (``GET /audit``, and with old and new value
+``GET /audit/writes``), with the X-Servodesk-Client header.
 """
 
 from __future__ import annotations
@@ -157,6 +158,12 @@ async def _set(
                 "new_raw_hex": data.get(key, b"").hex(),
                 "new_value": values[key],
             }
+        )
+    if values:  # The LED signal changes nothing on the device: not audited.
+        state.audit.record(
+            "config.dcp_set",
+            drive=f"profinet:{dcp.mac_text(mac)}",
+            details={"nic": body.nic, **{_DONE[k]: v for k, v in values.items()}},
         )
     return acks
 

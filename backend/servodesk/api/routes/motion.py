@@ -10,7 +10,7 @@ import contextlib
 from collections.abc import AsyncIterator
 from typing import Any
 
-from fastapi import APIRouter, FastAPI
+from fastapi import APIRouter, FastAPI, Request
 
 from servodesk.api.control_deps import (
     ClientId,
@@ -20,6 +20,8 @@ from servodesk.api.control_deps import (
     RequiredClientId,
     operation,
 )
+from servodesk.api.identity import identity_of
+from servodesk.api.rights import demand
 from servodesk.api.schemas import (
     ERROR_RESPONSES,
     ControlOut,
@@ -33,6 +35,7 @@ from servodesk.api.schemas import (
     TorqueRequest,
     VelocityRequest,
 )
+from servodesk.domain.roles import Right
 
 
 @contextlib.asynccontextmanager
@@ -62,18 +65,29 @@ async def get_control(sid: str, op: OperationDep, token: ControlToken) -> Contro
 
 @router.post("/sessions/{sid}/control", operation_id="set_control")
 async def set_control(
-    sid: str, body: ControlRequest, op: OperationDep, client: RequiredClientId, token: ControlToken
+    sid: str,
+    body: ControlRequest,
+    op: OperationDep,
+    client: RequiredClientId,
+    token: ControlToken,
+    request: Request,
 ) -> ControlOut:
     """Take, release or force-take control. Taking answers with the control token (only to
     the taker): send it as ``X-Servodesk-Control`` with every request that changes the drive,
-    and bind a WebSocket with it for the dead-man."""
+    and bind a WebSocket with it for the dead-man. Control belongs to the caller's account:
+    another user is refused (409 naming the holder); only an administrator (the
+    ``force_control`` right) may force-take it from another user."""
     op.motion.manager.get(sid)
+    who = identity_of(request)
     if body.action == "take":
-        token = op.control.take(sid, client, token)
+        token = op.control.take(sid, client, token, who.user)
     elif body.action == "release":
         op.control.release(sid, token)
     else:
-        token = op.control.force_take(sid, client, body.confirm, token)
+        holder = op.control.holder_user(sid)
+        if holder is not None and holder != who.user:
+            demand(who, Right.FORCE_CONTROL)
+        token = op.control.force_take(sid, client, body.confirm, token, who.user)
     return ControlOut.model_validate(
         {**op.control.info(sid, token), "protection": op.motion.protection(sid)}
     )

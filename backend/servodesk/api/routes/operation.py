@@ -94,7 +94,9 @@ async def get_alarms(sid: str, state: StateDep) -> AlarmsOut:
 
 @router.post("/sessions/{sid}/alarms/reset", operation_id="reset_alarms")
 async def reset_alarms(sid: str, state: StateDep, client: WriteControl) -> AlarmsOut:
-    return AlarmsOut.model_validate(await alarms.reset(state.manager.get(sid), client=client))
+    out = AlarmsOut.model_validate(await alarms.reset(state.manager.get(sid), client=client))
+    state.audit.record("write.alarm_reset", drive=sid, details={"client": client})
+    return out
 
 
 @router.post("/sessions/{sid}/alarms/clear-history", operation_id="clear_alarm_history")
@@ -102,4 +104,6 @@ async def clear_alarm_history(
     sid: str, body: ClearHistoryRequest, state: StateDep, client: WriteControl
 ) -> AlarmsOut:
     session = state.manager.get(sid)
-    return AlarmsOut.model_validate(await alarms.clear_history(session, body.confirm, client))
+    out = AlarmsOut.model_validate(await alarms.clear_history(session, body.confirm, client))
+    state.audit.record("write.alarm_history_cleared", drive=sid, details={"client": client})
+    return out

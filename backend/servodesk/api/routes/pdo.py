@@ -115,9 +115,16 @@ async def pdo_plan(sid: str, body: PdoLayout, state: StateDep) -> dict[str, Any]
 async def pdo_apply(
     sid: str, body: ApplyRequest, state: StateDep, client: WriteControl
 ) -> dict[str, Any]:
-    return await pdosvc.apply(
+    out = await pdosvc.apply(
         state.manager.get(sid), _body(body), dry_run=body.dry_run, client=client
     )
+    if not body.dry_run:
+        state.audit.record(
+            "write.pdo_apply",
+            drive=sid,
+            details={"client": client, "steps": len(out.get("steps", []))},
+        )
+    return out
 
 
 _MEDIA = {
@@ -176,14 +183,19 @@ async def pdo_cyclic_start(
             request.headers.get("X-Servodesk-Client"),
             request.headers.get(CONTROL_HEADER),
         )
-    return await pdosvc.start_cyclic(
+    out = await pdosvc.start_cyclic(
         state.manager.get(sid), body.sync_period_ms, body.outputs, body.sync
     )
+    facts = {"sync_period_ms": body.sync_period_ms, "outputs": body.outputs, "sync": body.sync}
+    state.audit.record("write.cyclic_started", drive=sid, details=facts)
+    return out
 
 
 @router.delete("/sessions/{sid}/pdo/cyclic", operation_id="pdo_cyclic_stop")
 async def pdo_cyclic_stop(sid: str, state: StateDep, client: WriteControl) -> dict[str, Any]:
-    return await pdosvc.stop_cyclic(state.manager.get(sid))
+    out = await pdosvc.stop_cyclic(state.manager.get(sid))
+    state.audit.record("write.cyclic_stopped", drive=sid)
+    return out
 
 
 @router.put("/sessions/{sid}/pdo/cyclic/outputs", operation_id="pdo_cyclic_outputs")

@@ -67,6 +67,16 @@ async def open_session(body: SessionCreate, state: StateDep) -> SessionInfo:
     session = await state.manager.open(
         params, body.profile, fieldbus=link_for_interface(params.interface)
     )
+    state.audit.record(
+        "config.session_opened",
+        drive=session.id,
+        details={
+            "interface": params.interface,
+            "channel": params.channel,
+            "node_id": params.node_id,
+            "profile": session.profile.id,
+        },
+    )
     return SessionInfo.model_validate(session.info())
 
 
@@ -85,6 +95,7 @@ async def get_session_profile(sid: str, state: StateDep) -> ProfileDetail:
 @router.delete("/sessions/{sid}", status_code=204, operation_id="close_session")
 async def close_session(sid: str, state: StateDep, _: CloseControl) -> Response:
     await state.manager.close(sid)
+    state.audit.record("config.session_closed", drive=sid)
     return Response(status_code=204)
 
 
@@ -123,7 +134,9 @@ async def read_objects(sid: str, body: ReadRequest, state: StateDep) -> ReadResu
 
 @router.post("/sessions/{sid}/store", operation_id="store_parameters")
 async def store_parameters(sid: str, state: StateDep, _: WriteControl) -> StoreResult:
-    return StoreResult(**await state.manager.get(sid).store())
+    out = StoreResult(**await state.manager.get(sid).store())
+    state.audit.record("write.store_eeprom", drive=sid, details=out.model_dump())
+    return out
 
 
 @router.post("/sessions/{sid}/restore-defaults", operation_id="restore_defaults")
@@ -131,7 +144,11 @@ async def restore_defaults(
     sid: str, body: RestoreDefaultsRequest, state: StateDep, _: WriteControl
 ) -> MessageOut:
     # The schema requires confirm: true (a request without it is a 422 naming the field).
-    return MessageOut(**await state.manager.get(sid).restore_defaults(body.reset))
+    out = MessageOut(**await state.manager.get(sid).restore_defaults(body.reset))
+    state.audit.record(
+        "write.restore_defaults", drive=sid, message=out.message, details={"reset": body.reset}
+    )
+    return out
 
 
 @router.get("/sessions/{sid}/state", operation_id="get_state")
@@ -145,4 +162,7 @@ async def command_state(
     sid: str, body: StateCommand, state: StateDep, _: StateControl
 ) -> DriveStateOut:
     st = await state.manager.get(sid).command(body.command)
+    state.audit.record(
+        "write.state_command", drive=sid, details={"command": body.command, "state": str(st.state)}
+    )
     return DriveStateOut.model_validate(asdict(st))

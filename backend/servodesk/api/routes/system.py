@@ -14,6 +14,7 @@ from servodesk.api.schemas import (
     ErrorInfo,
     GroupInfo,
     HealthOut,
+    ImportedProfile,
     NetworkInfo,
     NetworkLedInfo,
     NetworkObjectInfo,
@@ -139,14 +140,18 @@ async def import_profile(
     profile_id: str | None = Query(
         None, pattern=r"^[a-z0-9][a-z0-9-]*$", max_length=64, description="default: from the name"
     ),
-) -> ProfileSummary:
-    """Import an EDS, DCF, ESI or XDD file (multipart/form-data field ``file``) as a new
-    profile."""
+    device: int | None = Query(
+        None, ge=1, le=10000, description="ESI with several devices: which one (default 1)"
+    ),
+) -> ImportedProfile:
+    """Import an EDS, DCF, ESI, XDD or XPD file (multipart/form-data field ``file``) as a new
+    profile; ``warnings`` lists what the file holds that the profile does not."""
     from servodesk import devdesc
 
     body = await read_file(request)  # At most 16 MiB (api/uploads.py).
     text = body.decode("utf-8", errors="replace").lstrip("\ufeff")
-    p = devdesc.import_text(text, filename, profile_id)
+    result = devdesc.read_text(text, filename, profile_id, device=device)
+    p = result.profile
     if p.id in state.catalog.ids():
         raise ConflictError(f"a profile {p.id!r} exists already", hint="choose another profile_id")
     problems = check_profile(p)
@@ -158,7 +163,10 @@ async def import_profile(
         )
     save_profile(p, state.settings.user_profile_dir)
     state.catalog.refresh()
-    return summary(state.catalog.get(p.id))
+    state.audit.record("config.profile_imported", details={"profile": p.id, "filename": filename})
+    return ImportedProfile(
+        **summary(state.catalog.get(p.id)).model_dump(), warnings=list(result.warnings)
+    )
 
 
 @router.get("/profiles/{profile_id}", operation_id="get_profile")

@@ -1,5 +1,5 @@
 /**
- * The audit log of this session (GET /audit?session=): who (the client id: a browser tab or
+ * The audit log of this session (GET /audit/writes?session=): who (the client id: a browser tab or
  * the CLI) wrote what, old and new value. DESIGN.md "Rules that hold everywhere": every write
  * is logged (who, what, old, new).
  */

@@ -1,0 +1,560 @@
+"""The audit log: who did what to which drive, when, from where, and whether it worked.
+
+IEC 62443-4-2 CR 2.8 (auditable events) asks a component to record access control, request
+errors, control system events, backup and restore, configuration changes and the like, each
+with a timestamp, source, category, type, event id and result. One record per event, in the
+``audit_log`` table of the store's SQLite database (``<data_dir>/servodesk.db``).
+
+**Append-only, with a hash chain** (CR 3.9, protection of audit information): record ``n``
+stores ``hash = sha256(prev_hash + canonical(record))`` where ``prev_hash`` is record
+``n - 1``'s hash (64 zeros for the first) and ``canonical`` is the compact JSON array of its
+columns (:func:`canonical`). Triggers refuse UPDATE and DELETE; someone who edits the file
+past them changes a hash, and :meth:`AuditLog.verify` (``servodesk audit verify``) names the
+first record that no longer fits: altered, missing from the middle, or moved. Records cut
+off the end leave a shorter valid chain; compare the head hash verify prints with one noted
+earlier to see that.
+
+**Recording never blocks and never fails the caller.** :meth:`AuditLog.record` queues the
+record and returns; one writer thread appends queued records in a transaction that reads the
+last hash first (``BEGIN IMMEDIATE``: a second process, the CLI, is serialised by SQLite's
+write lock, so the chain never forks). The dead-man's stop therefore never waits on the
+database (docs/security.md); a record that cannot be written is logged and dropped. Readers
+(:meth:`query`, :meth:`verify`, :meth:`export`) first wait for the queue to drain, so a
+request sees the records of everything done before it.
+
+Who did it: the ``who`` argument, else the identity of the request being served (set by the
+API's middleware through :func:`acting`), else :data:`SYSTEM` (the dead-man's thread, the
+simulator).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import contextvars
+import csv
+import hashlib
+import io
+import json
+import logging
+import sqlite3
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any, Literal, Protocol
+
+from servodesk.services.store import StoreError
+
+log = logging.getLogger(__name__)
+
+Category = Literal[
+    "access_control",
+    "request_error",
+    "control",
+    "motion",
+    "write",
+    "backup",
+    "restore",
+    "configuration",
+    "user_admin",
+]
+
+#: The category of an event is the first part of its id: ``control.taken`` is control.
+PREFIXES: dict[str, Category] = {
+    "access": "access_control",
+    "request": "request_error",
+    "control": "control",
+    "motion": "motion",
+    "write": "write",
+    "backup": "backup",
+    "restore": "restore",
+    "config": "configuration",
+    "user": "user_admin",
+}
+CATEGORIES: tuple[Category, ...] = tuple(PREFIXES.values())
+
+#: The hash before the first record.
+GENESIS = "0" * 64
+
+#: Records queued and not yet written past which new ones are dropped (with a log line): a
+#: database that cannot be written must not eat the server's memory.
+MAX_PENDING = 100_000
+
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS audit_log (
+    seq INTEGER PRIMARY KEY,
+    time TEXT NOT NULL,
+    user TEXT NOT NULL,
+    address TEXT NOT NULL,
+    category TEXT NOT NULL,
+    event TEXT NOT NULL,
+    drive TEXT,
+    result TEXT NOT NULL,
+    message TEXT NOT NULL,
+    details TEXT NOT NULL,
+    prev TEXT NOT NULL,
+    hash TEXT NOT NULL
+);
+CREATE INDEX IF NOT EXISTS audit_log_time ON audit_log (time);
+CREATE TRIGGER IF NOT EXISTS audit_log_no_update BEFORE UPDATE ON audit_log
+BEGIN SELECT RAISE(ABORT, 'the audit log is append-only'); END;
+CREATE TRIGGER IF NOT EXISTS audit_log_no_delete BEFORE DELETE ON audit_log
+BEGIN SELECT RAISE(ABORT, 'the audit log is append-only'); END;
+"""
+
+_COLUMNS = (
+    "seq",
+    "time",
+    "user",
+    "address",
+    "category",
+    "event",
+    "drive",
+    "result",
+    "message",
+    "details",
+)
+
+
+class Who(Protocol):
+    """Anyone with a name and an address (:class:`servodesk.api.identity.Identity`)."""
+
+    @property
+    def user(self) -> str: ...
+
+    @property
+    def address(self) -> str: ...
+
+
+@dataclass(frozen=True)
+class Actor:
+    user: str
+    address: str = ""
+
+
+#: Events nobody asked for: the dead-man, a lapse of control, the simulator.
+SYSTEM = Actor("system")
+
+_acting: contextvars.ContextVar[Who | None] = contextvars.ContextVar(
+    "servodesk_audit_actor", default=None
+)
+
+
+def acting(who: Who | None) -> contextvars.Token[Who | None]:
+    """Make ``who`` the actor of events recorded in this context (a request and the tasks
+    it starts); the API's middleware calls it with the request's identity."""
+    return _acting.set(who)
+
+
+def current_actor() -> Who:
+    return _acting.get() or SYSTEM
+
+
+def category_of(event: str) -> Category:
+    """The category of an event id; a programming error (ValueError) for an unknown one."""
+    prefix = event.split(".", 1)[0]
+    try:
+        return PREFIXES[prefix]
+    except KeyError:
+        raise ValueError(
+            f"audit event {event!r}: its prefix must be one of {', '.join(PREFIXES)}"
+        ) from None
+
+
+def utc_now() -> str:
+    """ISO 8601 in UTC with microseconds, e.g. ``2026-12-07T08:30:00.123456Z`` (sorts as
+    text, so the time filters compare strings)."""
+    return utc_text(datetime.now(UTC))
+
+
+def utc_text(value: datetime) -> str:
+    """A datetime in the stored format (a naive one is taken as UTC)."""
+    if value.tzinfo is None:
+        value = value.replace(tzinfo=UTC)
+    # isoformat, not strftime: the year is always four digits (strftime writes year 1 as "1").
+    text = value.astimezone(UTC).replace(tzinfo=None).isoformat(timespec="microseconds")
+    return text + "Z"
+
+
+def canonical(row: tuple[Any, ...]) -> bytes:
+    """The bytes a record's hash covers: its columns (seq .. details, details as the stored
+    JSON text) as a compact JSON array, UTF-8."""
+    return json.dumps(list(row), ensure_ascii=False, separators=(",", ":")).encode("utf-8")
+
+
+def chain_hash(prev: str, row: tuple[Any, ...]) -> str:
+    return hashlib.sha256(prev.encode("ascii") + canonical(row)).hexdigest()
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What :meth:`AuditLog.verify` found."""
+
+    ok: bool
+    records: int  # Records checked (up to the first broken one).
+    head: str  # Hash of the last good record (GENESIS for an empty log).
+    broken: int | None = None  # seq of the first record that does not fit.
+    problem: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "ok": self.ok,
+            "records": self.records,
+            "head": self.head,
+            "broken": self.broken,
+            "problem": self.problem,
+        }
+
+
+@dataclass(frozen=True)
+class _Pending:
+    time: str
+    user: str
+    address: str
+    category: str
+    event: str
+    drive: str | None
+    result: str
+    message: str
+    details: str
+
+
+class AuditLog:
+    """The append-only audit log in the SQLite database at ``path``."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = Path(path)
+        try:
+            self._db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None)
+            self._db.row_factory = sqlite3.Row
+            self._db.execute("PRAGMA journal_mode=WAL")
+            self._db.execute("PRAGMA synchronous=FULL")
+            self._db.execute("PRAGMA busy_timeout=5000")
+            self._db.executescript(SCHEMA)
+        except sqlite3.Error as exc:
+            raise StoreError(
+                f"cannot open the audit log in {self.path}: {exc}",
+                hint="check SERVODESK_DATA_DIR (or --data-dir) and its permissions",
+            ) from exc
+        self._lock = threading.Lock()  # The connection: the writer thread and readers.
+        self._cond = threading.Condition()  # The queue and its counters.
+        self._queue: list[_Pending] = []
+        self._queued = 0
+        self._done = 0
+        self._closed = False
+        self._thread: threading.Thread | None = None
+
+    # Recording --------------------------------------------------------------------------
+
+    def record(
+        self,
+        event: str,
+        *,
+        who: Who | None = None,
+        drive: str | None = None,
+        ok: bool = True,
+        message: str = "",
+        details: dict[str, Any] | None = None,
+    ) -> None:
+        """Queue one event; returns at once and never raises for a database problem.
+
+        ``event`` is a stable id whose prefix is its category (:data:`PREFIXES`), e.g.
+        ``control.taken``, ``access.login_failed``, ``user.created``; ``drive`` the session
+        or drive key it concerns; ``ok``/``message`` the result; ``details`` anything else
+        as JSON (never passwords, tokens or request bodies).
+        """
+        category = category_of(event)
+        actor = who or current_actor()
+        try:
+            user, address = _clean(str(actor.user)), _clean(str(actor.address or ""))
+        except Exception:  # A lazy identity that cannot be read must not fail the caller.
+            log.exception("audit: the actor of %s cannot be read", event)
+            user, address = SYSTEM.user, SYSTEM.address
+        try:
+            text = json.dumps(details or {}, sort_keys=True, default=str, ensure_ascii=False)
+        except (TypeError, ValueError):  # Keys of mixed types, a cycle: keep what can be kept.
+            text = json.dumps({"unserialisable": repr(details)}, ensure_ascii=False)
+        text = _clean(text)
+        message = _clean(message)
+        drive = _clean(drive) if drive is not None else None
+        with self._cond:
+            # The time is taken under the queue's lock: within a process the records' times
+            # never go backwards along the chain.
+            pending = _Pending(
+                utc_now(),
+                user,
+                address,
+                category,
+                event,
+                drive,
+                "success" if ok else "failure",
+                message,
+                text,
+            )
+            if self._closed:
+                log.warning("audit log closed; event not recorded: %s", pending)
+                return
+            if len(self._queue) >= MAX_PENDING:
+                log.error("audit queue full; event not recorded: %s", pending)
+                return
+            self._queue.append(pending)
+            self._queued += 1
+            if self._thread is None:
+                self._thread = threading.Thread(
+                    target=self._run, name="servodesk-audit", daemon=True
+                )
+                self._thread.start()
+            self._cond.notify_all()
+
+    def flush(self, timeout: float = 5.0) -> bool:
+        """Wait until everything queued so far is written (or dropped); False on time-out."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            target = self._queued
+            while self._done < target:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return False
+                self._cond.wait(left)
+        return True
+
+    def close(self) -> None:
+        self.flush()
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(2.0)
+        with self._lock:
+            self._db.close()
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                while not self._queue and not self._closed:
+                    self._cond.wait()
+                if not self._queue:
+                    return
+                batch, self._queue = self._queue, []
+            try:
+                self._append(batch)
+            except Exception:
+                log.exception("audit log: %d records could not be written", len(batch))
+                for p in batch:
+                    log.error("audit record lost: %s", p)
+            with self._cond:
+                self._done += len(batch)
+                self._cond.notify_all()
+
+    def _append(self, batch: list[_Pending]) -> None:
+        """One transaction: read the last record, chain the batch onto it."""
+        with self._lock:
+            db = self._db
+            db.execute("BEGIN IMMEDIATE")
+            try:
+                last = db.execute(
+                    "SELECT seq, hash FROM audit_log ORDER BY seq DESC LIMIT 1"
+                ).fetchone()
+                seq, prev = (last["seq"], last["hash"]) if last else (0, GENESIS)
+                for p in batch:
+                    seq += 1
+                    row = (
+                        seq,
+                        p.time,
+                        p.user,
+                        p.address,
+                        p.category,
+                        p.event,
+                        p.drive,
+                        p.result,
+                        p.message,
+                        p.details,
+                    )
+                    digest = chain_hash(prev, row)
+                    db.execute(
+                        "INSERT INTO audit_log (seq, time, user, address, category, event, "
+                        "drive, result, message, details, prev, hash) "
+                        "VALUES (?,?,?,?,?,?,?,?,?,?,?,?)",
+                        (*row, prev, digest),
+                    )
+                    prev = digest
+            except BaseException:
+                db.execute("ROLLBACK")
+                raise
+            db.execute("COMMIT")
+
+    # Reading ----------------------------------------------------------------------------
+
+    def query(
+        self,
+        *,
+        category: str | None = None,
+        user: str | None = None,
+        drive: str | None = None,
+        event: str | None = None,
+        since: datetime | None = None,
+        until: datetime | None = None,
+        limit: int = 200,
+        before: int | None = None,
+    ) -> list[dict[str, Any]]:
+        """Records matching every given filter, newest first (``before``: seq below it)."""
+        self.flush()
+        sql = "SELECT * FROM audit_log WHERE 1=1"
+        args: list[Any] = []
+        for column, value in (
+            ("category", category),
+            ("user", user),
+            ("drive", drive),
+            ("event", event),
+        ):
+            if value:
+                sql += f" AND {column} = ?"
+                args.append(value)
+        if since is not None:
+            sql += " AND time >= ?"
+            args.append(utc_text(since))
+        if until is not None:
+            sql += " AND time <= ?"
+            args.append(utc_text(until))
+        if before is not None:
+            sql += " AND seq < ?"
+            args.append(before)
+        sql += " ORDER BY seq DESC LIMIT ?"
+        args.append(limit)
+        with self._lock:
+            rows = self._db.execute(sql, tuple(args)).fetchall()
+        return [_public(r) for r in rows]
+
+    def _rows(self, since: datetime | None = None) -> Iterator[sqlite3.Row]:
+        """Every record in order, read in pages (the lock is not held between pages)."""
+        after = 0
+        while True:
+            with self._lock:
+                page = self._db.execute(
+                    "SELECT * FROM audit_log WHERE seq > ? ORDER BY seq LIMIT 1000", (after,)
+                ).fetchall()
+            if not page:
+                return
+            for r in page:
+                if since is None or r["time"] >= utc_text(since):
+                    yield r
+            after = page[-1]["seq"]
+
+    def verify(self) -> Verdict:
+        """Recompute the chain from the first record; the first one that does not fit."""
+        self.flush()
+        prev = GENESIS
+        expected = 1
+        count = 0
+        for r in self._rows():
+            seq = r["seq"]
+            if seq != expected:
+                what = (
+                    f"record {expected} is missing (the next is {seq})"
+                    if seq > expected
+                    else f"record {seq} is out of order (expected {expected})"
+                )
+                return Verdict(False, count, prev, expected, what)
+            if r["prev"] != prev:
+                return Verdict(
+                    False,
+                    count,
+                    prev,
+                    seq,
+                    f"record {seq} does not follow record {seq - 1} (its previous hash differs: "
+                    "a record before it was removed, replaced or moved)",
+                )
+            row = tuple(r[c] for c in _COLUMNS)
+            if chain_hash(prev, row) != r["hash"]:
+                return Verdict(
+                    False, count, prev, seq, f"record {seq} was altered (its hash does not match)"
+                )
+            prev = r["hash"]
+            expected += 1
+            count += 1
+        return Verdict(True, count, prev)
+
+    def export(self, fmt: Literal["jsonl", "csv"], since: datetime | None = None) -> Iterator[str]:
+        """Every record (from ``since``) oldest first, with its hashes, as JSON lines or CSV."""
+        self.flush()
+        fields = [*_COLUMNS, "prev", "hash"]
+        if fmt == "csv":
+            buf = io.StringIO()
+            writer = csv.writer(buf, lineterminator="\n")
+            writer.writerow(fields)
+            yield buf.getvalue()
+        for r in self._rows(since):
+            if fmt == "jsonl":
+                yield json.dumps(_public(r), ensure_ascii=False) + "\n"
+            else:
+                buf = io.StringIO()
+                csv.writer(buf, lineterminator="\n").writerow([_csv_cell(r[f]) for f in fields])
+                yield buf.getvalue()
+
+
+def _clean(text: str) -> str:
+    """``text`` as valid UTF-8: a lone surrogate (a path or header decoded with
+    surrogateescape) becomes "?" instead of failing the writer's whole batch."""
+    return text.encode("utf-8", "replace").decode("utf-8")
+
+
+def _csv_cell(value: Any) -> Any:
+    """A cell a spreadsheet shows as text: formula-like text gets a leading quote (CSV
+    injection, OWASP). The hash covers the stored value, not this rendering."""
+    if isinstance(value, str) and value[:1] in ("=", "+", "-", "@", "\t", "\r"):
+        return "'" + value
+    return "" if value is None else value
+
+
+def _public(r: sqlite3.Row) -> dict[str, Any]:
+    out = {c: r[c] for c in _COLUMNS}
+    out["details"] = json.loads(r["details"]) if r["details"] else {}
+    out["prev"] = r["prev"]
+    out["hash"] = r["hash"]
+    return out
+
+
+class Discard:
+    """The audit log of a service built without one (the CLI's tune command, tests)."""
+
+    def record(
+        self,
+        event: str,
+        *,
+        who: Who | None = None,
+        drive: str | None = None,
+        ok: bool = True,
+        message: str = "",
+        details: dict[str, Any] | None = None,
+    ) -> None:
+        category_of(event)  # Still a programming error to use an unknown id.
+
+
+class Recorder(Protocol):
+    """What a service needs of the audit log: :meth:`AuditLog.record`."""
+
+    def record(
+        self,
+        event: str,
+        *,
+        who: Who | None = None,
+        drive: str | None = None,
+        ok: bool = True,
+        message: str = "",
+        details: dict[str, Any] | None = None,
+    ) -> None: ...
+
+
+DISCARD = Discard()
+
+
+@contextlib.contextmanager
+def as_actor(who: Who | None) -> Iterator[None]:
+    """``with as_actor(identity):`` events recorded inside are ``identity``'s."""
+    token = acting(who)
+    try:
+        yield
+    finally:
+        _acting.reset(token)
