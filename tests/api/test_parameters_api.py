@@ -108,6 +108,27 @@ async def test_import_a_third_party_eds_as_a_profile(client: httpx.AsyncClient) 
     assert r.status_code == 400
 
 
+CORPUS = Path(__file__).resolve().parents[2].parent / "shared" / "corpus"
+
+
+@pytest.mark.skipif(not CORPUS.is_dir(), reason="the shared corpus is not beside the repository")
+async def test_import_one_device_of_a_vendor_esi_with_its_warnings(
+    client: httpx.AsyncClient,
+) -> None:
+    """An ESI with four devices: the chosen one, an EtherCAT profile, what was left out."""
+    text = (CORPUS / "esi" / "Elmo_Gold_ECAT_00010420_V11.xml").read_text(encoding="latin-1")
+    url = "/api/v1/profiles/import?filename=elmo.xml&profile_id=elmo-gold-drive"
+    r = await client.post(url + "&device=3", files={"file": ("elmo.xml", text)})
+    assert r.status_code == 201, r.text
+    body = r.json()
+    assert body["fieldbus"] == "ethercat" and "device 3 of 4" in body["description"]
+    assert any("mapped in a TxPdo; taken as T" in w for w in body["warnings"]), body["warnings"]
+    r = await client.post(
+        url.replace("elmo-gold-drive", "elmo-x") + "&device=9", files={"file": ("elmo.xml", text)}
+    )
+    assert r.status_code == 400 and "no device 9: the file describes 4" in r.text, r.text
+
+
 async def test_servo_on_never_starts_motion_from_a_leftover_target(
     client: httpx.AsyncClient,
 ) -> None:

@@ -13,6 +13,7 @@ import canopen
 import pytest
 
 from servodesk.devdesc import export_dcf, export_eds, import_dcf, import_eds, read_dcf
+from servodesk.devdesc._common import collecting
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, Value
 from servodesk.domain.profile import DeviceProfile, ObjectType, PdoMapping
@@ -303,15 +304,11 @@ def _vendor_text() -> str:
             r"the section \[DeviceInfo\] is missing",
         ),
         (
-            lambda t: re.sub(r"\[6041\]\n(.*\n)*?\n", "", t, count=1),
-            r"\[OptionalObjects\] 9=0x6041: there is no section \[6041\]",
-        ),
-        (
             lambda t: t.replace(
                 "[6060]\nParameterName=Modes of operation\nObjectType=0x7\nDataType=0x0002",
-                "[6060]\nParameterName=Modes of operation\nObjectType=0x7\nDataType=0x0099",
+                "[6060]\nParameterName=Modes of operation\nObjectType=0x7\nDataType=0x0999",
             ),
-            r"\[6060\] DataType=0x0099: 0x0099 is not a CiA 301 basic data type",
+            r"\[6060\] DataType=0x0999: 0x0999 is not a CiA 301 basic data type",
         ),
         (
             lambda t: t.replace(
@@ -326,14 +323,6 @@ def _vendor_text() -> str:
         (
             lambda t: t.replace("DefaultValue=10000", "DefaultValue=ten thousand"),
             r"\[6081\] DefaultValue='ten thousand': not a UNSIGNED32 number",
-        ),
-        (
-            lambda t: t.replace("[1018sub3]", "[1018subX]"),
-            r"\[1018\] SubNumber=4 but only 3 sub-index sections",
-        ),
-        (
-            lambda t: t.replace("SupportedObjects=17", "SupportedObjects=18"),
-            r"\[OptionalObjects\]: SupportedObjects=18 but the key 18= is missing",
         ),
         (
             lambda t: t.replace("ParameterName=Statusword\n", ""),
@@ -352,12 +341,46 @@ def test_malformed_eds_gives_a_precise_profile_error(edit: Any, message: str) ->
     assert str(info.value).startswith("bad.eds")
 
 
+@pytest.mark.parametrize(
+    ("edit", "warning", "missing"),
+    [
+        (
+            lambda t: re.sub(r"\[6041\]\n(.*\n)*?\n", "", t, count=1),
+            r"\[OptionalObjects\] 9=0x6041: there is no section \[6041\]; object skipped",
+            ObjectAddress(0x6041),
+        ),
+        (
+            lambda t: t.replace("[1018sub3]", "[1018subX]"),
+            r"\[1018\] SubNumber=4 but 3 sub-index sections \[1018subN\] exist; imported those",
+            ObjectAddress(0x1018, 3),
+        ),
+        (
+            lambda t: t.replace("SupportedObjects=17", "SupportedObjects=18"),
+            r"\[OptionalObjects\] SupportedObjects=18 but the entries are 1\.\.17; read the "
+            r"entries that are there",
+            None,
+        ),
+    ],
+)
+def test_vendor_file_mistakes_import_with_a_warning(
+    edit: Any, warning: str, missing: ObjectAddress | None
+) -> None:
+    """Real vendor files miscount (CiA 306 §4.6.2, §4.6.3.2): the import goes on, says so."""
+    with collecting() as notes:
+        p = import_eds(edit(_vendor_text()), profile_id="x", source="bad.eds")
+    assert any(re.search(warning, n) for n in notes), notes
+    if missing is not None:
+        assert missing not in p.variables
+    assert ObjectAddress(0x6040) in p.variables
+
+
 def test_truncated_eds_never_escapes_as_a_traceback() -> None:
     text = export_eds(load("cia402-generic"))
     # Cut at a line end near the middle: whole lines, but sections the object list names are gone.
     mid = text[: text.rfind("\n", 0, len(text) // 2) + 1]
-    with pytest.raises(ProfileError, match=r"there is no section \["):
+    with collecting() as notes:
         import_eds(mid, profile_id="x")
+    assert any(re.search(r"there is no section \[[0-9A-F]{4}\]; object skipped", n) for n in notes)
     for cut in range(0, len(text), max(1, len(text) // 60)):
         with contextlib.suppress(ProfileError):
             import_eds(text[:cut], profile_id="x")

@@ -212,11 +212,6 @@ def test_esi_with_a_default_namespace_and_product_choice() -> None:
             r"no Descriptions/Devices/Device",
         ),
         (
-            "<EtherCATInfo><Descriptions><Devices><Device><Type ProductCode='#x1'>D</Type>"
-            "</Device></Devices></Descriptions></EtherCATInfo>",
-            r"neither a Profile/Dictionary nor RxPdo/TxPdo",
-        ),
-        (
             "<EtherCATInfo><Descriptions><Devices><Device><Profile><Dictionary><Objects><Object>"
             "<Index>#x2000</Index><Name>X</Name><Type>FANCY</Type><BitSize>8</BitSize>"
             "</Object></Objects></Dictionary></Profile></Device></Devices></Descriptions>"

@@ -95,9 +95,9 @@ def test_xdd_imports_to_a_usable_profile() -> None:
         ("<ISO15745ProfileContainer/>", r"no ApplicationLayers/CANopenObjectList"),
         (
             "<ISO15745ProfileContainer><CANopenObjectList><CANopenObject index='6040' "
-            "name='C' objectType='7' dataType='0099' accessType='rw'/></CANopenObjectList>"
+            "name='C' objectType='7' dataType='0999' accessType='rw'/></CANopenObjectList>"
             "</ISO15745ProfileContainer>",
-            r"CANopenObject 6040 DataType=0x0099: 0x0099 is not a CiA 301 basic data type",
+            r"CANopenObject 6040 DataType=0x0999: 0x0999 is not a CiA 301 basic data type",
         ),
         (
             "<ISO15745ProfileContainer><CANopenObjectList><CANopenObject index='60x0' "

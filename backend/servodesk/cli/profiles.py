@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from pathlib import Path
@@ -22,9 +23,20 @@ def register(sub: Any) -> None:
         "--import",
         dest="import_file",
         metavar="FILE",
-        help="import an EDS, DCF, ESI (.xml) or XDD file as a new profile",
+        help="import an EDS, DCF, ESI (.xml), XDD/XDC or XPD file as a new profile",
     )
     p.add_argument("--id", dest="new_id", help="id of the imported profile (default: file name)")
+    p.add_argument(
+        "--device",
+        type=int,
+        metavar="N",
+        help="ESI with several devices: import device N (from 1; default 1)",
+    )
+    p.add_argument(
+        "--list-devices",
+        action="store_true",
+        help="with --import FILE (ESI): list the file's devices instead of importing",
+    )
     p.set_defaults(func=run_list)
 
     p = sub.add_parser("profile", help="show one profile, or export it")
@@ -104,6 +116,12 @@ def od_entry(s: ObjectSpec) -> dict[str, Any]:
 def run_list(args: argparse.Namespace) -> int:
     if args.import_file:
         return _import(args)
+    if args.device is not None or args.list_devices:
+        print(
+            "servodesk: error: --device and --list-devices go with --import FILE", file=sys.stderr
+        )
+        print("  hint: servodesk profiles --import drive.xml --device 2", file=sys.stderr)
+        return 2
     rows = [summary(p) for p in _catalog().all()]
     if args.json:
         _dump(rows)
@@ -117,12 +135,32 @@ def run_list(args: argparse.Namespace) -> int:
     return 0
 
 
+def _list_devices(path: str, as_json: bool) -> int:
+    from servodesk import devdesc
+
+    devices = devdesc.file_devices(path)
+    if as_json:
+        _dump([dataclasses.asdict(d) for d in devices])
+        return 0
+    for d in devices:
+        code = f"#x{d.product_code:08X}" if d.product_code is not None else "-"
+        rev = f"#x{d.revision:08X}" if d.revision is not None else "-"
+        print(f"{d.number:4}  product {code}  revision {rev}  {d.name}")
+    return 0
+
+
 def _import(args: argparse.Namespace) -> int:
     from servodesk import devdesc
 
+    if args.list_devices:
+        return _list_devices(args.import_file, args.json)
     settings = Settings()
     catalog = _catalog()
-    p = devdesc.import_file(args.import_file, args.new_id)
+    result = devdesc.read_file(args.import_file, args.new_id, device=args.device)
+    p = result.profile
+    # What the file holds that the profile does not: said before anything else, on stderr.
+    for w in result.warnings:
+        print(f"servodesk: warning: {w}", file=sys.stderr)
     if p.id in catalog.ids():
         print(f"servodesk: error: a profile {p.id!r} exists already", file=sys.stderr)
         print("  hint: choose another id with --id", file=sys.stderr)
@@ -136,9 +174,10 @@ def _import(args: argparse.Namespace) -> int:
         return 2
     path = save_profile(p, settings.user_profile_dir)
     if args.json:
-        _dump({**summary(p), "path": str(path)})
+        _dump({**summary(p), "path": str(path), "warnings": list(result.warnings)})
     else:
-        print(f"imported {p.id}: {len(p.variables)} objects -> {path}")
+        skipped = f", {len(result.warnings)} warning(s) above" if result.warnings else ""
+        print(f"imported {p.id}: {len(p.variables)} objects -> {path}{skipped}")
     return 0
 
 

@@ -3,16 +3,19 @@
 - EDS / DCF (CiA 306): :func:`export_eds`, :func:`export_dcf`, :func:`import_eds`,
   :func:`import_dcf` (module :mod:`servodesk.devdesc.eds`)
 - ESI XML (ETG.2000, EtherCAT): :func:`export_esi`, :func:`import_esi` (module ``esi``)
-- XDD / XDC (CiA 311, CANopen XML): :func:`import_xdd` (module ``xdd``)
+- XDD / XDC (CiA 311, CANopen XML; CANopenEditor's .xpd project): :func:`import_xdd`
 
-:func:`import_file` picks the reader by the file's suffix. See docs/device-descriptions.md.
+:func:`import_file` picks the reader by the file's suffix; :func:`read_file` also returns the
+warnings (what the file holds that the import left out or changed). See
+docs/device-descriptions.md.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
-from servodesk.devdesc._common import slug
+from servodesk.devdesc._common import collecting, slug
 from servodesk.devdesc.eds import (
     DcfContents,
     export_dcf,
@@ -21,7 +24,7 @@ from servodesk.devdesc.eds import (
     import_eds,
     read_dcf,
 )
-from servodesk.devdesc.esi import export_esi, import_esi
+from servodesk.devdesc.esi import EsiDevice, esi_devices, export_esi, import_esi
 from servodesk.devdesc.xdd import import_xdd
 from servodesk.domain.profile import DeviceProfile
 from servodesk.errors import NotFoundError, ProfileError, ValidationError
@@ -30,9 +33,13 @@ from servodesk.files import read_bounded
 __all__ = [
     "SUPPORTED_SUFFIXES",
     "DcfContents",
+    "EsiDevice",
+    "ImportResult",
+    "esi_devices",
     "export_dcf",
     "export_eds",
     "export_esi",
+    "file_devices",
     "import_dcf",
     "import_eds",
     "import_esi",
@@ -40,6 +47,8 @@ __all__ = [
     "import_text",
     "import_xdd",
     "read_dcf",
+    "read_file",
+    "read_text",
 ]
 
 #: File suffix -> format name, for messages and file pickers.
@@ -49,6 +58,7 @@ SUPPORTED_SUFFIXES: dict[str, str] = {
     ".xml": "ESI (ETG.2000 EtherCAT Slave Information)",
     ".xdd": "XDD (CiA 311)",
     ".xdc": "XDC (CiA 311)",
+    ".xpd": "XPD (CANopenEditor project, CiA 311 XML)",
 }
 
 
@@ -85,29 +95,85 @@ def _format_of(filename: str) -> str:
     return suffix
 
 
-def import_file(path: str | Path, profile_id: str | None = None) -> DeviceProfile:
+@dataclass(frozen=True)
+class ImportResult:
+    """An imported profile and what the import left out or changed, one line each."""
+
+    profile: DeviceProfile
+    warnings: tuple[str, ...]
+
+
+def import_file(
+    path: str | Path, profile_id: str | None = None, *, device: int | None = None
+) -> DeviceProfile:
     """A profile from a device-description file, chosen by suffix.
 
     ``profile_id`` defaults to the file name (lower case, dashes). A DCF's values are not
-    part of a profile: use :func:`read_dcf` to get them.
+    part of a profile: use :func:`read_dcf` to get them. ``device`` picks one of several
+    devices of an ESI (from 1; default the first).
     """
+    return read_file(path, profile_id, device=device).profile
+
+
+def read_file(
+    path: str | Path, profile_id: str | None = None, *, device: int | None = None
+) -> ImportResult:
+    """Like :func:`import_file`, with the warnings of the import."""
     p = Path(path)
     _format_of(p.name)  # A wrong suffix is refused before the file is read.
-    return import_text(_read_text(p), p.name, profile_id, source=str(p))
+    return read_text(_read_text(p), p.name, profile_id, source=str(p), device=device)
+
+
+def file_devices(path: str | Path) -> list[EsiDevice]:
+    """The devices an ESI file describes (numbered from 1, for ``device=``)."""
+    p = Path(path)
+    if _format_of(p.name) != ".xml":
+        raise ValidationError(
+            f"{p.name}: only an ESI (.xml) file describes several devices",
+            field="filename",
+            hint="EDS, DCF and XDD files describe one device each",
+        )
+    return esi_devices(_read_text(p), source=str(p))
 
 
 def import_text(
-    text: str, filename: str, profile_id: str | None = None, *, source: str | None = None
+    text: str,
+    filename: str,
+    profile_id: str | None = None,
+    *,
+    source: str | None = None,
+    device: int | None = None,
 ) -> DeviceProfile:
     """A profile from a device description's text; ``filename``'s suffix names the format."""
+    return read_text(text, filename, profile_id, source=source, device=device).profile
+
+
+def read_text(
+    text: str,
+    filename: str,
+    profile_id: str | None = None,
+    *,
+    source: str | None = None,
+    device: int | None = None,
+) -> ImportResult:
+    """Like :func:`import_text`, with the warnings of the import."""
     p = Path(filename)
     suffix = _format_of(filename)
     pid = profile_id or slug(p.stem)
     src = source or p.name
-    if suffix == ".eds":
-        return import_eds(text, profile_id=pid, source=src)
-    if suffix == ".dcf":
-        return read_dcf(text, profile_id=pid, source=src).profile
-    if suffix == ".xml":
-        return import_esi(text, profile_id=pid, source=src)
-    return import_xdd(text, profile_id=pid, source=src)
+    if device is not None and suffix != ".xml":
+        raise ValidationError(
+            f"{p.name}: a {SUPPORTED_SUFFIXES[suffix]} file describes one device",
+            field="device",
+            hint="--device picks one of the devices of an ESI (.xml) file",
+        )
+    with collecting() as notes:
+        if suffix == ".eds":
+            profile = import_eds(text, profile_id=pid, source=src)
+        elif suffix == ".dcf":
+            profile = read_dcf(text, profile_id=pid, source=src).profile
+        elif suffix == ".xml":
+            profile = import_esi(text, profile_id=pid, source=src, device=device)
+        else:
+            profile = import_xdd(text, profile_id=pid, source=src)
+    return ImportResult(profile=profile, warnings=tuple(notes))

@@ -8,10 +8,13 @@ every pydantic error turned into a :class:`~servodesk.errors.ProfileError`.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import enum
 import json
+import math
 import re
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -19,14 +22,17 @@ import pydantic
 
 from servodesk.domain.datatypes import DataType
 from servodesk.domain.profile import (
+    Access,
     DeviceProfile,
     Group,
     ObjectEntry,
     ObjectSpec,
     ObjectType,
+    PdoMapping,
     SubSpec,
+    resolve_value,
 )
-from servodesk.errors import ProfileError
+from servodesk.errors import ProfileError, ServodeskError
 
 #: Fields of a flattened variable, in the order ObjectSpec declares them (address excluded).
 SPEC_FIELDS: tuple[str, ...] = tuple(
@@ -228,8 +234,79 @@ class ParsedObject:
     subs: dict[int, dict[str, Any]] = field(default_factory=dict)
 
 
+def _fit(f: dict[str, Any], where: str) -> None:
+    """Make one variable's fields fit servodesk's model, warning about each change.
+
+    Vendor files hold limits the type cannot take (a signed MinValue on an UNSIGNED16),
+    defaults outside their own limits, PDO-mappable values without a fixed size and
+    RxPDO-mappable objects that SDO access calls read-only (ETG.2000 Flags/Access is the SDO
+    access; the object is still written by the RxPDO).
+    """
+    dt = f.get("data_type")
+    if not isinstance(dt, DataType):
+        return
+    rng = dt.range if dt.is_numeric else None
+    for key in ("min", "max"):
+        v = f.get(key)
+        if v is None:
+            continue
+        if (
+            isinstance(v, bool)
+            or not isinstance(v, int | float)
+            or not math.isfinite(v)
+            or (rng is not None and not rng[0] <= v <= rng[1])
+        ):
+            warn(f"{where}: {key} {v!r} does not fit {dt.name}; limit left out")
+            f[key] = None
+    lo, hi = f.get("min"), f.get("max")
+    if lo is not None and hi is not None and lo > hi:
+        warn(f"{where}: min {lo} above max {hi}; both limits left out")
+        f["min"] = f["max"] = None
+    d = f.get("default")
+    if isinstance(d, float) and not math.isfinite(d):
+        warn(f"{where}: default {d} is not a finite number; left out")
+        f["default"] = d = None
+    if d is not None and not (isinstance(d, str) and "$NODEID" in d.upper()):
+        try:
+            value = resolve_value(d, dt, 1)
+        except (ValueError, ServodeskError):
+            warn(f"{where}: default {d!r} is not a {dt.name}; left out")
+            f["default"] = None
+            value = None
+        if isinstance(value, int | float) and not isinstance(value, bool) and dt.is_numeric:
+            lo, hi = f.get("min"), f.get("max")
+            if lo is not None and value < lo:
+                warn(f"{where}: default {value} below min {lo}; limit left out")
+                f["min"] = None
+            if hi is not None and value > hi:
+                warn(f"{where}: default {value} above max {hi}; limit left out")
+                f["max"] = None
+    pdo = f.get("pdo_mapping")
+    if isinstance(pdo, PdoMapping) and pdo is not PdoMapping.NONE and dt.bits == 0:
+        warn(f"{where}: PDO-mappable {dt.name} without a fixed size; not mappable here")
+        f["pdo_mapping"] = PdoMapping.NONE
+        pdo = PdoMapping.NONE
+    access = f.get("access")
+    if (
+        isinstance(pdo, PdoMapping)
+        and pdo.rx
+        and isinstance(access, Access)
+        and not access.writable
+    ):
+        # CiA 306 rww: written by an RPDO; a process value, never backed up.
+        warn(f"{where}: RxPDO-mappable but access {access.value}; taken as rww")
+        f["access"] = Access.RWW
+        f["process"] = True
+
+
 def build_entry(obj: ParsedObject) -> ObjectEntry:
     """An ObjectEntry from parsed fields; a model error names the file location."""
+    for sub, fields in obj.subs.items():
+        if isinstance(fields, dict):
+            _fit(
+                fields,
+                f"{obj.where} sub {sub}" if obj.object_type is not ObjectType.VAR else obj.where,
+            )
     try:
         if obj.object_type is ObjectType.VAR:
             fields = dict(obj.subs.get(0, {}))
@@ -317,3 +394,32 @@ def make_profile(
             f"{where}: {loc}: {first['msg']}",
             hint="the profile id must be lower case letters, digits and dashes",
         ) from None
+
+
+# --------------------------------------------------------------------------------------------
+# What an import skipped or changed. Real vendor files use things servodesk's model has no
+# place for (modules, bit-sized types, values outside the type); the import goes on and each
+# reader reports here exactly what it left out, so the user sees it (CLI, API) instead of a
+# silently different profile.
+
+_NOTES: contextvars.ContextVar[list[str] | None] = contextvars.ContextVar(
+    "servodesk_devdesc_notes", default=None
+)
+
+
+def warn(message: str) -> None:
+    """Record what the running import skipped or changed (no-op outside :func:`collecting`)."""
+    notes = _NOTES.get()
+    if notes is not None and message not in notes:
+        notes.append(message)
+
+
+@contextlib.contextmanager
+def collecting() -> Iterator[list[str]]:
+    """Collect the :func:`warn` messages of the imports run inside the block."""
+    notes: list[str] = []
+    token = _NOTES.set(notes)
+    try:
+        yield notes
+    finally:
+        _NOTES.reset(token)

@@ -41,6 +41,7 @@ from servodesk.devdesc._common import (
     same,
     slug,
     spec_default,
+    warn,
 )
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, Value, codec
@@ -400,6 +401,11 @@ def _data_type(keys: Mapping[str, str], where: str) -> tuple[DataType, str | Non
     try:
         return DataType(num), None
     except ValueError:
+        if 0x0020 <= num <= 0x025F:
+            # CiA 301 table 44: 0020h-025Fh are complex and manufacturer/profile-defined types
+            # (DEFTYPE/DEFSTRUCT); servodesk moves their bytes without knowing the layout.
+            warn(f"{where} DataType={raw.strip()}: a defined (complex) type; read as DOMAIN")
+            return DataType.DOMAIN, f"(EDS data type 0x{num:04X}, read as bytes)"
         raise ProfileError(
             f"{where} DataType={raw}: 0x{num:04X} is not a CiA 301 basic data type",
             hint="servodesk reads the basic types 0x0001-0x001B (BOOLEAN .. UNSIGNED64); "
@@ -614,15 +620,18 @@ class DcfContents:
     bitrate: int | None
 
 
-def _parse_param(text: str, spec: ObjectSpec, node_id: int | None, where: str) -> Value:
+def _parse_param(text: str, spec: ObjectSpec, node_id: int | None, where: str) -> Value | None:
     dt = spec.data_type
     t = text.strip()
     if "$NODEID" in t.upper() and dt.is_integer:
         if node_id is None:
-            raise ProfileError(
-                f"{where}={t!r} uses $NODEID but [DeviceComissioning] has no NodeID",
-                hint="add NodeID= to [DeviceComissioning] or write the value as a number",
+            # A DCF written as a template for any node: the expression stays the object's
+            # default (resolved per node); no configured value is taken from it.
+            warn(
+                f"{where}={t!r} uses $NODEID but [DeviceComissioning] has no NodeID; "
+                "value not taken (the default resolves it per node)"
             )
+            return None
         try:
             v = resolve_value(t, dt, node_id)
         except (ValueError, ServodeskError):
@@ -679,13 +688,16 @@ def _read_objects(r: _Reader) -> list[ParsedObject]:
                 f"[{sect}] SupportedObjects={raw_n!r}: not a number",
                 "write the number of listed objects, e.g. SupportedObjects=3",
             ) from None
-        for i in range(1, n + 1):
-            raw = keys.get(str(i))
-            if raw is None:
-                raise r.error(
-                    f"[{sect}]: SupportedObjects={n} but the key {i}= is missing (truncated file?)",
-                    f"list entries 1..{n}, or correct SupportedObjects",
-                )
+        numbered = sorted(int(k) for k in keys if k.isdigit())
+        if numbered != list(range(1, n + 1)):
+            # CiA 306 §4.6.2: SupportedObjects counts the entries 1..n. Vendor tools get the
+            # count wrong; the entries that are there are the list.
+            warn(
+                f"{r.source}: [{sect}] SupportedObjects={n} but the entries are "
+                f"{_ranges_text(numbered)}; read the entries that are there"
+            )
+        for i in numbered:
+            raw = keys[str(i)]
             try:
                 listed.append((f"[{sect}] {i}={raw}", parse_int(raw)))
             except ValueError:
@@ -696,10 +708,9 @@ def _read_objects(r: _Reader) -> list[ParsedObject]:
     index_sections = sorted(int(k, 16) for k in r.sections if re.fullmatch(r"[0-9a-f]{4}", k))
     for where, idx in listed:
         if r.get(f"{idx:04X}") is None:
-            raise r.error(
-                f"{where}: there is no section [{idx:04X}]",
-                f"add the section [{idx:04X}] describing the object, or remove it from the list",
-            )
+            # Listed but not described: nothing to import for it (a vendor file that lists
+            # objects of another variant, or a truncated file).
+            warn(f"{r.source}: {where}: there is no section [{idx:04X}]; object skipped")
     if not have_list and not index_sections:
         raise r.error(
             "no object dictionary: neither [MandatoryObjects]/[OptionalObjects]/"
@@ -707,10 +718,10 @@ def _read_objects(r: _Reader) -> list[ParsedObject]:
             "is the file complete? An EDS lists its objects in [MandatoryObjects] etc.",
         )
     objects = [_read_object(r, idx) for idx in index_sections]
-    return objects
+    return [o for o in objects if o is not None]
 
 
-def _read_object(r: _Reader, index: int) -> ParsedObject:
+def _read_object(r: _Reader, index: int) -> ParsedObject | None:
     sect = r.name(f"{index:04X}")
     keys = r.get(sect) or {}
     raw_type = keys.get("objecttype", "0x7")
@@ -748,18 +759,38 @@ def _read_object(r: _Reader, index: int) -> ParsedObject:
     raw_n = keys.get("subnumber")
     if raw_n is not None:
         n = parse_int_or(raw_n, r, sect, key="SubNumber")
-        if len(obj.subs) < n:
-            raise r.error(
-                f"[{sect}] SubNumber={n} but only {len(obj.subs)} sub-index sections "
-                f"[{index:04X}subN] exist (truncated file?)",
-                "add the missing sub-index sections or correct SubNumber",
+        if len(obj.subs) != n:
+            # CiA 306 §4.6.3.2: SubNumber counts the [xxxxsubN] sections; files count
+            # sub-indices the device has but the file does not describe (1003h sub 1..n).
+            warn(
+                f"{r.source}: [{sect}] SubNumber={n} but {len(obj.subs)} sub-index sections "
+                f"[{index:04X}subN] exist; imported those"
             )
     if not obj.subs:
-        raise r.error(
-            f"[{sect}]: {otype.value.upper()} without sub-index sections",
-            f"add [{index:04X}sub0], [{index:04X}sub1], ... or use CompactSubObj=",
+        # Nothing describes its sub-indices (no [xxxxsubN], no CompactSubObj): an object
+        # servodesk cannot address; reported and left out.
+        warn(
+            f"{r.source}: [{sect}]: {otype.value.upper()} without sub-index sections "
+            "or CompactSubObj; object skipped"
         )
+        return None
     return obj
+
+
+def _ranges_text(numbers: list[int]) -> str:
+    """1..3, 5 for [1, 2, 3, 5] (what a list's entries are, for a warning)."""
+    if not numbers:
+        return "none"
+    parts: list[str] = []
+    start = prev = numbers[0]
+    for n in [*numbers[1:], None]:
+        if n is not None and n == prev + 1:
+            prev = n
+            continue
+        parts.append(f"{start}..{prev}" if prev > start else str(start))
+        if n is not None:
+            start = prev = n
+    return ", ".join(parts)
 
 
 def parse_int_or(raw: str, r: _Reader, sect: str, key: str = "CompactSubObj") -> int:
@@ -954,7 +985,9 @@ def read_dcf(
             elif "parametervalue" in keys:
                 raw = keys["parametervalue"]
                 if raw.strip() or spec.data_type.is_string:
-                    values[spec.address] = _parse_param(raw, spec, node_id, where)
+                    value = _parse_param(raw, spec, node_id, where)
+                    if value is not None:
+                        values[spec.address] = value
         if entry.object_type is ObjectType.ARRAY:
             # Compact arrays carry their values in [xxxxValue] (CiA 306 §4.6.3.3).
             compact_vals = r.get(f"{entry.index:04X}Value")
@@ -963,9 +996,11 @@ def read_dcf(
                 for spec in entry.specs():
                     raw = compact_vals.get(str(spec.subindex))
                     if spec.subindex and raw is not None and spec.address not in values:
-                        values[spec.address] = _parse_param(
+                        value = _parse_param(
                             raw, spec, node_id, f"[{entry.index:04X}Value] {spec.subindex}"
                         )
+                        if value is not None:
+                            values[spec.address] = value
     return DcfContents(profile=profile, values=values, node_id=node_id, bitrate=bitrate)
 
 

@@ -7,9 +7,14 @@ assignment from 1C12h/1C13h) and a CoE mailbox. Default and limit values are wri
 ``DefaultData``/``MinData``/``MaxData``: hex of the little-endian bytes the device holds.
 
 Import reads real vendor files: any namespace, ``#x`` hex, ``BitSize``, RECORD and ARRAY types
-built from ``DataTypes``/``SubItem``/``ArrayInfo``, enumerations (``EnumInfo``), values as
-``DefaultData`` or ``DefaultValue``; an ESI without a dictionary gets its objects from the PDO
-entries. Fields ESI has no element for (unit, scale, group, ...) travel in the device's
+built from ``DataTypes``/``SubItem``/``ArrayInfo`` (byte arrays and arrays longer than 255
+elements as one octet string, nested structures as DOMAIN), enumerations (``EnumInfo``),
+values as ``DefaultData`` or ``DefaultValue``; an ESI without a dictionary gets its objects
+from the PDO entries. One of several devices is picked (``device=``), each slot's default
+module is placed (``Slots``), and the profile is an EtherCAT one: PDO kind ``ethercat``, the
+``Sm`` sync managers, the ``Dc/OpMode`` modes, the default assignment as a template. What the
+model cannot hold is reported with :func:`~servodesk.devdesc._common.warn`, not refused.
+Fields ESI has no element for (unit, scale, group, ...) travel in the device's
 ``VendorSpecific`` element as JSON under the ``urn:servodesk:devdesc:1`` namespace, which
 EtherCAT tools skip (ETG.2000: VendorSpecific content is vendor defined).
 """
@@ -17,6 +22,7 @@ EtherCAT tools skip (ETG.2000: VendorSpecific content is vendor defined).
 from __future__ import annotations
 
 import contextlib
+import copy
 import re
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator, Mapping
@@ -29,6 +35,7 @@ from servodesk.devdesc._common import (
     ParsedObject,
     area_group,
     build_entry,
+    collecting,
     diff,
     dumps,
     entry_default,
@@ -40,6 +47,7 @@ from servodesk.devdesc._common import (
     profile_meta,
     slug,
     spec_default,
+    warn,
 )
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, codec
@@ -50,11 +58,12 @@ from servodesk.domain.profile import (
     ObjectSpec,
     ObjectType,
     PdoMapping,
+    SyncManagerSpec,
     resolve_value,
 )
 from servodesk.errors import ProfileError, ServodeskError
 
-__all__ = ["NS", "export_esi", "import_esi"]
+__all__ = ["NS", "EsiDevice", "esi_devices", "export_esi", "import_esi"]
 
 #: Namespace of servodesk's own data inside ``VendorSpecific``.
 NS = "urn:servodesk:devdesc:1"
@@ -147,9 +156,16 @@ def _decode(data: bytes, dt: DataType, where: str) -> Any:
     if dt.is_string:
         return codec(dt).decode(data)
     if dt.is_numeric:
-        if len(data) < dt.bits // 8:
+        size = max(dt.bits // 8, 1)
+        if len(data) < size:
             # Vendor files shorten DefaultData of wide types; the missing bytes are zero.
-            data = data + bytes(dt.bits // 8 - len(data))
+            data = data + bytes(size - len(data))
+        elif len(data) > size:
+            extra = data[size:]
+            if any(extra):
+                warn(f"{where}: {len(data)} bytes for a {dt.name}; value left out")
+                return None
+            data = data[:size]  # Zero padding beyond the type (BOOL written as 2 bytes).
         try:
             v = codec(dt).decode(data)
         except ServodeskError as exc:
@@ -581,19 +597,45 @@ def export_esi(profile: DeviceProfile) -> str:
         types.insert(i, base)
     for name in ("Outputs", "Inputs", "MBoxState"):
         _sub(device, "Fmmu", name)
-    for text, start, ctrl, size in (
-        ("MBoxOut", 0x1000, 0x26, "128"),
-        ("MBoxIn", 0x1080, 0x22, "128"),
-        ("Outputs", 0x1100, 0x64, None),
-        ("Inputs", 0x1400, 0x20, None),
-    ):
-        attrs = {"StartAddress": _hex(start, 4), "ControlByte": _hex(ctrl, 2), "Enable": "1"}
-        if size:
-            attrs["DefaultSize"] = size
-        _sub(device, "Sm", text, **attrs)
+    sms = profile.pdo.sync_managers or (
+        SyncManagerSpec(
+            number=0, kind="MBoxOut", start_address=0x1000, control_byte=0x26, default_size=128
+        ),
+        SyncManagerSpec(
+            number=1, kind="MBoxIn", start_address=0x1080, control_byte=0x22, default_size=128
+        ),
+        SyncManagerSpec(number=2, kind="Outputs", start_address=0x1100, control_byte=0x64),
+        SyncManagerSpec(number=3, kind="Inputs", start_address=0x1400, control_byte=0x20),
+    )
+    for sm in sorted(sms, key=lambda x: x.number):
+        attrs = {"Enable": "1" if sm.enabled else "0"}
+        if sm.start_address is not None:
+            attrs["StartAddress"] = _hex(sm.start_address, 4)
+        if sm.control_byte is not None:
+            attrs["ControlByte"] = _hex(sm.control_byte, 2)
+        if sm.default_size is not None:
+            attrs["DefaultSize"] = str(sm.default_size)
+        _sub(device, "Sm", sm.kind, **attrs)
     _pdo_elements(profile, device)
     mailbox = _sub(device, "Mailbox", DataLinkLayer="1")
     _sub(mailbox, "CoE", SdoInfo="1", PdoAssign="1", PdoConfig="1", CompleteAccess="0")
+    if profile.pdo.dc_modes:
+        dc = _sub(device, "Dc")
+        for mode in profile.pdo.dc_modes:
+            om = _sub(dc, "OpMode")
+            _sub(om, "Name", mode.name)
+            if mode.description is not None:
+                _sub(om, "Desc", mode.description)
+            _sub(om, "AssignActivate", _hex(mode.assign_activate, 4))
+            for tag, value, factor in (
+                ("CycleTimeSync0", mode.cycle_time_sync0, mode.cycle_factor_sync0),
+                ("ShiftTimeSync0", mode.shift_time_sync0, None),
+                ("CycleTimeSync1", mode.cycle_time_sync1, mode.cycle_factor_sync1),
+            ):
+                if value is not None:
+                    el = _sub(om, tag, str(value))
+                    if factor is not None:
+                        el.set("Factor", str(factor))
     vs = _sub(device, "VendorSpecific")
     vs.append(extras)
     ET.indent(root, space="  ")
@@ -651,6 +693,29 @@ def _hexbytes(text: str | None, where: str) -> bytes | None:
         ) from None
 
 
+_DECIMAL = re.compile(r"^[+-]?\d+$")
+
+
+def _data_or_decimal(v: _EsiVar, key: str, text: str | None, where: str) -> None:
+    """``DefaultData``/``MinData``/``MaxData`` (ETG.2000: hex of the little-endian bytes).
+
+    Some vendor tools write a decimal number there instead; text that cannot be hex bytes
+    (odd length, a sign) but is a decimal integer is read as the number, with a warning.
+    """
+    if text is None:
+        return
+    t = re.sub(r"\s+", "", text)
+    bare = t[2:] if t.lower().startswith("#x") else t
+    if _DECIMAL.match(t) and (len(bare) % 2 == 1 or t[0] in "+-") and v.data_type.is_numeric:
+        warn(f"{where}={text!r}: decimal, not hex bytes (ETG.2000); read as the number {t}")
+        setattr(v, f"{key}_value", t)
+        return
+    setattr(v, f"{key}_data", _hexbytes(text, where))
+
+
+_BIT_TYPE = re.compile(r"^BIT([2-7])$")
+
+
 @dataclass
 class _Types:
     """The DataTypes of a dictionary, resolved by name."""
@@ -661,6 +726,11 @@ class _Types:
         self, name: str, bit_size: int | None, where: str, depth: int = 0
     ) -> tuple[DataType, dict[int, str] | None]:
         key = name.strip().upper()
+        m_bits = _BIT_TYPE.match(key)
+        if m_bits:
+            # ETG.2000 BIT2..BIT7 have no CiA 301 type; SDO access moves one whole byte.
+            warn(f"{where}: {name} ({m_bits.group(1)} bits) read as UNSIGNED8")
+            return DataType.UNSIGNED8, None
         if key in _ESI_TYPES:
             return _ESI_TYPES[key], None
         m = _STRING_TYPE.match(key)
@@ -676,7 +746,18 @@ class _Types:
         el = self.defs.get(name.strip())
         if el is not None and depth < 8:
             base = _text(el, "BaseType")
-            if base and _kid(el, "ArrayInfo") is None:
+            if _kid(el, "ArrayInfo") is not None:
+                # An array used as one value (a sub-item with its own SubIdx): its bytes.
+                if self.byte_array(name):
+                    return DataType.OCTET_STRING, None
+                warn(f"{where}: array type {name!r} kept as one DOMAIN value")
+                return DataType.DOMAIN, None
+            if any(True for _ in _kids(el, "SubItem")):
+                # A structure nested in a structure (ETG.2000 allows it; CiA 301 has no
+                # sub-sub-index): the whole nested record is one DOMAIN value.
+                warn(f"{where}: nested structure {name!r} kept as one DOMAIN value")
+                return DataType.DOMAIN, None
+            if base:
                 dt, _ = self.basic(base, bit_size, where, depth + 1)
                 enums: dict[int, str] = {}
                 for ei in _kids(el, "EnumInfo"):
@@ -704,6 +785,16 @@ class _Types:
         if el is not None and _kid(el, "ArrayInfo") is not None:
             return el
         return None
+
+    def byte_array(self, name: str) -> bool:
+        """An array of 8-bit elements (``ARRAY [0..n] OF BYTE``): one octet string."""
+        if _BYTE_ARRAY.match(name.strip().upper()):
+            return True
+        arr = self.array(name)
+        if arr is None:
+            return False
+        base = (_text(arr, "BaseType") or "").strip().upper()
+        return _ESI_TYPES.get(base) in (DataType.UNSIGNED8, DataType.INTEGER8)
 
 
 def _flags_of(el: ET.Element | None, inherit: _EsiVar | None = None) -> dict[str, Any]:
@@ -736,12 +827,12 @@ def _apply_info(v: _EsiVar, info: ET.Element | None, where: str) -> None:
         return
     ds = _kid(info, "DefaultString")
     v.default_string = (ds.text or "") if ds is not None else None
-    v.default_data = _hexbytes(_text(info, "DefaultData"), f"{where} DefaultData")
-    v.min_data = _hexbytes(_text(info, "MinData"), f"{where} MinData")
-    v.max_data = _hexbytes(_text(info, "MaxData"), f"{where} MaxData")
-    v.default_value = _text(info, "DefaultValue")
-    v.min_value = _text(info, "MinValue")
-    v.max_value = _text(info, "MaxValue")
+    for key in ("default", "min", "max"):
+        tag = f"{key.capitalize()}Data"
+        _data_or_decimal(v, key, _text(info, tag), f"{where} {tag}")
+    v.default_value = v.default_value or _text(info, "DefaultValue")
+    v.min_value = v.min_value or _text(info, "MinValue")
+    v.max_value = v.max_value or _text(info, "MaxValue")
     if v.default_string is not None and not v.data_type.is_string:
         # Some files put a number into DefaultString; read it as the value text.
         v.default_value, v.default_string = v.default_string, None
@@ -772,8 +863,23 @@ def _var(
     v = _EsiVar(name=name, data_type=dt, type_name=type_name, bit_size=bit_size, values=enums)
     for k, val in flags.items():
         setattr(v, k, val)
+    if (
+        v.pdo
+        and dt.is_integer
+        and dt is not DataType.BOOLEAN
+        and 0 < bit_size < dt.bits
+        and not v.data_type.is_string
+    ):
+        # A bit-sized value (BIT2, an enum of 3 bits): servodesk maps whole CiA 301 types.
+        warn(f"{where}: {bit_size}-bit value of type {type_name!r} is not PDO-mappable here")
+        v.pdo = None
     _apply_info(v, info, where)
     return v
+
+
+def _octets(bits: int) -> str:
+    """The type name of a byte array kept as one OCTET_STRING value (not a sub per byte)."""
+    return f"OCTET_STRING({max(bits // 8, 1)})"
 
 
 def _read_object(
@@ -804,7 +910,11 @@ def _read_object(
     info = _kid(el, "Info")
     obj_flags = _flags_of(el)
     cplx = types.complex(type_name)
-    if cplx is None and types.array(type_name) is None:
+    arr_type = types.array(type_name) if cplx is None else None
+    if cplx is None and (arr_type is None or types.byte_array(type_name)):
+        # A VAR; an object whose type is ARRAY [0..n] OF BYTE is one octet string.
+        if arr_type is not None:
+            type_name = _octets(_bit_size(arr_type, where))
         v = _var(types, type_name, name, _bit_size(el, where), obj_flags, info, where)
         return ParsedObject(index=index, object_type=ObjectType.VAR, where=where), {0: v}
     info_items = list(_kids(info, "SubItem"))
@@ -820,12 +930,14 @@ def _read_object(
     )
     dt_items = list(_kids(cplx, "SubItem")) if cplx is not None else []
     if cplx is None:  # The object's type is itself an array type: elements only.
-        arr = types.array(type_name)
-        assert arr is not None
-        dt_items = []
-        lb, n = _array_info(arr, where)
-        base = _text(arr, "BaseType") or "USINT"
-        bits = _bit_size(arr, where) // max(n, 1)
+        assert arr_type is not None
+        lb, n = _array_info(arr_type, where)
+        base = _text(arr_type, "BaseType") or "USINT"
+        bits = _bit_size(arr_type, where) // max(n, 1)
+        if lb + n - 1 > 0xFF:
+            warn(f"{where}: {n} array elements do not fit sub-indices 1..255; kept as one DOMAIN")
+            v = _var(types, "DOMAIN", name, 0, obj_flags, info, where)
+            return ParsedObject(index=index, object_type=ObjectType.VAR, where=where), {0: v}
         items.extend((lb + k, f"{name} {lb + k}", base, bits, _flags_of(el)) for k in range(n))
         is_array = True
     next_sub = 0
@@ -834,15 +946,29 @@ def _read_object(
         it_name = _name(it)
         arr = types.array(it_type)
         flags = _flags_of(it, inherit)
-        if arr is not None:
-            is_array = True
+        raw_sub = _text(it, "SubIdx")
+        if arr is not None and raw_sub is None:
+            # ETG.2000 ARRAY object: sub 0 then a SubItem "Elements" of an array type whose
+            # elements are sub-indices LBound.. (one sub-index each, CiA 301 §7.4.3).
             lb, n = _array_info(arr, where)
             base = _text(arr, "BaseType") or "USINT"
+            start = max(lb, next_sub, 1)
+            if start + n - 1 > 0xFF:
+                # ARRAY [0..511] OF BYTE and the like: more elements than sub-indices exist.
+                kind = "OCTET_STRING" if types.byte_array(it_type) else "DOMAIN"
+                warn(
+                    f"{where}: {n} elements of {it_type!r} do not fit sub-indices "
+                    f"{start}..255; kept as one {kind} sub-index {start}"
+                )
+                dt_name = _octets(_bit_size(arr, where)) if kind == "OCTET_STRING" else "DOMAIN"
+                items.append((start, it_name or name, dt_name, 0, flags))
+                next_sub = start + 1
+                continue
+            is_array = True
             bits = _bit_size(arr, where) // max(n, 1)
-            items.extend((lb + k, f"{name} {lb + k}", base, bits, flags) for k in range(n))
-            next_sub = lb + n
+            items.extend((start + k, f"{name} {start + k}", base, bits, flags) for k in range(n))
+            next_sub = start + n
             continue
-        raw_sub = _text(it, "SubIdx")
         try:
             sub = parse_int(raw_sub) if raw_sub is not None else next_sub
         except ValueError:
@@ -850,6 +976,13 @@ def _read_object(
                 f"{where}: SubIdx {raw_sub!r} is not a number",
                 hint="SubIdx is the sub-index, e.g. 1",
             ) from None
+        if not 0 <= sub <= 0xFF:
+            warn(f"{where}: SubIdx {sub} outside 0..255 skipped")
+            next_sub = sub + 1
+            continue
+        if arr is not None and types.byte_array(it_type):
+            # A sub-item with its own SubIdx whose type is a byte array: one value, its bytes.
+            it_type = _octets(_bit_size(arr, where))
         items.append((sub, it_name, it_type, _bit_size(it, where), flags))
         next_sub = sub + 1
     # Object/Info/SubItem carry names and values; match by name, else by position.
@@ -900,24 +1033,54 @@ def _array_info(arr: ET.Element, where: str) -> tuple[int, int]:
     return lb, n
 
 
+_BITS_TYPES: dict[int, DataType] = {
+    1: DataType.BOOLEAN,
+    8: DataType.UNSIGNED8,
+    16: DataType.UNSIGNED16,
+    32: DataType.UNSIGNED32,
+    64: DataType.UNSIGNED64,
+}
+
+
+def _entry_type(ent: ET.Element, bits: int, where: str) -> DataType:
+    """The data type of a PDO entry the dictionary does not describe."""
+    dt_name = _text(ent, "DataType") or ""
+    with collecting():  # The guess below is reported once, by the caller.
+        try:
+            dt, _ = _Types({}).basic(dt_name, bits, where)
+            if (dt.is_numeric and dt.bits == bits) or (dt is DataType.BOOLEAN and bits == 1):
+                return dt
+        except ProfileError:
+            pass
+    return _BITS_TYPES.get(bits, DataType.OCTET_STRING if bits % 8 == 0 else DataType.DOMAIN)
+
+
+def _pdo_index(pdo: ET.Element, tag: str, where: str) -> int:
+    try:
+        return parse_int(_text(pdo, "Index") or "")
+    except ValueError:
+        raise ProfileError(
+            f"{where}: a {tag} has no valid Index", hint="write <Index>#x1600</Index>"
+        ) from None
+
+
 def _pdo_objects(
     device: ET.Element, known: set[int], have: set[tuple[int, int]], where: str
 ) -> list[ParsedObject]:
     """Mapping objects and mapped variables from RxPdo/TxPdo when the dictionary lacks them."""
     out: list[ParsedObject] = []
-    made_vars: set[tuple[int, int]] = set()
+    base = {n: spec_default(n) for n in SPEC_FIELDS}
+    # Variables the PDO entries name, by index: sub -> fields.
+    made: dict[int, dict[int, dict[str, Any]]] = {}
+    pdo_indices = {
+        _pdo_index(pdo, tag, where) for tag in ("RxPdo", "TxPdo") for pdo in _kids(device, tag)
+    }
     for tag, direction in (("RxPdo", PdoMapping.RX), ("TxPdo", PdoMapping.TX)):
         for pdo in _kids(device, tag):
-            try:
-                pidx = parse_int(_text(pdo, "Index") or "")
-            except ValueError:
-                raise ProfileError(
-                    f"{where}: a {tag} has no valid Index", hint="write <Index>#x1600</Index>"
-                ) from None
+            pidx = _pdo_index(pdo, tag, where)
             entries = list(_kids(pdo, "Entry"))
             fixed = (pdo.get("Fixed") or "0").lower() in ("1", "true")
             maps: dict[int, dict[str, Any]] = {}
-            base = {n: spec_default(n) for n in SPEC_FIELDS}
             maps[0] = {
                 **base,
                 "name": "Number of mapped objects",
@@ -937,6 +1100,9 @@ def _pdo_objects(
                         "SubIndex or BitLen is not a number",
                         hint="write numbers as #x6040 or decimal",
                     ) from None
+                if k > 0xFF or not (0 <= idx <= 0xFFFF and 0 <= sub <= 0xFF and bits <= 0xFF):
+                    warn(f"{where}: {tag} {_hex(pidx, 4)} entry {k} out of range, skipped")
+                    continue
                 maps[k] = {
                     **base,
                     "name": f"Mapped object {k}",
@@ -945,31 +1111,25 @@ def _pdo_objects(
                     "default": (idx << 16) | (sub << 8) | bits,
                     "group": area_group(pidx),
                 }
-                if idx and (idx, sub) not in have and (idx, sub) not in made_vars:
-                    dt_name = _text(ent, "DataType") or ""
-                    try:
-                        dt, _ = _Types({}).basic(dt_name, bits, where)
-                    except ProfileError:
-                        dt = {
-                            8: DataType.UNSIGNED8,
-                            16: DataType.UNSIGNED16,
-                            32: DataType.UNSIGNED32,
-                            64: DataType.UNSIGNED64,
-                        }.get(bits, DataType.UNSIGNED8 if bits < 8 else DataType.DOMAIN)
-                    made_vars.add((idx, sub))
-                    if sub == 0 and idx not in known:
-                        v = ParsedObject(index=idx, object_type=ObjectType.VAR, where=where)
-                        v.subs[0] = {
-                            **base,
-                            "name": _name(ent) or f"Object {idx:04X}",
-                            "data_type": dt,
-                            "access": Access.RW if direction is PdoMapping.RX else Access.RO,
-                            "pdo_mapping": direction,
-                            "process": True,
-                            "group": area_group(idx),
-                        }
-                        out.append(v)
-                        known.add(idx)
+                if idx < 0x1000 or (idx, sub) in have or idx in known or idx in pdo_indices:
+                    continue  # Padding (index 0, dummy types) or described by the dictionary.
+                dt = _entry_type(ent, bits, where)
+                pdo_ok = dt.is_numeric and (dt.bits == bits or dt is DataType.BOOLEAN)
+                made.setdefault(idx, {})[sub] = {
+                    **base,
+                    "name": _name(ent) or f"Object {idx:04X}:{sub:02X}",
+                    "data_type": dt,
+                    # ETG.2000 leaves SDO access of such entries open; RxPDO data is written.
+                    "access": Access.RWW if direction is PdoMapping.RX else Access.RO,
+                    "pdo_mapping": direction if pdo_ok else PdoMapping.NONE,
+                    "process": True,
+                    "group": area_group(idx),
+                }
+                if not pdo_ok:
+                    warn(
+                        f"{where}: {tag} {_hex(pidx, 4)} entry {_hex(idx, 4)}:{sub}: "
+                        f"{bits} bits is no CiA 301 type; described, not PDO-mappable here"
+                    )
             if pidx not in known:
                 obj = ParsedObject(index=pidx, object_type=ObjectType.RECORD, where=where)
                 obj.entry = {n: entry_default(n) for n in ENTRY_FIELDS}
@@ -977,17 +1137,63 @@ def _pdo_objects(
                 obj.subs = maps
                 out.append(obj)
                 known.add(pidx)
+    for idx, subs in sorted(made.items()):
+        if set(subs) == {0}:
+            v = ParsedObject(index=idx, object_type=ObjectType.VAR, where=where)
+            v.subs[0] = subs[0]
+        else:
+            # Entries at sub-indices: a RECORD whose sub 0 is the highest sub-index (CiA 301).
+            v = ParsedObject(index=idx, object_type=ObjectType.RECORD, where=where)
+            v.entry = {n: entry_default(n) for n in ENTRY_FIELDS}
+            v.entry["name"] = f"Object {idx:04X}"
+            v.subs = {
+                0: {
+                    **base,
+                    "name": "Highest sub-index supported",
+                    "data_type": DataType.UNSIGNED8,
+                    "access": Access.RO,
+                    "default": max(subs),
+                    "group": area_group(idx),
+                },
+                **{s: f for s, f in subs.items() if s},
+            }
+        out.append(v)
+        known.add(idx)
     return out
 
 
-def import_esi(
-    text: str,
-    *,
-    profile_id: str | None = None,
-    product_code: int | None = None,
-    source: str = "<esi>",
-) -> DeviceProfile:
-    """A profile from an ESI file: the first device, or the one with ``product_code``."""
+def _mapped_entries(device: ET.Element) -> dict[str, set[tuple[int, int]]]:
+    """The (index, sub) the device's RxPdo / TxPdo entries map, per direction."""
+    out: dict[str, set[tuple[int, int]]] = {"rx": set(), "tx": set()}
+    for tag, key in (("RxPdo", "rx"), ("TxPdo", "tx")):
+        for pdo in _kids(device, tag):
+            for ent in _kids(pdo, "Entry"):
+                try:
+                    idx = parse_int(_text(ent, "Index") or "0")
+                    sub = parse_int(_text(ent, "SubIndex") or "0")
+                except ValueError:
+                    continue
+                out[key].add((idx, sub))
+    return out
+
+
+def _direction_from_pdos(
+    f: dict[str, Any], key: tuple[int, int], mapped: Mapping[str, set[tuple[int, int]]], where: str
+) -> None:
+    """A read-only object flagged ``PdoMapping R`` that the file maps only in a TxPdo: the
+    flag is the vendor's slip (Elmo Gold: 603Fh error code), the PDOs say T."""
+    if (
+        f.get("access") is Access.RO
+        and f.get("pdo_mapping") is PdoMapping.RX
+        and key in mapped["tx"]
+        and key not in mapped["rx"]
+    ):
+        warn(f"{where} sub {key[1]}: read-only, PdoMapping R but mapped in a TxPdo; taken as T")
+        f["pdo_mapping"] = PdoMapping.TX
+        f["process"] = True
+
+
+def _parse_root(text: str, source: str) -> ET.Element:
     try:
         root = ET.fromstring(text)
     except ET.ParseError as exc:
@@ -997,12 +1203,322 @@ def import_esi(
             path=source,
             hint="an ESI file is XML starting with <EtherCATInfo>; is the file complete?",
         ) from None
-    if _local(root.tag) != "EtherCATInfo":
+    if _local(root.tag) not in ("EtherCATInfo", "EtherCATModule"):
         raise ProfileError(
             f"the root element is <{_local(root.tag)}>, not <EtherCATInfo>",
             path=source,
             hint="this is not an ESI (ETG.2000) file; XDD files end in .xdd",
         )
+    return root
+
+
+@dataclass(frozen=True)
+class EsiDevice:
+    """One device (or, in an ``EtherCATModule`` file, one module) an ESI file describes."""
+
+    number: int
+    name: str
+    product_code: int | None
+    revision: int | None
+
+
+def _code(el: ET.Element | None, attr: str, source: str) -> int | None:
+    raw = el.get(attr) if el is not None else None
+    if not raw:
+        return None
+    try:
+        return parse_int(raw)
+    except ValueError:
+        raise ProfileError(
+            f"Device Type {attr} {raw!r} is not a number",
+            path=source,
+            hint="write it as #x00000001",
+        ) from None
+
+
+def _devices(root: ET.Element) -> list[ET.Element]:
+    if _local(root.tag) == "EtherCATModule":
+        return list(_kids(_kid(root, "Modules"), "Module"))
+    return list(_kids(_kid(_kid(root, "Descriptions"), "Devices"), "Device"))
+
+
+def esi_devices(text: str, *, source: str = "<esi>") -> list[EsiDevice]:
+    """The devices of an ESI file, numbered from 1 (for ``--device N``)."""
+    root = _parse_root(text, source)
+    out = []
+    for n, d in enumerate(_devices(root), start=1):
+        t = _kid(d, "Type")
+        out.append(
+            EsiDevice(
+                number=n,
+                name=_name(d) or ((t.text or "").strip() if t is not None else ""),
+                product_code=_code(t, "ProductCode", source),
+                revision=_code(t, "RevisionNo", source),
+            )
+        )
+    return out
+
+
+def _sync_managers(device: ET.Element) -> list[dict[str, Any]]:
+    """``Sm`` elements (ETG.2000 DeviceType/Sm): number by order, kind from the text."""
+    out: list[dict[str, Any]] = []
+    for n, sm in enumerate(_kids(device, "Sm")):
+        if n > 15:
+            warn(f"more than 16 Sm elements; Sm {n} and later skipped")
+            break
+        entry: dict[str, Any] = {"number": n, "kind": (sm.text or "").strip() or "unused"}
+        for attr, key in (
+            ("StartAddress", "start_address"),
+            ("DefaultSize", "default_size"),
+            ("ControlByte", "control_byte"),
+        ):
+            raw = sm.get(attr)
+            if raw:
+                try:
+                    entry[key] = parse_int(raw)
+                except ValueError:
+                    warn(f"Sm {n} {attr}={raw!r} is not a number; left out")
+        enable = (sm.get("Enable") or "1").strip().lower()
+        entry["enabled"] = enable not in ("0", "false")
+        out.append(entry)
+    return out
+
+
+def _dc_modes(device: ET.Element) -> list[dict[str, Any]]:
+    """``Dc/OpMode`` (ETG.2000 DeviceType/Dc): AssignActivate and the SYNC0/1 times."""
+    out: list[dict[str, Any]] = []
+    for om in _kids(_kid(device, "Dc"), "OpMode"):
+        name = _text(om, "Name") or ""
+        try:
+            mode: dict[str, Any] = {
+                "name": name,
+                "description": _text(om, "Desc"),
+                "assign_activate": parse_int(_text(om, "AssignActivate") or "0"),
+            }
+            for tag, key, factor_key in (
+                ("CycleTimeSync0", "cycle_time_sync0", "cycle_factor_sync0"),
+                ("ShiftTimeSync0", "shift_time_sync0", None),
+                ("CycleTimeSync1", "cycle_time_sync1", "cycle_factor_sync1"),
+            ):
+                el = _kid(om, tag)
+                if el is not None and el.text and el.text.strip():
+                    mode[key] = parse_int(el.text)
+                    if factor_key and el.get("Factor"):
+                        mode[factor_key] = parse_int(el.get("Factor") or "")
+        except ValueError:
+            warn(f"Dc/OpMode {name!r}: a value is not a number; mode skipped")
+            continue
+        out.append(mode)
+    return out
+
+
+def _pdo_rules(device: ET.Element, source: str) -> tuple[dict[str, Any], dict[str, Any] | None]:
+    """The PDO section of an EtherCAT profile, and the default-assignment template (or None).
+
+    ETG.2000 RxPdo/TxPdo: ``Fixed`` (the content cannot change), ``Sm`` (assigned to that
+    sync manager by default, i.e. listed in 1C12h/1C13h), ``Mandatory``.
+    """
+    counts = {"rx": 0, "tx": 0}
+    most_entries, most_bits, all_fixed = 8, 64, True
+    pdos: list[dict[str, Any]] = []
+    assignment: dict[str, list[int]] = {"rx": [], "tx": []}
+    for tag, direction, lo in (("RxPdo", "rx", 0x1600), ("TxPdo", "tx", 0x1A00)):
+        for pos, pdo in enumerate(_kids(device, tag), start=1):
+            pidx = _pdo_index(pdo, tag, source)
+            number = pidx - lo + 1 if lo <= pidx < lo + 0x200 else pos
+            counts[direction] = max(counts[direction], number)
+            entries = list(_kids(pdo, "Entry"))
+            most_entries = max(most_entries, len(entries))
+            bits = 0
+            words: list[str] = []
+            for ent in entries:
+                try:
+                    idx = parse_int(_text(ent, "Index") or "0")
+                    sub = parse_int(_text(ent, "SubIndex") or "0")
+                    n = parse_int(_text(ent, "BitLen") or "0")
+                except ValueError:
+                    continue
+                bits += n
+                words.append(f"reserved:{n}" if idx == 0 else f"0x{idx:04X}:{sub:02X}")
+            most_bits = max(most_bits, bits)
+            all_fixed = all_fixed and (pdo.get("Fixed") or "0").lower() in ("1", "true")
+            if pdo.get("Sm") is not None and 0 < number <= 512:
+                assignment[direction].append(pidx)
+                pdos.append({"direction": direction, "number": number, "entries": words})
+    has_pdos = bool(counts["rx"] or counts["tx"])
+    rules: dict[str, Any] = {
+        "kind": "ethercat",
+        "rpdo_count": counts["rx"],
+        "tpdo_count": counts["tx"],
+        "max_entries": min(most_entries, 255),
+        "max_bits": most_bits,
+        # ETG.1000.6 §5.6.7.4: PDO mapping and assignment change in PreOP only.
+        "mapping_state": "fixed" if has_pdos and all_fixed else "preop",
+        "sync_managers": _sync_managers(device),
+        "dc_modes": _dc_modes(device),
+    }
+    template = None
+    if pdos:
+        template = {
+            "id": "esi-default",
+            "name": "Default assignment (ESI)",
+            "description": "The PDOs the ESI assigns to the sync managers by default "
+            "(RxPdo/TxPdo with an Sm attribute), with their default entries.",
+            "section": "ETG.2000 RxPdo/TxPdo Sm",
+            "pdos": pdos,
+            "assignment": {k: v for k, v in assignment.items() if v},
+        }
+    return rules, template
+
+
+def _template_ok(profile: DeviceProfile, template: Mapping[str, Any]) -> str | None:
+    """Why the default template cannot be kept (an entry not mappable), or None."""
+    for q in template["pdos"]:
+        for w in q["entries"]:
+            if w.startswith("reserved"):
+                continue
+            addr = ObjectAddress.parse(w)
+            spec = profile.spec(addr)
+            if spec is None:
+                return f"{w} is not in the dictionary"
+            ok = spec.pdo_mapping.rx if q["direction"] == "rx" else spec.pdo_mapping.tx
+            if not ok:
+                return f"{w} {spec.name} is not mappable in {q['direction']}"
+    return None
+
+
+def _pick_device(
+    devices: list[ET.Element],
+    device: int | None,
+    product_code: int | None,
+    source: str,
+) -> tuple[int, ET.Element]:
+    if device is not None:
+        if not 1 <= device <= len(devices):
+            raise ProfileError(
+                f"no device {device}: the file describes {len(devices)}",
+                path=source,
+                hint=f"choose --device 1..{len(devices)} "
+                "(servodesk profiles --import FILE --list-devices lists them)",
+            )
+        return device, devices[device - 1]
+    if product_code is not None:
+        for n, d in enumerate(devices, start=1):
+            if _code(_kid(d, "Type"), "ProductCode", source) == product_code:
+                return n, d
+        raise ProfileError(
+            f"no device with product code {_hex(product_code)}",
+            path=source,
+            hint="leave the product code out to import the first device",
+        )
+    return 1, devices[0]
+
+
+def _is_true(text: str | None) -> bool:
+    return (text or "").strip().lower() in ("1", "true")
+
+
+def _shift_slot(pdo: ET.Element, pdo_offset: int, index_offset: int) -> None:
+    """Move the ``DependOnSlot`` indices of a module's PDO to its slot (ETG.2000 Slots:
+    SlotPdoIncrement for the PDO's index, SlotIndexIncrement for the objects it maps)."""
+    for el, offset in [(_kid(pdo, "Index"), pdo_offset)] + [
+        (_kid(ent, "Index"), index_offset) for ent in _kids(pdo, "Entry")
+    ]:
+        if el is None or not _is_true(el.get("DependOnSlot")) or not el.text:
+            continue
+        try:
+            el.text = _hex(parse_int(el.text) + offset, 4)
+        except ValueError:
+            continue  # Reported where the entry is read.
+
+
+def _with_default_modules(device: ET.Element, shared: ET.Element | None) -> ET.Element:
+    """The device as delivered: each slot's default module (``ModuleIdent Default="1"``)
+    adds its PDOs and dictionary objects, moved to the slot (slot n: n x the increments).
+    The device element itself is left as parsed; a copy is returned when a slot adds any."""
+    slots = _kid(device, "Slots")
+    if slots is None:
+        return device
+    modules: dict[int, ET.Element] = {}
+    for m in [*_kids(_kid(device, "Modules"), "Module"), *_kids(shared, "Module")]:
+        t = _kid(m, "Type")
+        try:
+            ident = parse_int((t.get("ModuleIdent") or "") if t is not None else "")
+        except ValueError:
+            continue
+        modules.setdefault(ident, m)
+    try:
+        pdo_inc = parse_int(slots.get("SlotPdoIncrement") or "0")
+        idx_inc = parse_int(slots.get("SlotIndexIncrement") or "0")
+    except ValueError:
+        warn("Slots: SlotPdoIncrement/SlotIndexIncrement is not a number; no module imported")
+        return device
+    out: ET.Element | None = None
+    placed: list[str] = []
+    for n, slot in enumerate(_kids(slots, "Slot")):
+        default = next((m for m in _kids(slot, "ModuleIdent") if _is_true(m.get("Default"))), None)
+        if default is None or not default.text:
+            continue
+        try:
+            module = modules.get(parse_int(default.text))
+        except ValueError:
+            module = None
+        if module is None:
+            warn(f"slot {n + 1}: default module {default.text.strip()} is not described")
+            continue
+        if out is None:
+            out = copy.deepcopy(device)
+        for tag in ("RxPdo", "TxPdo"):
+            for pdo in _kids(module, tag):
+                moved = copy.deepcopy(pdo)
+                _shift_slot(moved, n * pdo_inc, n * idx_inc)
+                out.append(moved)
+        mdict = next(
+            (d for d in (_kid(p, "Dictionary") for p in _kids(module, "Profile")) if d is not None),
+            None,
+        )
+        if mdict is not None and any(True for _ in _kids(_kid(mdict, "Objects"), "Object")):
+            warn(
+                f"slot {n + 1}: the dictionary objects of module {_text(module, 'Type')!r} "
+                "are not imported (only its PDOs)"
+            )
+        placed.append(f"slot {n + 1}: {_text(module, 'Type') or default.text.strip()}")
+    if placed:
+        warn("default modules imported with their PDOs: " + "; ".join(placed))
+    return out if out is not None else device
+
+
+def _slot_notes(device: ET.Element, shared: ET.Element | None) -> None:
+    """Modules and slots (ETG.2000 Modules/Slots): reported, their objects not imported.
+
+    Modules are listed in the device or, shared by all devices, in Descriptions/Modules.
+    """
+    slots = list(_kids(_kid(device, "Slots"), "Slot"))
+    modules = list(_kids(_kid(device, "Modules"), "Module"))
+    if slots and not modules:
+        modules = list(_kids(shared, "Module"))
+    if modules or slots:
+        names = ", ".join(_text(m, "Type") or "?" for m in modules[:8])
+        more = f" and {len(modules) - 8} more" if len(modules) > 8 else ""
+        warn(
+            f"{len(modules)} module(s) ({names}{more}) and {len(slots)} slot(s): the device's "
+            "own objects and PDOs and the slots' default modules are imported, no other module"
+        )
+
+
+def import_esi(
+    text: str,
+    *,
+    profile_id: str | None = None,
+    product_code: int | None = None,
+    device: int | None = None,
+    source: str = "<esi>",
+) -> DeviceProfile:
+    """A profile from an ESI file: the first device, device number ``device`` (from 1), or
+    the one with ``product_code``. Whatever is not imported is reported with
+    :func:`~servodesk.devdesc._common.warn`."""
+    root = _parse_root(text, source)
+    is_module_file = _local(root.tag) == "EtherCATModule"
     vendor = _kid(root, "Vendor")
     std: dict[str, Any] = {"fieldbus": "ethercat"}
     ident: dict[str, Any] = {}
@@ -1020,61 +1536,75 @@ def import_esi(
         vname = _name(vendor)
         if vname:
             std["vendor"] = vname
-    devices = list(_kids(_kid(_kid(root, "Descriptions"), "Devices"), "Device"))
+    devices = _devices(root)
     if not devices:
         raise ProfileError(
             "no Descriptions/Devices/Device element",
             path=source,
             hint="the ESI must describe at least one device",
         )
-    device = devices[0]
-    codes: list[int] = []
-    for d in devices:
-        t = _kid(d, "Type")
-        raw = t.get("ProductCode") if t is not None else None
-        try:
-            code = parse_int(raw) if raw else None
-        except ValueError:
-            raise ProfileError(
-                f"Device Type ProductCode {raw!r} is not a number",
-                path=source,
-                hint="write it as #x00000001",
-            ) from None
-        if product_code is not None and code == product_code:
-            device = d
-        if d is device and code is not None:
-            codes = [code]
-    if product_code is not None and codes != [product_code]:
-        raise ProfileError(
-            f"no device with product code {_hex(product_code)}",
-            path=source,
-            hint="leave the product code out to import the first device",
+    number, dev = _pick_device(devices, device, product_code, source)
+    t = _kid(dev, "Type")
+    code = _code(t, "ProductCode", source)
+    revision = _code(t, "RevisionNo", source)
+    if is_module_file:
+        # A module (ETG.2000 EtherCATModule) is part of a modular slave, never a slave: no
+        # identity, so detection never picks it for a device on the line.
+        ident = {}
+        warn(
+            f"an EtherCATModule file: imported module {number} of {len(devices)}; a module is "
+            "part of a modular slave, so the profile has no identity"
         )
-    if codes:
-        ident["product_codes"] = codes
+    elif code is not None:
+        ident["product_codes"] = [code]
+        same_code = [d for d in devices if _code(_kid(d, "Type"), "ProductCode", source) == code]
+        if len(same_code) > 1 and revision is not None:
+            # Several revisions of one product: detection tells them apart by revision.
+            ident["revision_min"] = ident["revision_max"] = revision
     if ident:
         std["identity"] = ident
-    dev_name = _name(device)
+    dev_name = _name(dev) or ((t.text or "").strip() if t is not None else "")
     if dev_name:
         std["name"] = dev_name
+    others = sorted(
+        {
+            (n.text or "").strip()
+            for n in _kids(dev, "Name")
+            if n.get("LcId") not in (None, "1033") and n.text and n.text.strip() != dev_name
+        }
+    )
+    what = "module" if is_module_file else "device"
+    desc = f"Imported from {source.rsplit('/', 1)[-1]}, {what} {number} of {len(devices)}"
+    if code is not None:
+        desc += f" (product code {_hex(code)}"
+        desc += f", revision {_hex(revision)})" if revision is not None else ")"
+    if others:
+        desc += ". Other names: " + "; ".join(others)
+    std["description"] = desc + "."
+    if not is_module_file:
+        shared_modules = _kid(_kid(root, "Descriptions"), "Modules")
+        _slot_notes(dev, shared_modules)
+        dev = _with_default_modules(dev, shared_modules)
     dictionary = None
-    for prof in _kids(device, "Profile"):
+    for prof in _kids(dev, "Profile"):
         dictionary = _kid(prof, "Dictionary")
         if dictionary is not None:
             break
     types = _Types({_name(d): d for d in _kids(_kid(dictionary, "DataTypes"), "DataType")})
     parsed: list[ParsedObject] = []
     esi_vars: dict[int, dict[int, _EsiVar]] = {}
+    mapped = _mapped_entries(dev)
     for el in _kids(_kid(dictionary, "Objects"), "Object"):
         obj, vars_ = _read_object(types, el, source)
         for sub, v in vars_.items():
             obj.subs[sub] = _fields(v, obj.index, f"{obj.where} sub {sub}")
+            _direction_from_pdos(obj.subs[sub], (obj.index, sub), mapped, obj.where)
         parsed.append(obj)
         esi_vars[obj.index] = vars_
     # servodesk's own extras (only in files servodesk wrote).
     meta: dict[str, Any] | None = None
     sd = None
-    for vs in _kids(device, "VendorSpecific"):
+    for vs in _kids(dev, "VendorSpecific"):
         sd = _kid(vs, "Servodesk")
         if sd is not None:
             break
@@ -1113,23 +1643,36 @@ def import_esi(
                 o.entry.update({k: v for k, v in data.items() if k in ENTRY_FIELDS})
     known = {o.index for o in parsed}
     have = {(o.index, s) for o in parsed for s in o.subs}
-    parsed.extend(_pdo_objects(device, known, have, source))
+    parsed.extend(_pdo_objects(dev, known, have, source))
     if not parsed:
-        raise ProfileError(
-            "the device has neither a Profile/Dictionary nor RxPdo/TxPdo entries",
-            path=source,
-            hint="servodesk needs the CoE object dictionary; export the ESI with its dictionary",
+        # An I/O coupler (Beckhoff EK1100) has no mailbox, no dictionary and no process data
+        # of its own: the profile is its identity only.
+        warn(
+            f"{what} {dev_name or number} has neither a Profile/Dictionary nor RxPdo/TxPdo: "
+            "the profile holds its identity only"
         )
     parsed.sort(key=lambda o: o.index)
     objects = [build_entry(o) for o in parsed]
+    template = None
     if meta is None:
-        std["pdo"] = {
-            "rpdo_count": sum(1 for _ in _kids(device, "RxPdo")),
-            "tpdo_count": sum(1 for _ in _kids(device, "TxPdo")),
-            "mapping_state": "preop",
-        }
+        std["pdo"], template = _pdo_rules(dev, source)
     pid = profile_id or slug(std.get("name") or "imported")
     if meta is not None:
         std.pop("identity", None)
         std.pop("fieldbus", None)
-    return make_profile(profile_id=pid, meta=meta, standard=std, objects=objects, where=source)
+        std.pop("description", None)
+    profile = make_profile(profile_id=pid, meta=meta, standard=std, objects=objects, where=source)
+    if template is not None:
+        why = _template_ok(profile, template)
+        if why is None:
+            rules = {**std["pdo"], "templates": [template]}
+            profile = make_profile(
+                profile_id=pid,
+                meta=meta,
+                standard={**std, "pdo": rules},
+                objects=objects,
+                where=source,
+            )
+        else:
+            warn(f"the default PDO assignment is not offered as a template: {why}")
+    return profile

@@ -22,6 +22,7 @@ from servodesk.devdesc._common import (
     make_profile,
     parse_int,
     slug,
+    warn,
 )
 from servodesk.devdesc.eds import _var_fields
 from servodesk.domain.profile import DeviceProfile, ObjectType, PdoMapping
@@ -60,7 +61,76 @@ def _labels(root: ET.Element) -> dict[str, str]:
     return out
 
 
-def _keys(el: ET.Element, name: str, where: str) -> dict[str, str]:
+#: IEC 61131-3 type elements of an ApplicationProcess parameter -> CiA 301 data type
+#: (CiA 311 §6.4.4.3, table "simple data types"; BYTE/WORD/... are bit strings of that size).
+_IEC_TYPES: dict[str, int] = {
+    "BOOL": 0x0001,
+    "SINT": 0x0002,
+    "INT": 0x0003,
+    "DINT": 0x0004,
+    "USINT": 0x0005,
+    "UINT": 0x0006,
+    "UDINT": 0x0007,
+    "REAL": 0x0008,
+    "STRING": 0x0009,
+    "WSTRING": 0x000B,
+    "LREAL": 0x0011,
+    "LINT": 0x0015,
+    "ULINT": 0x001B,
+    "BYTE": 0x0005,
+    "CHAR": 0x0005,
+    "WORD": 0x0006,
+    "DWORD": 0x0007,
+    "LWORD": 0x001B,
+    "BITSTRING": 0x000A,
+}
+#: CiA 311 parameter ``access`` -> CiA 306 access type.
+_IEC_ACCESS: dict[str, str] = {
+    "const": "const",
+    "read": "ro",
+    "write": "wo",
+    "readwrite": "rw",
+    "readwriteinput": "rwr",
+    "readwriteoutput": "rww",
+    "noaccess": "ro",
+}
+
+
+def _parameters(root: ET.Element) -> dict[str, ET.Element]:
+    """uniqueID -> ApplicationProcess ``parameter`` element."""
+    return {
+        uid: el
+        for el in root.iter()
+        if _local(el.tag) == "parameter" and (uid := el.get("uniqueID"))
+    }
+
+
+def _from_parameter(param: ET.Element | None, keys: dict[str, str], where: str) -> None:
+    """Fill the keys the object leaves out from the parameter its uniqueIDRef names.
+
+    CiA 311 §6.4.4: a CANopenObject without dataType/accessType/defaultValue takes them from
+    the referenced ApplicationProcess parameter (CANopenEditor writes XDD files this way).
+    """
+    if param is None:
+        return
+    if "datatype" not in keys:
+        for c in param:
+            code = _IEC_TYPES.get(_local(c.tag))
+            if code is not None:
+                keys["datatype"] = f"0x{code:04X}"
+                break
+    if "accesstype" not in keys:
+        keys["accesstype"] = _IEC_ACCESS.get(param.get("access", "read").lower(), "ro")
+    if "defaultvalue" not in keys:
+        for c in param:
+            if _local(c.tag) == "defaultValue" and c.get("value") is not None:
+                keys["defaultvalue"] = c.get("value", "")
+                break
+
+
+def _keys(
+    el: ET.Element, name: str, where: str, params: dict[str, ET.Element] | None = None
+) -> dict[str, str]:
     """The object's attributes as the (lower-case) EDS keys the EDS reader understands."""
     a = el.attrib
     keys: dict[str, str] = {"parametername": name}
@@ -82,11 +152,23 @@ def _keys(el: ET.Element, name: str, where: str) -> dict[str, str]:
             hint="CiA 311 allows no, default, optional, RPDO and TPDO",
         )
     keys["pdomapping"] = "0" if pdo == "no" else "1"
+    if params is not None and ("datatype" not in keys or "accesstype" not in keys):
+        _from_parameter(params.get(el.get("uniqueIDRef") or ""), keys, where)
+    if "datatype" not in keys:
+        warn(f"{where}: no dataType and no parameter giving one; read as DOMAIN")
+        keys["datatype"] = "0x000F"
+    if "accesstype" not in keys:
+        keys["accesstype"] = "ro"  # CiA 311: a parameter's access defaults to read.
     return keys
 
 
 def _var(
-    el: ET.Element, index: int, sub: int, labels: dict[str, str], where: str
+    el: ET.Element,
+    index: int,
+    sub: int,
+    labels: dict[str, str],
+    where: str,
+    params: dict[str, ET.Element] | None = None,
 ) -> dict[str, Any]:
     name = el.get("name") or labels.get(el.get("uniqueIDRef") or "", "")
     if not name:
@@ -94,7 +176,7 @@ def _var(
             f"{where}: no name and no uniqueIDRef to a labelled parameter",
             hint="give the object a name= attribute",
         )
-    fields = _var_fields(_keys(el, name, where), index, where, where=where)
+    fields = _var_fields(_keys(el, name, where, params), index, where, where=where)
     direction = _PDO.get(el.get("PDOmapping", "").strip().lower())
     if direction is not None:
         fields["pdo_mapping"] = direction
@@ -126,6 +208,7 @@ def import_xdd(text: str, *, profile_id: str | None = None, source: str = "<xdd>
             hint="the XDD needs the ProfileBody_CommunicationNetwork_CANopen object list",
         )
     labels = _labels(root)
+    params = _parameters(root)
     parsed: list[ParsedObject] = []
     for el in (c for c in lists[0] if _local(c.tag) == "CANopenObject"):
         raw_index = el.get("index", "")
@@ -148,7 +231,7 @@ def import_xdd(text: str, *, profile_id: str | None = None, source: str = "<xdd>
             ) from None
         obj = ParsedObject(index=index, object_type=otype, where=where)
         if otype is ObjectType.VAR:
-            obj.subs[0] = _var(el, index, 0, labels, where)
+            obj.subs[0] = _var(el, index, 0, labels, where, params)
         else:
             obj.entry = {n: entry_default(n) for n in ENTRY_FIELDS}
             obj.entry["name"] = el.get("name") or labels.get(el.get("uniqueIDRef") or "", "")
@@ -161,7 +244,7 @@ def import_xdd(text: str, *, profile_id: str | None = None, source: str = "<xdd>
                         f"{where} subIndex={raw_sub!r}: not a hex sub-index",
                         hint='write subIndex="01" (hex, no prefix)',
                     ) from None
-                obj.subs[sub] = _var(sel, index, sub, labels, f"{where} sub {sub:02X}")
+                obj.subs[sub] = _var(sel, index, sub, labels, f"{where} sub {sub:02X}", params)
         parsed.append(obj)
     std: dict[str, Any] = {"fieldbus": "canopen"}
     ident: dict[str, Any] = {}

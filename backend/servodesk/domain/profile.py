@@ -492,6 +492,39 @@ class PdoTemplate(BaseModel):
     telegram: int | None = None
 
 
+class SyncManagerSpec(BaseModel):
+    """One EtherCAT sync manager as the ESI describes it (ETG.2000 DeviceType/Sm)."""
+
+    model_config = _STRICT
+
+    #: SM number (the order of the ``Sm`` elements: 0 = first).
+    number: int = Field(ge=0, le=15)
+    #: What it carries: MBoxOut, MBoxIn, Outputs, Inputs (the Sm element's text).
+    kind: str
+    start_address: int | None = Field(default=None, ge=0, le=0xFFFF)
+    default_size: int | None = Field(default=None, ge=0, le=0xFFFF)
+    control_byte: int | None = Field(default=None, ge=0, le=0xFF)
+    enabled: bool = True
+
+
+class DcOpMode(BaseModel):
+    """One distributed-clock operation mode of an EtherCAT slave (ETG.2000 Dc/OpMode)."""
+
+    model_config = _STRICT
+
+    name: str
+    description: str | None = None
+    #: Value of the AssignActivate register 0x0980 (0x0300: SYNC0 active, 0: free run).
+    assign_activate: int = Field(ge=0, le=0xFFFF)
+    #: CycleTimeSync0/ShiftTimeSync0/CycleTimeSync1 as the file states them (ns; the cycle
+    #: factor of the file is kept in ``cycle_factor_sync0``).
+    cycle_time_sync0: int | None = None
+    cycle_factor_sync0: int | None = None
+    shift_time_sync0: int | None = None
+    cycle_time_sync1: int | None = None
+    cycle_factor_sync1: int | None = None
+
+
 class PdoRules(BaseModel):
     """Process-data limits and procedure of the family (see docs/pdo.md)."""
 
@@ -527,6 +560,9 @@ class PdoRules(BaseModel):
     section: str | None = None
     telegrams: tuple[PdoTelegram, ...] = ()
     templates: tuple[PdoTemplate, ...] = ()
+    #: EtherCAT: the sync managers and distributed-clock modes from the ESI (empty: unknown).
+    sync_managers: tuple[SyncManagerSpec, ...] = ()
+    dc_modes: tuple[DcOpMode, ...] = ()
 
     _ranges = field_validator(
         "rx_transmission_types", "tx_transmission_types", "rx_timer_types", "tx_timer_types"

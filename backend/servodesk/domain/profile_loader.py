@@ -423,12 +423,23 @@ class ProfileCatalog:
         product_code: int | None,
         revision: int | None,
         device_name: str | None = None,
+        *,
+        fieldbus: str | None = None,
     ) -> DeviceProfile | None:
-        """The profile whose identity matches 1018h (most specific first)."""
+        """The profile whose identity matches 1018h (most specific first); with ``fieldbus``,
+        only profiles of that fieldbus are candidates."""
         best: tuple[int, DeviceProfile] | None = None
         for p in self.all():
+            if fieldbus is not None and p.fieldbus != fieldbus:
+                continue
             if p.identity.matches(vendor_id, product_code, revision, device_name):
-                score = (p.identity.vendor_id is not None) + bool(p.identity.product_codes) * 2
+                # A revision range (one of several revisions of an ESI) is the most specific.
+                score = (
+                    (p.identity.vendor_id is not None)
+                    + bool(p.identity.product_codes) * 2
+                    + (p.identity.revision_min is not None or p.identity.revision_max is not None)
+                    * 4
+                )
                 if best is None or score > best[0]:
                     best = (score, p)
         return best[1] if best else None

@@ -34,10 +34,11 @@ state reads "unknown" and a state request times out.
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from servodesk.domain.address import ObjectAddress
@@ -50,8 +51,16 @@ from servodesk.errors import (
     NotFoundError,
     ValidationError,
 )
-from servodesk.links.base import DriveLink, Identity, LinkParams, object_identity
+from servodesk.links.base import (
+    QUICK_STOP_WORD,
+    DriveLink,
+    Identity,
+    LinkParams,
+    object_identity,
+)
 from servodesk.nic import check_name, require
+
+log = logging.getLogger(__name__)
 
 try:
     import pysoem
@@ -81,6 +90,10 @@ STATE_TIMEOUT_US = 500_000
 #: state with every status, and pysoem's read holds the GIL while it waits (module doc), up to
 #: its time-out (about 17 ms) when nobody answers.
 STATE_MAX_AGE = 1.0
+#: How long the dead-man's stop waits for a request in flight on the line (s): longer than
+#: one SDO's time-out at the default 0.5 s, short enough that a line stuck in a call does
+#: not hold the stop back for long (it then logs and the loop's stop follows).
+STOP_LOCK_S = 0.6
 
 
 @dataclass
@@ -262,6 +275,37 @@ class EthercatLink(DriveLink):
     def watchdog(self) -> str | None:
         return self._watchdog_text
 
+    # The dead-man's stop, beside the event loop ------------------------------------------
+
+    def stop_frame(self) -> Callable[[], None] | None:
+        """A CoE SDO download of 6040h:00 = 0002h (quick stop, CiA 402-2 §6.2.1 table 28)
+        from the dead-man's thread, under the line's lock.
+
+        SOEM keeps one mailbox exchange per slave, so every access takes ``shared.lock``; the
+        loop's own SDOs hold it only from their executor threads, never while the loop waits,
+        so a held event loop does not hold it. The thread waits at most
+        :data:`STOP_LOCK_S` for a request in flight (a running SDO ends within its time-out)
+        and then sends; pysoem's SDO services release the GIL while they wait for the slave.
+        While cyclic process data carries 6040h, the next cycle's outputs command the drive
+        again: the orderly stop the loop sends next goes through the cyclic exchange."""
+        if self._shared is None or self._slave is None:
+            return None
+        shared, slave = self._shared, self._slave
+        word = QUICK_STOP_WORD.to_bytes(2, "little")
+
+        def send() -> None:
+            if not shared.lock.acquire(timeout=STOP_LOCK_S):
+                log.warning("dead-man stop: the EtherCAT line stayed busy %.1f s", STOP_LOCK_S)
+                return
+            try:
+                slave.sdo_write(0x6040, 0, word, release_gil=True)
+            except Exception as exc:  # The loop's orderly stop follows and reports.
+                log.warning("dead-man stop: the quick stop SDO failed: %s", exc)
+            finally:
+                shared.lock.release()
+
+        return send
+
     def configure_sync(self, mode: str, period_s: float) -> None:
         """Synchronise the slave's process data by ``mode`` ("freerun" or "dc", SYNC0 every
         ``period_s``) from its next transition to SAFE-OP; a slave already in SAFE-OP or OP
@@ -353,7 +397,31 @@ class EthercatLink(DriveLink):
         return exc
 
     async def identity(self) -> Identity:
-        return await object_identity(self)
+        """CoE 1018h/1008h-100Ah, completed from the SII (the slave's EEPROM, read by SOEM's
+        config_init: vendor id, product code, revision at words 8-13, the device name from
+        the SII strings; ETG.1000.6 §5.4, ETG.2010). A slave without 1008h, or one that
+        aborts 1018h:03, is still identified; where CoE gives a value, CoE wins."""
+        ident = await object_identity(self)
+        vendor, product, revision, name = self._sii_identity()
+        return replace(
+            ident,
+            vendor_id=ident.vendor_id if ident.vendor_id is not None else vendor,
+            product_code=ident.product_code if ident.product_code is not None else product,
+            revision=ident.revision if ident.revision is not None else revision,
+            device_name=ident.device_name or name,
+        )
+
+    def _sii_identity(self) -> tuple[int | None, int | None, int | None, str | None]:
+        """(vendor, product code, revision, name) as SOEM cached them from the SII."""
+        _, slave = self._master()
+
+        def num(attr: str) -> int | None:
+            v = getattr(slave, attr, None)
+            return int(v) if isinstance(v, int) else None
+
+        raw = getattr(slave, "name", None)
+        name = raw.decode("latin-1", "replace") if isinstance(raw, bytes) else raw
+        return num("man"), num("id"), num("rev"), (name or "").strip() or None
 
     def _network_state(self) -> str:
         """The slave's AL state (AL status 0130h) as SOEM reads it: init, preop, boot,

@@ -19,7 +19,7 @@ import asyncio
 import time
 from typing import Any
 
-from servodesk.domain import cia402
+from servodesk.domain import cia402, diagnosis
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import coerce_int
 from servodesk.domain.profile import DeviceProfile, ErrorEntry
@@ -118,7 +118,9 @@ async def _history(session: Session) -> list[dict[str, Any]]:
             code = raw & 0xFFFF
             out.append({"source": "1003h", "index": sub, **_described(profile, code), "raw": raw})
     hist = profile.quirk("alarm_history")
-    if isinstance(hist, dict) and coerce_int(hist.get("index", 0)) != ERROR_HISTORY:
+    if isinstance(hist, dict) and hist.get("format") == "etg1020":
+        out.extend(await _diagnosis_history(session, hist))
+    elif isinstance(hist, dict) and coerce_int(hist.get("index", 0)) != ERROR_HISTORY:
         index = coerce_int(hist["index"])
         first = coerce_int(hist.get("subindex_first", 1))
         stride = coerce_int(hist.get("index_stride", 0))
@@ -136,6 +138,39 @@ async def _history(session: Session) -> list[dict[str, Any]]:
             if tsub is not None:
                 item["time_h"] = await _int(session, ObjectAddress(idx, coerce_int(tsub)))
             out.append(item)
+    return out
+
+
+async def _diagnosis_history(session: Session, hist: dict[str, Any]) -> list[dict[str, Any]]:
+    """An EtherCAT drive's diagnosis history (ETG.1020 10F3h; HIWIN 000 §2.7: its faults are
+    emergency messages): the messages of the ring, newest first (sub 02h names the newest).
+    Messages that are no emergency error code are left out; an empty one answers an abort."""
+    profile = session.profile
+    index = coerce_int(hist["index"])
+    first = coerce_int(hist.get("subindex_first", 6))
+    count = coerce_int(hist.get("count", 1))
+    newest = await _int(session, ObjectAddress(index, 2)) or 0
+    if not first <= newest < first + count:
+        return []
+    out: list[dict[str, Any]] = []
+    for i in range(count):
+        sub = first + (newest - first - i) % count
+        try:
+            raw = bytes.fromhex((await session.read_object(ObjectAddress(index, sub))).raw_hex)
+        except ServodeskError:
+            continue  # Not written yet: no data.
+        msg = diagnosis.parse(raw)
+        code = msg.emergency_code if msg is not None else None
+        if msg is None or code is None:
+            continue
+        out.append(
+            {
+                "source": f"0x{index:04X}:{sub:02X}",
+                "index": len(out) + 1,
+                **_described(profile, code),
+                "raw": msg.diag_code,
+            }
+        )
     return out
 
 
@@ -189,8 +224,25 @@ async def _in_fault(session: Session) -> bool:
 
 
 async def reset(session: Session, client: str | None = None) -> dict[str, Any]:
-    """Run the family's fault-reset procedure, then answer the alarms."""
+    """Run the family's fault-reset procedure when the drive is in Fault, then answer the
+    alarms; ``message`` says what was done.
+
+    CiA 402-2 §6.2.1 (IEC 61800-7-201): the fault reset (controlword bit 7, rising edge) is
+    transition 15, Fault -> Switch on disabled; in any other state it has no meaning. The
+    procedure writes the controlword (bit 7 low, high, low): 0000h is "disable voltage", so on
+    an enabled drive it would switch the power stage off. Outside Fault nothing is sent.
+    """
     profile = session.profile
+    sw = await _int(session, STATUSWORD)
+    state = cia402.decode_state(sw) if sw is not None else cia402.State.UNKNOWN
+    if state is not cia402.State.FAULT:
+        out = await alarms(session)
+        seen = "its statusword (6041h) is not readable" if sw is None else f"it is in {state.value}"
+        out["message"] = (
+            f"No fault reset sent: {seen}, not in Fault; a fault reset acts only in Fault "
+            "(CiA 402-2 §6.2.1) and the drive's state is unchanged."
+        )
+        return out
     # Bit 7 low, then high (the rising edge resets), then low again so the next command is
     # taken (003 §4-4-2: "return bit 7 to 0 before the next command"). The session keeps the
     # family's minimum controlword interval (smartris 40 ms).
@@ -212,7 +264,13 @@ async def reset(session: Session, client: str | None = None) -> dict[str, Any]:
                     break
             except ServodeskError:
                 continue  # Still booting.
-    return await alarms(session)
+    out = await alarms(session)
+    out["message"] = (
+        "Fault reset sent; the fault is still there: remove its cause first."
+        if out["current"] is not None and out["state"] == cia402.State.FAULT.value
+        else f"Fault reset done: the drive is in {out['state']}."
+    )
+    return out
 
 
 async def clear_history(

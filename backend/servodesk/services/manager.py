@@ -28,6 +28,25 @@ from servodesk.services.session import Session
 log = logging.getLogger(__name__)
 
 GENERIC = "cia402-generic"
+#: The fallback of an EtherCAT slave no EtherCAT profile matches: CoE has no 1400h/1800h/1017h,
+#: which cia402-generic (CANopen) expects.
+GENERIC_ETHERCAT = "cia402-ethercat"
+
+
+def detection_fieldbus(fieldbus: str) -> str | None:
+    """Which profiles may be chosen for a device found on ``fieldbus`` (None: any).
+
+    An EtherCAT slave gets an EtherCAT profile (a shipped family or an imported ESI): a CANopen
+    profile's PDO communication objects do not exist over CoE. A CANopen link also reaches the
+    simulated twins of other fieldbuses' families (services/simulation.py), so it takes any.
+    """
+    return fieldbus if fieldbus == "ethercat" else None
+
+
+def generic_for(fieldbus: str) -> str:
+    """The profile used when none matches the identity read on ``fieldbus``."""
+    return GENERIC_ETHERCAT if fieldbus == "ethercat" else GENERIC
+
 
 #: What the UI says about a twin reached over CANopen though its family speaks another fieldbus.
 _TWIN_NOTE = "{name} speaks {fieldbus}; its simulated twin runs on CANopen in this session."
@@ -92,12 +111,16 @@ class SessionManager:
                 await self._probe(link, params)
                 identity = await link.identity()
                 note = None
-                profile = chosen or self._detect(identity) or await self._detect_by_objects(link)
+                profile = (
+                    chosen
+                    or self._detect(identity, link.fieldbus)
+                    or await self._detect_by_objects(link)
+                )
                 if profile is None:
-                    profile = self.catalog.get(GENERIC)
+                    profile = self.catalog.get(generic_for(link.fieldbus))
                     note = (
                         f"No profile matches vendor 0x{identity.vendor_id or 0:08X} product "
-                        f"0x{identity.product_code or 0:08X}; using the generic CiA 402 profile."
+                        f"0x{identity.product_code or 0:08X}; using {profile.name}."
                     )
                 if profile.fieldbus != link.fieldbus:
                     # The profile's name carries the brand ("SMC LECSN-T ..."): the vendor
@@ -137,14 +160,21 @@ class SessionManager:
         except ObjectAccessError:
             pass  # It answered (with an abort): the device is there.
 
-    def _detect(self, ident: Identity) -> DeviceProfile | None:
+    def _detect(self, ident: Identity, fieldbus: str) -> DeviceProfile | None:
         return self.catalog.match(
-            ident.vendor_id, ident.product_code, ident.revision, ident.device_name
+            ident.vendor_id,
+            ident.product_code,
+            ident.revision,
+            ident.device_name,
+            fieldbus=detection_fieldbus(fieldbus),
         )
 
     async def _detect_by_objects(self, link: DriveLink) -> DeviceProfile | None:
         """Profiles whose identity lives elsewhere than 1018h name the object to read."""
+        only = detection_fieldbus(link.fieldbus)
         for p in self.catalog.all():
+            if only is not None and p.fieldbus != only:
+                continue
             where = p.identity.vendor_id_object
             if not where or p.identity.vendor_id is None:
                 continue
@@ -237,7 +267,7 @@ class SessionManager:
                     ident = Identity()
                 finally:
                     await link.close()
-            prof = self._detect(ident)
+            prof = self._detect(ident, link_type.fieldbus)
             out.append(
                 {
                     "node_id": node_id,

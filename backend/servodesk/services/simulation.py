@@ -21,7 +21,7 @@ from typing import Any
 from servodesk.domain.profile_loader import ProfileCatalog
 from servodesk.errors import ServodeskError
 from servodesk.links.base import LinkParams
-from servodesk.services.manager import SessionManager
+from servodesk.services.manager import GENERIC_ETHERCAT, SessionManager
 from servodesk.settings import Settings
 
 log = logging.getLogger(__name__)
@@ -37,6 +37,9 @@ def simulated_drives(catalog: ProfileCatalog, only: str = "") -> list[tuple[str,
         for pid in wanted:
             catalog.get(pid)  # An unknown id fails here with the list of known ones.
         ids = wanted
+    else:
+        # The generic EtherCAT profile is a detection fallback, not a family: no twin of it.
+        ids = [p for p in ids if p != GENERIC_ETHERCAT]
     ordered = [p for p in PREFERRED if p in ids] + [p for p in ids if p not in PREFERRED]
     return [(pid, n + 1) for n, pid in enumerate(ordered)]
 

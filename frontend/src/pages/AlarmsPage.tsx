@@ -32,7 +32,7 @@ export function AlarmsPage({ sid }: PageProps) {
   const [busy, setBusy] = useState<'reset' | 'clear' | null>(null);
   const [confirmClear, setConfirmClear] = useState(false);
   // Fault reset and clearing the history change the drive: they need control.
-  const noControl = useWriteGate(sid).write;
+  const noControl = useWriteGate(sid, { write: 'acknowledge_alarms' }).write;
 
   const load = useCallback(() => {
     operationApi.alarms(sid).then(
@@ -71,7 +71,7 @@ export function AlarmsPage({ sid }: PageProps) {
       notify({
         kind: a.current ? 'warning' : 'info',
         title: a.current ? 'Fault reset: the fault is still there' : 'Fault reset done',
-        message: a.current ? `${a.current.code_hex} ${a.current.name}: remove the cause first` : `the drive is in ${a.state}`,
+        message: a.current ? `${a.current.code_hex} ${a.current.name}: remove the cause first` : a.message ?? `the drive is in ${a.state}`,
         detail: null,
         hint: a.current?.remedy ?? null,
       });
@@ -172,7 +172,7 @@ export function AlarmsPage({ sid }: PageProps) {
             <div className="muted">Remove the cause first: a fault whose cause is still there comes back at once.</div>
           </div>
         </div>
-        <ControlNote sid={sid} what="Fault reset and Clear history are disabled" />
+        <ControlNote sid={sid} what="Fault reset and Clear history are disabled" rights={{ write: 'acknowledge_alarms' }} />
         {actionFailure && <FailureBox f={actionFailure} testid="alarms-error" />}
       </section>
 
