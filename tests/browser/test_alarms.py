@@ -107,3 +107,48 @@ def test_following_error_shown_and_reset(operator: Page) -> None:
     expect(page.get_by_test_id("clear-dialog")).to_contain_text("cannot be")
     page.get_by_test_id("clear-dialog-confirm").click()
     expect(page.get_by_test_id("history-empty")).to_be_visible()
+
+
+HIWIN = "hiwin-e-2"
+
+
+def test_hiwin_fault_lands_in_its_diagnosis_history(page: Page) -> None:
+    # Issue 48: HIWIN's history stayed empty after an FF3Eh fault and its cause read "the
+    # manual gives no cause". 000 §2.7: its faults are emergency messages, kept in the EtherCAT
+    # diagnosis history 10F3h (ETG.1020); the cause says what 000 documents (60F4h).
+    page.goto(f"/#/operation/{HIWIN}")
+    expect(page.get_by_test_id("operation-page")).to_be_visible()
+    take_control(page, HIWIN)
+    headers = control_headers(page)
+    base = f"/api/v1/sessions/{HIWIN}"
+    original = int(page.request.get(f"{base}/objects/{WINDOW}").json()["value"])
+    try:
+        state = page.get_by_test_id("op-state")
+        expect(state).not_to_have_text("—")
+        if state.inner_text().strip() != "Operation enabled":
+            page.get_by_test_id("servo-on").click()
+        expect(state).to_have_text("Operation enabled", timeout=10_000)
+        r = page.request.put(
+            f"{base}/objects/{WINDOW}", data=json.dumps({"value": 10}), headers=headers
+        )
+        assert r.ok, r.text()
+        page.get_by_test_id("tab-move").click()
+        page.get_by_test_id("move-mode-relative").click()
+        page.get_by_test_id("move-target").fill("500000")
+        page.get_by_test_id("move-velocity").fill("900000")
+        page.get_by_test_id("move-acceleration").fill("10000000")
+        page.get_by_test_id("move-deceleration").fill("10000000")
+        page.get_by_test_id("move-start").click()
+        expect(state).to_have_text("Fault", timeout=5_000)
+
+        page.get_by_test_id("nav-alarms").click()
+        expect(page.get_by_test_id("alarm-code")).to_contain_text("FF3E")
+        expect(page.get_by_test_id("alarm-cause")).to_contain_text("60F4h")
+        entry = page.get_by_test_id("history-entry").first
+        expect(entry).to_contain_text("0x10F3:06")
+        expect(entry).to_contain_text("Position error too big")
+    finally:
+        page.request.put(
+            f"{base}/objects/{WINDOW}", data=json.dumps({"value": original}), headers=headers
+        )
+        page.request.post(f"{base}/alarms/reset", data="{}", headers=headers)

@@ -159,10 +159,21 @@ def test_failed_preflight_lists_problems_and_disables_restore(page: Page) -> Non
         expect(page.get_by_test_id("restore-run")).to_be_disabled()
         expect(page.get_by_test_id("restore-blocked")).to_be_visible()
 
-        # Servo off, check again: the preflight passes and Restore is allowed.
+        # Servo off, check again: the preflight passes; with nothing to write (the drive
+        # holds every value of the backup) "Restore 0 entries" is disabled and says why
+        # (issue 48); once a value differs, Restore is allowed.
         drive_command(page, "disable")
         page.get_by_test_id("restore-check").click()
         expect(page.get_by_test_id("preflight-verdict")).to_have_attribute("data-ok", "true")
+        expect(page.get_by_test_id("restore-blocked")).to_have_count(0)
+        expect(page.get_by_test_id("restore-run")).to_have_text("Restore 0 entries")
+        expect(page.get_by_test_id("restore-run")).to_be_disabled()
+        expect(page.get_by_test_id("restore-nothing")).to_contain_text("nothing to write")
+        original, _ = read_raw(page)
+        write_value(page, original + 1)
+        page.get_by_test_id("restore-check").click()
+        expect(page.get_by_test_id("restore-run")).to_have_text("Restore 1 entry")
         expect(page.get_by_test_id("restore-run")).to_be_enabled()
+        write_value(page, original)
     finally:
         drive_command(page, "disable")

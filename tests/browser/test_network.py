@@ -58,7 +58,9 @@ def test_lecsn_shows_the_telegram_read_from_the_drive_and_the_leds(page: Page) -
     expect(page.get_by_test_id("network-channel")).to_have_text(re.compile(r"^127\.0\.0\.1:\d+$"))
     expect(page.get_by_test_id("network-note")).to_have_count(0)
     expect(page.get_by_test_id("network-nmt")).to_have_attribute("title", re.compile(r"No NMT"))
-    expect(page.get_by_test_id("network-nmt")).to_have_text("none (PROFINET)")
+    # No NMT on PROFINET: what servodesk has instead is its own supervisor AR (issue 48).
+    expect(page.get_by_test_id("network-nmt-label")).to_have_text("AR")
+    expect(page.get_by_test_id("network-nmt")).to_have_text("up (servodesk's supervisor AR)")
     expect(link).to_contain_text("DO-ID")
     expect(page.get_by_test_id("network-node-id")).to_have_text("1")
 
@@ -95,7 +97,9 @@ def test_ctmm04x_is_reached_by_slmp_on_axis_x(page: Page) -> None:
     expect(page.get_by_test_id("network-nmt")).to_have_attribute(
         "title", re.compile(r"manager's command \(003 §3-3\)")
     )
-    expect(page.get_by_test_id("network-nmt")).to_have_text("not read (SLMP)")
+    # No NMT for servodesk over SLMP: whether the station answers instead (issue 48).
+    expect(page.get_by_test_id("network-nmt-label")).to_have_text("SLMP link")
+    expect(page.get_by_test_id("network-nmt")).to_have_text("answering")
     # Its identity read over SLMP: vendor 0000058Fh (003 §4-3-1).
     vendor = page.get_by_test_id("network-row-0x1018:01")
     expect(vendor.get_by_test_id("network-hex")).to_have_text("0x0000058F")

@@ -258,3 +258,27 @@ def test_a_fixed_telegram_names_its_words(page: Page) -> None:
             "103 · Telegram 103, variable, at most 60 bytes / 30 entries",
         ]
     )
+
+
+def test_idle_event_driven_tpdo_says_why_and_offers_the_fix(pdo_page: Page) -> None:
+    # Issue 48: cyclic data "running · 0 frames/s" with TPDO1 event-driven (type 255, no event
+    # timer) on an idle axis. The page says why nothing arrives and offers the fix; the user
+    # confirms it (a PDO change, under control) and frames arrive with every SYNC.
+    page = pdo_page
+    page.get_by_test_id("pdo-cyclic-start").click()
+    expect(page.get_by_test_id("pdo-cyclic-state")).to_have_attribute("data-running", "true")
+    idle = page.get_by_test_id("pdo-idle-TPDO1")
+    expect(idle).to_contain_text("event-driven (transmission type 255)", timeout=10_000)
+    expect(idle).to_contain_text("no event timer")
+    expect(page.get_by_test_id("pdo-idle")).to_contain_text("Nothing arrives from TPDO1")
+    page.get_by_test_id("pdo-idle-fix-0").click()
+    dialog = page.get_by_test_id("pdo-idle-dialog")
+    expect(dialog).to_contain_text("transmission type 1")
+    page.get_by_test_id("pdo-idle-dialog-confirm").click()
+    expect(dialog).to_have_count(0, timeout=15_000)
+    expect(page.get_by_test_id("pdo-idle")).to_have_count(0, timeout=10_000)
+    view = page.request.get(PDO).json()
+    tpdo1 = next(p for p in view["pdos"] if p["direction"] == "tx" and p["number"] == 1)
+    assert tpdo1["transmission_type"] == 1
+    rate = page.get_by_test_id("pdo-rate-TPDO1").locator("td").nth(4)
+    expect(rate).not_to_have_text(re.compile(r"^(0\.0|—)$"), timeout=10_000)

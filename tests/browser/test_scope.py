@@ -299,3 +299,61 @@ def test_one_click_adds_the_drives_motion_channels(scope_page: Page) -> None:
     expect(page.get_by_test_id("scope-channel-3-latest")).to_have_attribute(
         "data-raw", re.compile(r"^-?\d"), timeout=10_000
     )
+
+
+def test_reset_zoom_after_stop_shows_the_whole_run(scope_page: Page) -> None:
+    # Issue 48: with a 1 s window the live view follows the newest second; after Stop, Reset
+    # zoom shows the whole run (here about 3 s), not its last second.
+    page = scope_page
+    put(page, "/api/v1/scope/trigger", {"mode": "roll", "window_s": 1})
+    page.get_by_test_id("scope-add-motion").click()
+    expect(page.get_by_test_id("scope-channels")).to_have_attribute("data-count", "4")
+    page.get_by_test_id("scope-run").click()
+    expect(page.get_by_test_id("scope-state")).to_have_attribute("data-running", "true")
+    page.wait_for_timeout(3000)
+
+    def shown_span() -> float:
+        w = page.evaluate("() => window.__servodeskScope.model.window()")
+        return float(w[1] - w[0])
+
+    page.get_by_test_id("scope-reset-zoom").click()
+    assert shown_span() == pytest.approx(1.0, abs=0.01)  # Running: the newest second.
+    page.get_by_test_id("scope-stop").click()
+    expect(page.get_by_test_id("scope-state")).to_have_attribute("data-running", "false")
+    page.get_by_test_id("scope-reset-zoom").click()
+    extent = page.evaluate("() => window.__servodeskScope.model.extent()")
+    assert extent is not None and extent[1] - extent[0] > 2.0
+    assert shown_span() == pytest.approx(extent[1] - extent[0], rel=1e-6)
+
+
+def test_channels_of_another_drive_are_said_and_kept_only_by_choice(page: Page) -> None:
+    # Issue 48: the scope is one capture; the smartris page must not show the generic drive's
+    # channels as its own. It names them with their drive and lets the user keep or remove them.
+    page.goto(f"/#/overview/{SID}")
+    reset_scope(page)
+    other = {"id": 0, "session": SID, "address": POSITION}
+    try:
+        put(page, "/api/v1/scope/channels", {"channels": [other]})
+        page.goto("/#/scope/smartris-3")
+        note = page.get_by_test_id("scope-other-drives")
+        expect(note).to_have_attribute("data-kept", "false")
+        expect(note).to_contain_text(f"1 channel of another drive: {SID} (1), not smartris-3")
+        expect(page.get_by_test_id("scope-channel-0-session")).to_have_value(SID)
+        # Keeping them is a choice the page remembers (the note stays, quiet).
+        page.get_by_test_id("scope-other-keep").click()
+        expect(note).to_have_attribute("data-kept", "true")
+        page.reload()
+        expect(page.get_by_test_id("scope-other-drives")).to_have_attribute("data-kept", "true")
+        # Removing them leaves a capture of this drive only.
+        put(page, "/api/v1/scope/channels", {"channels": [other, {**other, "id": 1}]})
+        page.reload()
+        note = page.get_by_test_id("scope-other-drives")
+        expect(note).to_have_attribute("data-kept", "false")
+        page.get_by_test_id("scope-other-remove").click()
+        expect(note).to_have_count(0)
+        deadline = time.monotonic() + 5.0
+        while page.request.get("/api/v1/scope").json()["channels"]:
+            assert time.monotonic() < deadline
+            time.sleep(0.1)
+    finally:
+        reset_scope(page)

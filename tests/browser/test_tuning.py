@@ -121,10 +121,30 @@ def test_ctmm04x_says_there_is_nothing_to_tune(page: Page) -> None:
     expect(heading).to_contain_text("What this drive can do: Nothing to tune")
     applies = page.get_by_test_id("tuning-applies")
     expect(applies).to_contain_text("Pulse output")
-    expect(applies.locator("a").first).to_have_attribute("href", f"#/parameters/{CTMM}")
     # No inputs, no start: there is nothing to run.
     expect(page.get_by_test_id("tuning-start")).to_have_count(0)
     expect(page.get_by_test_id("tuning-inputs")).to_have_count(0)
+    # The link opens the group it names (issue 48: it opened the first group).
+    link = page.get_by_test_id("tuning-applies-pulse_output")
+    expect(link).to_have_attribute("href", f"#/parameters/{CTMM}/pulse_output")
+    link.click()
+    expect(page.get_by_test_id("params-table")).to_have_attribute("data-group", "pulse_output")
+    expect(page.get_by_test_id("group-tab-pulse_output")).to_have_attribute("aria-current", "true")
+
+
+def test_hiwin_applies_links_open_groups_that_exist(page: Page) -> None:
+    # HIWIN's "Motor" group holds read-only data only: the Parameters page does not list it,
+    # so no link names it; every link shown opens its own group.
+    page.goto("/#/tuning/hiwin-e-2")
+    links = page.get_by_test_id("tuning-applies").locator("a")
+    expect(links.first).to_be_visible()
+    expect(page.get_by_test_id("tuning-applies")).not_to_contain_text("Motor")
+    targets = [str(links.nth(i).get_attribute("href")) for i in range(links.count())]
+    assert targets, "no link"
+    for href in targets:
+        group = href.rsplit("/", 1)[1]
+        page.goto(f"/{href}")
+        expect(page.get_by_test_id("params-table")).to_have_attribute("data-group", group)
 
 
 @pytest.fixture

@@ -434,3 +434,67 @@ async def test_sessions_on_one_bus_share_one_sync_producer(rig: Rig) -> None:
     finally:
         for s in (a, b, c):
             await rig.client.delete(f"/api/v1/sessions/{s}/pdo/cyclic")
+
+
+async def test_an_idle_event_driven_tpdo_says_why_and_the_fix_works(rig: Rig) -> None:
+    """Issue 48: "running · 0 frames/s" with TPDO1 of type 255 and no event timer on an idle
+    axis. The status says why (event-driven, no event timer) and names the two fixes; the
+    first (transmission type 1, every SYNC) applied as a PDO change makes frames arrive."""
+    import asyncio
+
+    s = sid("cia402-generic")
+    base = f"/api/v1/sessions/{s}/pdo"
+    view = (await rig.client.get(base)).json()
+    tpdo1 = next(p for p in view["pdos"] if p["direction"] == "tx" and p["number"] == 1)
+    assert tpdo1["transmission_type"] == 255 and tpdo1["event_timer"] == 0
+    r = await rig.client.post(f"{base}/cyclic", json={"sync_period_ms": 5})
+    assert r.status_code == 200, r.text
+    try:
+        await asyncio.sleep(1.6)
+        st = (await rig.client.get(f"{base}/cyclic")).json()
+        tx = {c["name"]: c for c in st["tx_pdos"]}
+        idle = tx[tpdo1["name"]]["idle"]
+        assert idle is not None, tx
+        assert "event-driven (transmission type 255)" in idle["why"]
+        assert "1800h:05 = 0" in idle["why"] and "CiA 301" in idle["why"]
+        assert [f["transmission_type"] for f in idle["fixes"]] == [1, None]
+        assert [f["event_timer"] for f in idle["fixes"]] == [None, 100]
+        # The fix is a PDO change like any other (control, plan, verify).
+        fix = idle["fixes"][0]
+        body = {
+            "dry_run": False,
+            "pdos": [
+                {
+                    "direction": "tx",
+                    "number": 1,
+                    "entries": [
+                        {"index": e["index"], "subindex": e["subindex"], "bits": e["bits"]}
+                        for e in tpdo1["entries"]
+                    ],
+                    "transmission_type": fix["transmission_type"],
+                }
+            ],
+        }
+        r = await rig.client.post(f"{base}/apply", json=body)
+        assert r.status_code == 200 and r.json()["ok"], r.text
+        await asyncio.sleep(1.6)
+        st = (await rig.client.get(f"{base}/cyclic")).json()
+        after = {c["name"]: c for c in st["tx_pdos"]}[tpdo1["name"]]
+        assert st["running"] and after["idle"] is None and after["rate_hz"] > 50, after
+    finally:
+        await rig.client.delete(f"{base}/cyclic")
+        body = {
+            "dry_run": False,
+            "pdos": [
+                {
+                    "direction": "tx",
+                    "number": 1,
+                    "entries": [
+                        {"index": e["index"], "subindex": e["subindex"], "bits": e["bits"]}
+                        for e in tpdo1["entries"]
+                    ],
+                    "transmission_type": 255,
+                }
+            ],
+        }
+        await rig.client.post(f"{base}/apply", json=body)

@@ -4,6 +4,8 @@ family has one that loads, cites its manual and names only objects a drive can b
 
 from __future__ import annotations
 
+import json
+import re
 from typing import Any
 
 import pytest
@@ -127,3 +129,13 @@ def test_an_extending_profile_does_not_inherit_the_base_network_section(tmp_path
     )
     p = ProfileCatalog([tmp_path, *CATALOG.dirs]).get("my-drive")
     assert p.network is None and check_profile(p) == []
+
+
+@pytest.mark.parametrize("pid", SHIPPED)
+def test_network_texts_cite_manuals_not_source_files(pid: str) -> None:
+    """The Network page shows every text and section to the engineer: a servodesk source file
+    (cli/sim.py, sim/canopen_device.py) is nothing a user can open (issue 48)."""
+    net = CATALOG.get(pid).network
+    assert net is not None
+    text = json.dumps(net.model_dump())
+    assert not re.findall(r"[\w/]+\.py\b", text)

@@ -318,3 +318,17 @@ def test_export_refuses_a_recording_it_cannot_write() -> None:
         export_csv(Recording(math.nan, None, []))
     with pytest.raises(ValidationError, match="2 times for 1 values"):
         ChannelData(0, "x", "", "", 1.0, "", "", "sdo", np.zeros(2), np.zeros(1))
+
+
+def test_csv_says_which_clock_each_time_column_is_on() -> None:
+    """Issue 48: a time column per time base (drive, source) must say which clock it is on
+    and whose samples it times; all are on servodesk's clock, so they align."""
+    rows = list(csv.reader(io.StringIO(export_csv(recording()).decode("utf-8-sig"))))
+    header = next(r for r in rows if not r[0].startswith("#"))
+    bases = [r for r in rows if r[0] == "#time_base"]
+    assert [int(r[1]) for r in bases] == [i for i, h in enumerate(header) if h == "time_s"]
+    assert all(r[2].startswith("servodesk's clock, s from t_ref; ") for r in bases)
+    assert "s1 PDO frames as received" in bases[0][2]
+    assert any("recorder" in r[2] for r in bases)
+    # The file still opens as before.
+    assert len(import_csv(export_csv(recording())).channels) == len(recording().channels)

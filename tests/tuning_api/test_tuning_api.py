@@ -106,6 +106,9 @@ def test_info_says_what_each_family_can_do(channel, tmp_path) -> None:  # type: 
             assert info["kind"] == "none", info
             assert "No documented gain map for servodesk's tuning" in info["reason"]
             assert "What applies" in info["reason"] and info["applies"]
+        # Only groups the Parameters page lists (HIWIN's read-only "Motor" is not one).
+        hiwin = client.get("/api/v1/sessions/hiwin-e-2/tuning").json()
+        assert "motor" not in [a["group"] for a in hiwin["applies"]]
 
         assert client.get("/api/v1/sessions/nope-9/tuning").status_code == 404
         r = client.get("/api/v1/sessions/lecsn-t-1/tuning/result")

@@ -23,6 +23,7 @@ from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
+from servodesk.domain import paramset
 from servodesk.domain.paramset import ParameterSet
 from servodesk.errors import ConflictError, NotFoundError, ValidationError
 from servodesk.files import read_bounded
@@ -116,6 +117,7 @@ class _Context:
     """A store, a session manager with the audit hook, and (when needed) one session."""
 
     def __init__(self, args: argparse.Namespace) -> None:
+        from servodesk.services.audit import Actor, AuditLog, acting
         from servodesk.services.backup import BackupService
         from servodesk.services.events import EventHub
         from servodesk.services.manager import SessionManager
@@ -131,6 +133,12 @@ class _Context:
         self.manager = SessionManager(self.catalog, self.hub, sdo_timeout=timeout, poll_hz=1.0)
         self.backups = BackupService(Store(settings.data_dir), self.catalog)
         self.backups.attach(self.hub)
+        # Drive writes from the CLI go to the audit log too, as this machine's user
+        # (docs/security.md, Audit log); this runs inside asyncio.run, so the actor holds
+        # for the whole command.
+        self.audit = AuditLog(self.backups.store.path)
+        self.backups.audit = self.audit
+        acting(Actor(client_id(), "local"))
         self.restores = RestoreService(self.backups)
         self.timeout = timeout
 
@@ -154,6 +162,7 @@ class _Context:
 
     async def close(self) -> None:
         await self.manager.close_all()
+        self.audit.close()
         self.backups.store.close()
 
 
@@ -214,19 +223,40 @@ def run_backup(args: argparse.Namespace) -> int:
             ctx.backups.file_bytes(info["id"]) if fmt == "json" else ctx.backups.export(ps, fmt)[0]
         )
         write_new_file(out, data)
-        return {**info, "output": str(out), "unreadable": len(ps.unreadable)}
+        return {**info, "output": str(out)}
 
     info = _run(args, body)
     if args.json:
         _dump(info)
     else:
+        unreadable = info["unreadable"]
         print(
             f"backed up {info['entries']} parameters of {info['profile_id']} node "
-            f"{args.node_id} to {info['output']} (store id {info['id']}"
-            + (f"; {info['unreadable']} not readable" if info["unreadable"] else "")
-            + ")"
+            f"{args.node_id} to {info['output']} (store id {info['id']})"
         )
+        if unreadable:
+            # The backup lacks these: a restore of it cannot set them (issue 48).
+            print(
+                f"INCOMPLETE: {len(unreadable)} object(s) could not be read and are not in "
+                "the backup:"
+            )
+            _print_unreadable(unreadable)
     return 0
+
+
+def _print_not_restored(rep: dict[str, Any]) -> None:
+    if rep.get("unreadable"):
+        print(
+            f"  cannot restore {len(rep['unreadable'])} object(s): the backup lacks them "
+            "(unreadable when it was taken); the drive keeps its present values there:"
+        )
+        _print_unreadable(rep["unreadable"])
+
+
+def _print_unreadable(items: list[dict[str, Any]]) -> None:
+    for u in items:
+        code = f"{u['code_hex']} " if u.get("code_hex") else ""
+        print(f"  {u['address']} {u['name']}: {code}{u['message']}")
 
 
 # restore -----------------------------------------------------------------------------------
@@ -319,6 +349,7 @@ def _save_exact(ctx: _Context, ps: ParameterSet, data: bytes) -> str:
             "entries": len(ps.entries),
             "file": name,
             "sha256": hashlib.sha256(data).hexdigest(),
+            "unreadable": paramset.unreadable_dicts(ps.unreadable),
         },
         "upload",
     )
@@ -334,6 +365,7 @@ def _print_report(rep: dict[str, Any]) -> None:
         )
         for s in rep["steps"]:
             print(f"  {s['address']} <- {s['raw_hex']}  ({s['why']})")
+        _print_not_restored(rep)
         return
     for it in rep["items"]:
         if it["status"] in ("written", "failed", "pending"):
@@ -349,6 +381,7 @@ def _print_report(rep: dict[str, Any]) -> None:
     )
     for w in rep["warnings"]:
         print(f"  note: {w}")
+    _print_not_restored(rep)
     if rep["message"]:
         print(f"  {rep['message']}")
     if rep["interrupted"]:
@@ -405,6 +438,11 @@ def run_diff(args: argparse.Namespace) -> int:
             )
         changed = sum(1 for d in cmp["differences"] if d["kind"] != "same")
         print(f"{changed} differences, {cmp['same']} equal ({cmp['a']} vs {cmp['b']})")
+        for side in ("a", "b"):
+            lacks = cmp[f"{side}_unreadable"]
+            if lacks:
+                print(f"not compared: {len(lacks)} object(s) unreadable in {cmp[side]}:")
+                _print_unreadable(lacks)
     return 0 if cmp["equal"] else 1
 
 

@@ -253,17 +253,23 @@ def to_document(ps: ParameterSet, tool: str) -> dict[str, Any]:
             }
             for e in ps.entries
         ],
-        "unreadable": [
-            {
-                "address": str(u.address),
-                "name": u.name,
-                "code": u.code,
-                "code_hex": f"0x{u.code:08X}" if u.code is not None else None,
-                "message": u.message,
-            }
-            for u in ps.unreadable
-        ],
+        "unreadable": unreadable_dicts(ps.unreadable),
     }
+
+
+def unreadable_dicts(items: Iterable[Unreadable]) -> list[dict[str, Any]]:
+    """The objects a set lacks because the drive refused them, as the file and the API show
+    them: address, name, abort code (CiA 301 §7.2.4.3.17) and the error text."""
+    return [
+        {
+            "address": str(u.address),
+            "name": u.name,
+            "code": u.code,
+            "code_hex": f"0x{u.code:08X}" if u.code is not None else None,
+            "message": u.message,
+        }
+        for u in items
+    ]
 
 
 def checksum(doc: Mapping[str, Any]) -> str:
@@ -595,6 +601,8 @@ class Preflight:
     warnings: list[str]
     items: list[PlanItem]
     mapping: list[MapRow] | None
+    #: What the backup lacks (unreadable when it was taken): a restore cannot set these.
+    unreadable: tuple[Unreadable, ...] = ()
 
     def counts(self) -> dict[str, int]:
         out = {"to_write": 0, "unchanged": 0, "read_only_skipped": 0, "unmapped": 0}
@@ -619,6 +627,7 @@ class Preflight:
             "unchanged": c["unchanged"],
             "read_only_skipped": c["read_only_skipped"],
             "mapping": [m.to_dict() for m in self.mapping] if self.mapping is not None else None,
+            "unreadable": unreadable_dicts(self.unreadable),
         }
 
 
@@ -767,7 +776,21 @@ def preflight(ps: ParameterSet, drive: DriveFacts, *, map_names: bool = False) -
                 "drive's state is not known, the drive decides"
             )
         items.append(base)
-    return Preflight(not problems, problems, warnings, items, mapping)
+    if ps.unreadable:
+        warnings.append(incomplete_warning(ps.unreadable))
+    return Preflight(not problems, problems, warnings, items, mapping, ps.unreadable)
+
+
+def incomplete_warning(unreadable: Sequence[Unreadable]) -> str:
+    """What restoring a set with unreadable objects cannot do, in one sentence."""
+    n = len(unreadable)
+    shown = ", ".join(f"{u.address} {u.name}".strip() for u in unreadable[:5])
+    more = f" and {n - 5} more" if n > 5 else ""
+    return (
+        f"the backup is incomplete: {n} object{'s' if n != 1 else ''} could not be read when it "
+        f"was taken ({shown}{more}); a restore cannot set {'them' if n != 1 else 'it'}, the "
+        "drive keeps its present values there"
+    )
 
 
 def _encoder_warning(ps: ParameterSet, drive: DriveFacts) -> list[str]:

@@ -18,6 +18,11 @@ CSV layout (UTF-8 with a BOM so Excel reads non-ASCII names)::
     time_s,Position actual value [inc] (1 inc = 0.0001 mm),...,time_s,Velocity actual value [rpm]
     0.0,1200.0,...,0.0123,15.0
 
+A ``#time_base,<column>,<text>`` row per time column says which clock it is on and whose samples
+it times: every time column is seconds from ``t_ref`` on servodesk's own clock (PDO frames by
+their bus timestamp, SDO reads as answered, a drive recorder's period placed on it), so the
+columns of several drives align on one time axis.
+
 The rows starting with ``#`` describe the recording; then one table. There is one ``time_s`` column
 (seconds from ``t_ref``) per distinct time base, followed by the channels sampled on it; a channel
 belongs to the nearest ``time_s`` column on its left. Channels taken together (the objects of one
@@ -170,6 +175,21 @@ def _column_title(c: ChannelData) -> str:
 
 # --------------------------------------------------------------------------------------------- CSV
 
+#: How each source's sample times come about (services/scope.py), for the ``#time_base`` rows.
+_SOURCE_CLOCK = {
+    "pdo": "PDO frames as received (bus timestamp on servodesk's clock)",
+    "sdo": "SDO reads as answered",
+    "recorder": "the drive's recorder, its sample period placed on servodesk's clock",
+}
+
+
+def _clock_text(channels: Sequence[ChannelData]) -> str:
+    """What a time column times: servodesk's clock, whose samples (drive and source)."""
+    whose = sorted(
+        {f"{c.session} {_SOURCE_CLOCK.get(c.source, c.source or 'samples')}" for c in channels}
+    )
+    return "servodesk's clock, s from t_ref; " + "; ".join(whose)
+
 
 def export_csv(rec: Recording) -> bytes:
     """The recording as CSV (layout in the module docstring), UTF-8 with BOM."""
@@ -203,6 +223,12 @@ def export_csv(rec: Recording) -> bytes:
                 c.source,
             ]
         )
+    # Which clock each time column is on (issue 48): all are seconds from t_ref on servodesk's
+    # clock, so the columns align on one axis; the row says whose samples they time.
+    start = 0
+    for g in groups:
+        w.writerow(["#time_base", str(start), _clock_text([rec.channels[i] for i in g])])
+        start += 1 + len(g)
     w.writerow(header)
     # Column by column, each time base padded with empty cells to the longest one. The cells are
     # numbers (repr never contains a comma or a quote), so the rows are joined without csv quoting.

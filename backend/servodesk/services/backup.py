@@ -25,12 +25,13 @@ from servodesk import __version__
 from servodesk.domain import paramset
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import Value, codec
-from servodesk.domain.encoder_units import rescaled
 from servodesk.domain.ids import check_id
 from servodesk.domain.paramset import Entry, ParameterSet, Unreadable
 from servodesk.domain.profile import DeviceProfile
 from servodesk.domain.profile_loader import ProfileCatalog
-from servodesk.errors import NotFoundError, ServodeskError, ValidationError
+from servodesk.errors import ServodeskError, ValidationError
+from servodesk.services.audit import DISCARD, Recorder
+from servodesk.services.backup_files import StoredFile, comparison, read_checked, units_profile
 from servodesk.services.events import EventHub
 from servodesk.services.session import Session, set_audit_sink
 from servodesk.services.store import Store, write_new_file
@@ -92,12 +93,27 @@ def progress(session: Session, operation: str, fraction: float, message: str, **
     )
 
 
+#: What a ``write.object`` audit event keeps of a write (the old table's record, less time).
+_WRITE_FACTS = (
+    "client",
+    "drive_key",
+    "address",
+    "name",
+    "old_raw_hex",
+    "new_raw_hex",
+    "old_value",
+    "new_value",
+)
+
+
 class BackupService:
     """Backups of drives in a :class:`Store`; one per application (or CLI run)."""
 
     def __init__(self, store: Store, catalog: ProfileCatalog) -> None:
         self.store = store
         self.catalog = catalog
+        #: The hash-chained audit log (services/audit.py): every write is also an event there.
+        self.audit: Recorder = DISCARD
 
     # Audit log ------------------------------------------------------------------------------
 
@@ -121,6 +137,9 @@ class BackupService:
             "old_value": paramset.typed_value(spec.data_type, old) if spec and old else None,
             "new_value": paramset.typed_value(spec.data_type, new) if spec else None,
         }
+        self.audit.record(
+            "write.object", drive=session.id, details={k: rec[k] for k in _WRITE_FACTS}
+        )
         try:
             self.store.add_audit(rec)
         except ServodeskError:
@@ -180,15 +199,13 @@ class BackupService:
         )
 
     def units_profile(self, ps: ParameterSet) -> DeviceProfile | None:
-        """The profile whose scales give the set's engineering values: the catalog's, rescaled
-        to the set's encoder when the drive's was not the profile's (None: unknown profile)."""
-        if ps.profile_id not in self.catalog.ids():
-            return None
-        profile = self.catalog.get(ps.profile_id)
-        cpr = ps.counts_per_rev
-        if cpr and cpr != profile.simulation.counts_per_rev:
-            return rescaled(profile, cpr)
-        return profile
+        """The profile whose scales give the set's engineering values (backup_files)."""
+        return units_profile(ps, self.profiles_for(ps.profile_id))
+
+    def profiles_for(self, *ids: str) -> dict[str, DeviceProfile]:
+        """The catalog's profiles of these ids (those it knows)."""
+        known = set(self.catalog.ids())
+        return {i: self.catalog.get(i) for i in ids if i in known}
 
     async def backup(
         self, session: Session, label: str = "", note: str = "", source: str = "drive"
@@ -220,34 +237,34 @@ class BackupService:
             "entries": len(ps.entries),
             "file": name,
             "sha256": hashlib.sha256(data).hexdigest(),
+            "unreadable": paramset.unreadable_dicts(ps.unreadable),
         }
         # The file is complete before the record exists: a crash in between leaves an
         # unlisted but intact file, never a record without its file.
         self.store.add_backup(info, source)
         info["source"] = source
+        info["complete"] = not ps.unreadable
         return info
 
     def info(self, bid: str) -> dict[str, Any]:
         return self.store.get_backup(bid)
 
+    def stored(self, bid: str) -> StoredFile:
+        """What the store knows of backup ``bid``'s file (cheap: no file is read)."""
+        info = self.store.backup_file_row(bid)
+        return StoredFile(
+            bid=bid,
+            path=str(self.store.backup_file(str(info["file"]))),
+            name=str(info["file"]),
+            sha256=str(info["sha256"]),
+            profile_id=str(info["profile_id"]),
+            directory=str(self.store.backups_dir),
+            label=str(info["label"] or ""),
+            note=str(info["note"] or ""),
+        )
+
     def file_bytes(self, bid: str) -> bytes:
-        info = self.store.get_backup(bid)
-        path = self.store.backup_file(str(info["file"]))
-        try:
-            data: bytes = path.read_bytes()
-        except FileNotFoundError:
-            raise NotFoundError(
-                f"the file of backup {bid} ({info['file']}) is missing",
-                hint=f"it belongs in {self.store.backups_dir}",
-            ) from None
-        if hashlib.sha256(data).hexdigest() != info["sha256"]:
-            raise ValidationError(
-                f"the file of backup {bid} ({info['file']}) was changed after it was written "
-                "(SHA-256 differs from the store)",
-                field="backup",
-                hint="restore the file from a copy; servodesk never edits backup files",
-            )
-        return data
+        return read_checked(self.stored(bid))
 
     def load(self, bid: str) -> ParameterSet:
         info = self.store.get_backup(bid)
@@ -415,11 +432,7 @@ class BackupService:
         """A Comparison (docs/api.md) of two labelled sets."""
         # The profile of b (the drive, or the later set), else a's; its scales for b's encoder.
         profile = self.units_profile(b[1]) or self.units_profile(a[1])
-        diffs, same = paramset.compare(
-            a[1].entries, b[1].entries, profile, include_same=include_same
-        )
-        equal = all(d["kind"] == "same" for d in diffs)
-        return {"a": a[0], "b": b[0], "equal": equal, "differences": diffs, "same": same}
+        return comparison(a, b, profile, include_same=include_same)
 
     def defaults(self, profile_id: str, node_id: int = 1) -> ParameterSet:
         return paramset.defaults_set(self.catalog.get(profile_id), node_id, now_iso())

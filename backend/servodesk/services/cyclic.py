@@ -40,6 +40,10 @@ log = logging.getLogger(__name__)
 #: Longest SYNC period accepted [s] and shortest (1 ms: the issue's target cycle).
 MIN_PERIOD = 0.001
 MAX_PERIOD = 1.0
+#: A TPDO silent this long [s] (the exchange running at least as long) is explained.
+IDLE_AFTER_S = 1.0
+#: The event timer the "send it periodically" fix proposes [ms] (CiA 301 1800h:05, 1 ms).
+FIX_EVENT_TIMER_MS = 100
 #: WebSocket publishing rate of the latest values [Hz].
 PUBLISH_HZ = 20.0
 
@@ -329,9 +333,47 @@ class CyclicExchange:
             }
         return out
 
+    def idle(self, ch: Channel, now: float) -> dict[str, Any] | None:
+        """Why a TPDO has sent nothing for a while and what makes it send (issue 48), or None.
+
+        CiA 301 §7.5.2.36: a TPDO of transmission type 254/255 is event-driven; without an
+        event timer (sub 5 = 0) the drive sends it only on its event (a mapped value changes),
+        so an idle axis sends nothing after the first frame. The fixes are the two documented
+        ways to make it periodic: a synchronous type (1: every SYNC) or an event timer.
+        """
+        comm = ch.pdo.comm
+        if comm is None or not self.running or now - self.started_at < IDLE_AFTER_S:
+            return None
+        if ch.last_time and now - ch.last_time < IDLE_AFTER_S:
+            return None
+        if comm.transmission_type not in (254, 255) or comm.event_timer:
+            return None
+        index = f"{ch.pdo.comm_index:04X}h" if ch.pdo.comm_index is not None else "its comm."
+        return {
+            "why": (
+                f"{ch.name} is event-driven (transmission type {comm.transmission_type}) with "
+                f"no event timer ({index}:05 = 0): the drive sends it only when a mapped value "
+                "changes (CiA 301 §7.5.2.36). The axis is idle, so nothing changes and nothing "
+                "arrives."
+            ),
+            "fixes": [
+                {
+                    "label": "send it with every SYNC (transmission type 1)",
+                    "transmission_type": 1,
+                    "event_timer": None,
+                },
+                {
+                    "label": f"send it every {FIX_EVENT_TIMER_MS} ms (event timer)",
+                    "transmission_type": None,
+                    "event_timer": FIX_EVENT_TIMER_MS,
+                },
+            ],
+        }
+
     def status(self) -> dict[str, Any]:
         self._rates()
-        elapsed = max(1e-9, time.monotonic() - self.started_at) if self.started_at else 0.0
+        now = time.monotonic()
+        elapsed = max(1e-9, now - self.started_at) if self.started_at else 0.0
         frames = sum(ch.count for ch in self.tx)
 
         def chan(ch: Channel, rx: bool) -> dict[str, Any]:
@@ -342,6 +384,7 @@ class CyclicExchange:
                 "count": self.syncs if rx and self.outputs else ch.count,
                 "rate_hz": round(ch.rate_hz, 1) if not rx else None,
                 "errors": ch.errors,
+                "idle": None if rx else self.idle(ch, now),
             }
 
         return {

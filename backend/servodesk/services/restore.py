@@ -30,6 +30,7 @@ from servodesk.errors import (
 )
 from servodesk.services.backup import BackupService, bus_of, drive_key, firmware, new_id, now_iso
 from servodesk.services.backup import progress as publish_progress
+from servodesk.services.backup_files import restore_targets
 from servodesk.services.session import Session
 
 log = logging.getLogger(__name__)
@@ -127,10 +128,7 @@ class RestoreService:
         )
 
     def _targets(self, session: Session, ps: ParameterSet, map_names: bool) -> list[ObjectAddress]:
-        if ps.profile_id != session.profile.id and map_names:
-            rows = paramset.map_by_name(ps.entries, session.profile)
-            return [r.target for r in rows if r.target is not None]
-        return [e.address for e in ps.entries]
+        return restore_targets(ps, session.profile, map_names)
 
     async def preflight(
         self, session: Session, ps: ParameterSet, *, map_names: bool = False
@@ -168,7 +166,8 @@ class RestoreService:
         ``rewrite_all`` writes (and verifies) unchanged entries too, e.g. to measure the
         write path or to be sure every value went through the drive's own checks.
         """
-        ps = self.backups.load(backup_id)
+        # Off the loop (docs/safety.md): parsing a large backup held it for seconds.
+        ps = await asyncio.to_thread(self.backups.load, backup_id)
         async with self._lock(session):
             pf, facts = await self.preflight(session, ps, map_names=map_by_name)
             if not pf.ok:
@@ -190,6 +189,8 @@ class RestoreService:
                 "client": client,
                 "warnings": pf.warnings,
                 "steps": [_step_dict(s) for s in steps],
+                # What the backup lacks: the report says what this restore could not set.
+                "unreadable": paramset.unreadable_dicts(ps.unreadable),
             }
             meta = {
                 "id": rid,
@@ -508,6 +509,7 @@ class RestoreService:
             "counts": counts,
             "items": items,
             "steps": options.get("steps", []),
+            "unreadable": options.get("unreadable", []),
         }
 
 

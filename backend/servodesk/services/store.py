@@ -43,7 +43,8 @@ CREATE TABLE IF NOT EXISTS backups (
     entries INTEGER NOT NULL,
     file TEXT NOT NULL,
     sha256 TEXT NOT NULL,
-    source TEXT NOT NULL DEFAULT 'drive'
+    source TEXT NOT NULL DEFAULT 'drive',
+    unreadable TEXT
 );
 CREATE INDEX IF NOT EXISTS backups_drive ON backups (drive_key, created);
 CREATE TABLE IF NOT EXISTS restores (
@@ -193,11 +194,35 @@ class Store:
             self._db.execute("PRAGMA synchronous=FULL")
             self._db.execute("PRAGMA busy_timeout=5000")
             self._db.executescript(SCHEMA)
+            self._migrate()
         except sqlite3.Error as exc:
             raise StoreError(
                 f"cannot open the store {self.path}: {exc}",
                 hint="check SERVODESK_DATA_DIR and its permissions",
             ) from exc
+
+    def _migrate(self) -> None:
+        """Bring a store of an older servodesk up to this schema.
+
+        The ``unreadable`` column (issue 48) came later: a record without it takes the list
+        from its own file, so an old incomplete backup is shown as incomplete too.
+        """
+        columns = {r["name"] for r in self._db.execute("PRAGMA table_info(backups)")}
+        if "unreadable" not in columns:
+            self._db.execute("ALTER TABLE backups ADD COLUMN unreadable TEXT")
+        for row in self._db.execute(
+            "SELECT id, file FROM backups WHERE unreadable IS NULL"
+        ).fetchall():
+            try:
+                doc = json.loads(self.backup_file(str(row["file"])).read_bytes())
+                items = doc.get("unreadable", []) if isinstance(doc, dict) else None
+            except (OSError, ValueError, ServodeskError):
+                continue  # A missing or damaged file is reported when it is used.
+            if isinstance(items, list):
+                self._db.execute(
+                    "UPDATE backups SET unreadable = ? WHERE id = ?",
+                    (json.dumps(items), row["id"]),
+                )
 
     def close(self) -> None:
         with self._lock:
@@ -236,7 +261,7 @@ class Store:
             db.execute(
                 "INSERT INTO backups (id, time, created, label, note, profile_id, "
                 "profile_version, drive_key, identity, firmware, bus, entries, file, sha256, "
-                "source) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
+                "source, unreadable) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
                 (
                     info["id"],
                     info["time"],
@@ -253,11 +278,13 @@ class Store:
                     info["file"],
                     info["sha256"],
                     source,
+                    json.dumps(info.get("unreadable", [])),
                 ),
             )
 
     @staticmethod
     def _backup_row(r: sqlite3.Row) -> dict[str, Any]:
+        unreadable = json.loads(r["unreadable"]) if r["unreadable"] else []
         return {
             "id": r["id"],
             "time": r["time"],
@@ -273,6 +300,9 @@ class Store:
             "file": r["file"],
             "sha256": r["sha256"],
             "source": r["source"],
+            # Objects the drive refused when the backup was read: the backup lacks them.
+            "unreadable": unreadable,
+            "complete": not unreadable,
         }
 
     def get_backup(self, bid: str) -> dict[str, Any]:
@@ -280,6 +310,17 @@ class Store:
         if not rows:
             raise NotFoundError(f"no backup {bid!r}", hint="list the backups with GET /backups")
         return self._backup_row(rows[0])
+
+    def backup_file_row(self, bid: str) -> dict[str, Any]:
+        """Only what opening the backup's file needs (file, sha256, profile_id, label, note):
+        nothing whose size the file decides is parsed here, on the caller's thread (the
+        heavy part is parsed in the documents' worker: api/backup_documents.py)."""
+        rows = self._query(
+            "SELECT file, sha256, profile_id, label, note FROM backups WHERE id = ?", (bid,)
+        )
+        if not rows:
+            raise NotFoundError(f"no backup {bid!r}", hint="list the backups with GET /backups")
+        return dict(rows[0])
 
     def list_backups(
         self, drive_key: str | None = None, profile_id: str | None = None, limit: int = 1000

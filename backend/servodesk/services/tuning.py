@@ -226,11 +226,17 @@ def _none_reason(profile: DeviceProfile, note: str | None) -> str:
 
 
 def applies_instead(profile: DeviceProfile) -> list[dict[str, str]]:
-    """For kind ``none``: the pages and parameter groups that apply instead (UI links)."""
+    """For kind ``none``: the pages and parameter groups that apply instead (UI links).
+
+    Only groups the Parameters page lists: those with a writable object that is not a process
+    value (HIWIN's "Motor" holds read-only data, 3000h/3001h/6075h/6076h: a link to it opened
+    another group, issue 48).
+    """
     wanted = ("pulse_output", "velocity", "tuning", "pt_parameters", "motor")
+    listed = {s.group for s in profile.variables.values() if not s.process and s.access.writable}
     out: list[dict[str, str]] = []
     for g in profile.groups:
-        if g.id in wanted:
+        if g.id in wanted and g.id in listed:
             out.append({"page": "parameters", "group": g.id, "label": f"Parameters: {g.name}"})
     if not out:
         out.append({"page": "parameters", "group": "", "label": "Parameters"})

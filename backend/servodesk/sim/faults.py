@@ -11,6 +11,9 @@ Read from the profile's quirks, never from vendor names:
   family keeps its own alarm history besides 1003h (e.g. LECSN-T 2A00h-2A0Fh: one object per
   entry, ``index_stride: 1``; sub 1 the alarm number, sub 2 the time in hours). 1003h itself is
   handled by the engine (CiA 301 §7.5.2.3).
+  With ``format: etg1020`` (HIWIN 000 §2.7: faults are emergency messages, kept in the EtherCAT
+  diagnosis history 10F3h) the entries are ETG.1020 diagnosis messages in a ring at
+  ``subindex_first`` .. ``+count-1``; sub 02h names the newest, sub 04h says new ones arrived.
 - ``current_alarm``: ``{index, subindex}`` of the object that shows the active alarm (LECSN-T
   2A41h), cleared by the fault reset.
 - ``clear_alarm_history``: ``{index, subindex, value}``: writing ``value`` there clears the
@@ -21,6 +24,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from servodesk.domain import diagnosis
 from servodesk.domain.datatypes import Value, coerce_int
 from servodesk.domain.profile import DeviceProfile
 
@@ -51,7 +55,15 @@ class FaultModel:
             self.codes = dict(_STANDARD)
         hist = profile.quirk("alarm_history")
         self._hist: list[tuple[int, int | None]] = []  # (number key, time key) newest first
-        if isinstance(hist, dict) and coerce_int(hist.get("index", 0)) != 0x1003:
+        #: ETG.1020 diagnosis history: (index, first message sub, count).
+        self._diag: tuple[int, int, int] | None = None
+        if isinstance(hist, dict) and hist.get("format") == "etg1020":
+            self._diag = (
+                coerce_int(hist["index"]),
+                coerce_int(hist.get("subindex_first", 6)),
+                coerce_int(hist.get("count", 1)),
+            )
+        elif isinstance(hist, dict) and coerce_int(hist.get("index", 0)) != 0x1003:
             index = coerce_int(hist["index"])
             first = coerce_int(hist.get("subindex_first", 1))
             count = coerce_int(hist.get("count", 1))
@@ -80,6 +92,8 @@ class FaultModel:
         """Record a fault in the family's current-alarm object and alarm history."""
         if self._current is not None and self._current in values:
             values[self._current] = code
+        if self._diag is not None:
+            self._record_diagnosis(values, code)
         hist = self._hist
         if not hist or hist[0][0] not in values:
             return
@@ -91,6 +105,19 @@ class FaultModel:
         values[hist[0][0]] = code
         if hist[0][1] is not None:
             values[hist[0][1]] = hours
+
+    def _record_diagnosis(self, values: dict[int, Value | None], code: int) -> None:
+        """ETG.1020 ring: the message after the newest (the first when none), overwriting
+        the oldest once full; sub 02h names it, sub 04h says a new one is there."""
+        assert self._diag is not None
+        index, first, count = self._diag
+        newest = values.get(_key(index, 2))
+        n = newest if isinstance(newest, int) else 0
+        sub = n + 1 if first <= n < first + count - 1 else first
+        values[_key(index, sub)] = diagnosis.emergency_message(code)
+        values[_key(index, 2)] = sub
+        if _key(index, 4) in values:
+            values[_key(index, 4)] = True
 
     def on_reset(self, values: dict[int, Value | None]) -> None:
         if self._current is not None and self._current in values:

@@ -27,6 +27,8 @@ function backup(p: Partial<BackupInfo>): BackupInfo {
     entries: 1,
     file: 'f',
     sha256: '',
+    unreadable: [],
+    complete: true,
     ...p,
   };
 }

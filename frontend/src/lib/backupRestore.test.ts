@@ -1,9 +1,9 @@
 import { describe, expect, it } from 'vitest';
 import type { Preflight, RestoreItem, RestoreReport } from '../api/types';
 import { mergeProgressItem, parseBackupProgress, parseProgressItem } from './backupProgress';
-import { canResume, mappedCount, reportVerdict, restoreBlocker, sortItems, statusLabel } from './backupRestore';
+import { canResume, mappedCount, nothingToWrite, reportVerdict, restoreBlocker, sortItems, statusLabel } from './backupRestore';
 
-const OK: Preflight = { ok: true, problems: [], to_write: 3, unchanged: 10, read_only_skipped: 2, mapping: null };
+const OK: Preflight = { ok: true, problems: [], to_write: 3, unchanged: 10, read_only_skipped: 2, mapping: null, unreadable: [] };
 
 function item(p: Partial<RestoreItem> & { address: string }): RestoreItem {
   return { name: null, status: 'written', old_raw_hex: null, new_raw_hex: null, code: null, code_hex: null, meaning: null, message: null, ...p };
@@ -22,9 +22,18 @@ function report(p: Partial<RestoreReport>): RestoreReport {
     pre_backup: 'b0',
     counts: { written: 2, unchanged: 5, skipped: 1, failed: 0, pending: 0 },
     items: [],
+    unreadable: [],
     ...p,
   };
 }
+
+describe('nothingToWrite', () => {
+  it('disables a restore of 0 entries, not its dry run', () => {
+    expect(nothingToWrite({ ...OK, to_write: 0 }, false)).toMatch(/nothing to write/);
+    expect(nothingToWrite({ ...OK, to_write: 0 }, true)).toBeNull();
+    expect(nothingToWrite(OK, false)).toBeNull();
+  });
+});
 
 describe('restoreBlocker', () => {
   it('needs a preflight, and a failed one blocks Restore', () => {

@@ -30,6 +30,12 @@ export function restoreBlocker(preflight: Preflight | null, mapByName: boolean, 
   return null;
 }
 
+/** Why a (real, not dry) restore would do nothing: every entry already holds the backup's value. */
+export function nothingToWrite(preflight: Preflight | null, dryRun: boolean): string | null {
+  if (!preflight || dryRun || preflight.to_write > 0) return null;
+  return 'nothing to write: the drive already holds every value of the backup';
+}
+
 /** How many entries of a name mapping found a target on this drive. */
 export function mappedCount(mapping: Preflight['mapping']): { mapped: number; unmapped: number } {
   if (!mapping) return { mapped: 0, unmapped: 0 };

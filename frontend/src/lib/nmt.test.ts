@@ -1,5 +1,5 @@
 import { describe, expect, it } from 'vitest';
-import { hasNmt, nmtTitle } from './nmt';
+import { hasNmt, networkState, nmtTitle } from './nmt';
 
 describe('nmtTitle', () => {
   it('says why the state is unknown', () => {
@@ -25,5 +25,16 @@ describe('hasNmt', () => {
     expect(hasNmt('ethercat')).toBe(true);
     expect(hasNmt('profinet')).toBe(false);
     expect(hasNmt('cclink-ie-tsn')).toBe(false);
+  });
+});
+
+describe('networkState', () => {
+  it('says what each fieldbus has instead of a bare "unknown"', () => {
+    expect(networkState({ link: 'canopen', nmt_state: 'preop' })).toMatchObject({ label: 'NMT', value: 'preop' });
+    expect(networkState({ link: 'canopen', nmt_state: 'unknown' }).value).toBe('not reported (no heartbeat)');
+    expect(networkState({ link: 'ethercat', nmt_state: 'safeop' })).toMatchObject({ label: 'AL state', value: 'safeop' });
+    expect(networkState({ link: 'profinet', nmt_state: 'unknown', connected: true })).toMatchObject({ label: 'AR', value: "up (servodesk's supervisor AR)" });
+    expect(networkState({ link: 'profinet', nmt_state: 'unknown', connected: false }).value).toMatch(/down/);
+    expect(networkState({ link: 'cclink-ie-tsn', nmt_state: 'unknown', connected: true })).toMatchObject({ label: 'SLMP link', value: 'answering' });
   });
 });

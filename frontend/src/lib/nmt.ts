@@ -29,3 +29,53 @@ export function nmtTitle(state: string | null | undefined, link?: string | null)
 export function hasNmt(link: string | null | undefined): boolean {
   return link !== 'cclink-ie-tsn' && link !== 'profinet';
 }
+
+/** What a session's fieldbus tells about its communication state, for the pages (issue 48:
+ * "unknown" for 4 of 5 drives said nothing). */
+export interface NetworkState {
+  /** What the state is: "NMT" (CANopen, CiA 301), "AL state" (EtherCAT, ETG.1000.6),
+   * "AR" (PROFINET: servodesk's supervisor AR), "SLMP link" (CC-Link IE TSN). */
+  label: string;
+  /** The state itself, in words. */
+  value: string;
+  /** Where it comes from (tooltip). */
+  title: string;
+}
+
+interface NetworkSession {
+  link?: string | null;
+  nmt_state: string | null;
+  connected?: boolean;
+}
+
+export function networkState(s: NetworkSession): NetworkState {
+  const up = s.connected !== false;
+  if (s.link === 'profinet') {
+    return {
+      label: 'AR',
+      value: up ? "up (servodesk's supervisor AR)" : 'down: the drive does not answer',
+      title: `${nmtTitle(s.nmt_state, s.link)} The AR shown is servodesk's own supervisor AR, up while the drive answers.`,
+    };
+  }
+  if (s.link === 'cclink-ie-tsn') {
+    return {
+      label: 'SLMP link',
+      value: up ? 'answering' : 'no answer',
+      title: `${nmtTitle(s.nmt_state, s.link)} Shown instead: whether the station answers SLMP.`,
+    };
+  }
+  if (s.link === 'ethercat') {
+    const known = !!s.nmt_state && s.nmt_state !== 'unknown';
+    return {
+      label: 'AL state',
+      value: known ? (s.nmt_state as string) : 'not read',
+      title: "The slave's EtherCAT state machine (AL status 0130h, ETG.1000.6), read from the slave.",
+    };
+  }
+  const unknown = !s.nmt_state || s.nmt_state === 'unknown';
+  return {
+    label: 'NMT',
+    value: unknown ? 'not reported (no heartbeat)' : (s.nmt_state as string),
+    title: nmtTitle(s.nmt_state, s.link),
+  };
+}

@@ -17,7 +17,7 @@ import { StatePill } from '../components/StatePill';
 import { dcpNicFromNote } from '../lib/dcp';
 import { toHex } from '../lib/format';
 import { SLMP_AXES, slmpAxisLabel } from '../lib/network';
-import { nmtTitle } from '../lib/nmt';
+import { networkState } from '../lib/nmt';
 import { notify, notifyError } from '../state/notify';
 import { useObservable } from '../state/observable';
 import { navigate } from '../state/router';
@@ -441,7 +441,7 @@ export function ConnectPage() {
                   <th>Node</th>
                   <th title="the drive's fieldbus, and the bus servodesk reaches it on">Fieldbus · bus</th>
                   <th>State</th>
-                  <th>NMT</th>
+                  <th title="NMT on CANopen; what the fieldbus has instead elsewhere (EtherCAT AL state, PROFINET AR, SLMP link)">Network state</th>
                   <th>Note</th>
                   <th />
                 </tr>
@@ -470,8 +470,8 @@ export function ConnectPage() {
                     <td>
                       <StatePill state={s.state} testid={`session-state-${s.id}`} />
                     </td>
-                    <td className="mono" title={nmtTitle(s.nmt_state, s.link)} data-testid={`session-nmt-${s.id}`}>
-                      {s.nmt_state}
+                    <td className="mono" title={networkState(s).title} data-testid={`session-nmt-${s.id}`}>
+                      {networkState(s).label} {networkState(s).value}
                     </td>
                     <td className="note">
                       <span className="clamp" title={s.note ?? ''}>

@@ -15,7 +15,7 @@ import { type Failure, failureOf, failureOfBody } from '../lib/codes';
 import { canonicalAddress, formatPnu } from '../lib/dictionary';
 import { type LedGroup, type NetworkRow, ledGroups, networkAddresses, networkRows, slmpAxisLabel } from '../lib/network';
 import { dcpNicFromNote, hex4 } from '../lib/dcp';
-import { hasNmt, nmtTitle } from '../lib/nmt';
+import { networkState } from '../lib/nmt';
 import { decText, engineeringText, enumText, hexText, isObjectValue } from '../lib/values';
 import { useSessionInfo, useSessionProfile } from '../state/profileCache';
 import './dataPages.css';
@@ -27,6 +27,7 @@ function LinkCard({ session }: { session: SessionInfo }) {
   const slmp = session.interface === 'slmp';
   const profinet = session.interface === 'profinet';
   const link = session.link ?? session.fieldbus;
+  const net = networkState(session);
   return (
     <section className="card" data-testid="network-link">
       <h2>
@@ -77,9 +78,9 @@ function LinkCard({ session }: { session: SessionInfo }) {
             </tr>
           )}
           <tr>
-            <th>NMT state</th>
-            <td className="mono" data-testid="network-nmt" title={nmtTitle(session.nmt_state, session.link)}>
-              {hasNmt(session.link) ? session.nmt_state : profinet ? 'none (PROFINET)' : 'not read (SLMP)'}
+            <th data-testid="network-nmt-label">{net.label === 'NMT' ? 'NMT state' : net.label}</th>
+            <td className="mono" data-testid="network-nmt" title={net.title}>
+              {net.value}
             </td>
           </tr>
         </tbody>

@@ -16,7 +16,7 @@ import { StatePill } from '../components/StatePill';
 import { StatuswordTable } from '../components/StatuswordTable';
 import { modeName } from '../lib/cia402';
 import { formatEngineering, toHex } from '../lib/format';
-import { nmtTitle } from '../lib/nmt';
+import { networkState } from '../lib/nmt';
 import { notify, notifyError } from '../state/notify';
 import { useObservable } from '../state/observable';
 import { applyState, liveSession, sessions, socket, socketStatus } from '../state/store';
@@ -114,7 +114,9 @@ function IdentityCard({ session }: { session: SessionInfo }) {
             <th>Link</th>
             <td className="mono">
               {session.fieldbus} · node {session.node_id} · {session.interface}:{session.channel} ·{' '}
-              <span title={nmtTitle(session.nmt_state, session.link)}>NMT {session.nmt_state}</span>
+              <span title={networkState(session).title} data-testid="overview-network-state">
+                {networkState(session).label} {networkState(session).value}
+              </span>
             </td>
           </tr>
         </tbody>

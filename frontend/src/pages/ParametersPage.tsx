@@ -37,6 +37,7 @@ import type { NumberMode } from '../lib/format';
 import { rangeText } from '../lib/validate';
 import { decText, engineeringText, enumText, hasEngineering, hexText, isObjectValue } from '../lib/values';
 import { useSessionInfo, useSessionProfile } from '../state/profileCache';
+import { hashPart, partHref } from '../state/router';
 import { watchProgress } from '../ws/progress';
 import './dataPages.css';
 import type { PageProps } from './registry';
@@ -85,7 +86,17 @@ export function ParametersPage({ sid }: PageProps) {
   const showSymbol = useMemo(() => hasSymbol(params), [params]);
   const errors = profile?.error_list ?? [];
 
-  const [groupId, setGroupId] = useState<string | null>(null);
+  // A link may name the group to open (#/parameters/<sid>/<group>: Tuning's "What applies
+  // instead"); the hash follows the group shown, so it can be bookmarked.
+  const [groupId, setGroupId] = useState<string | null>(() => hashPart(window.location.hash));
+  useEffect(() => {
+    const onHash = () => {
+      const g = hashPart(window.location.hash);
+      if (g !== null) setGroupId(g);
+    };
+    window.addEventListener('hashchange', onHash);
+    return () => window.removeEventListener('hashchange', onHash);
+  }, []);
   const [pageNo, setPageNo] = useState(0);
   const [cells, setCells] = useState<Map<string, Cell>>(new Map());
   const [reading, setReading] = useState<{ done: number; total: number } | null>(null);
@@ -96,7 +107,7 @@ export function ParametersPage({ sid }: PageProps) {
   /** "Save to EEPROM" lists what it stores before it stores it (issue "Motion safety"). */
   const [storeOpen, setStoreOpen] = useState(false);
   const [restoring, setRestoring] = useState(false);
-  const blocked = useWriteGate(sid).write;
+  const blocked = useWriteGate(sid, { write: 'write_parameters' }).write;
   const [restoreResult, setRestoreResult] = useState<string | null>(null);
   const [restoreFailure, setRestoreFailure] = useState<Failure | null>(null);
   const readToken = useRef(0);
@@ -270,7 +281,7 @@ export function ParametersPage({ sid }: PageProps) {
             </button>
           </div>
         </div>
-        <ControlNote sid={sid} what="Write, Save to EEPROM and Restore defaults are disabled; reading works" />
+        <ControlNote sid={sid} what="Write, Save to EEPROM and Restore defaults are disabled; reading works" rights={{ write: 'write_parameters' }} />
         {store && (
           <div className="store-status" data-testid="params-store-status">
             {store.running ? (
@@ -316,6 +327,7 @@ export function ParametersPage({ sid }: PageProps) {
                 title={[g.group.name_local, g.group.description].filter(Boolean).join(' · ')}
                 onClick={() => {
                   setGroupId(g.group.id);
+                  window.history.replaceState(null, '', partHref('parameters', sid, g.group.id));
                   setPageNo(0);
                   setEditing(null);
                 }}

@@ -507,7 +507,7 @@ export function PdoPage({ sid }: PageProps) {
           onRefused={(problems) => setCheck((c) => ({ ...c, state: 'done', problems }))}
           onApplied={applied}
         />
-        <CyclicPanel sid={sid} live={live} errors={errors} />
+        <CyclicPanel sid={sid} live={live} errors={errors} onApplied={applied} />
       </div>
 
       <div className="pdo-layout">

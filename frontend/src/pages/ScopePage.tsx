@@ -292,6 +292,22 @@ export function ScopePage({ sid }: PageProps) {
     pushChannels((drafts ?? []).filter((c) => c.id !== id));
   };
 
+  // The scope is one capture for all drives (services/scope.py). Channels of other drives than
+  // this page's are said so, with their drives, and kept only when the user chooses to
+  // (issue 48: the LECSN-T page showed the generic drive's channels as its own).
+  const others = (drafts ?? []).filter((c) => c.session !== sid);
+  const otherDrives = [...new Set(others.map((c) => c.session))];
+  const othersKey = `${sid}|${others.map((c) => `${c.id}:${c.session}`).join(',')}`;
+  const [keptOthers, setKeptOthers] = useState<string | null>(() => sessionStorage.getItem(`servodesk.scope.kept.${sid}`));
+  const keepOthers = () => {
+    sessionStorage.setItem(`servodesk.scope.kept.${sid}`, othersKey);
+    setKeptOthers(othersKey);
+  };
+  const removeOthers = () => {
+    model.clearLive(others.map((c) => c.id));
+    pushChannels((drafts ?? []).filter((c) => c.session === sid));
+  };
+
   const pushTrigger = useCallback((next: ScopeTrigger) => {
     setTrigger(next);
     triggerDirty.current = true;
@@ -437,6 +453,11 @@ export function ScopePage({ sid }: PageProps) {
     },
     [traces, drafts, objectOf],
   );
+
+  // Reset zoom follows the newest samples while the scope runs, shows the whole run after Stop.
+  useEffect(() => {
+    model.setRunning(status?.running ?? false);
+  }, [model, status?.running]);
 
   // Live span and the trigger level line.
   useEffect(() => {
@@ -619,6 +640,28 @@ export function ScopePage({ sid }: PageProps) {
 
   return (
     <div className="stack scope-page" data-testid="scope-page">
+      {others.length > 0 && (
+        <div className={keptOthers === othersKey ? 'muted small' : 'bk-warn small'} data-testid="scope-other-drives" data-kept={keptOthers === othersKey ? 'true' : 'false'}>
+          This capture also holds {others.length} channel{others.length === 1 ? '' : 's'} of {otherDrives.length === 1 ? 'another drive' : 'other drives'}:{' '}
+          {otherDrives.map((d, i) => (
+            <span key={d}>
+              {i > 0 ? ', ' : ''}
+              <span className="mono">{d}</span> ({others.filter((c) => c.session === d).length})
+            </span>
+          ))}
+          , not {sid}. {keptOthers === othersKey ? 'Kept in this capture as you chose; each row names its drive.' : 'One capture may record several drives, when you choose it.'}
+          {keptOthers !== othersKey && (
+            <span className="bk-row" style={{ marginTop: 4 }}>
+              <button type="button" className="small-btn" onClick={keepOthers} data-testid="scope-other-keep">
+                Keep them in this capture
+              </button>
+              <button type="button" className="small-btn" onClick={removeOthers} disabled={busy !== null} data-testid="scope-other-remove">
+                Remove them: record {sid} only
+              </button>
+            </span>
+          )}
+        </div>
+      )}
       <section className="card" data-testid="scope-main">
         <h2>
           Scope
@@ -664,7 +707,7 @@ export function ScopePage({ sid }: PageProps) {
             </button>
           )}
           <span className="spacer" />
-          <button type="button" className="small-btn" onClick={() => model.resetZoom()} data-testid="scope-reset-zoom" title={view === 'live' ? 'follow the newest samples again' : 'show the whole recording'}>
+          <button type="button" className="small-btn" onClick={() => model.resetZoom()} data-testid="scope-reset-zoom" title={view === 'live' && status?.running ? 'follow the newest samples again' : view === 'live' ? 'show the whole run' : 'show the whole recording'}>
             Reset zoom
           </button>
           <span className="segmented" role="group" aria-label="cursor to place">

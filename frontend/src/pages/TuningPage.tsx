@@ -31,6 +31,7 @@ import '../components/tuning/tuning.css';
 import { type Failure, failureOf } from '../lib/codes';
 import { notify, notifyError } from '../state/notify';
 import { useObservable } from '../state/observable';
+import { partHref } from '../state/router';
 import { applyState, liveSession, sessions, socket, socketStatus } from '../state/store';
 import type { PageProps } from './registry';
 
@@ -95,7 +96,7 @@ export function TuningPage({ sid }: PageProps) {
   const live = useObservable(liveSession(sid));
   const ws = useObservable(socketStatus);
   const op = useObservable(operationLive(sid));
-  const gate = useWriteGate(sid);
+  const gate = useWriteGate(sid, { write: 'tune', energise: 'tune' });
   const state = live.state;
   const [info, setInfo] = useState<TuningInfo | null>(null);
   const [infoFailure, setInfoFailure] = useState<Failure | null>(null);
@@ -295,7 +296,7 @@ export function TuningPage({ sid }: PageProps) {
           <div className="tuning-applies" data-testid="tuning-applies">
             <span className="muted">What applies instead: </span>
             {info.applies.map((a) => (
-              <a key={a.label} href={`#/${a.page}/${encodeURIComponent(sid)}`} className="chip">
+              <a key={a.label} href={partHref(a.page, sid, a.group)} className="chip" data-testid={`tuning-applies-${a.group || 'page'}`}>
                 {a.label}
               </a>
             ))}
@@ -629,7 +630,7 @@ export function TuningPage({ sid }: PageProps) {
                     Store to EEPROM
                   </button>
                 </div>
-                <ControlNote sid={sid} what="Undo and Store to EEPROM are disabled" testid="tuning-result-control-note" />
+                <ControlNote sid={sid} what="Undo and Store to EEPROM are disabled" testid="tuning-result-control-note" rights={{ write: 'tune' }} />
               </div>
             )}
           </Step>

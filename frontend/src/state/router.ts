@@ -21,6 +21,17 @@ export function routeHref(page: string, sid?: string | null): string {
   return sid ? `#/${page}/${encodeURIComponent(sid)}` : `#/${page}`;
 }
 
+/** `#/<page>/<session id>/<part>`: a part of a per-drive page, e.g. a parameter group. */
+export function partHref(page: string, sid: string, part: string): string {
+  return part ? `${routeHref(page, sid)}/${encodeURIComponent(part)}` : routeHref(page, sid);
+}
+
+/** The part a hash names after the session id (null: none). */
+export function hashPart(hash: string): string | null {
+  const third = hash.replace(/^#\/?/, '').split('/').filter(Boolean)[2];
+  return third !== undefined ? decodeURIComponent(third) : null;
+}
+
 const route = new Observable<Route>(
   typeof window === 'undefined' ? { page: '', sid: null } : parseHash(window.location.hash),
 );

@@ -3,12 +3,13 @@
  * changes only the metadata, the file never changes), entries, profile, serial; download as
  * JSON, DCF or CSV; upload a JSON backup or DCF file (POST /backups/upload).
  */
-import { type ChangeEvent, useEffect, useRef, useState } from 'react';
+import { type ChangeEvent, Fragment, useEffect, useRef, useState } from 'react';
 import { backupApi } from '../../api/client';
 import type { BackupFormat, BackupInfo, ErrorInfo } from '../../api/types';
 import { type Failure, failureOf } from '../../lib/codes';
 import { downloadName, formatTime, serialText, uploadProblem } from '../../lib/backupHistory';
 import { FailureBox } from '../FailureBox';
+import { UnreadableList, objectsText } from './UnreadableList';
 
 export type HistoryScope = 'drive' | 'profile' | 'all';
 
@@ -101,6 +102,8 @@ export function BackupHistory({
   onRestore: (b: BackupInfo) => void;
 }) {
   const [editing, setEditing] = useState<string | null>(null);
+  /** The backup whose unreadable objects are listed under its row. */
+  const [lacks, setLacks] = useState<string | null>(null);
   const [busy, setBusy] = useState<string | null>(null);
   const [opFailure, setOpFailure] = useState<Failure | null>(null);
   const [uploaded, setUploaded] = useState<BackupInfo | null>(null);
@@ -207,7 +210,8 @@ export function BackupHistory({
             </thead>
             <tbody>
               {backups.map((b) => (
-                <tr key={b.id} className={b.id === highlight ? 'highlight' : ''} data-testid="history-row" data-backup-id={b.id} data-label={b.label}>
+                <Fragment key={b.id}>
+                <tr className={b.id === highlight ? 'highlight' : ''} data-testid="history-row" data-backup-id={b.id} data-label={b.label}>
                   <td className="mono nowrap">{formatTime(b.time)}</td>
                   {editing === b.id ? (
                     <EditRow
@@ -225,7 +229,21 @@ export function BackupHistory({
                       <td className="note-cell" data-testid="history-note">
                         {b.note || <span className="muted">—</span>}
                       </td>
-                      <td className="mono num">{b.entries}</td>
+                      <td className="mono num nowrap" data-testid="history-entries">
+                        {b.entries}
+                        {!b.complete && (
+                          <button
+                            type="button"
+                            className="badge badge-warn badge-btn"
+                            data-testid="history-incomplete"
+                            aria-expanded={lacks === b.id}
+                            title={`Incomplete: ${objectsText(b.unreadable.length)} could not be read when it was taken (click for the list)`}
+                            onClick={() => setLacks(lacks === b.id ? null : b.id)}
+                          >
+                            incomplete · {b.unreadable.length} unreadable
+                          </button>
+                        )}
+                      </td>
                       <td className="mono small nowrap" title={b.profile_version != null ? `profile version ${b.profile_version}` : undefined}>
                         {b.profile_id}
                       </td>
@@ -260,6 +278,19 @@ export function BackupHistory({
                     </>
                   )}
                 </tr>
+                {lacks === b.id && !b.complete && (
+                  <tr data-testid="history-unreadable-row">
+                    <td colSpan={7}>
+                      <UnreadableList
+                        items={b.unreadable}
+                        open
+                        headline={`This backup is incomplete: ${objectsText(b.unreadable.length)} could not be read when it was taken; restoring it cannot set ${b.unreadable.length === 1 ? 'it' : 'them'}.`}
+                        testid="history-unreadable"
+                      />
+                    </td>
+                  </tr>
+                )}
+                </Fragment>
               ))}
             </tbody>
           </table>

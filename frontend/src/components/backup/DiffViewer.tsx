@@ -11,6 +11,7 @@ import { type SourceKey, diffCounts, groupDifferences, isDifference, isEqual, ki
 import { backupTitle } from '../../lib/backupHistory';
 import { type Failure, failureOf } from '../../lib/codes';
 import { FailureBox } from '../FailureBox';
+import { UnreadableList, objectsText } from './UnreadableList';
 
 /** A request from elsewhere on the page to compare two sources now. */
 export interface CompareAsk {
@@ -135,6 +136,7 @@ export function DiffViewer({
   const equal = c ? isEqual(c) : false;
   const grouped = c ? groupDifferences(c, groups, showAll) : [];
   const equalListed = c ? c.differences.filter((d) => !isDifference(d)).length : 0;
+  const notCompared = c ? new Set([...c.a_unreadable, ...c.b_unreadable].map((u) => u.address)).size : 0;
 
   return (
     <section className="card" data-testid="diff-viewer">
@@ -186,14 +188,29 @@ export function DiffViewer({
             </span>
             <span className="muted" data-testid="diff-counts">
               {counts.changed} changed · {counts.onlyA} only in A · {counts.onlyB} only in B · {counts.same} equal
+              {notCompared > 0 && <span data-testid="diff-not-compared"> · {notCompared} not compared (unreadable)</span>}
             </span>
             {busy && <span className="muted small">updating…</span>}
           </div>
           {equal && (
             <div className="diff-equal" data-testid="diff-equal" role="status">
-              No differences <span className="muted">— all {counts.same} compared entries are equal.</span>
+              No differences{' '}
+              <span className="muted">
+                — all {counts.same} compared entries are equal
+                {notCompared > 0 ? `; ${objectsText(notCompared)} could not be compared (unreadable, below)` : ''}.
+              </span>
             </div>
           )}
+          <UnreadableList
+            items={c.a_unreadable}
+            headline={`Not compared: ${objectsText(c.a_unreadable.length)} unreadable in A (${c.a || sourceLabel(shown.a, backups)}).`}
+            testid="diff-a-unreadable"
+          />
+          <UnreadableList
+            items={c.b_unreadable}
+            headline={`Not compared: ${objectsText(c.b_unreadable.length)} unreadable in B (${c.b || sourceLabel(shown.b, backups)}).`}
+            testid="diff-b-unreadable"
+          />
           {showAll && shown.all && equalListed === 0 && counts.same > 0 && (
             <div className="muted small" style={{ margin: '6px 0' }}>
               The server listed no equal entries; {counts.same} entries are equal.

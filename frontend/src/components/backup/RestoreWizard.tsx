@@ -12,12 +12,13 @@ import { ApiError, backupApi } from '../../api/client';
 import type { BackupInfo, ErrorInfo, Preflight, RestoreItem, RestoreReport } from '../../api/types';
 import { backupTitle, formatTime } from '../../lib/backupHistory';
 import { type ProgressItem, mergeProgressItem, watchBackupProgress } from '../../lib/backupProgress';
-import { DEFAULT_OPTIONS, type RestoreOptions, canResume, mappedCount, reportVerdict, restoreBlocker, sortItems, statusClass, statusLabel } from '../../lib/backupRestore';
+import { DEFAULT_OPTIONS, type RestoreOptions, canResume, mappedCount, nothingToWrite, reportVerdict, restoreBlocker, sortItems, statusClass, statusLabel } from '../../lib/backupRestore';
 import { type Failure, failureOf, findError } from '../../lib/codes';
 import { formatRawBytes } from '../../lib/format';
 import { ControlNote, useWriteGate } from '../ControlNote';
 import { FailureBox } from '../FailureBox';
 import { ProgressBar } from '../ProgressBar';
+import { UnreadableList, objectsText } from './UnreadableList';
 
 const STEPS = ['Backup', 'Preflight', 'Options', 'Run', 'Report'] as const;
 
@@ -229,6 +230,7 @@ export function RestoreWizard({
   const otherFamily = !!backup && !!profileId && backup.profile_id !== profileId;
   const noControl = gate.write;
   const blocker = restoreBlocker(preflight, mapByName, otherFamily);
+  const idle = blocker ? null : nothingToWrite(preflight, options.dryRun);
   const step = report ? 4 : running ? 3 : preflight ? (blocker ? 1 : 2) : selected ? 1 : 0;
   const counts = mappedCount(preflight?.mapping ?? null);
   const verdict = report ? reportVerdict(report) : null;
@@ -253,7 +255,7 @@ export function RestoreWizard({
             <option value="">— choose a backup —</option>
             {backups.map((b) => (
               <option key={b.id} value={b.id}>
-                {backupTitle(b)} · {b.entries} entries · {b.profile_id}
+                {backupTitle(b)} · {b.entries} entries{b.complete ? '' : ` (incomplete: ${b.unreadable.length} unreadable)`} · {b.profile_id}
               </option>
             ))}
             {selected && !backup && <option value={selected}>Backup {selected}</option>}
@@ -281,6 +283,11 @@ export function RestoreWizard({
                 <Count n={preflight.unchanged} label="unchanged" testid="preflight-unchanged" />
                 <Count n={preflight.read_only_skipped} label="read-only, skipped" testid="preflight-skipped" />
               </div>
+              <UnreadableList
+                items={preflight.unreadable}
+                headline={`This backup is incomplete: a restore cannot set ${objectsText(preflight.unreadable.length)} it lacks (unreadable when it was taken); the drive keeps its present values there.`}
+                testid="preflight-unreadable"
+              />
               {preflight.warnings && preflight.warnings.length > 0 && (
                 <ul className="problems warnings" data-testid="preflight-warnings">
                   {preflight.warnings.map((w, i) => (
@@ -389,9 +396,9 @@ export function RestoreWizard({
               type="button"
               className={options.dryRun ? 'primary' : 'warn-btn'}
               data-testid="restore-run"
-              disabled={blocker !== null || running !== null || checking || noControl !== null}
+              disabled={blocker !== null || idle !== null || running !== null || checking || noControl !== null}
               onClick={() => void execute(null)}
-              title={blocker ?? noControl ?? undefined}
+              title={blocker ?? idle ?? noControl ?? undefined}
             >
               {running ? 'Restoring…' : options.dryRun ? 'Dry run' : `Restore ${preflight.to_write} entr${preflight.to_write === 1 ? 'y' : 'ies'}`}
             </button>
@@ -400,7 +407,12 @@ export function RestoreWizard({
                 Restore is disabled: {blocker}.
               </span>
             )}
-            {!blocker && !options.dryRun && <span className="muted small">servodesk takes a backup of the drive first, so this can be undone.</span>}
+            {idle && (
+              <span className="muted small" data-testid="restore-nothing">
+                Restore is disabled: {idle}.
+              </span>
+            )}
+            {!blocker && !idle && !options.dryRun && <span className="muted small">servodesk takes a backup of the drive first, so this can be undone.</span>}
           </div>
           <ControlNote sid={sid} what="Restore (and its dry run) is disabled; the preflight works" testid="restore-control-note" />
         </div>
@@ -444,6 +456,11 @@ export function RestoreWizard({
               <span>stored</span>
             </div>
           </div>
+          <UnreadableList
+            items={report.unreadable}
+            headline={`${report.dry_run ? 'Would not restore' : 'Not restored'}: ${objectsText(report.unreadable.length)} the backup lacks (unreadable when it was taken); the drive keeps its present values there.`}
+            testid="report-unreadable"
+          />
           {report.pre_backup && (
             <div className="bk-row small" data-testid="report-pre-backup" style={{ marginBottom: 6 }}>
               Pre-restore backup (taken automatically):{' '}

@@ -10,6 +10,7 @@ import { backupTitle } from '../../lib/backupHistory';
 import { watchBackupProgress } from '../../lib/backupProgress';
 import { FailureBox } from '../FailureBox';
 import { ProgressBar } from '../ProgressBar';
+import { UnreadableList, objectsText } from './UnreadableList';
 
 interface Run {
   fraction: number | null;
@@ -86,10 +87,10 @@ export function TakeBackup({
         </div>
       )}
       {result && (
-        <div className="bk-ok" data-testid="backup-result" style={{ marginTop: 8 }}>
+        <div className={result.complete ? 'bk-ok' : 'bk-warn'} data-testid="backup-result" data-complete={result.complete ? 'true' : 'false'} style={{ marginTop: 8 }}>
           <div className="bk-row">
             <span>
-              <strong>Backup taken:</strong> {backupTitle(result)} ·{' '}
+              <strong>{result.complete ? 'Backup taken:' : 'Incomplete backup taken:'}</strong> {backupTitle(result)} ·{' '}
               <span className="mono" data-testid="backup-result-entries">
                 {result.entries}
               </span>{' '}
@@ -102,6 +103,11 @@ export function TakeBackup({
               Compare with the live drive
             </button>
           </div>
+          <UnreadableList
+            items={result.unreadable}
+            headline={`${objectsText(result.unreadable.length)} could not be read and ${result.unreadable.length === 1 ? 'is' : 'are'} not in this backup: restoring it cannot set ${result.unreadable.length === 1 ? 'it' : 'them'}.`}
+            testid="backup-result-unreadable"
+          />
         </div>
       )}
       {failure && (

@@ -6,10 +6,11 @@
  */
 import { useCallback, useEffect, useState } from 'react';
 import { pdoApi } from '../../api/pdo';
-import type { ErrorInfo, PdoCyclicStatus, PdoRate } from '../../api/types';
+import type { ErrorInfo, PdoApplyReport, PdoCyclicStatus, PdoIdleFix, PdoRate } from '../../api/types';
 import { type Failure, failureOf } from '../../lib/codes';
 import { type SyncMode, dcCycleProblem, syncText } from '../../lib/sync';
 import { type Observable, useObservable } from '../../state/observable';
+import { ConfirmDialog } from '../ConfirmDialog';
 import { ControlNote, useWriteGate } from '../ControlNote';
 import { FailureBox } from '../FailureBox';
 import { NumberBox, decimalParser } from './fields';
@@ -37,17 +38,50 @@ function RateRows({ rates, live, dir }: { rates: readonly PdoRate[]; live: Recor
   );
 }
 
+/** A fix of the silent TPDOs the user is asked to confirm. */
+interface FixAsk {
+  names: string[];
+  fix: PdoIdleFix;
+}
+
+/** "TPDO1", "TPDO1 and TPDO2", "TPDO1, TPDO2 and TPDO3". */
+function namesText(names: readonly string[]): string {
+  return names.length < 2 ? (names[0] ?? '') : `${names.slice(0, -1).join(', ')} and ${names[names.length - 1]}`;
+}
+
+/** The PDO change a fix makes: the TPDOs keep their entries, only their transmission changes. */
+async function applyFix(sid: string, ask: FixAsk): Promise<PdoApplyReport> {
+  const view = await pdoApi.view(sid);
+  const pdos = ask.names.map((name) => {
+    const p = view.pdos.find((x) => x.direction === 'tx' && x.name === name);
+    if (!p) throw new Error(`${name} is no longer in the drive's PDO configuration`);
+    return {
+      direction: 'tx' as const,
+      number: p.number,
+      entries: p.entries.map((e) => ({ index: e.index, subindex: e.subindex, bits: e.bits })),
+      ...(ask.fix.transmission_type !== null ? { transmission_type: ask.fix.transmission_type } : {}),
+      ...(ask.fix.event_timer !== null ? { event_timer: ask.fix.event_timer } : {}),
+    };
+  });
+  return pdoApi.apply(sid, { dry_run: false, pdos });
+}
+
 export function CyclicPanel({
   sid,
   live,
   errors,
   onStatus,
+  onApplied,
 }: {
   sid: string;
   live: Observable<PdoLive>;
   errors: readonly ErrorInfo[];
   onStatus?: (s: PdoCyclicStatus) => void;
+  /** A fix of a silent TPDO changed the mapping: the page shows the drive's new one. */
+  onApplied?: (r: PdoApplyReport) => void;
 }) {
+  const [ask, setAsk] = useState<FixAsk | null>(null);
+  const [fixing, setFixing] = useState(false);
   const [status, setStatus] = useState<PdoCyclicStatus | null>(null);
   const [period, setPeriod] = useState(DEFAULT_PERIOD_MS);
   const [sync, setSync] = useState<SyncMode>('freerun');
@@ -116,6 +150,25 @@ export function CyclicPanel({
     }
   }
 
+  async function fix(a: FixAsk) {
+    setFixing(true);
+    setFailure(null);
+    try {
+      const r = await applyFix(sid, a);
+      onApplied?.(r);
+      if (!r.ok) setFailure(failureOf(new Error(r.error ?? 'the drive refused the change'), `Change ${namesText(a.names)}`, errors));
+      setAsk(null);
+      void read();
+    } catch (e) {
+      setFailure(failureOf(e, `Change ${namesText(a.names)}`, errors));
+      setAsk(null);
+    } finally {
+      setFixing(false);
+    }
+  }
+
+  /** TPDOs that send nothing because of their configuration (the server says why). */
+  const idle = (status?.tx_pdos ?? []).filter((r) => r.idle);
   const offersDc = status?.sync_modes?.includes('dc') ?? false;
   const periodChanged = running && (status?.sync_period_ms !== period || (status?.sync ?? 'freerun') !== sync);
   const cycleProblem = sync === 'dc' ? dcCycleProblem(period, status?.dc_cycle_ns) : null;
@@ -216,7 +269,53 @@ export function CyclicPanel({
       ) : (
         <div className="muted small">Inputs only: the drive's TPDOs are read, no RPDO set-points are sent.</div>
       )}
+      {running && idle.length > 0 && (
+        <div className="bk-warn small" data-testid="pdo-idle" style={{ marginTop: 6 }}>
+          <strong>Nothing arrives from {namesText(idle.map((r) => r.name))}.</strong>
+          <ul style={{ margin: '4px 0', paddingLeft: 18 }}>
+            {idle.map((r) => (
+              <li key={r.name} data-testid={`pdo-idle-${r.name}`}>
+                {r.idle?.why}
+              </li>
+            ))}
+          </ul>
+          <div className="bk-row">
+            <span>Make {idle.length === 1 ? 'it' : 'them'} send:</span>
+            {(idle[0]?.idle?.fixes ?? []).map((f, i) => (
+              <button
+                type="button"
+                key={f.label}
+                className="small-btn"
+                disabled={fixing || noControl !== null}
+                title={noControl ?? 'a PDO change: written to the drive, read back and verified; asks first'}
+                onClick={() => setAsk({ names: idle.map((r) => r.name), fix: f })}
+                data-testid={`pdo-idle-fix-${i}`}
+              >
+                {idle.length === 1 ? f.label : f.label.replace('send it', 'send them')}…
+              </button>
+            ))}
+          </div>
+        </div>
+      )}
       <ControlNote sid={sid} what="Start and Stop are disabled" testid="pdo-cyclic-control-note" />
+      {ask && (
+        <ConfirmDialog
+          title={`Change ${namesText(ask.names)}?`}
+          confirmLabel={`Change ${namesText(ask.names)}`}
+          busy={fixing}
+          onCancel={() => setAsk(null)}
+          onConfirm={() => void fix(ask)}
+          testid="pdo-idle-dialog"
+        >
+          <p>
+            servodesk changes the communication parameters of {namesText(ask.names)} so that the drive will {ask.names.length === 1 ? ask.fix.label : ask.fix.label.replace('send it', 'send them')}:{' '}
+            {ask.fix.transmission_type !== null ? `transmission type ${ask.fix.transmission_type}` : `event timer ${ask.fix.event_timer} ms`}. Its mapped objects stay as they are.
+          </p>
+          <p className="muted small">
+            Like any PDO change, the drive goes to pre-operational for the write, the values are read back, and the cyclic data restarts. Save to EEPROM on the Parameters page to keep it after a power cycle.
+          </p>
+        </ConfirmDialog>
+      )}
       {failure && <FailureBox f={failure} testid="pdo-cyclic-failure" />}
       {rates.length > 0 && (
         <table className="grid pdo-rates" data-testid="pdo-rates">

@@ -80,6 +80,8 @@ export class ScopeModel {
   liveOrigin: number | null = null;
   recordingOrigin = 0;
   triggerTime: number | null = null;
+  /** Whether the scope runs (samples arriving): a stopped live view has a whole run to show. */
+  running = true;
   /** Follow the newest sample with a window of `span` seconds, until the user zooms or pans. */
   follow = true;
   span = DEFAULT_SPAN_S;
@@ -298,13 +300,21 @@ export class ScopeModel {
     this.changed();
   }
 
-  /** Live: follow the newest sample again; a recording: show all of it. */
+  /** Running live: follow the newest sample again; stopped, or a capture or recording: show
+   * all of it (after Stop the run is what the engineer looks at, not its last window). */
   resetZoom(): void {
-    if (this.kind === 'live') this.follow = true;
-    else {
-      const e = this.extent();
-      if (e && e[1] > e[0]) [this.x0, this.x1] = e;
-    }
+    const e = this.kind === 'live' && this.running ? null : this.extent();
+    if (e && e[1] > e[0]) {
+      this.follow = false;
+      [this.x0, this.x1] = e;
+    } else if (this.kind === 'live') this.follow = true;
+    this.changed();
+  }
+
+  /** The scope started or stopped (its status). */
+  setRunning(running: boolean): void {
+    if (running === this.running) return;
+    this.running = running;
     this.changed();
   }
 

@@ -407,6 +407,26 @@ describe('wire frames into the model', () => {
   });
 });
 
+describe('reset zoom', () => {
+  it('shows the whole run after Stop, not the last window', () => {
+    const m = new ScopeModel();
+    m.setTraces([channel(0)]);
+    // 5 s of samples at 1 kHz.
+    m.ingest(decodeFrame(encodeFrame(KIND_SAMPLES, 1, 0, 1000, [{ id: 0, source: 3, dt: 0.001, t0: 0, values: range(5000, (i) => i) }])));
+    m.span = 1;
+    m.setRunning(true);
+    m.resetZoom();
+    const [r0, r1] = m.window();
+    expect(r1 - r0).toBeCloseTo(1, 9);
+    m.setRunning(false);
+    m.resetZoom();
+    const e = m.extent();
+    expect(e).not.toBeNull();
+    expect(m.window()).toEqual(e);
+    expect((e as [number, number])[1] - (e as [number, number])[0]).toBeGreaterThan(1);
+  });
+});
+
 describe('recordings from the server', () => {
   it('opens a capture: times from t_ref, the profile and display scales, the trigger', () => {
     const n = normaliseRecording({
