@@ -5,12 +5,17 @@ with heartbeats over the WebSocket, then stops sending them. A plain python-can 
 same channel timestamps the first controlword download carrying halt (bit 8) or quick stop;
 the simulated drive tells when the axis stands (|velocity| within 606Fh, 1000 inc/s). The
 figures include the configured dead-man time (SERVODESK_DEADMAN_MS, 250 ms by default);
-``over_deadline`` is what the backend adds to it. Two cases, in the same process: the event
-loop idle (the baseline), and the loop held from the last heartbeat on for ``--hold-s``, as
-a heavy request holds it (the dead-man's thread must not wait for it: services/deadman.py).
+``over_deadline`` is what the backend adds to it. The cases, in the same process: the event
+loop idle (the baseline); the loop held from the last heartbeat on for ``--hold-s``, as a
+heavy request would hold it (the dead-man's thread must not wait for it: services/deadman.py);
+and each heavy request of issue "Motion safety" item 3 really in flight from the last
+heartbeat on: POST /scope/import of a 10 MB CSV, GET of a 30 MB backup (the upload limit
+is 32 MiB), POST /compare of it with itself, and a restore preflight of it (api/offload.py
+and api/backup_documents.py move their parsing off the loop; the server shares this process,
+so they compete for its GIL as in `servodesk serve`).
 
     python bench/bench_deadman.py [--runs 20] [--deadman-ms 250] [--velocity 200000]
-        [--hold-s 1] [--json]
+        [--hold-s 1] [--cases idle,loop_held,scope_import,backup_get,compare,preflight] [--json]
 """
 
 from __future__ import annotations
@@ -23,12 +28,14 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 import can
 from fastapi.testclient import TestClient
 
 from servodesk.api.app import create_app
+from servodesk.domain.paramset import checksum
 from servodesk.settings import Settings
 
 SID = "cia402-generic-1"
@@ -63,8 +70,12 @@ class Spy:
         self.bus.shutdown()
 
 
+#: A request run from the last heartbeat on (None: the loop left alone).
+Load = Callable[[], None] | None
+
+
 def one_run(
-    client: TestClient, ws: Any, drive: Any, spy: Spy, velocity: int, h: dict[str, str], hold: float
+    client: TestClient, ws: Any, drive: Any, spy: Spy, velocity: int, h: dict[str, str], load: Load
 ) -> dict[str, float]:
     r = client.post(f"/api/v1/sessions/{SID}/state", json={"command": "enable"}, headers=h)
     r.raise_for_status()
@@ -82,12 +93,10 @@ def one_run(
         time.sleep(0.05)
     n = len(spy.stops)
     holder = None
-    if hold > 0:
-        # The event loop held as a heavy request holds it (a large backup parsed, a CSV
-        # imported): the whole time, from the last heartbeat on.
-        holder = threading.Thread(target=client.portal.call, args=(time.sleep, hold))
+    if load is not None:
+        holder = threading.Thread(target=load)
         holder.start()
-    t_end = time.monotonic() + 3.0 + hold
+    t_end = time.monotonic() + 3.0
     standstill = None
     while time.monotonic() < t_end:
         if standstill is None and abs(drive.velocity) <= STANDSTILL and len(spy.stops) > n:
@@ -95,7 +104,7 @@ def one_run(
             break
         time.sleep(0.0005)
     if holder is not None:
-        holder.join()
+        holder.join(120)
     if standstill is None or len(spy.stops) <= n:
         status = client.get(f"/api/v1/sessions/{SID}/motion").json()
         raise RuntimeError(
@@ -106,6 +115,78 @@ def one_run(
         "to_bus_ms": (spy.stops[n] - last) * 1000.0,
         "to_standstill_ms": (standstill - last) * 1000.0,
     }
+
+
+def big_csv(megabytes: float) -> bytes:
+    """A two-column recording of ``megabytes`` (the import issue 44 measured: 10 MB)."""
+    rows = ["time_s,position [inc]"]
+    n = int(megabytes * 1e6 / 18)
+    rows += [f"{i * 0.0005:.6f},{(i * 7919) % 1000003}" for i in range(n)]
+    return ("\n".join(rows) + "\n").encode()
+
+
+def big_backup(client: TestClient, h: dict[str, str], megabytes: float) -> str:
+    """A backup of the drive made ``megabytes`` large and stored; its id.
+
+    Padded with unreadable entries (what a drive with many aborting objects gives, LECSN-T:
+    541), so its size is structure to parse, as in a large real backup, not one long string.
+    """
+    r = client.post(f"/api/v1/sessions/{SID}/backups", json={"label": "bench"}, headers=h)
+    r.raise_for_status()
+    doc = client.get(f"/api/v1/backups/{r.json()['id']}").json()
+    one = {
+        "address": "0x2fff:01",
+        "name": "padding",
+        "code": 0x06020000,
+        "code_hex": "0x06020000",
+        "message": "object does not exist",
+    }
+    n = int(megabytes * 1e6 / len(json.dumps(one)))
+    doc["unreadable"] = [
+        dict(one, address=f"0x{0x3000 + i // 250:04x}:{i % 250 + 1:02x}") for i in range(n)
+    ]
+    doc["checksum"] = checksum(doc)
+    body = json.dumps(doc).encode()
+    r = client.post(
+        "/api/v1/backups/upload?filename=big.json",
+        content=body,
+        headers={"Content-Type": "application/json"},
+    )
+    r.raise_for_status()
+    return str(r.json()["id"])
+
+
+def loads(client: TestClient, h: dict[str, str], hold: float, cases: list[str]) -> dict[str, Load]:
+    """Each case's load, built once (the files) and run in each of its runs."""
+    out: dict[str, Load] = {}
+
+    def ok(r: Any) -> None:
+        if r.status_code >= 400:
+            raise RuntimeError(
+                f"{r.request.method} {r.request.url.path}: {r.status_code} {r.text[:200]}"
+            )
+
+    if "idle" in cases:
+        out["idle"] = None
+    if "loop_held" in cases:
+        out["loop_held"] = lambda: client.portal.call(time.sleep, hold)
+    if "scope_import" in cases:
+        csv = big_csv(10.0)
+        out["scope_import"] = lambda: ok(
+            client.post(
+                "/api/v1/scope/import?filename=big.csv",
+                files={"file": ("big.csv", csv, "text/csv")},
+            )
+        )
+    if {"backup_get", "compare", "preflight"} & set(cases):
+        bid = big_backup(client, h, 30.0)  # The upload limit is 32 MiB.
+        src = {"kind": "backup", "id": bid}
+        out["backup_get"] = lambda: ok(client.get(f"/api/v1/backups/{bid}"))
+        out["compare"] = lambda: ok(client.post("/api/v1/compare", json={"a": src, "b": src}))
+        out["preflight"] = lambda: ok(
+            client.post(f"/api/v1/sessions/{SID}/restore/preflight", json={"backup": bid})
+        )
+    return {c: out[c] for c in cases}
 
 
 def summary(values: list[float]) -> dict[str, float]:
@@ -124,11 +205,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--hold-s", type=float, default=1.0, help="how long the loop is held in the second case"
     )
+    ap.add_argument(
+        "--cases",
+        default="idle,loop_held,scope_import,backup_get,compare,preflight",
+        help="comma-separated; the first is the baseline the others are compared with",
+    )
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
+    cases = [c.strip() for c in args.cases.split(",") if c.strip()]
+    known = {"idle", "loop_held", "scope_import", "backup_get", "compare", "preflight"}
+    if not cases or set(cases) - known:
+        ap.error(f"--cases: each of {sorted(known)}")
     channel = f"bench-deadman-{os.getpid()}"
     spy = Spy(channel)
-    runs: dict[str, list[dict[str, float]]] = {"idle": [], "loop_held": []}
+    runs: dict[str, list[dict[str, float]]] = {c: [] for c in cases}
     try:
         with tempfile.TemporaryDirectory() as tmp:
             settings = Settings(
@@ -155,12 +245,12 @@ def main(argv: list[str] | None = None) -> int:
                     ws.send_json({"type": "bind", "session": SID, "token": token})
                     while ws.receive_json().get("type") != "bind":
                         pass
-                    for case, hold in (("idle", 0.0), ("loop_held", args.hold_s)):
+                    for case, load in loads(client, h, args.hold_s, cases).items():
                         for i in range(args.runs):
                             # Alternate directions: the axis stays clear of the simulated
                             # limit switches.
                             v = args.velocity if i % 2 == 0 else -args.velocity
-                            runs[case].append(one_run(client, ws, drive, spy, v, h, hold))
+                            runs[case].append(one_run(client, ws, drive, spy, v, h, load))
                             time.sleep(0.05)
     finally:
         spy.close()
@@ -178,11 +268,13 @@ def main(argv: list[str] | None = None) -> int:
             "heartbeat_to_standstill_ms": summary(still),
             "over_deadline_ms": summary([b - args.deadman_ms for b in bus]),
         }
-    # The held loop against the idle baseline, run in the same process.
-    result["held_over_idle_median_ratio"] = round(
-        result["loop_held"]["heartbeat_to_stop_on_bus_ms"]["median"]
-        / result["idle"]["heartbeat_to_stop_on_bus_ms"]["median"],
-        3,
+    # Each case against the first (the idle loop), run in the same process.
+    base = result[cases[0]]["heartbeat_to_stop_on_bus_ms"]["median"]
+    result["median_ratio_to_" + cases[0]] = {
+        c: round(result[c]["heartbeat_to_stop_on_bus_ms"]["median"] / base, 3) for c in cases
+    }
+    result["worst_stop_on_bus_ms"] = max(
+        result[c]["heartbeat_to_stop_on_bus_ms"]["worst"] for c in cases
     )
     if args.json:
         print(json.dumps(result, indent=2))

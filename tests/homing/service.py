@@ -14,6 +14,7 @@ from typing import Any
 
 from servodesk.domain.profile_loader import ProfileCatalog
 from servodesk.links.base import LinkParams
+from servodesk.services.audit import DISCARD
 from servodesk.services.events import EventHub
 from servodesk.services.manager import SessionManager
 from servodesk.services.motion import MotionService
@@ -31,6 +32,7 @@ class StandInControl:
         self.holder: str | None = None
         self.beat: float | None = None
         self.lost: list[Callable[[str, str, str], None]] = []
+        self.audit = DISCARD  # Motion records its start and end there (services/audit.py).
 
     def on_lost(self, cb: Callable[[str, str, str], None]) -> None:
         self.lost.append(cb)

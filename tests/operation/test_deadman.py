@@ -211,3 +211,49 @@ def test_a_loop_held_longer_than_the_dead_man_stops_even_a_live_client(channel, 
             st = client.get(f"/api/v1/sessions/{SID}/motion").json()
             assert st["state"] == "deadman" and "heartbeat" in st["message"], st
             beats.stop()
+
+
+def test_the_thread_stop_also_holds_against_cyclic_outputs(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """With servodesk's cyclic outputs on, RPDO1 carries the controlword (CiA 402 default
+    mapping), and every SYNC the drive applies it (CiA 301 §7.2.2). With 605Ah = 6 the drive
+    stays in Quick stop active after its ramp (CiA 402-2 §6.3.4), from where "enable
+    operation" takes it back to Operation enabled (transition 16): the dead-man thread's SDO
+    quick stop alone was undone by the next RPDO, which still held "enable operation", and
+    the jog's velocity came back. The thread now puts the quick stop into the output image
+    too. The loop is held the whole time, so only the thread can have done it."""
+    with operation_app(channel, tmp_path, deadman_ms=DEADMAN_MS) as (client, sim):
+        drive = sim.drives[0]
+        with client.websocket_connect("/api/v1/ws?client=A") as ws:
+            beats = take_and_enable(client, SID, "A", ws)
+            r = client.post(
+                f"/api/v1/sessions/{SID}/pdo/cyclic",
+                json={"sync_period_ms": 5, "outputs": True},
+                headers=headers("A"),
+            )
+            assert r.status_code == 200, r.text
+            assert "0x6040:00" in {
+                a for a, v in r.json()["values"].items() if v["pdo"].startswith("RPDO")
+            }
+            r = client.put(
+                f"/api/v1/sessions/{SID}/objects/0x605A",
+                json={"value": 6},
+                headers=headers("A"),
+            )
+            assert r.status_code == 200, r.text
+            _jog(client)
+            assert wait_until(lambda: abs(drive.velocity) > 150_000, 1.0)
+            holder = threading.Thread(target=client.portal.call, args=(time.sleep, 1.5))
+            last = beats.stop()
+            holder.start()  # The event loop is held from now on.
+            # Quick stop active (statusword xxxx xxxx x00x 0111b) or already disabled after it.
+            left = wait_until(lambda: drive.statusword & 0x6F in (0x07, 0x40), 1.0)
+            # Many SYNCs later, the loop still held: no RPDO has taken it back.
+            again = wait_until(lambda: drive.statusword & 0x6F == 0x27, 0.3)
+            held = holder.is_alive()
+            holder.join(5.0)
+            assert left is not None, f"still {drive.statusword:#06x} after the deadline"
+            assert again is None, "the next RPDO took the drive back to Operation enabled"
+            assert held, "the loop was not held any more: the test proves nothing"
+            assert (left - last) * 1000.0 <= DEADMAN_MS + 100
+            assert wait_until(lambda: abs(drive.velocity) <= STANDSTILL, 2.0)
+            client.delete(f"/api/v1/sessions/{SID}/pdo/cyclic", headers=headers("A"))

@@ -20,12 +20,19 @@ from __future__ import annotations
 import asyncio
 import json
 import multiprocessing
+import os
+import tempfile
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any, ParamSpec, TypeVar
 
 from fastapi import Response
+from fastapi.responses import FileResponse
 from pydantic import BaseModel
+from starlette.background import BackgroundTask
+
+from servodesk.errors import WorkerFailed
 
 P = ParamSpec("P")
 T = TypeVar("T")
@@ -48,9 +55,38 @@ def _pool() -> ProcessPoolExecutor:
 
 async def in_process(fn: Callable[P, T], *args: P.args, **kwargs: P.kwargs) -> T:
     """Run ``fn`` in the documents' worker process; its exceptions come back pickled (the
-    error tree pickles: errors.py)."""
-    future = _pool().submit(fn, *args, **kwargs)
-    return await asyncio.wrap_future(future)
+    error tree pickles: errors.py). A worker that died (killed for memory by a huge file)
+    is a 503 for this request, and the next one starts a new worker: a broken pool would
+    otherwise refuse every later document."""
+    global _POOL
+    pool = _pool()
+    try:
+        return await asyncio.wrap_future(pool.submit(fn, *args, **kwargs))
+    except BrokenProcessPool:
+        if _POOL is pool:
+            _POOL = None
+            pool.shutdown(wait=False, cancel_futures=True)
+        raise WorkerFailed(
+            "the worker process that reads large documents ended before it answered",
+            hint="try again; if it fails again, the file may be too large for this machine's "
+            "memory",
+        ) from None
+
+
+async def file_answer(
+    fn: Callable[..., None], *args: Any, media_type: str = "application/json"
+) -> Response:
+    """Run ``fn(*args, out)`` in the documents' worker, which writes the answer to the
+    temporary file ``out``; stream that file and remove it. A large answer crosses into the
+    server a chunk at a time (api/backup_documents.py says why)."""
+    fd, out = tempfile.mkstemp(prefix="servodesk-answer-", suffix=".json")
+    os.close(fd)
+    try:
+        await in_process(fn, *args, out)
+    except BaseException:
+        os.unlink(out)
+        raise
+    return FileResponse(out, media_type=media_type, background=BackgroundTask(os.unlink, out))
 
 
 def shutdown() -> None:

@@ -32,6 +32,10 @@ from servodesk.errors import (
 log = logging.getLogger(__name__)
 T = TypeVar("T")
 
+#: Controlword quick stop (CiA 402-2 §6.2.1, table 28: 0xxx x01xb): what every link's
+#: :meth:`DriveLink.stop_frame` writes to 6040h.
+QUICK_STOP_WORD = 0x0002
+
 
 @dataclass(frozen=True, slots=True)
 class LinkParams:

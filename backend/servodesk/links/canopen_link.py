@@ -38,7 +38,7 @@ from servodesk.errors import (
     ServodeskError,
     ValidationError,
 )
-from servodesk.links.base import DriveLink, Identity, LinkParams, object_identity
+from servodesk.links.base import QUICK_STOP_WORD, DriveLink, Identity, LinkParams, object_identity
 
 log = logging.getLogger(__name__)
 
@@ -176,9 +176,8 @@ CONSUMER = ObjectAddress(0x1016, 1)
 _MAX_SEGMENTED = 1 << 20
 #: Heartbeats read this soon after an NMT command may predate it (see _on_heartbeat).
 HEARTBEAT_STALE_S = 0.05
-#: Controlword quick stop (CiA 402-2 §6.2.1, table 28: 0xxx x01xb) and the scs bits of a
-#: download's answer (CiA 301 §7.2.4.3.3: initiate download response, scs = 3).
-QUICK_STOP_WORD = 0x0002
+#: The scs bits of a download's answer (CiA 301 §7.2.4.3.3: initiate download response,
+#: scs = 3).
 DOWNLOAD_ANSWER = 0x60
 
 

@@ -4,13 +4,14 @@ Until 2026-12-07 the watch was a task on the event loop, and so was the stop it 
 one request parsed or serialised a large document (a 35 MB backup, a 10 MB scope CSV) the loop
 was held for 2.5 to 9 s, and a jog whose client had gone silent stopped 3.5 s late (issue
 "Motion safety", item 3). Now the watch runs on this thread and, where the link can put a
-frame on the wire without the loop (:meth:`DriveLink.stop_frame`: CANopen, SLMP), it sends
-the quick stop from here. The loop then does the orderly rest (halt and quick stop through
-the link, the motion's end, the events) whenever it gets to it.
+frame on the wire without the loop (:meth:`DriveLink.stop_frame`: CANopen, SLMP, EtherCAT),
+it sends the quick stop from here (:func:`thread_stop`, which also puts it into servodesk's
+cyclic outputs where they carry the controlword). The loop then does the orderly rest (halt
+and quick stop through the link, the motion's end, the events) whenever it gets to it.
 
 The watch cannot read heartbeats the loop has not read: a loop held longer than the dead-man
 time stops the axis even when the client is alive (fail-safe, the same as a client that went
-silent). Heavy work therefore leaves the loop (services/offload.py), so that this does not
+silent). Heavy work therefore leaves the loop (api/offload.py), so that this does not
 happen in normal use.
 """
 
@@ -23,8 +24,49 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from servodesk.domain.address import ObjectAddress
+from servodesk.links.base import QUICK_STOP_WORD
+
+if TYPE_CHECKING:
+    from servodesk.services.session import Session
 
 log = logging.getLogger(__name__)
+
+CONTROLWORD = ObjectAddress(0x6040)
+
+
+def thread_stop(session: Session) -> Callable[[], None] | None:
+    """What the dead-man's thread calls to stop ``session``'s drive without the event loop;
+    None where there is no such path (the stop then goes through the loop).
+
+    The link's own stop frame (an SDO download of the quick stop), and, while servodesk's
+    cyclic outputs carry the controlword, the quick stop in the output image as well: the
+    drive applies the next RPDO at SYNC (CiA 301 §7.2.2), which would otherwise command it
+    again with the controlword the image held, over the SDO's quick stop. The exchange is
+    looked up when the stop fires (cyclic data may start after the motion did); its output
+    image takes the value under its own lock, and its SYNC thread sends it within a period.
+    """
+    frame = session.link.stop_frame()
+
+    def into_outputs() -> bool:
+        cyclic = session.cyclic
+        if cyclic is None or not cyclic.outputs or not cyclic.carries(CONTROLWORD):
+            return False
+        cyclic.set_outputs({CONTROLWORD: QUICK_STOP_WORD})
+        return True
+
+    if frame is None and not (session.cyclic is not None and session.cyclic.outputs):
+        return None
+
+    def stop() -> None:
+        into_outputs()
+        if frame is not None:
+            frame()
+
+    return stop
+
 
 #: How often the thread looks (s): the stop frame goes out at most this long after the
 #: deadline, plus the thread's own scheduling delay.

@@ -71,7 +71,7 @@ from servodesk.errors import (
 )
 from servodesk.services import homing
 from servodesk.services.control import ControlService
-from servodesk.services.deadman import DeadmanWatch
+from servodesk.services.deadman import DeadmanWatch, thread_stop
 from servodesk.services.events import EventHub
 from servodesk.services.manager import SessionManager
 from servodesk.services.session import BORROW, Borrowed, Session
@@ -191,6 +191,20 @@ class Motion:
     #: Called once with the motion when it ends, however it ends (the tuning service stops
     #: its job when the dead-man, a stop or a fault ends the tuning motion).
     on_end: list[Callable[[Motion], None]] = field(default_factory=list)
+
+
+#: Ends of a motion the audit log records as failures: it did not end as asked.
+_FAILED = frozenset({"deadman", "error", "fault", "lost"})
+
+
+def _facts(motion: Motion) -> dict[str, Any]:
+    """What the audit log keeps of a motion."""
+    return {
+        "kind": motion.kind,
+        "owner": motion.owner,
+        "mode": motion.mode,
+        "target": motion.target,
+    }
 
 
 @dataclass(eq=False)
@@ -650,6 +664,9 @@ class MotionService:
             old.active = False
             self._deadman.disarm(old)
             old.state, old.message = "replaced", f"replaced by {motion.kind}"
+            self.control.audit.record(
+                "motion.stopped", drive=axis.sid, message=old.message, details=_facts(old)
+            )
             self._notify_end(old)
         axis.motion = motion
         loop = asyncio.get_running_loop()
@@ -660,6 +677,9 @@ class MotionService:
         for make in extra:
             motion.tasks.append(loop.create_task(make(), name=f"setpoints {axis.sid}"))
         log.info("%s on %s by %s: %s", motion.kind, axis.sid, motion.owner, motion.message)
+        self.control.audit.record(
+            "motion.started", drive=axis.sid, message=motion.message, details=_facts(motion)
+        )
         self._publish(axis)
 
     def _arm(self, axis: _Axis, motion: Motion, loop: asyncio.AbstractEventLoop) -> None:
@@ -683,7 +703,7 @@ class MotionService:
             motion,
             deadline_s=self.deadman_s,
             last=last,
-            stop=axis.session.link.stop_frame(),
+            stop=thread_stop(axis.session),
             fired=fired,
         )
 
@@ -722,6 +742,15 @@ class MotionService:
         log.info("motion on %s ended: %s (%s)", axis.sid, state, message)
         self._notify_end(motion)
         self._publish(axis)
+        # After the listeners (a tuning's stop): the record is queued, it never waits on the
+        # database (services/audit.py). A stop's reason is its message.
+        self.control.audit.record(
+            "motion.stopped",
+            drive=axis.sid,
+            ok=state not in _FAILED,
+            message=message,
+            details={**_facts(motion), "state": state},
+        )
 
     @staticmethod
     def _notify_end(motion: Motion) -> None:
@@ -1679,7 +1708,7 @@ class MotionService:
     def protection(self, sid: str) -> dict[str, Any]:
         """What stops this drive when its operator is lost, as the Operation page shows it."""
         session = self.manager.get(sid)
-        thread = session.link.stop_frame() is not None
+        thread = thread_stop(session) is not None
         ms = round(self.deadman_s * 1000)
         path = "dead-man thread" if thread else "event loop"
         where = (

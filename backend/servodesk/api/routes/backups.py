@@ -7,10 +7,12 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Header, Query, Request, Response
 
+from servodesk.api import backup_documents
 from servodesk.api.control_deps import ControlToken, WriteControl, operation
 from servodesk.api.deps import AppState, StateDep
 from servodesk.api.downloads import content_disposition
-from servodesk.api.offload import in_worker, json_response
+from servodesk.api.identity import identity_of
+from servodesk.api.offload import file_answer, in_process, in_worker, json_response
 from servodesk.api.schemas import (
     ERROR_RESPONSES,
     AuditEntry,
@@ -29,7 +31,6 @@ from servodesk.api.schemas import (
     SourceDrive,
 )
 from servodesk.api.uploads import openapi_file_body, read_file
-from servodesk.domain.paramset import ParameterSet
 from servodesk.errors import NotFoundError, ValidationError
 from servodesk.services.session import Session
 
@@ -51,7 +52,11 @@ ClientHeader = Annotated[
 async def create_backup(sid: str, body: BackupCreate, state: StateDep) -> BackupInfo:
     """Read every configurable parameter of the drive into a new backup (progress on the WS)."""
     session = state.manager.get(sid)
-    return BackupInfo.model_validate(await state.backups.backup(session, body.label, body.note))
+    info = BackupInfo.model_validate(await state.backups.backup(session, body.label, body.note))
+    state.audit.record(
+        "backup.taken", drive=sid, details={"backup": info.id, "entries": info.entries}
+    )
+    return info
 
 
 @router.get("/backups", operation_id="list_backups")
@@ -83,19 +88,20 @@ async def upload_backup(
     if not body.strip():
         raise ValidationError("the request body is empty", field="body", hint="send the file")
     # Parsed, checked and stored in a worker: a 32 MiB file held the loop (api/offload.py).
-    return await json_response(
+    out = await json_response(
         lambda: state.backups.import_bytes(body, filename, profile), BackupInfo, 201
     )
+    state.audit.record(
+        "backup.uploaded",
+        details={"backup": json.loads(bytes(out.body))["id"], "filename": filename},
+    )
+    return out
 
 
 @router.get("/backups/{bid}", operation_id="get_backup", response_model=BackupFile)
 async def get_backup(bid: str, state: StateDep) -> Response:
-    def build() -> Any:
-        data = state.backups.file_bytes(bid)
-        state.backups.load(bid)  # Checks the file (schema, checksum) before it is shown.
-        return json.loads(data)
-
-    return await json_response(build, BackupFile)
+    # Checked and rendered in the documents' worker process (api/backup_documents.py).
+    return await file_answer(backup_documents.checked_json, state.backups.stored(bid))
 
 
 @router.get(
@@ -127,28 +133,37 @@ async def download_backup(
 @router.patch("/backups/{bid}", operation_id="update_backup")
 async def update_backup(bid: str, body: BackupPatch, state: StateDep) -> BackupInfo:
     """Change the label or note in the store (the file itself never changes)."""
-    return BackupInfo.model_validate(state.backups.store.update_backup(bid, body.label, body.note))
+    info = BackupInfo.model_validate(state.backups.store.update_backup(bid, body.label, body.note))
+    state.audit.record(
+        "backup.labelled", details={"backup": bid, **body.model_dump(exclude_none=True)}
+    )
+    return info
 
 
 async def _source(
     state: AppState, src: SourceDrive | SourceBackup | SourceDefaults
-) -> tuple[str, ParameterSet]:
+) -> tuple[backup_documents.Side, str]:
+    """A compare side as the worker takes it (a stored backup by its file, not its set),
+    and its profile's id."""
     if isinstance(src, SourceDrive):
         session = state.manager.get(src.session)
         ps = await state.backups.read_set(session, operation="compare")
-        return f"drive {session.id}", ps
+        return (f"drive {session.id}", ps), ps.profile_id
     if isinstance(src, SourceBackup):
-        return f"backup {src.id}", await in_worker(state.backups.load, src.id)
-    return f"defaults of {src.profile}", state.backups.defaults(src.profile, src.node_id)
+        f = state.backups.stored(src.id)
+        return (f"backup {src.id}", f), f.profile_id
+    ps = state.backups.defaults(src.profile, src.node_id)
+    return (f"defaults of {src.profile}", ps), ps.profile_id
 
 
 @router.post("/compare", operation_id="compare", response_model=Comparison)
 async def compare(body: CompareRequest, state: StateDep) -> Response:
     """Drive vs backup, backup vs backup, drive vs profile defaults: what differs, grouped."""
-    a = await _source(state, body.a)
-    b = await _source(state, body.b)
-    return await json_response(
-        lambda: state.backups.compare(a, b, include_same=body.all), Comparison
+    a, pa = await _source(state, body.a)
+    b, pb = await _source(state, body.b)
+    # Backups are opened, compared and rendered in the documents' worker process.
+    return await file_answer(
+        backup_documents.comparison_json, a, b, state.backups.profiles_for(pa, pb), body.all
     )
 
 
@@ -160,9 +175,11 @@ async def compare(body: CompareRequest, state: StateDep) -> Response:
 async def restore_preflight(sid: str, body: PreflightRequest, state: StateDep) -> Response:
     """What a restore would do and every problem that stops it; writes nothing."""
     session = state.manager.get(sid)
-    ps = await in_worker(state.backups.load, body.backup)
-    pf, _ = await state.restores.preflight(session, ps, map_names=body.map_by_name)
-    return await json_response(pf.to_dict, PreflightOut)
+    f = state.backups.stored(body.backup)
+    # The file is parsed in the documents' worker; the server reads only the drive.
+    plan = await in_process(backup_documents.targets, f, session.profile, body.map_by_name)
+    facts = await state.restores.facts(session, plan.targets)
+    return await file_answer(backup_documents.preflight_json, f, facts, body.map_by_name)
 
 
 @router.post("/sessions/{sid}/restore", operation_id="restore")
@@ -179,6 +196,13 @@ async def restore(
         force=body.force,
         map_by_name=body.map_by_name,
         client=client or "unknown",
+    )
+    state.audit.record(
+        "restore.done",
+        drive=sid,
+        ok=_restored(rep),
+        message=str(rep.get("message") or ""),
+        details=_restore_facts(rep),
     )
     return RestoreReport.model_validate(rep)
 
@@ -217,15 +241,36 @@ async def resume_restore(
     rec = state.backups.store.get_restore(rid)
     session = _session_for(state, rec)
     # Writes need control of the drive, as every other write route (control_deps).
-    holder = operation(request.app).control.check(session.id, token, "resuming the restore")
-    return RestoreReport.model_validate(await state.restores.resume(rid, session, client=holder))
+    holder = operation(request.app).control.check(
+        session.id, token, "resuming the restore", identity_of(request).user
+    )
+    rep = await state.restores.resume(rid, session, client=holder)
+    state.audit.record(
+        "restore.resumed",
+        drive=session.id,
+        ok=_restored(rep),
+        message=str(rep.get("message") or ""),
+        details=_restore_facts(rep),
+    )
+    return RestoreReport.model_validate(rep)
 
 
-@router.get("/audit", operation_id="list_audit")
-async def list_audit(
+def _restored(rep: dict[str, Any]) -> bool:
+    """A restore the audit log records as a success: it ran to its end, uninterrupted."""
+    return bool(rep.get("finished")) and not rep.get("interrupted")
+
+
+def _restore_facts(rep: dict[str, Any]) -> dict[str, Any]:
+    keys = ("id", "backup", "dry_run", "finished", "stored", "interrupted", "pre_backup", "counts")
+    return {k: rep.get(k) for k in keys}
+
+
+@router.get("/audit/writes", operation_id="list_parameter_writes")
+async def list_parameter_writes(
     state: StateDep,
     session: str | None = Query(None, max_length=200),
     limit: int = Query(100, ge=1, le=10_000),
 ) -> list[AuditEntry]:
-    """Parameter writes made through servodesk, newest first."""
+    """Parameter writes made through servodesk with their old and new values, newest first
+    (GET /audit has every audited event; this list was GET /audit before issue 45)."""
     return [AuditEntry.model_validate(r) for r in state.backups.store.list_audit(session, limit)]
