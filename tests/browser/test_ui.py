@@ -117,6 +117,9 @@ def test_the_drive_state_stays_whole_in_the_header_on_a_laptop_screen(
     page.goto("/#/overview/lecsn-t-1")
     pill = page.get_by_test_id("header-state")
     expect(pill).to_have_text(re.compile(r"\w+ \w+"))
+    # The header is whole before it is measured: the user menu (single-user mode here)
+    # arrives with /auth/me and takes its room beside the drive's title.
+    expect(page.get_by_test_id("user-menu")).to_be_visible()
     title = page.locator(".drive-title")
     box, area = pill.bounding_box(), title.bounding_box()
     assert box is not None and area is not None
@@ -151,13 +154,20 @@ def test_the_open_sessions_fit_a_laptop_screen(page: Page) -> None:
     expect(page.get_by_test_id("session-nmt-lecsn-t-1")).to_have_attribute(
         "title", re.compile(r"^No NMT on PROFINET")
     )
+    # Issue 48: no bare "unknown": what each fieldbus has (PROFINET AR, SLMP link), and on
+    # CANopen without a heartbeat that none is reported.
+    expect(page.get_by_test_id("session-nmt-lecsn-t-1")).to_have_text(
+        "AR up (servodesk's supervisor AR)"
+    )
+    expect(page.get_by_test_id("session-nmt-ctmm04x-1")).to_have_text("SLMP link answering")
     nmt = page.get_by_test_id("session-nmt-hiwin-e-2")
-    if nmt.inner_text().strip() == "unknown":
+    expect(nmt).not_to_have_text(re.compile(r"unknown"))
+    if "not reported" in nmt.inner_text():
         expect(nmt).to_have_attribute("title", re.compile(r"no heartbeat .* \(1017h\) is 0"))
     else:
         expect(nmt).to_have_attribute("title", re.compile(r"from the drive's last heartbeat"))
     smartris = page.get_by_test_id("session-nmt-smartris-3")
-    expect(smartris).not_to_have_text("unknown")  # Its twin sends a heartbeat.
+    expect(smartris).to_have_text(re.compile(r"^NMT (preop|operational|stopped)$"))
     expect(smartris).to_have_attribute("title", re.compile(r"^NMT state \w+: from the drive's"))
 
 
@@ -264,7 +274,7 @@ def test_a_new_profinet_drive_is_found_named_addressed_and_opened_by_dcp(page: P
         row = page.get_by_test_id(f"dcp-device-{mac}")
         expect(row.get_by_test_id("dcp-name")).to_have_text("lecsn-t-1")
         expect(row.get_by_test_id("dcp-ip")).to_contain_text("127.0.0.1/255.255.255.0")
-        expect(row).to_contain_text("010Ch / 0010h")
+        expect(row).to_contain_text("021Ch / 0010h")  # 004 §20.4.4: vendor 540
         expect(row.get_by_test_id("dcp-profile")).to_have_text("profile lecsn-t")
 
         row.get_by_test_id("dcp-flash").click()
@@ -294,7 +304,7 @@ def test_a_new_profinet_drive_is_found_named_addressed_and_opened_by_dcp(page: P
         # Its Network page reads the name and address back over DCP, as the card's web
         # server shows them; PROFINET has no NMT state to show.
         page.goto(f"/#/network/{sid}")
-        expect(page.get_by_test_id("network-nmt")).to_have_text("none (PROFINET)")
+        expect(page.get_by_test_id("network-nmt")).to_have_text("up (servodesk's supervisor AR)")
         page.get_by_test_id("network-dcp-nic").fill(pair.master)
         page.get_by_test_id("network-dcp-read").click()
         expect(page.get_by_test_id("network-dcp-name")).to_have_text("press-2")

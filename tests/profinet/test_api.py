@@ -17,7 +17,9 @@ from typing import Any
 import pytest
 
 from servodesk.cli import main
+from servodesk.domain import pnio
 from servodesk.sim.bus import SimulatedBus
+from servodesk.sim.profinet_device import ProfinetDevice
 from tests.operation.support import (
     headers,
     operation_app,
@@ -53,6 +55,20 @@ def test_serve_sim_opens_the_lecsn_over_profinet_and_moves_it(channel, tmp_path)
         # The identity is the card's I&M0 (004 §20.4.4).
         assert info["identity"]["vendor_id"] == 540
         assert info["identity"]["device_name"] == "MR-J4-TM"
+        # Its RPC calls name the device's vendor and device ID in the object UUID, as DCP
+        # gives them (021Ch / 0010h), not 0 (IEC 61158-6-10; issue 47).
+        dev: ProfinetDevice = sim.profinet[0]
+        seen: list[str] = []
+        answers = dev.answers
+
+        def spy(frame: bytes) -> list[bytes]:
+            seen.append(str(pnio.parse_rpc(frame).object_uuid))
+            return answers(frame)
+
+        dev.answers = spy  # type: ignore[method-assign]
+        assert client.get(f"/api/v1/sessions/{SID}/objects/0x6041:00").status_code == 200
+        dev.answers = answers  # type: ignore[method-assign]
+        assert seen and all(u.endswith("0001" + "0010" + "021c") for u in seen), seen
 
         # A parameter written through the API lands in the drive, over PROFIdrive (as the
         # holder of its control: every change of a drive needs the control token).
@@ -123,6 +139,8 @@ def test_serve_sim_opens_the_lecsn_over_profinet_and_moves_it(channel, tmp_path)
         assert r.status_code == 409 and "GSD file" in r.json()["hint"], r.text
         status = client.get(f"/api/v1/sessions/{SID}/pdo/cyclic").json()
         assert status["running"] is False and "004 §20.1.1" in status["unavailable"]
+        # ... and which AR servodesk's session uses, and why (issue 47).
+        assert "IO supervisor AR with device access" in status["unavailable"]
         # The PDO page still shows the telegram the drive holds (read over PROFINET).
         view = client.get(f"/api/v1/sessions/{SID}/pdo").json()
         assert view["telegram"] == 1

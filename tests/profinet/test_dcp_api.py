@@ -42,7 +42,7 @@ def test_find_rename_readdress_and_open_a_session_there(app: tuple[TestClient, A
     host, port = info["channel"].rsplit(":", 1)
     assert (dev["name_of_station"], dev["ip"], dev["session_id"]) == ("lecsn-t-1", host, SID)
     assert dev["channel"] == info["channel"]  # the twin's free port, not 34964
-    assert (dev["vendor_id"], dev["device_id"], dev["roles"]) == (0x010C, 0x0010, ["IO device"])
+    assert (dev["vendor_id"], dev["device_id"], dev["roles"]) == (0x021C, 0x0010, ["IO device"])
     assert dev["profile_id"] == "lecsn-t"  # its vendor and device ID are the profile's
     mac = dev["mac"]
 
@@ -63,7 +63,7 @@ def test_find_rename_readdress_and_open_a_session_there(app: tuple[TestClient, A
     assert r.status_code == 200, r.text
     assert r.json() == {"mac": mac, "done": ["name_of_station", "ip"]}
     # Both changes are in the audit log (the refused one before is not).
-    audit = [a for a in client.get("/api/v1/audit").json() if a["session"] == f"dcp:{nic}"]
+    audit = [a for a in client.get("/api/v1/audit/writes").json() if a["session"] == f"dcp:{nic}"]
     assert sorted((a["address"], a["new_value"], a["client"], a["drive_key"]) for a in audit) == [
         ("dcp:ip", "10.78.0.5/255.255.255.0 gateway 0.0.0.0", "tab-7", f"profinet:{mac}"),
         ("dcp:name_of_station", "press-2-axis1", "tab-7", f"profinet:{mac}"),
@@ -88,7 +88,7 @@ def test_find_rename_readdress_and_open_a_session_there(app: tuple[TestClient, A
     assert r.status_code == 200 and r.json()["done"] == ["signal"]
     assert sim.profinet[0].station.flashes == 1
     # Flashing the LED changes nothing on the device: no audit entry.
-    audit = [a for a in client.get("/api/v1/audit").json() if a["session"] == f"dcp:{nic}"]
+    audit = [a for a in client.get("/api/v1/audit/writes").json() if a["session"] == f"dcp:{nic}"]
     assert len(audit) == 2
 
 
@@ -205,7 +205,7 @@ def test_the_cli_says_what_to_do_about_an_address_the_rotary_switches_set() -> N
     # The same refusal as through the API (BlockError 5, 004 §20.1.3(4)): `servodesk dcp set`
     # asks the device who it is and gives its profile's hint, not the link's generic one.
     station = DcpStation(
-        vendor_id=0x010C,
+        vendor_id=0x021C,
         device_id=0x0010,
         type_of_station="LECSN-T",
         name_of_station="lecsn-t-1",

@@ -63,7 +63,10 @@ def test_identify_finds_the_drive_with_its_name_address_and_ids(
     assert dev.mac == mac
     # The twin's station name, and the address its PNIO-CM server answers at.
     assert (dev.name_of_station, dev.ip, dev.ip_origin) == ("lecsn-t-1", "127.0.0.1", "static")
-    assert (dev.vendor_id, dev.device_id, dev.roles) == (0x010C, 0x0010, ("IO device",))
+    # One vendor ID for DCP and I&M0: 021Ch (540, Mitsubishi Electric, 004 §20.4.4 and
+    # P964.0, §20.4.3.5), the one servodesk matches profiles by (issue 47).
+    assert (dev.vendor_id, dev.device_id, dev.roles) == (0x021C, 0x0010, ("IO device",))
+    assert dev.vendor_id == device.drive.read(0x03C4, 0) == 540
     assert dev.type_of_station == "LEC-S-NP (MR-J4-TM)"
 
 

@@ -96,13 +96,21 @@ async def test_refusals_name_what_is_wrong(fresh: Rig) -> None:
     # Not in an active TPDO (cyclic data is not running): no PDO source.
     body = await refused(rig, {"channels": [channel(0, "0x6064:00", source="pdo")]}, 400)
     assert "TPDO" in body["message"] and body["field"] == "source"
-    # The drive refuses to read it (the LECSN-T over PROFINET: PROFIdrive error 11h, no
-    # value in this state), named with its code.
-    body = await refused(
-        rig, {"channels": [{"id": 2, "session": LECSN, "address": "0x2001:00"}]}, 409
-    )
+    # The drive refuses to read it, named with its code: a LECSN-T over PROFINET whose
+    # parameter holds no value answers PROFIdrive error 14h (004 §20.4.2). Every parameter
+    # of the manual has a value in the twin, so one is taken away here, as a drive whose
+    # firmware lacks it would answer.
+    lecsn = next(d for d in rig.app.state.servodesk.sim.drives if d.profile.id == "lecsn-t")
+    key = 0x2001 << 8
+    kept = lecsn._values.pop(key)
+    try:
+        body = await refused(
+            rig, {"channels": [{"id": 2, "session": LECSN, "address": "0x2001:00"}]}, 400
+        )
+    finally:
+        lecsn._values[key] = kept
     assert "0x2001:00" in body["message"] and "channel 2" in body["message"]
-    assert body["code"] == 0x11 and body["protocol"] == "profidrive"
+    assert body["code"] == 0x14 and body["protocol"] == "profidrive"
     # A refused list changes nothing.
     assert (await rig.client.get("/api/v1/scope")).json()["channels"] == []
     r = await rig.client.put(
@@ -212,10 +220,14 @@ async def test_export_and_import_give_back_the_recording(fresh: Rig) -> None:
     assert r.status_code == 400
 
 
-async def test_the_scope_socket_needs_the_token_when_the_server_has_one(
+async def test_the_scope_socket_needs_a_login_when_the_server_has_accounts(
     tmp_path_factory: pytest.TempPathFactory,
 ) -> None:
-    settings = Settings(token="s3cret", data_dir=tmp_path_factory.mktemp("tok"), viewer_port=0)
+    from tests.security.server import make_accounts
+
+    data = tmp_path_factory.mktemp("tok")
+    token = make_accounts(data, {"ada": "guest"})["ada"]  # An account: logins are needed.
+    settings = Settings(data_dir=data, viewer_port=0)
     async with serve(settings) as r:
         # Accepted, then closed with 4401 and a reason (docs/api.md), as every WebSocket.
         async with websockets.connect(r.ws_url, subprotocols=[wire.SUBPROTOCOL]) as ws:  # type: ignore[list-item]
@@ -223,13 +235,14 @@ async def test_the_scope_socket_needs_the_token_when_the_server_has_one(
                 await asyncio.wait_for(ws.recv(), 5)
             assert info.value.rcvd is not None and info.value.rcvd.code == 4401
         async with websockets.connect(
-            r.ws_url + "?token=s3cret",
+            r.ws_url,
             subprotocols=[wire.SUBPROTOCOL],  # type: ignore[list-item]
+            additional_headers={"Authorization": f"Bearer {token}"},
         ) as ws:
             data = await asyncio.wait_for(ws.recv(decode=False), 5)
             f = wire.decode_frame(data)
             assert f.kind == wire.KIND_STATUS and f.seq == 1
         async with httpx.AsyncClient(base_url=f"http://127.0.0.1:{r.port}", headers=HDR) as c:
             assert (await c.get("/api/v1/scope")).status_code == 401
-            ok = await c.get("/api/v1/scope", headers={"Authorization": "Bearer s3cret"})
+            ok = await c.get("/api/v1/scope", headers={"Authorization": f"Bearer {token}"})
             assert ok.status_code == 200

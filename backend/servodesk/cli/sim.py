@@ -74,6 +74,14 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="TOML plant file: motor, load, compliance, noise, loop rate (docs/tuning.md)",
     )
     p.add_argument(
+        "--axes",
+        type=int,
+        default=1,
+        metavar="N",
+        help="with --interface slmp: serve N axes (1..4, X..U: multidrop 0..N-1, node ids "
+        "1..N) from the one station, as a multi-axis unit does (003 §4-2)",
+    )
+    p.add_argument(
         "--dcp",
         default=None,
         metavar="NIC",
@@ -93,10 +101,26 @@ def run(args: argparse.Namespace) -> int:
         stop.set()
 
     plant_file: str | None = getattr(args, "plant", None)
+    axes: int = getattr(args, "axes", 1)
     try:
+        if axes != 1 and args.interface != "slmp":
+            raise ValidationError(
+                "--axes serves several axes of one SLMP station",
+                field="axes",
+                hint="add --interface slmp --channel HOST:PORT, or leave --axes out",
+            )
+        if not 1 <= axes <= 4:
+            raise ValidationError(
+                f"--axes {axes} is outside 1..4", field="axes", hint="a station has axes X..U"
+            )
+        drives = (
+            [(args.profile, args.node_id)]
+            if axes == 1
+            else [(args.profile, n) for n in range(1, axes + 1)]
+        )
         plant: PlantSpec | None = load_plant_file(plant_file) if plant_file else None
         bus = SimulatedBus.start(
-            drives=[(args.profile, args.node_id)],
+            drives=drives,
             interface=args.interface,
             channel=args.channel,
             bitrate=args.bitrate,
@@ -124,13 +148,13 @@ def run(args: argparse.Namespace) -> int:
         return 2
     old = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        drive = bus.drives[0]
-        _fieldbus, interface, channel, node = bus.link_of(drive)
-        print(
-            f"servodesk sim: serving {drive.profile.id} ({drive.profile.name}) as node "
-            f"{node} on {interface}:{channel}; Ctrl+C stops",
-            flush=True,
-        )
+        for drive in bus.drives:
+            _fieldbus, interface, channel, node = bus.link_of(drive)
+            print(
+                f"servodesk sim: serving {drive.profile.id} ({drive.profile.name}) as node "
+                f"{node} on {interface}:{channel}; Ctrl+C stops",
+                flush=True,
+            )
         if getattr(args, "dcp", None):
             print(f"servodesk sim: answering PROFINET DCP on {args.dcp}", flush=True)
         if plant is not None:

@@ -267,6 +267,20 @@ def identify_request(
     )
 
 
+def get_request(dst: bytes, src: bytes, xid: int, options: tuple[tuple[int, int], ...]) -> bytes:
+    """A Get request frame for ``options`` ((option, suboption) pairs): IEC 61158-6-10
+    DCP-Get.Req-PDU lists the pairs without block lengths."""
+    body = b"".join(bytes(o) for o in options)
+    frame = (
+        dst
+        + src
+        + struct.pack(">HHBBIHH", ETHERTYPE, FRAME_GET_SET, SERVICE_GET, TYPE_REQUEST, xid, 0,
+                      len(body))
+        + body
+    )  # fmt: skip
+    return frame.ljust(MIN_FRAME, b"\x00")
+
+
 def set_request(dst: bytes, src: bytes, xid: int, blocks: tuple[Block, ...]) -> Packet:
     return Packet(dst, src, FRAME_GET_SET, SERVICE_SET, TYPE_REQUEST, xid, 0, blocks)
 

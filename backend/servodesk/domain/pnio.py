@@ -35,8 +35,11 @@ PTYPE_REQUEST = 0
 PTYPE_RESPONSE = 2
 PTYPE_FAULT = 3
 PTYPE_REJECT = 6
+PTYPE_FACK = 9
 #: flags1: last fragment, no fragment acknowledgement wanted, idempotent.
 FLAG_LASTFRAG = 0x02
+#: flags1: the datagram is one fragment of a call (C706 §12.5.3.2, CL-RPC fragmentation).
+FLAG_FRAG = 0x04
 FLAG_NOFACK = 0x08
 FLAG_IDEMPOTENT = 0x20
 
@@ -50,6 +53,11 @@ OP_WRITE = 3
 DEVICE_INTERFACE = uuid.UUID("dea00001-6c97-11d1-8271-00a02442df7d")
 OBJECT_UUID_PREFIX = "dea00000-6c97-11d1-8271-"
 
+#: DCE/RPC reject status codes (C706 §12 / Appendix E, nca_s_*): the body of a reject is
+#: this 32-bit code in the sender's ``drep``.
+NCA_OP_RANGE_ERROR = 0x1C010002
+NCA_UNKNOWN_INTERFACE = 0x1C010003
+
 #: Block types (IEC 61158-6-10 BlockType).
 BLOCK_AR_REQ = 0x0101
 BLOCK_AR_RES = 0x8101
@@ -60,6 +68,22 @@ BLOCK_READ_RES = 0x8009
 BLOCK_RELEASE_REQ = 0x0114
 BLOCK_RELEASE_RES = 0x8114
 BLOCK_IM0 = 0x0020
+#: I&M1-4 (tag function / location, installation date, descriptor, signature) and their
+#: record indexes AFF1h-AFF4h; the data lengths of each after the block header.
+BLOCK_IM = {1: 0x0021, 2: 0x0022, 3: 0x0023, 4: 0x0024}
+INDEX_IM = {1: 0xAFF1, 2: 0xAFF2, 3: 0xAFF3, 4: 0xAFF4}
+IM_LENGTHS = {1: 54, 2: 16, 3: 54, 4: 54}
+#: Block types a connect request may carry (IEC 61158-6-10 ConnectReq); others are unknown.
+CONNECT_BLOCKS = frozenset({0x0101, 0x0102, 0x0103, 0x0104, 0x0106, 0x0108, 0x0109, 0x010A,
+                            0x010B, 0x0110, 0x0111, 0x0112, 0x0113})  # fmt: skip
+#: Field numbers of the ARBlockReq (PNIO ErrorCode2 under ErrorCode1 01h, faulty ARBlockReq):
+#: 2/3 block version, 4 ARType, 5 ARUUID, 9 ARProperties, 11 InitiatorUDPRTPort, 12
+#: StationNameLength, 13 CMInitiatorStationName.
+AR_FIELD = {"version_high": 2, "version_low": 3, "ar_type": 4, "ar_uuid": 5, "properties": 9,
+            "udp_rt_port": 11, "name_length": 12, "station_name": 13}  # fmt: skip
+#: ErrorCode1 of a faulty release block (IODReleaseReq), and its SessionKey field.
+CODE1_RELEASE_BLOCK = 0x28
+RELEASE_FIELD_SESSION_KEY = 6
 
 #: ARType: supervisor AR (IOSAR).
 AR_TYPE_SUPERVISOR = 0x0006
@@ -130,6 +154,8 @@ class RpcPacket:
     flags1: int = FLAG_IDEMPOTENT
     server_boot: int = 0
     little: bool = True
+    #: Fragment number (0 for an unfragmented call).
+    fragnum: int = 0
 
     @property
     def fmt(self) -> str:
@@ -166,7 +192,7 @@ def build_rpc(packet: RpcPacket) -> bytes:
         0xFFFF,  # interface hint
         0xFFFF,  # activity hint
         len(packet.body),
-        0,  # fragment number
+        packet.fragnum,
         0,  # no authentication
         0,  # serial low
     )
@@ -182,8 +208,6 @@ def parse_rpc(frame: bytes) -> RpcPacket:
     s = _RPC if little else _RPC_BE
     f = s.unpack_from(frame)
     length, fragnum = f[15], f[16]
-    if f[2] & 0x04 or fragnum:
-        raise PnioFrameError("fragmented RPC datagrams are not supported")
     if len(frame) != RPC_HEADER_LEN + length:
         raise PnioFrameError(
             f"the RPC header announces {length} body bytes, the datagram carries "
@@ -204,6 +228,76 @@ def parse_rpc(frame: bytes) -> RpcPacket:
         flags1=f[2],
         server_boot=f[9],
         little=little,
+        fragnum=fragnum,
+    )
+
+
+def fragment(packet: RpcPacket, max_body: int) -> list[RpcPacket]:
+    """``packet`` as one datagram, or as fragments of at most ``max_body`` body bytes each
+    (C706 §12.5.3.2: FLAG_FRAG on every fragment, FLAG_LASTFRAG on the last, fragment
+    numbers from 0). The fragments keep the packet's other flags (no-fack among them)."""
+    body = packet.body
+    if len(body) <= max_body:
+        return [packet]
+    parts = [body[i : i + max_body] for i in range(0, len(body), max_body)]
+    base = packet.flags1 & ~FLAG_LASTFRAG
+    out = []
+    for n, part in enumerate(parts):
+        last = n == len(parts) - 1
+        flags = base | FLAG_FRAG | (FLAG_LASTFRAG if last else 0)
+        out.append(
+            RpcPacket(
+                ptype=packet.ptype,
+                opnum=packet.opnum,
+                object_uuid=packet.object_uuid,
+                interface=packet.interface,
+                activity=packet.activity,
+                seqnum=packet.seqnum,
+                body=part,
+                flags1=flags,
+                server_boot=packet.server_boot,
+                little=packet.little,
+                fragnum=n,
+            )
+        )
+    return out
+
+
+class Reassembly:
+    """The fragments of one call (one activity and sequence number) as they come in; the
+    whole body once the last fragment and every one before it are there."""
+
+    def __init__(self) -> None:
+        self._parts: dict[int, bytes] = {}
+        self._last: int | None = None
+
+    def add(self, packet: RpcPacket) -> bytes | None:
+        self._parts[packet.fragnum] = packet.body
+        if packet.flags1 & FLAG_LASTFRAG:
+            self._last = packet.fragnum
+        if self._last is None or len(self._parts) < self._last + 1:
+            return None
+        if any(n not in self._parts for n in range(self._last + 1)):
+            return None
+        return b"".join(self._parts[n] for n in range(self._last + 1))
+
+
+def fack(packet: RpcPacket, *, window: int = 8, max_frag: int = MAX_DATAGRAM) -> RpcPacket:
+    """The fragment acknowledgement of ``packet`` (C706 §12.5.3.6, fack body version 0:
+    window size, max TSDU, max fragment size, the serial no., no selective acks)."""
+    fmt = "<" if packet.little else ">"
+    body = struct.pack(f"{fmt}BBHIIHH", 0, 0, window, max_frag, max_frag, packet.fragnum, 0)
+    return RpcPacket(
+        ptype=PTYPE_FACK,
+        opnum=packet.opnum,
+        object_uuid=packet.object_uuid,
+        interface=packet.interface,
+        activity=packet.activity,
+        seqnum=packet.seqnum,
+        body=body,
+        flags1=0,
+        little=packet.little,
+        fragnum=packet.fragnum,
     )
 
 
@@ -290,6 +384,18 @@ def split_blocks(data: bytes) -> list[tuple[int, bytes]]:
     return out
 
 
+def block_versions(data: bytes) -> list[tuple[int, int, int]]:
+    """Each block's (type, BlockVersionHigh, BlockVersionLow) (after :func:`split_blocks`
+    accepted the data)."""
+    out: list[tuple[int, int, int]] = []
+    pos = 0
+    while pos + 6 <= len(data):
+        block_type, length, high, low = struct.unpack_from(">HHBB", data, pos)
+        out.append((block_type, high, low))
+        pos += 4 + length
+    return out
+
+
 def one_block(data: bytes, expected: int) -> bytes:
     blocks = split_blocks(data)
     if not blocks or blocks[0][0] != expected:
@@ -309,6 +415,8 @@ class ArRequest:
     properties: int = AR_PROPERTIES_DEVICE_ACCESS
     #: Activity time-out of the AR, in 100 ms.
     timeout_factor: int = 100
+    #: InitiatorUDPRTPort: 8892h (RT over Ethernet, no UDP RT) is the only value in use.
+    udp_rt_port: int = 0x8892
 
 
 def ar_block_req(r: ArRequest) -> bytes:
@@ -317,7 +425,7 @@ def ar_block_req(r: ArRequest) -> bytes:
         BLOCK_AR_REQ,
         struct.pack(">H16sH6s16sIHHH", r.ar_type, r.ar_uuid.bytes, r.session_key,
                     r.initiator_mac, r.initiator_object.bytes, r.properties,
-                    r.timeout_factor, 0x8892, len(name))
+                    r.timeout_factor, r.udp_rt_port, len(name))
         + name,
     )  # fmt: skip
 
@@ -330,6 +438,7 @@ def parse_ar_block_req(content: bytes) -> ArRequest:
     if len(name) != f[8]:
         raise PnioFrameError("the ARBlockReq's station name is cut short")
     return ArRequest(
+        udp_rt_port=f[7],
         ar_type=f[0],
         ar_uuid=uuid.UUID(bytes=f[1]),
         session_key=f[2],

@@ -162,6 +162,28 @@ def _split(frame: bytes, subheader: bytes, kind: str) -> tuple[int, Route, bytes
     return serial, Route(network, station, module, multidrop), body
 
 
+@dataclass(frozen=True, slots=True)
+class Header:
+    """The fixed part of a 4E request that a station can read even when the rest is wrong."""
+
+    serial: int
+    route: Route
+    fixed: int
+    length: int
+    body: bytes
+
+
+def read_request_header(frame: bytes) -> Header | None:
+    """The 4E binary request header of ``frame`` (serial no., route, the declared length)
+    when its 13 bytes are there and its subheader is 5400h; None otherwise (a frame a
+    station cannot even address an answer to)."""
+    if len(frame) < _HEAD_LEN or frame[:2] != SUBHEADER_REQUEST:
+        return None
+    serial, fixed, network, station, module, multidrop, length = _HEAD.unpack_from(frame, 2)
+    route = Route(network, station, module, multidrop)
+    return Header(serial, route, fixed, length, frame[_HEAD_LEN:])
+
+
 def parse_request(frame: bytes) -> Request:
     serial, route, body = _split(frame, SUBHEADER_REQUEST, "request")
     if len(body) < 6:

@@ -96,6 +96,63 @@ class DcpClient:
         devices = sorted(found.values(), key=lambda d: (d.name_of_station or "~", d.mac))
         return Scan(devices, malformed)
 
+    def get(
+        self,
+        mac: bytes,
+        options: tuple[tuple[int, int], ...] = (
+            (dcp.OPT_DEVICE, dcp.SUB_NAME_OF_STATION),
+            (dcp.OPT_IP, dcp.SUB_IP),
+            (dcp.OPT_DEVICE, dcp.SUB_DEVICE_ID),
+        ),
+    ) -> dcp.Device:
+        """Ask the device at ``mac`` for ``options`` (DCP Get, unicast; by default its station
+        name, IP suite and vendor / device ID); ObjectAccessError (protocol "dcp") when it
+        does not support one, NotFoundError when nothing answers."""
+        xid = random.getrandbits(32)
+        frame = dcp.get_request(mac, self.mac, xid, options)
+        answer: list[dcp.Packet] = []
+
+        def take(p: dcp.Packet) -> bool:
+            if p.frame_id != dcp.FRAME_GET_SET or p.service_id != dcp.SERVICE_GET:
+                return False
+            if p.xid != xid or p.src != mac or p.service_type == dcp.TYPE_REQUEST:
+                return False
+            answer.append(p)
+            return True
+
+        for _ in range(SET_ATTEMPTS):
+            self._send(frame)
+            if self._receive(time.monotonic() + SET_TIMEOUT_S, take):
+                break
+        else:
+            raise NotFoundError(
+                f"no device with MAC {dcp.mac_text(mac)} answers DCP on {self.nic}",
+                hint="search the interface again (Identify) and take the MAC from the answer",
+            )
+        reply = answer[0]
+        if reply.service_type != dcp.TYPE_SUCCESS:
+            raise ObjectAccessError(
+                f"{dcp.mac_text(mac)} does not support DCP Get (ServiceType {reply.service_type})",
+                code=dcp.TYPE_NOT_SUPPORTED,
+                meaning="request not supported",
+                protocol="dcp",
+            )
+        try:
+            refused = [a for a in dcp.acks(reply) if a.error]
+            device = dcp.device_from(reply)
+        except dcp.MalformedFrame as exc:
+            raise LinkError(f"{dcp.mac_text(mac)} answered a malformed DCP Get: {exc}") from exc
+        if refused:
+            a = refused[0]
+            raise ObjectAccessError(
+                f"{dcp.mac_text(mac)} cannot give {dcp.block_name(a.option, a.suboption)}: "
+                f"{a.meaning}",
+                code=a.error,
+                meaning=a.meaning,
+                protocol="dcp",
+            )
+        return device
+
     def set(self, mac: bytes, blocks: tuple[dcp.Block, ...]) -> list[dcp.Ack]:
         """Send a Set of ``blocks`` to ``mac`` and return its acknowledgements;
         ObjectAccessError (protocol "dcp") when the device refuses a block, NotFoundError

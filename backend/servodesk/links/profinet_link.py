@@ -21,6 +21,14 @@ What this link does not do, and why:
   over the IO AR it set up from the GSD file (004 §20.1.1); servodesk is a supervisor.
 - NMT: PROFINET has none; the drive's communication state belongs to its IO controller.
 
+The AR is an IO supervisor AR with device access (ARType 0006h, DeviceAccess): the
+LEC-S-NP's Anybus CompactCom 40 takes IO supervisors next to the PLC's IO AR, and such an AR
+needs no expected submodules from the GSD file (docs/profinet.md "Which AR"). Its
+CMInitiatorMacAdd is the MAC of the host's NIC that reaches the device; the RPC object UUID
+carries the device's vendor and device ID (``extra`` vendor_id / device_id, from DCP; the
+vendor from I&M0 once it is read). A call longer than one datagram goes in CL-RPC fragments
+and a fragmented answer is put together again.
+
 A request without an answer is sent once more with the same sequence number, which a
 device answers from its last response without carrying the call out twice. An AR the device
 no longer knows (it was restarted) is set up again once.
@@ -29,8 +37,10 @@ no longer knows (it was restarted) is set up again once.
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import errno
 import socket
+import struct
 import time
 import uuid
 from collections.abc import Awaitable, Callable, Sequence
@@ -71,11 +81,38 @@ BLOCK_BYTES = 232
 NOT_READY_POLL_S = 0.002
 
 _AR_UNKNOWN = (pnio.DECODE_PNIO, pnio.CMRPC, 0x05)
-#: The object UUID servodesk addresses (instance 1; the LECSN-T's device ID is not
-#: documented, docs/profinet.md), made once: a UUID from text costs more than the rest of
-#: building a datagram.
-_OBJECT_UUID = pnio.object_uuid(0, 0)
+#: ioctls for a network interface's IPv4 address and MAC (linux/sockios.h).
+_SIOCGIFADDR = 0x8915
+_SIOCGIFHWADDR = 0x8927
+#: The initiator's own object UUID (made once: a UUID from text is costly).
+_INITIATOR_OBJECT = pnio.object_uuid(0, 0)
 T = TypeVar("T")
+
+
+def interface_mac_for(local_ip: str) -> bytes:
+    """The MAC of the network interface that holds ``local_ip`` (the address the host sends
+    to the device from); six zero bytes for loopback or where none holds it. The ARBlockReq's
+    CMInitiatorMacAdd is the initiator's own MAC (IEC 61158-6-10 ARBlockReq)."""
+    import fcntl
+
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        for _index, name in socket.if_nameindex():
+            req = struct.pack("256s", name.encode()[:15])
+            try:
+                addr = fcntl.ioctl(probe.fileno(), _SIOCGIFADDR, req)
+            except OSError:
+                continue  # no IPv4 address on it
+            if socket.inet_ntoa(addr[20:24]) != local_ip:
+                continue
+            try:
+                hw = fcntl.ioctl(probe.fileno(), _SIOCGIFHWADDR, req)
+            except OSError:
+                return bytes(6)
+            return bytes(hw[18:24])
+    finally:
+        probe.close()
+    return bytes(6)
 
 
 class _ArLost(Exception):
@@ -98,8 +135,10 @@ class ProfinetLink(DriveLink):
     #: Why there is no cyclic process data here (links/cyclic.py ``transport_for``).
     no_cyclic = (
         "a PROFINET IO device exchanges its telegram with the IO controller that set it up "
-        "from the GSD file (004 §20.1.1); servodesk is an IO supervisor and reads and writes "
-        "the drive's parameters acyclically"
+        "from the GSD file (004 §20.1.1); servodesk is an IO supervisor (an IO supervisor AR "
+        "with device access, ARType 0006h: the card's Anybus CompactCom 40 accepts supervisors "
+        "next to the PLC's AR and needs no GSD submodules for it, docs/profinet.md) and reads "
+        "and writes the drive's parameters acyclically"
     )
 
     def __init__(self, params: LinkParams) -> None:
@@ -126,6 +165,19 @@ class ProfinetLink(DriveLink):
         self._record_seq = 0
         self._reference = 0
         self._server_boot = 0
+        #: The object UUID of the device instance (DEA00000-6C97-11D1-8271-IIII-DDDD-VVVV,
+        #: IEC 61158-6-10): its vendor and device ID, given by the caller from DCP Identify
+        #: (``extra`` vendor_id / device_id) or, for the vendor, learnt from I&M0.
+        self.vendor_id = int(params.extra.get("vendor_id", 0))
+        self.device_id = int(params.extra.get("device_id", 0))
+        self._object_uuid = pnio.object_uuid(self.vendor_id, self.device_id)
+        #: The initiator MAC sent in the ARBlockReq: the host NIC's that reaches the device.
+        self.initiator_mac = bytes(6)
+        #: Longest request body in one datagram (a longer one goes in fragments), and
+        #: whether request fragments ask for fragment acknowledgements.
+        self.max_fragment_body = pnio.MAX_DATAGRAM - pnio.RPC_HEADER_LEN
+        self.fragment_acks = False
+        self._reply = pnio.Reassembly()
         #: Learnt from the device: PNU -> is an array; (PNU, PNU subindex) -> format.
         self._arrays: dict[int, bool] = {}
         self._formats: dict[tuple[int, int], int] = {}
@@ -146,6 +198,7 @@ class ProfinetLink(DriveLink):
         try:
             sock.connect(infos[0][4])
             sock.settimeout(self.params.timeout)
+            self.initiator_mac = interface_mac_for(sock.getsockname()[0])
             self._sock = sock
             self._connect_blocking()
             sock.setblocking(False)
@@ -185,6 +238,10 @@ class ProfinetLink(DriveLink):
             # from P964 (the profile's vendor_id_object), or chosen by the user.
             return Identity()
         serial = im.serial.strip()
+        if self.vendor_id == 0 and im.vendor_id:
+            # The vendor ID of the object UUID from the name plate, from now on.
+            self.vendor_id = im.vendor_id
+            self._object_uuid = pnio.object_uuid(self.vendor_id, self.device_id)
         return Identity(
             vendor_id=im.vendor_id,
             serial=int(serial) if serial.isdigit() else None,
@@ -514,19 +571,26 @@ class ProfinetLink(DriveLink):
 
     # RPC -------------------------------------------------------------------------------
 
-    def _packet(self, opnum: int, args: bytes, args_max: int) -> bytes:
-        return pnio.build_rpc(
-            pnio.RpcPacket(
-                ptype=pnio.PTYPE_REQUEST,
-                opnum=opnum,
-                object_uuid=_OBJECT_UUID,
-                interface=pnio.DEVICE_INTERFACE,
-                activity=self._activity,
-                seqnum=self._seqnum,
-                body=pnio.request_body(args, args_max),
-                server_boot=self._server_boot,
-            )
+    def _packet(self, opnum: int, args: bytes, args_max: int) -> list[bytes]:
+        """The request's datagrams: one, or fragments of at most :attr:`max_fragment_body`
+        body bytes (C706 §12.5.3.2), with "no fack" unless :attr:`fragment_acks`."""
+        self._reply = pnio.Reassembly()
+        body = pnio.request_body(args, args_max)
+        flags = pnio.FLAG_IDEMPOTENT
+        if len(body) > self.max_fragment_body and not self.fragment_acks:
+            flags |= pnio.FLAG_NOFACK
+        packet = pnio.RpcPacket(
+            ptype=pnio.PTYPE_REQUEST,
+            opnum=opnum,
+            object_uuid=self._object_uuid,
+            interface=pnio.DEVICE_INTERFACE,
+            activity=self._activity,
+            seqnum=self._seqnum,
+            body=body,
+            server_boot=self._server_boot,
+            flags1=flags,
         )
+        return [pnio.build_rpc(f) for f in pnio.fragment(packet, self.max_fragment_body)]
 
     def _match(self, frame: bytes) -> tuple[int, bytes] | None:
         """(PNIOStatus, blocks) of the response to the call in progress; None for a datagram
@@ -547,9 +611,15 @@ class ProfinetLink(DriveLink):
                 "AR (docs/profinet.md)",
             )
         if packet.ptype != pnio.PTYPE_RESPONSE:
-            self.stale += 1  # working / no-call: the answer is still to come
+            self.stale += 1  # working / no-call / fack: the answer is still to come
             return None
         self._server_boot = packet.server_boot
+        if packet.flags1 & pnio.FLAG_FRAG:
+            # One fragment of a long answer (C706 §12.5.3.2): the whole once all are in.
+            body = self._reply.add(packet)
+            if body is None:
+                return None
+            packet = dataclasses.replace(packet, body=body)
         try:
             return pnio.parse_response_body(packet.body, little=packet.little)
         except pnio.PnioFrameError as exc:
@@ -562,10 +632,11 @@ class ProfinetLink(DriveLink):
         loop = asyncio.get_running_loop()
         timeout = self.request_timeout
         self._seqnum = (self._seqnum + 1) & 0xFFFFFFFF
-        datagram = self._packet(opnum, args, pnio.MAX_DATAGRAM)
+        datagrams = self._packet(opnum, args, pnio.MAX_DATAGRAM)
         for _ in range(SENDS):
             try:
-                await loop.sock_sendall(sock, datagram)
+                for datagram in datagrams:
+                    await loop.sock_sendall(sock, datagram)
                 # asyncio.timeout, not wait_for: no task per request.
                 async with asyncio.timeout(timeout):
                     while True:
@@ -582,10 +653,11 @@ class ProfinetLink(DriveLink):
 
     def _call_blocking(self, sock: socket.socket, opnum: int, args: bytes) -> tuple[int, bytes]:
         self._seqnum = (self._seqnum + 1) & 0xFFFFFFFF
-        datagram = self._packet(opnum, args, pnio.MAX_DATAGRAM)
+        datagrams = self._packet(opnum, args, pnio.MAX_DATAGRAM)
         for _ in range(SENDS):
             try:
-                sock.send(datagram)
+                for datagram in datagrams:
+                    sock.send(datagram)
                 deadline = time.monotonic() + (sock.gettimeout() or 1.0)
                 while True:
                     sock.settimeout(max(0.001, deadline - time.monotonic()))
@@ -624,8 +696,10 @@ class ProfinetLink(DriveLink):
             pnio.ArRequest(
                 ar_uuid=self._ar_uuid,
                 session_key=self._session_key,
-                initiator_mac=bytes(6),
-                initiator_object=_OBJECT_UUID,
+                initiator_mac=self.initiator_mac,
+                # CMInitiatorObjectUUID names the initiator (servodesk), which has no
+                # PI vendor or device ID of its own: instance 1 of 0000/0000.
+                initiator_object=_INITIATOR_OBJECT,
                 station_name=INITIATOR_NAME,
                 timeout_factor=ACTIVITY_TIMEOUT_FACTOR,
             )

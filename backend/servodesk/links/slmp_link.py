@@ -38,12 +38,10 @@ from servodesk.errors import (
     ObjectAccessError,
     ValidationError,
 )
-from servodesk.links.base import DriveLink, Identity, LinkParams, object_identity
+from servodesk.links.base import QUICK_STOP_WORD, DriveLink, Identity, LinkParams, object_identity
 
 #: The interface name of this link (the transport: SLMP 4E binary frames on UDP).
 INTERFACE = "slmp"
-#: Controlword quick stop (CiA 402-2 §6.2.1, table 28: 0xxx x01xb).
-QUICK_STOP_WORD = 0x0002
 #: Axes of one station: node id 1..4 -> multidrop no. 0..3 (003 §4-2).
 AXES = 4
 #: The end code of a request to a network, station or multidrop no. that does not exist.

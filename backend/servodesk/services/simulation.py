@@ -89,8 +89,18 @@ async def start_simulation(
     for drive in sim.drives:
         pid, node = drive.profile.id, drive.node_id
         fieldbus, interface, channel, node_id = sim.link_of(drive)
+        extra: dict[str, int] = {}
+        if fieldbus == "profinet":
+            # The RPC object UUID names the device's vendor and device ID, as its DCP
+            # Identify gives them (the profile's dcp quirk on the twin; docs/profinet.md).
+            ids = drive.profile.quirk("dcp", None) or {}
+            extra = {k: int(ids[k]) for k in ("vendor_id", "device_id") if k in ids}
         params = LinkParams(
-            interface=interface, channel=channel, node_id=node_id, timeout=settings.sdo_timeout
+            interface=interface,
+            channel=channel,
+            node_id=node_id,
+            timeout=settings.sdo_timeout,
+            extra=dict(extra),
         )
         try:
             session = await manager.open(params, pid, fieldbus=fieldbus, simulated=True)

@@ -109,6 +109,14 @@ class DcpResponder:
         if req.service_id == dcp.SERVICE_SET:
             blocks = tuple(self._set(b) for b in req.blocks)
             service_type = dcp.TYPE_SUCCESS
+        elif req.service_id == dcp.SERVICE_GET:
+            # (0, 0) pairs are skipped: some clients (pnio-dcp) send each option with a zero
+            # block length after it.
+            wanted = [
+                (b.option, b.suboption) for b in req.blocks if (b.option, b.suboption) != (0, 0)
+            ]
+            blocks = tuple(self._get(o, s) for o, s in wanted)
+            service_type = dcp.TYPE_SUCCESS
         else:
             blocks, service_type = (), dcp.TYPE_NOT_SUPPORTED
         return dcp.Packet(
@@ -170,6 +178,18 @@ class DcpResponder:
             dcp.response_block(dcp.OPT_DEVICE, dcp.SUB_INSTANCE, 0, struct.pack(">H", s.instance)),
             dcp.response_block(dcp.OPT_IP, dcp.SUB_IP, ip_info, suite),
         )
+
+    def _get(self, option: int, suboption: int) -> dcp.Block:
+        """One Get answer: the option's block as Identify reports it, its MAC, or a
+        Control / Response block with BlockError 1 (option) / 2 (suboption not supported)
+        (IEC 61158-6-10 DCP-Get.Res)."""
+        if (option, suboption) == (dcp.OPT_IP, dcp.SUB_MAC):
+            return dcp.response_block(dcp.OPT_IP, dcp.SUB_MAC, 0, self.mac)
+        for b in self._identity():
+            if (b.option, b.suboption) == (option, suboption):
+                return b
+        known = option in (dcp.OPT_IP, dcp.OPT_DEVICE, dcp.OPT_CONTROL)
+        return dcp.ack_block(option, suboption, 2 if known else 1)
 
     def _set(self, b: dcp.Block) -> dcp.Block:
         """Carry out one Set block; its Control / Response block."""

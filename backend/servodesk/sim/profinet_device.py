@@ -16,8 +16,19 @@ PNU subindex = CoE subindex - 1). A refusal is answered with the PROFIdrive erro
 004 §20.4.2 that matches the drive's reason.
 
 Like a device's RPC server, it answers a repeated request (the same activity and sequence
-number, a client's resend) with the response it sent before, without carrying it out twice
-(for the last :data:`RESEND_CACHE` client activities).
+number, a client's resend) or a delayed duplicate of an earlier one (an older sequence number)
+with the response it sent before, without carrying it out again (for the last
+:data:`RESEND_CACHE` client activities). It takes requests in fragments and sends long
+responses in fragments (C706 CL-RPC), and answers an unknown operation or interface with a
+DCE/RPC reject.
+
+It is as strict as a device stack where servodesk's tests depend on it (issue 47,
+docs/profinet.md "Conformance"): a Release needs the AR's SessionKey; another station cannot
+take over a live ARUUID; the ARBlockReq's version, ARType, ARProperties, UDP RT port, station
+name and activity factor are checked; unknown blocks are refused; I&M1-4, which I&M0
+advertises, are served; P922 is read-only, a subindex on a simple parameter is 04h, arrays
+are read in one request with No. of elements > 1, the identifier's bit 9 marks read-only
+parameters, and P11572 reads 0 while it activates and 1 when done (004 §20.8.14.1).
 
 :meth:`ProfinetDevice.serve_dcp` also answers DCP on a network interface
 (sim/profinet_dcp.py): a station name or IP address set there is the device's, and the
@@ -34,6 +45,7 @@ Release thus stops blocking DCP name and address changes once that time has pass
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 import uuid
@@ -43,8 +55,9 @@ from servodesk.domain import pnio
 from servodesk.domain import profidrive as pd
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType
+from servodesk.domain.dcp import check_name_of_station
 from servodesk.domain.profile import ObjectSpec, ObjectType
-from servodesk.errors import LinkError
+from servodesk.errors import LinkError, ValidationError
 from servodesk.sim.engine import SimAbort, SimulatedDrive
 from servodesk.sim.profinet_dcp import DcpResponder, DcpStation, interface_mac
 from servodesk.sim.udp_server import UdpServer
@@ -83,9 +96,27 @@ ERROR_FOR_ABORT: dict[int, int] = {
     0x08000020: 0x11,  # not in the present state
     0x08000021: 0x11,
     0x08000022: 0x11,
-    0x08000024: 0x11,
+    # 08000024h "no data available" has no PROFIdrive number of its own; it is not the
+    # operating state (11h): 14h "value impermissible" (every LECSN-T parameter holds a
+    # value, so the twin does not answer it for a parameter of the manual).
+    0x08000024: 0x14,
     0x06010001: 0xFF,  # write-only
 }
+
+
+#: ARProperties bits a supervisor AR with device access may set: State (0-2), Supervisor
+#: takeover allowed (3), ParametrizationServer (4), DeviceAccess (8), CompanionAR (9-10),
+#: AcknowledgeCompanionAR (11), StartupMode (30), PullModuleAlarmAllowed (31); the rest
+#: are reserved and 0 (IEC 61158-6-10 ARProperties).
+AR_PROPERTIES_KNOWN = 0xC0000F1F
+#: ARProperties.State: 001b = Active, the only value a connect may give.
+AR_STATE_ACTIVE = 0x1
+#: PROFIdrive identifier bit 9: the parameter is read-only (PROFIdrive V4.1, parameter
+#: description, element "identifier").
+ID_READ_ONLY = 0x0200
+#: P922 (telegram selection): read-only over PROFIdrive, set by the IO controller's
+#: configuration (004 §20.4.3.1: access R).
+P922 = 0x039A
 
 
 @dataclass(slots=True)
@@ -97,6 +128,9 @@ class _Ar:
     last: float
     #: The parameter response waiting to be read from 0xB02E.
     pending: bytes | None = None
+    #: Who set it up (CMInitiatorMacAdd, CMInitiatorStationName): another station may
+    #: not take it over by reusing its ARUUID.
+    initiator: tuple[bytes, str] = (bytes(6), "")
 
 
 @dataclass(slots=True)
@@ -104,13 +138,16 @@ class _Cache:
     """The last response sent to one client activity (for its resends)."""
 
     seqnum: int
-    datagram: bytes
+    #: The response's datagrams (several when it went in fragments).
+    datagrams: tuple[bytes, ...]
 
 
 @dataclass(slots=True)
 class _State:
     ars: dict[uuid.UUID, _Ar] = field(default_factory=dict)
     answered: dict[uuid.UUID, _Cache] = field(default_factory=dict)
+    #: Calls whose request fragments are still coming in, by (activity, sequence number).
+    fragments: dict[tuple[uuid.UUID, int], pnio.Reassembly] = field(default_factory=dict)
 
 
 class ProfinetDevice(UdpServer):
@@ -146,6 +183,15 @@ class ProfinetDevice(UdpServer):
         self._dcp_ifname: str | None = None
         self._addresses: list[str] = []  # given to the DCP interface by this twin
         self._parked_port: int | None = None  # the port while the device has no address
+        #: I&M1-4 (004 §20.4.4: IM supported 30 = 001Eh, I&M1-4), RAM-kept, blank at first.
+        self._im_records: dict[int, bytes] = {k: b" " * n for k, n in pnio.IM_LENGTHS.items()}
+        #: P11572 (parameter activation): when the last 1EA5h was written (004 §20.8.14.1).
+        self._activation_started: float | None = None
+        #: DCE/RPC rejects sent (unknown interface or operation).
+        self.rejects = 0
+        #: Longest response body sent in one datagram; a longer one goes in fragments
+        #: (C706 §12.5.3.2; PNIO limits a fragment to the UDP payload of one frame).
+        self.max_fragment_body = pnio.MAX_DATAGRAM - pnio.RPC_HEADER_LEN
 
     # DCP -------------------------------------------------------------------------------
 
@@ -251,40 +297,103 @@ class ProfinetDevice(UdpServer):
     # RPC -------------------------------------------------------------------------------
 
     def answer(self, frame: bytes) -> bytes | None:
-        """The response datagram to one request; None for a datagram that is dropped."""
+        """The (first) response datagram to one request; None for a datagram that is
+        dropped. :meth:`answers` gives every fragment of a long answer."""
+        out = self.answers(frame)
+        return out[0] if out else None
+
+    def answers(self, frame: bytes) -> list[bytes]:
+        """The datagrams that answer one request datagram: the response (in fragments when
+        it is longer than :attr:`max_fragment_body`), a fragment acknowledgement, a reject,
+        or nothing."""
         try:
             req = pnio.parse_rpc(frame)
         except pnio.PnioFrameError as exc:
             log.debug("PNIO datagram dropped: %s", exc)
-            return None
-        if req.ptype != pnio.PTYPE_REQUEST or req.interface != pnio.DEVICE_INTERFACE:
-            return None
+            return []
+        if req.ptype != pnio.PTYPE_REQUEST:
+            return []  # a client's fack of our reply fragments, ping, ...: nothing to do
         cached = self._state.answered.get(req.activity)
-        if cached is not None and cached.seqnum == req.seqnum:
+        if cached is not None and (
+            cached.seqnum == req.seqnum or _older(req.seqnum, cached.seqnum)
+        ):
+            # A resend, or a delayed duplicate of an earlier call on this activity: the last
+            # response, never the call once more (C706 ch. 10: a server carries out the
+            # calls of one activity once each, in sequence-number order).
             self.resends += 1
-            return cached.datagram
+            return list(cached.datagrams)
+        if req.flags1 & pnio.FLAG_FRAG:
+            whole = self._reassemble(req)
+            if whole is None:
+                if req.flags1 & pnio.FLAG_NOFACK:
+                    return []
+                # C706 §12.5.3.6: a fragment without "no fack" is acknowledged.
+                return [pnio.build_rpc(pnio.fack(req))]
+            req = whole
+        if req.interface != pnio.DEVICE_INTERFACE or req.opnum not in _OPS:
+            # An interface the server does not export, or an operation beyond the
+            # interface's: a DCE/RPC reject (C706 §12.5.3.7 / nca_s_unk_if,
+            # nca_s_op_rng_error), as every RPC runtime answers, not a PNIO response.
+            self.rejects += 1
+            code = (
+                pnio.NCA_UNKNOWN_INTERFACE
+                if req.interface != pnio.DEVICE_INTERFACE
+                else pnio.NCA_OP_RANGE_ERROR
+            )
+            return [
+                pnio.build_rpc(
+                    pnio.RpcPacket(
+                        ptype=pnio.PTYPE_REJECT,
+                        opnum=req.opnum,
+                        object_uuid=req.object_uuid,
+                        interface=req.interface,
+                        activity=req.activity,
+                        seqnum=req.seqnum,
+                        body=code.to_bytes(4, "little" if req.little else "big"),
+                        flags1=pnio.FLAG_LASTFRAG | pnio.FLAG_NOFACK,
+                        little=req.little,
+                    )
+                )
+            ]
         self._expire()
         status, args_max, blocks = self._call(req)
         body = pnio.response_body(status, blocks, args_max, little=req.little)
-        datagram = pnio.build_rpc(
-            pnio.RpcPacket(
-                ptype=pnio.PTYPE_RESPONSE,
-                opnum=req.opnum,
-                object_uuid=req.object_uuid,
-                interface=req.interface,
-                activity=req.activity,
-                seqnum=req.seqnum,
-                body=body,
-                flags1=pnio.FLAG_LASTFRAG | pnio.FLAG_NOFACK,
-                little=req.little,
-            )
+        response = pnio.RpcPacket(
+            ptype=pnio.PTYPE_RESPONSE,
+            opnum=req.opnum,
+            object_uuid=req.object_uuid,
+            interface=req.interface,
+            activity=req.activity,
+            seqnum=req.seqnum,
+            body=body,
+            flags1=pnio.FLAG_LASTFRAG | pnio.FLAG_NOFACK,
+            little=req.little,
+        )
+        datagrams = tuple(
+            pnio.build_rpc(f) for f in pnio.fragment(response, self.max_fragment_body)
         )
         answered = self._state.answered
         answered.pop(req.activity, None)  # to the end: the oldest activity goes first
-        answered[req.activity] = _Cache(req.seqnum, datagram)
+        answered[req.activity] = _Cache(req.seqnum, datagrams)
         while len(answered) > RESEND_CACHE:
             del answered[next(iter(answered))]
-        return datagram
+        return list(datagrams)
+
+    def _reassemble(self, frag: pnio.RpcPacket) -> pnio.RpcPacket | None:
+        """The whole request once every fragment of its call is in; None before."""
+        key = (frag.activity, frag.seqnum)
+        pending = self._state.fragments
+        if key not in pending:
+            while len(pending) >= RESEND_CACHE:
+                del pending[next(iter(pending))]
+            pending[key] = pnio.Reassembly()
+        body = pending[key].add(frag)
+        if body is None:
+            return None
+        del pending[key]
+        return dataclasses.replace(
+            frag, body=body, flags1=frag.flags1 & ~pnio.FLAG_FRAG | pnio.FLAG_LASTFRAG, fragnum=0
+        )
 
     def _call(self, req: pnio.RpcPacket) -> tuple[int, int, bytes]:
         """(PNIOStatus, ArgsMaximum, the response blocks) of one operation."""
@@ -315,21 +424,56 @@ class ProfinetDevice(UdpServer):
 
     def _connect(self, args: bytes) -> bytes:
         blocks = pnio.split_blocks(args)
+        if any(t not in pnio.CONNECT_BLOCKS for t, _ in blocks):
+            raise _Refused(pnio.DECODE_PNIO, pnio.CMRPC, 0x01)  # unknown blocks
         ar_reqs = [c for t, c in blocks if t == pnio.BLOCK_AR_REQ]
         if len(ar_reqs) != 1:
             raise _Refused(pnio.DECODE_PNIO, pnio.CMRPC, 0x03)  # wrong block count
+        field = pnio.AR_FIELD
+        for t, high, low in pnio.block_versions(args):
+            if t == pnio.BLOCK_AR_REQ and high != 1:
+                raise _Refused(pnio.DECODE_PNIO, 0x01, field["version_high"])
+            if t == pnio.BLOCK_AR_REQ and low != 0:
+                raise _Refused(pnio.DECODE_PNIO, 0x01, field["version_low"])
         ar = pnio.parse_ar_block_req(ar_reqs[0])
         # Only a supervisor AR with device access: no IO controller, expected submodules or
         # cyclic data come with it (the twin has no IO data to exchange; docs/profinet.md).
-        if ar.ar_type != pnio.AR_TYPE_SUPERVISOR or not ar.properties & 0x100:
-            raise _Refused(pnio.DECODE_PNIO, 0x01, 0x04)  # faulty ARBlockReq: ARType
+        if ar.ar_type != pnio.AR_TYPE_SUPERVISOR:
+            raise _Refused(pnio.DECODE_PNIO, 0x01, field["ar_type"])  # faulty ARBlockReq
+        if len(blocks) != 1:
+            # IOCR, alarm CR or expected submodule blocks have no place in an AR with
+            # device access.
+            raise _Refused(pnio.DECODE_PNIO, pnio.CMRPC, 0x01)
+        if (
+            ar.properties & ~AR_PROPERTIES_KNOWN
+            or ar.properties & 0x7 != AR_STATE_ACTIVE
+            or not ar.properties & pnio.AR_PROPERTIES_DEVICE_ACCESS & 0x100
+        ):
+            raise _Refused(pnio.DECODE_PNIO, 0x01, field["properties"])
+        if ar.udp_rt_port != 0x8892:
+            raise _Refused(pnio.DECODE_PNIO, 0x01, field["udp_rt_port"])
+        if not 1 <= len(ar.station_name) <= 240:
+            raise _Refused(pnio.DECODE_PNIO, 0x01, field["name_length"])
+        try:
+            check_name_of_station(ar.station_name)
+        except ValidationError:
+            raise _Refused(pnio.DECODE_PNIO, 0x01, field["station_name"]) from None
         low, high = ACTIVITY_FACTOR_RANGE
         if not low <= ar.timeout_factor <= high:
             raise _Refused(pnio.DECODE_PNIO, 0x01, FIELD_ACTIVITY_FACTOR)  # faulty ARBlockReq
-        if ar.ar_uuid not in self._state.ars and len(self._state.ars) >= MAX_ARS:
+        initiator = (ar.initiator_mac, ar.station_name)
+        live = self._state.ars.get(ar.ar_uuid)
+        if live is not None and live.initiator != initiator:
+            # The ARUUID of a live AR from another station: no takeover (the CM keys an AR
+            # by its ARUUID and its initiator; IEC 61158-6-10 CMDEV).
+            raise _Refused(pnio.DECODE_PNIO, 0x01, field["ar_uuid"])
+        if live is None and len(self._state.ars) >= MAX_ARS:
             raise _Refused(pnio.DECODE_PNIO, pnio.CMRPC, 0x04)  # no AR resources
         self._state.ars[ar.ar_uuid] = _Ar(
-            ar.session_key, timeout_s=0.1 * ar.timeout_factor, last=time.monotonic()
+            ar.session_key,
+            timeout_s=0.1 * ar.timeout_factor,
+            last=time.monotonic(),
+            initiator=initiator,
         )
         return pnio.ar_block_res(ar.ar_type, ar.ar_uuid, ar.session_key, self.mac)
 
@@ -337,8 +481,16 @@ class ProfinetDevice(UdpServer):
         ar_uuid, key, _command = pnio.parse_release_block(
             pnio.one_block(args, pnio.BLOCK_RELEASE_REQ)
         )
-        if self._state.ars.pop(ar_uuid, None) is None:
+        ar = self._state.ars.get(ar_uuid)
+        if ar is None:
             raise _Refused(pnio.DECODE_PNIO, pnio.CMRPC, 0x05)  # AR UUID unknown
+        if key != ar.session_key:
+            # Only the AR's own initiator ends it (IEC 61158-6-10: the SessionKey of the
+            # release block must be the AR's).
+            raise _Refused(
+                pnio.DECODE_PNIO, pnio.CODE1_RELEASE_BLOCK, pnio.RELEASE_FIELD_SESSION_KEY
+            )
+        del self._state.ars[ar_uuid]
         return pnio.release_block(pnio.BLOCK_RELEASE_RES, ar_uuid, key, pnio.CONTROL_DONE)
 
     def _write(self, args: bytes, args_max: int) -> tuple[int, int, bytes]:
@@ -354,6 +506,18 @@ class ProfinetDevice(UdpServer):
 
         if where.index == pnio.INDEX_IM0:
             raise _Refused(pnio.DECODE_PNIORW, 0xB6, 0, answer())  # I&M0 is read-only
+        im = _im_number(where.index)
+        if im is not None:
+            if where.subslot != 1 or where.slot not in (0, 1):
+                raise _Refused(pnio.DECODE_PNIORW, 0xB2, 0, answer())
+            try:
+                content = pnio.one_block(record, pnio.BLOCK_IM[im])
+            except pnio.PnioFrameError:
+                raise _Refused(pnio.DECODE_PNIORW, 0xB8, 0, answer()) from None
+            if len(content) != pnio.IM_LENGTHS[im]:
+                raise _Refused(pnio.DECODE_PNIORW, 0xB1, 0, answer())
+            self._im_records[im] = content
+            return 0, args_max, answer()
         if where.index != pnio.INDEX_PARAMETER_ACCESS:
             raise _Refused(pnio.DECODE_PNIORW, 0xB0, 0, answer())
         if (where.slot, where.subslot) != (DRIVE_SLOT, DRIVE_SUBSLOT):
@@ -376,8 +540,11 @@ class ProfinetDevice(UdpServer):
             h = pnio.RecordHeader(head.seq, head.ar_uuid, where, len(data))
             return pnio.record_response(pnio.BLOCK_READ_RES, h) + data
 
+        im = _im_number(where.index)
         if where.index == pnio.INDEX_IM0 and where.subslot == 1 and where.slot in (0, 1):
             data = self.im0(where.slot)
+        elif im is not None and where.subslot == 1 and where.slot in (0, 1):
+            data = pnio.block(pnio.BLOCK_IM[im], self._im_records[im])
         elif where.index != pnio.INDEX_PARAMETER_ACCESS:
             raise _Refused(pnio.DECODE_PNIORW, 0xB0, 0, answer())
         elif (where.slot, where.subslot) != (DRIVE_SLOT, DRIVE_SUBSLOT):
@@ -470,12 +637,13 @@ class ProfinetDevice(UdpServer):
         entry = self.drive.profile.entries.get(pnu)
         if entry is None:
             raise _ParameterError(0x00)
-        if pnu < pd.COE_FROM or entry.object_type is not ObjectType.VAR:
-            coe_sub = sub if pnu < pd.COE_FROM else sub + 1
-        elif sub != 0:
-            raise _ParameterError(0x04)  # subindex access to a parameter without subindexes
-        else:
+        if entry.object_type is ObjectType.VAR:
+            if sub != 0:
+                # 004 §20.4.2 04h "no array": a subindex on a parameter without subindexes.
+                raise _ParameterError(0x04)
             coe_sub = 0
+        else:
+            coe_sub = sub if pnu < pd.COE_FROM else sub + 1
         spec = self.drive.profile.spec(ObjectAddress(pnu, coe_sub))
         if spec is None or coe_sub > 255:
             raise _ParameterError(0x03)
@@ -488,8 +656,13 @@ class ProfinetDevice(UdpServer):
             raise _ParameterError(0x0F)
         if address.attribute != pd.ATTR_VALUE:
             raise _ParameterError(0x16)
+        entry = self.drive.profile.entries.get(address.pnu)
+        if address.elements != 1 and entry is not None and entry.object_type is not ObjectType.VAR:
+            return self._elements_of(address)
         if address.elements != 1:
             return self._block(address)
+        if address.pnu == self._activation_index and self._activation_started is not None:
+            return self._activation_state()
         where, data_type = self._object(address)
         try:
             raw = self.drive.read_bytes(where.index, where.subindex)
@@ -499,6 +672,43 @@ class ProfinetDevice(UdpServer):
         if value.count > 255 or len(value.data) > pd.MAX_BYTES - 6:
             raise _ParameterError(0x15)  # response too long: read it in blocks
         return value
+
+    def _elements_of(self, address: pd.ParameterAddress) -> pd.Values:
+        """``elements`` consecutive elements of an array from PNU subindex ``subindex``, in
+        one value block (PROFIdrive: No. of elements > 1 reads a part of an array; P964 x5,
+        P975 x8)."""
+        fmt: int | None = None
+        data = b""
+        for i in range(address.elements):
+            one = pd.ParameterAddress(address.pnu, address.subindex + i)
+            where, data_type = self._object(one)
+            f = pd.FORMAT_OF.get(data_type, pd.FMT_OCTET_STRING)
+            if f in pd.BYTE_STRINGS or (fmt is not None and f != fmt):
+                raise _ParameterError(0x16)  # not one format: no such address
+            fmt = f
+            try:
+                data += pd.from_coe(f, self.drive.read_bytes(where.index, where.subindex)).data
+            except SimAbort as exc:
+                raise _ParameterError(ERROR_FOR_ABORT.get(exc.code, 0x14)) from None
+        assert fmt is not None
+        if len(data) > pd.MAX_BYTES - 6:
+            raise _ParameterError(0x15)
+        return pd.Values(fmt, address.elements, data)
+
+    @property
+    def _activation_index(self) -> int | None:
+        q = self.drive.profile.quirk("parameter_activation", None)
+        return int(q["index"]) if isinstance(q, dict) and "index" in q else None
+
+    def _activation_state(self) -> pd.Values:
+        """P11572 after 1EA5h was written: 0 while the drive activates the parameters
+        (about 100 ms), then 1 (004 §20.8.14.1)."""
+        q = self.drive.profile.quirk("parameter_activation", {}) or {}
+        started = self._activation_started
+        assert started is not None
+        busy = time.monotonic() - started < float(q.get("duration_ms", 100)) / 1000.0
+        value = int(q.get("busy_value", 0)) if busy else int(q.get("done_value", 1))
+        return pd.Values(pd.FMT_UINT16, 1, value.to_bytes(2, "big"))
 
     def _block(self, address: pd.ParameterAddress) -> pd.Values:
         """Block ``subindex`` of ``elements`` bytes of a string longer than one response
@@ -527,6 +737,10 @@ class ProfinetDevice(UdpServer):
             raise _ParameterError(0x20)
         if address.attribute != pd.ATTR_VALUE or address.elements != 1:
             raise _ParameterError(0x16)
+        if address.pnu == P922:
+            # 004 §20.4.3.1: P922 is R; the telegram comes from the IO controller's
+            # configuration (GSDML), never from a parameter write.
+            raise _ParameterError(0x01)
         where, data_type = self._object(address)
         fmt = pd.FORMAT_OF.get(data_type, pd.FMT_OCTET_STRING)
         if values.format != fmt:
@@ -537,6 +751,8 @@ class ProfinetDevice(UdpServer):
             self.drive.write_bytes(where.index, where.subindex, pd.to_coe(values))
         except SimAbort as exc:
             raise _ParameterError(ERROR_FOR_ABORT.get(exc.code, 0x14)) from None
+        if where.index == self._activation_index and int.from_bytes(values.data, "big") == 0x1EA5:
+            self._activation_started = time.monotonic()
 
     def _description(self, address: pd.ParameterAddress) -> pd.Values:
         """Description elements 1 (identifier) and 2 (number of array elements or string
@@ -551,7 +767,10 @@ class ProfinetDevice(UdpServer):
             raise _ParameterError(0x00)
         if address.subindex == pd.DESC_ID:
             fmt = pd.FORMAT_OF.get(specs[0].data_type, pd.FMT_OCTET_STRING)
-            return pd.Values(pd.FMT_UINT16, 1, (fmt | (pd.ID_ARRAY if array else 0)).to_bytes(2))
+            ident = fmt | (pd.ID_ARRAY if array else 0)
+            if not any(sp.access.writable for sp in specs) or entry.index == P922:
+                ident |= ID_READ_ONLY
+            return pd.Values(pd.FMT_UINT16, 1, ident.to_bytes(2))
         if address.subindex == pd.DESC_ELEMENTS:
             try:
                 n = self._elements(address.pnu, array, specs)
@@ -570,6 +789,24 @@ class ProfinetDevice(UdpServer):
         if specs[0].data_type in (DataType.VISIBLE_STRING, DataType.OCTET_STRING):
             return len(self.drive.read_bytes(pnu, 0))
         return 0
+
+
+#: The PNIO-CM operations the device interface exports (IEC 61158-6-10: Connect, Release,
+#: Read, Write, Control; Control (4) is the IO controller's, answered as not supported here).
+_OPS = frozenset({pnio.OP_CONNECT, pnio.OP_RELEASE, pnio.OP_READ, pnio.OP_WRITE, 4})
+
+
+def _older(seqnum: int, last: int) -> bool:
+    """``seqnum`` comes before ``last`` (32-bit sequence numbers that wrap)."""
+    return 0 < (last - seqnum) & 0xFFFFFFFF < 0x80000000
+
+
+def _im_number(index: int) -> int | None:
+    """1-4 for the records of I&M1-4, None for any other index."""
+    for n, i in pnio.INDEX_IM.items():
+        if i == index:
+            return n
+    return None
 
 
 class _ParameterError(Exception):

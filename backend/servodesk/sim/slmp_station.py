@@ -9,8 +9,12 @@ can be reached over both.
 
 What it answers, and how (docs/slmp.md):
 
-- A frame that is no 4E binary request is dropped, as a station drops what it cannot parse
-  (the client's time-out says so).
+- A frame whose 4E binary request header (subheader 5400h and the 13 bytes up to the request
+  data length) is not there is dropped: there is nobody to address an answer to (the client's
+  time-out says so).
+- A readable header with a wrong rest is answered, as SLMP servers do: a request data length
+  that does not match the bytes that follow, or a body too short for the monitoring timer,
+  command and sub-command: C061h; a fixed field (bytes 4-5) other than 0000h: C05Ch.
 - A multidrop no. with no axis: end code CF10h; a command other than 4020h / 0001h, 0002h:
   C059h; 4020h data whose lengths do not add up: C061h. Each with the error information.
 - A refused SDO: end code C05Ch with the CiA 301 abort code after the error information.
@@ -19,6 +23,7 @@ What it answers, and how (docs/slmp.md):
 from __future__ import annotations
 
 import logging
+import struct
 from collections.abc import Mapping
 
 from servodesk.domain import slmp
@@ -48,8 +53,7 @@ class SlmpStation(UdpServer):
         try:
             req = slmp.parse_request(frame)
         except slmp.SlmpFrameError as exc:
-            log.debug("SLMP frame dropped: %s", exc)
-            return None
+            return self._malformed(frame, exc)
 
         def refuse(end_code: int, extra: bytes = b"") -> bytes:
             info = slmp.error_info(req.route, req.command, req.subcommand)
@@ -78,3 +82,20 @@ class SlmpStation(UdpServer):
             return refuse(slmp.END_SDO_REFUSED, exc.code.to_bytes(4, "little"))
         data = slmp.download_data(obj.index, obj.subindex, value)
         return slmp.build_response(req.serial, req.route, 0, data)
+
+    def _malformed(self, frame: bytes, exc: slmp.SlmpFrameError) -> bytes | None:
+        """The answer to a request that does not parse: an end code where its header is
+        readable (the serial no. and the route to answer), silence where it is not."""
+        head = slmp.read_request_header(frame)
+        if head is None:
+            log.debug("SLMP frame dropped: %s", exc)
+            return None
+        command = subcommand = 0
+        if len(head.body) >= 6:
+            _timer, command, subcommand = struct.unpack_from("<HHH", head.body)
+        info = slmp.error_info(head.route, command, subcommand)
+        # C05Ch request content error (the fixed field is not 0000h); C061h the request data
+        # length does not match what follows, or leaves no room for the command.
+        code = 0xC05C if head.fixed != 0 else 0xC061
+        log.debug("SLMP request refused with %04Xh: %s", code, exc)
+        return slmp.build_response(head.serial, head.route, code, info)

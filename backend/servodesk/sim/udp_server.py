@@ -41,6 +41,12 @@ class UdpServer(ABC):
     def answer(self, frame: bytes) -> bytes | None:
         """The response to one request datagram; None drops it."""
 
+    def answers(self, frame: bytes) -> list[bytes]:
+        """The datagrams that answer one request, in order (several where the answer is
+        sent in fragments, none where it is dropped); by default :meth:`answer`'s one."""
+        one = self.answer(frame)
+        return [] if one is None else [one]
+
     @property
     def address(self) -> tuple[str, int]:
         if self._sock is None:
@@ -115,15 +121,16 @@ class UdpServer(ABC):
             except OSError:
                 return  # Closed.
             try:
-                answer = self.answer(frame)
+                datagrams = self.answers(frame)
             except Exception:  # A bug here must not stop the server.
                 log.exception("%s: request not answered", self.name)
-                answer = None
-            if answer is None:
+                datagrams = []
+            if not datagrams:
                 self.dropped += 1
                 continue
             self.answered += 1  # Before it is sent: the client may look right after.
-            try:
-                sock.sendto(answer, peer)
-            except OSError:
-                log.debug("%s: answer to %s not sent", self.name, peer, exc_info=True)
+            for datagram in datagrams:
+                try:
+                    sock.sendto(datagram, peer)
+                except OSError:
+                    log.debug("%s: answer to %s not sent", self.name, peer, exc_info=True)
