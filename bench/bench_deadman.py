@@ -35,7 +35,7 @@ import can
 from fastapi.testclient import TestClient
 
 from servodesk.api.app import create_app
-from servodesk.domain.paramset import checksum
+from servodesk.benchmarks.documents import big_csv, padded_backup
 from servodesk.settings import Settings
 
 SID = "cia402-generic-1"
@@ -117,14 +117,6 @@ def one_run(
     }
 
 
-def big_csv(megabytes: float) -> bytes:
-    """A two-column recording of ``megabytes`` (the import issue 44 measured: 10 MB)."""
-    rows = ["time_s,position [inc]"]
-    n = int(megabytes * 1e6 / 18)
-    rows += [f"{i * 0.0005:.6f},{(i * 7919) % 1000003}" for i in range(n)]
-    return ("\n".join(rows) + "\n").encode()
-
-
 def big_backup(client: TestClient, h: dict[str, str], megabytes: float) -> str:
     """A backup of the drive made ``megabytes`` large and stored; its id.
 
@@ -134,19 +126,7 @@ def big_backup(client: TestClient, h: dict[str, str], megabytes: float) -> str:
     r = client.post(f"/api/v1/sessions/{SID}/backups", json={"label": "bench"}, headers=h)
     r.raise_for_status()
     doc = client.get(f"/api/v1/backups/{r.json()['id']}").json()
-    one = {
-        "address": "0x2fff:01",
-        "name": "padding",
-        "code": 0x06020000,
-        "code_hex": "0x06020000",
-        "message": "object does not exist",
-    }
-    n = int(megabytes * 1e6 / len(json.dumps(one)))
-    doc["unreadable"] = [
-        dict(one, address=f"0x{0x3000 + i // 250:04x}:{i % 250 + 1:02x}") for i in range(n)
-    ]
-    doc["checksum"] = checksum(doc)
-    body = json.dumps(doc).encode()
+    body = padded_backup(doc, megabytes)
     r = client.post(
         "/api/v1/backups/upload?filename=big.json",
         content=body,

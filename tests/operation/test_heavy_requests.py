@@ -22,17 +22,10 @@ from typing import Any
 import httpx
 from websockets.sync.client import connect
 
-from servodesk.domain.paramset import checksum
+from servodesk.benchmarks.documents import big_csv, padded_backup
 from tests.live import live_server
 
 SID = "cia402-generic-1"
-
-
-def _big_csv(megabytes: float) -> bytes:
-    rows = ["time_s,position [inc]"]
-    n = int(megabytes * 1e6 / 18)
-    rows += [f"{i * 0.0005:.6f},{(i * 7919) % 1000003}" for i in range(n)]
-    return ("\n".join(rows) + "\n").encode()
 
 
 def _big_backup(http: httpx.Client, api: str, h: dict[str, str], megabytes: float) -> str:
@@ -41,21 +34,10 @@ def _big_backup(http: httpx.Client, api: str, h: dict[str, str], megabytes: floa
     r = http.post(f"{api}/sessions/{SID}/backups", json={"label": "big"}, headers=h)
     assert r.status_code == 201, r.text
     doc = http.get(f"{api}/backups/{r.json()['id']}").json()
-    one = {
-        "address": "0x3000:01",
-        "name": "padding",
-        "code": 0x06020000,
-        "code_hex": "0x06020000",
-        "message": "object does not exist",
-    }
-    n = int(megabytes * 1e6 / len(json.dumps(one)))
-    doc["unreadable"] = [
-        dict(one, address=f"0x{0x3000 + i // 250:04x}:{i % 250 + 1:02x}") for i in range(n)
-    ]
-    doc["checksum"] = checksum(doc)
+    body = padded_backup(doc, megabytes)
     r = http.post(
         f"{api}/backups/upload?filename=big.json",
-        content=json.dumps(doc).encode(),
+        content=body,
         headers={"Content-Type": "application/json"},
         timeout=120,
     )
@@ -64,7 +46,7 @@ def _big_backup(http: httpx.Client, api: str, h: dict[str, str], megabytes: floa
 
 
 def test_a_10_mb_import_does_not_hold_the_loop_or_stop_a_live_jog() -> None:
-    data = _big_csv(10.0)
+    data = big_csv(10.0)
     assert len(data) > 9_500_000
 
     def upload(c: httpx.Client, api: str, _h: dict[str, str]) -> httpx.Response:

@@ -96,24 +96,19 @@ class DcpClient:
         devices = sorted(found.values(), key=lambda d: (d.name_of_station or "~", d.mac))
         return Scan(devices, malformed)
 
-    def get(
-        self,
-        mac: bytes,
-        options: tuple[tuple[int, int], ...] = (
-            (dcp.OPT_DEVICE, dcp.SUB_NAME_OF_STATION),
-            (dcp.OPT_IP, dcp.SUB_IP),
-            (dcp.OPT_DEVICE, dcp.SUB_DEVICE_ID),
-        ),
-    ) -> dcp.Device:
-        """Ask the device at ``mac`` for ``options`` (DCP Get, unicast; by default its station
-        name, IP suite and vendor / device ID); ObjectAccessError (protocol "dcp") when it
-        does not support one, NotFoundError when nothing answers."""
+    def _ask(
+        self, mac: bytes, service: int, what: str, build: Callable[[int], bytes]
+    ) -> dcp.Packet:
+        """Send a unicast request (Get or Set) built for a fresh Xid, resent up to
+        SET_ATTEMPTS times, and return the device's successful answer to it; NotFoundError
+        when nothing answers, ObjectAccessError (protocol "dcp") when the device answers
+        that it does not support the service (its ServiceType)."""
         xid = random.getrandbits(32)
-        frame = dcp.get_request(mac, self.mac, xid, options)
+        frame = build(xid)
         answer: list[dcp.Packet] = []
 
         def take(p: dcp.Packet) -> bool:
-            if p.frame_id != dcp.FRAME_GET_SET or p.service_id != dcp.SERVICE_GET:
+            if p.frame_id != dcp.FRAME_GET_SET or p.service_id != service:
                 return False
             if p.xid != xid or p.src != mac or p.service_type == dcp.TYPE_REQUEST:
                 return False
@@ -132,11 +127,31 @@ class DcpClient:
         reply = answer[0]
         if reply.service_type != dcp.TYPE_SUCCESS:
             raise ObjectAccessError(
-                f"{dcp.mac_text(mac)} does not support DCP Get (ServiceType {reply.service_type})",
+                f"{dcp.mac_text(mac)} does not support {what} (ServiceType {reply.service_type})",
                 code=dcp.TYPE_NOT_SUPPORTED,
                 meaning="request not supported",
                 protocol="dcp",
             )
+        return reply
+
+    def get(
+        self,
+        mac: bytes,
+        options: tuple[tuple[int, int], ...] = (
+            (dcp.OPT_DEVICE, dcp.SUB_NAME_OF_STATION),
+            (dcp.OPT_IP, dcp.SUB_IP),
+            (dcp.OPT_DEVICE, dcp.SUB_DEVICE_ID),
+        ),
+    ) -> dcp.Device:
+        """Ask the device at ``mac`` for ``options`` (DCP Get, unicast; by default its station
+        name, IP suite and vendor / device ID); ObjectAccessError (protocol "dcp") when it
+        does not support one, NotFoundError when nothing answers."""
+        reply = self._ask(
+            mac,
+            dcp.SERVICE_GET,
+            "DCP Get",
+            lambda xid: dcp.get_request(mac, self.mac, xid, options),
+        )
         try:
             refused = [a for a in dcp.acks(reply) if a.error]
             device = dcp.device_from(reply)
@@ -157,36 +172,12 @@ class DcpClient:
         """Send a Set of ``blocks`` to ``mac`` and return its acknowledgements;
         ObjectAccessError (protocol "dcp") when the device refuses a block, NotFoundError
         when nothing answers."""
-        xid = random.getrandbits(32)
-        frame = dcp.set_request(mac, self.mac, xid, blocks).encode()
-        answer: list[dcp.Packet] = []
-
-        def take(p: dcp.Packet) -> bool:
-            if p.frame_id != dcp.FRAME_GET_SET or p.service_id != dcp.SERVICE_SET:
-                return False
-            if p.xid != xid or p.src != mac or p.service_type == dcp.TYPE_REQUEST:
-                return False
-            answer.append(p)
-            return True
-
-        for _ in range(SET_ATTEMPTS):
-            self._send(frame)
-            if self._receive(time.monotonic() + SET_TIMEOUT_S, take):
-                break
-        else:
-            raise NotFoundError(
-                f"no device with MAC {dcp.mac_text(mac)} answers DCP on {self.nic}",
-                hint="search the interface again (Identify) and take the MAC from the answer",
-            )
-        reply = answer[0]
-        if reply.service_type != dcp.TYPE_SUCCESS:
-            raise ObjectAccessError(
-                f"{dcp.mac_text(mac)} does not support this DCP Set "
-                f"(ServiceType {reply.service_type})",
-                code=dcp.TYPE_NOT_SUPPORTED,
-                meaning="request not supported",
-                protocol="dcp",
-            )
+        reply = self._ask(
+            mac,
+            dcp.SERVICE_SET,
+            "this DCP Set",
+            lambda xid: dcp.set_request(mac, self.mac, xid, blocks).encode(),
+        )
         try:
             result = dcp.acks(reply)
         except dcp.MalformedFrame as exc:
