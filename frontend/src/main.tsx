@@ -6,9 +6,10 @@ import { StrictMode } from 'react';
 import { createRoot } from 'react-dom/client';
 import 'uplot/dist/uPlot.min.css';
 import './styles.css';
-import { captureTokenFromUrl, me, refreshMe } from './api/auth';
+import { captureTokenFromUrl, endSession, me, refreshMe } from './api/auth';
 import { App } from './App';
 import { LoginPage } from './components/auth/LoginPage';
+import { startIdleLock } from './lib/idleLock';
 import { useObservable } from './state/observable';
 import { startControlStore } from './state/control';
 import { startStore } from './state/store';
@@ -28,6 +29,7 @@ void refreshMe().then((who) => {
   if (who !== null) {
     startStore();
     startControlStore();
+    startIdleLock(who, endSession);
   }
   createRoot(root).render(
     <StrictMode>

@@ -162,3 +162,31 @@ def test_another_user_is_refused_and_an_administrator_ends_the_session(
         expect(sam.get_by_test_id("op-state")).not_to_have_text("Operation enabled")
         expect(eve.get_by_test_id("login-page")).to_be_visible()
         eve.mouse.up()
+
+
+def test_a_tab_left_without_input_is_locked_although_it_polls(browser: Browser) -> None:
+    """CR 2.5 session lock: the server ends a session after its idle time without an HTTP
+    request, but an open tab polls and would keep it for ever. The UI counts the person's
+    input instead: without any, the tab logs out after the idle time and says why, while its
+    own requests went on the whole time."""
+    data = Path(tempfile.mkdtemp(prefix="servodesk-idle-"))
+    make_accounts(data, {"eve": "engineer"})
+    env = {
+        "SERVODESK_DATA_DIR": str(data),
+        "SERVODESK_SIM_PROFILES": "cia402-generic",
+        "SERVODESK_SIM_CHANNEL": f"idle-{os.getpid()}",
+        "SERVODESK_SESSION_IDLE_S": "4",
+    }
+    try:
+        with running_server(env=env) as base, person(browser, base) as page:
+            log_in(page, "eve")
+            # A page's polling, without input: every 0.5 s an HTTP request of this session.
+            page.evaluate(
+                "setInterval(() => fetch('/api/v1/health', {credentials: 'same-origin'}), 500)"
+            )
+            expect(page.get_by_test_id("login-page")).to_be_visible(timeout=10_000)
+            expect(page.get_by_test_id("login-reason")).to_contain_text("without input")
+            r = page.request.get(f"{base}/api/v1/auth/me")
+            assert r.status == 401  # The session really ended on the server.
+    except HarnessError as e:
+        pytest.fail(str(e), pytrace=False)

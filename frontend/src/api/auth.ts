@@ -98,9 +98,18 @@ export async function login(user: string, password: string): Promise<LoginFailur
 
 export async function logout(): Promise<void> {
   try {
-    await fetch('/api/v1/auth/logout', { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: '{}' });
+    await endSession();
   } finally {
     window.location.reload();
+  }
+}
+
+/** End this login session on the server (its sockets close), without reloading the page. */
+export async function endSession(): Promise<void> {
+  try {
+    await fetch('/api/v1/auth/logout', { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: '{}' });
+  } catch {
+    // The server is gone: its own idle time-out ends the session.
   }
 }
 
