@@ -433,8 +433,9 @@ CAT_SYNCM = 41
 CAT_END = 0xFFFF
 #: Mailbox protocols word: bit 2 = CoE.
 MBXPROTO_COE = 0x0004
-#: General category CoE details: bit 0 = SDO supported.
+#: General category CoE details: bit 0 = SDO supported, bit 5 = SDO complete access.
 COE_DETAILS_SDO = 0x01
+COE_DETAILS_COMPLETE_ACCESS = 0x20
 #: SyncManager types in the SyncM category.
 SM_TYPE_MAILBOX_OUT = 1
 SM_TYPE_MAILBOX_IN = 2
@@ -479,6 +480,8 @@ class SiiInfo:
     #: The SYNC0 cycle times the slave takes (min, max, step; ns), as its ESI's DC element
     #: offers them (not part of the SII image); None: no distributed clocks.
     dc_cycle_ns: tuple[int, int, int] | None = None
+    #: The General category's CoE details (ETG.2010 table 5): what the master may use.
+    coe_details: int = COE_DETAILS_SDO
 
 
 def _u32(v: int, what: str) -> bytes:
@@ -515,7 +518,7 @@ def sii_image(info: SiiInfo) -> bytes:
     strings = bytes([1, len(name)]) + name
     general = bytearray(32)
     general[3] = 1  # Name: string 1
-    general[5] = COE_DETAILS_SDO
+    general[5] = info.coe_details
     syncm = struct.pack(
         "<HHBBBBHHBBBB",
         out_off,

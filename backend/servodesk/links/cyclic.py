@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Callable
+from typing import Any
 
 from servodesk.errors import ConflictError
 
@@ -55,6 +56,16 @@ class CyclicTransport(ABC):
     @abstractmethod
     def send_sync(self, counter: int | None = None) -> None:
         """Send SYNC (CiA 301 §7.2.5), with the counter byte when ``counter`` is given."""
+
+    def health(self) -> dict[str, Any] | None:
+        """What the cycles say about the bus (EtherCAT: links/ethercat_health.py, with
+        ``state`` and ``stale``); None where the transport cannot tell (CAN: a silent TPDO
+        is no fault, services/cyclic.py explains it)."""
+        return None
+
+    def link_state(self) -> str | None:
+        """The ``state`` of :meth:`health` alone, cheap enough for every cycle."""
+        return None
 
 
 def no_cyclic_reason(link: object) -> str | None:

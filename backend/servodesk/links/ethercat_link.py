@@ -14,8 +14,12 @@ to several slaves on one interface share one SOEM master (one per interface: a s
 
 Cyclic process data (links/ethercat_cyclic.py): ``start`` (the PDO page's cyclic data)
 maps the line's process data with SOEM's ``config_map`` (the PDO assignment 1C12h / 1C13h and
-mapping read over CoE, SM2 / SM3 and the FMMUs programmed), requests SAFE-OP, exchanges one
-cycle, then requests OP; every cycle is then one LRW of the line's process data image.
+mapping read over CoE, SM2 / SM3 and the FMMUs programmed), checks what it mapped against
+each slave's PDO assignment, requests SAFE-OP, confirms that the exchange comes back with the
+expected working counter, then requests OP; every cycle is then one LRW of the line's process
+data image, each accounted for in the line's health (links/ethercat_health.py: working
+counter errors, missing frames, the link lost and recovered). SOEM's error list is emptied
+around each SDO and each mapping (:func:`drain_errors`).
 
 What this link does not do (docs/ethercat.md):
 
@@ -58,6 +62,7 @@ from servodesk.links.base import (
     LinkParams,
     object_identity,
 )
+from servodesk.links.ethercat_health import LOST, RECOVERING, LineHealth
 from servodesk.nic import check_name, require
 
 log = logging.getLogger(__name__)
@@ -84,6 +89,9 @@ READ_BUFFER = 4096
 #: The process data watchdog servodesk switches on where a slave has it off: the ESC's
 #: usual default (2498 x 40 ns divider = 100 us, 1000 of them).
 SM_WATCHDOG_MS = 100.0
+#: Exchanges after SAFE-OP within which one must come back with the expected working
+#: counter before cyclic data is said to run.
+CONFIRM_CYCLES = 10
 #: How long a state request waits for the slave to get there (µs, SOEM's unit).
 STATE_TIMEOUT_US = 500_000
 #: How long a read AL state is reported before it is read again (s): the session polls the
@@ -115,6 +123,12 @@ class _Master:
     outputs: dict[int, bytes] = field(default_factory=dict)
     #: config_dc has run (the slaves' clocks set and their delays measured).
     dc: bool = False
+    #: The AL state each slave (by position) was last brought to by a state request (SAFE-OP
+    #: for cyclic inputs only, OP with outputs): what the cycle thread brings it back to
+    #: after a link loss. A slave without one is in SAFE-OP after config_map.
+    target_states: dict[int, int] = field(default_factory=dict)
+    #: The cycles' bookkeeping (links/ethercat_health.py).
+    health: LineHealth = field(default_factory=lambda: LineHealth(""))
 
 
 _masters: dict[str, _Master] = {}
@@ -127,6 +141,7 @@ def _open_master(channel: str) -> _Master:
         shared = _masters.get(channel)
         if shared is None:
             shared = _Master(*_configure(channel))
+            shared.health.nic = channel
             _masters[channel] = shared
         shared.users += 1
         return shared
@@ -179,6 +194,45 @@ def _configure(channel: str) -> tuple[Any, int]:
             hint="check the cable to the first slave's IN port and that the drive is powered",
         )
     return master, found
+
+
+def soem_error_text(err: object) -> str:
+    """One entry of SOEM's error list (pysoem's SdoError / MailboxError / PacketError) in
+    words, naming the slave (SOEM counts slaves from 1, as servodesk's node ids)."""
+    where = f"slave {getattr(err, 'slave_pos', '?')}"
+    if isinstance(err, pysoem.SdoError):
+        return (
+            f"{where}: SDO abort 0x{int(err.abort_code):08X} on "
+            f"{int(err.index):04X}h:{int(err.subindex):02X} ({err.desc})"
+        )
+    if isinstance(err, pysoem.MailboxError):
+        return f"{where}: mailbox error {int(err.error_code)} ({err.desc})"
+    if isinstance(err, pysoem.PacketError):
+        return f"{where}: mailbox packet error {int(err.error_code)}"
+    return f"{type(err).__name__}: {err}"
+
+
+def drain_errors(master: Any, before: str) -> list[str]:
+    """Empty SOEM's error list (``ecx_poperror`` until empty) and say what it held.
+
+    SOEM keeps one error list per master; pysoem's SDO calls raise on the first entry they
+    pop, whoever left it there (an SDO Information request of the detection, an emergency,
+    the complete-access read of a slave that claims it), and its ``config_map`` raises
+    ConfigMapError for any entry at all, even where the mapping succeeded (issue 46). Each
+    operation therefore starts from an empty list, and what was left is logged, not raised.
+    """
+    collect = getattr(master, "_collect_mailbox_errors", None)
+    if collect is None:  # pragma: no cover - pysoem 1.1.13 has it
+        return []
+    try:
+        errors = list(collect())
+    except Exception as exc:  # pragma: no cover - a closed master
+        log.debug("SOEM's error list cannot be read: %s", exc)
+        return []
+    texts = [soem_error_text(e) for e in errors]
+    if texts:
+        log.info("SOEM's error list before %s held: %s", before, "; ".join(texts))
+    return texts
 
 
 def _pdo_configuration(index: int) -> bool:
@@ -355,11 +409,14 @@ class EthercatLink(DriveLink):
         shared, slave = self._master()
         with shared.lock:
             shared.master.sdo_read_timeout = self._timeout_us()
+            drain_errors(shared.master, f"reading {address}")
             try:
                 data = slave.sdo_read(
                     address.index, address.subindex, READ_BUFFER, release_gil=True
                 )
             except Exception as exc:
+                # pysoem raised on the first entry: the rest would trip the next call.
+                drain_errors(shared.master, f"the rest of the failed read of {address}")
                 raise self._failed(exc, address, "read") from exc
         return bytes(data)
 
@@ -367,9 +424,11 @@ class EthercatLink(DriveLink):
         shared, slave = self._master()
         with shared.lock:
             shared.master.sdo_write_timeout = self._timeout_us()
+            drain_errors(shared.master, f"writing {address}")
             try:
                 slave.sdo_write(address.index, address.subindex, bytes(data), release_gil=True)
             except Exception as exc:
+                drain_errors(shared.master, f"the rest of the failed write of {address}")
                 raise self._failed(exc, address, "write") from exc
             if _pdo_configuration(address.index):
                 shared.mapped = False  # The images change: config_map again before SAFE-OP.
@@ -426,10 +485,16 @@ class EthercatLink(DriveLink):
     def _network_state(self) -> str:
         """The slave's AL state (AL status 0130h) as SOEM reads it: init, preop, boot,
         safeop, op; "unknown" when the slave does not answer."""
+        shared, slave = self._master()
+        if shared.health.state in (LOST, RECOVERING) and any(shared.receivers.values()):
+            # Cyclic data runs and its cycles see no answer (links/ethercat_health.py): the
+            # state is not known, and a read would only wait for its time-out holding the
+            # GIL (module doc).
+            self._state = None
+            return "unknown"
         now = time.monotonic()
         if self._state is not None and now - self._state[0] < STATE_MAX_AGE:
             return self._state[1]
-        shared, slave = self._master()
         with shared.lock:
             shared.master.read_state()
             name = AL_STATES.get(int(slave.state) & 0x0F, "unknown")
@@ -439,14 +504,20 @@ class EthercatLink(DriveLink):
     def _map_process_data(self, shared: _Master, slave: Any) -> None:
         """Before OP (ETG.1000.6 §6.4.1): the synchronisation asked (:meth:`configure_sync`),
         the process data mapped (SOEM's config_map reads the PDO assignment over CoE and
-        programs SM2 / SM3 and the FMMUs), SAFE-OP, and one exchange, so that the slave has
-        valid outputs when OP is requested."""
+        programs SM2 / SM3 and the FMMUs) and checked, SAFE-OP, and a few exchanges that must
+        come back with the expected working counter, so that the slave has valid outputs
+        when OP is requested and "running" means frames on the wire (issue 46)."""
         with shared.lock:
             shared.master.read_state()
+            if (
+                shared.mapped
+                and int(slave.state) & 0x0F in (AL_SAFEOP, AL_OP)
+                and self._applied == self._sync
+            ):
+                return
             if int(slave.state) & 0x0F in (AL_SAFEOP, AL_OP):
-                if self._applied == self._sync:
-                    return
-                # Another synchronisation: its registers are written in PRE-OP.
+                # Another synchronisation (its registers are written in PRE-OP), or a line
+                # left in SAFE-OP by a mapping that failed: back to PRE-OP, map again.
                 slave.state = AL_PREOP
                 slave.write_state()
                 slave.state_check(AL_PREOP, STATE_TIMEOUT_US)
@@ -461,13 +532,7 @@ class EthercatLink(DriveLink):
             # slave checks its synchronisation.
             self._set_sync(shared, slave)
             if not shared.mapped:
-                try:
-                    shared.master.config_map()
-                except Exception as exc:
-                    raise LinkError(
-                        f"mapping the process data of {self.params.channel!r} failed: {exc}"
-                    ) from exc
-                shared.mapped = shared.was_mapped = True
+                self._map_and_check(shared)
             slave.state = AL_SAFEOP
             slave.write_state()
             reached = int(slave.state_check(AL_SAFEOP, STATE_TIMEOUT_US)) & 0x0F
@@ -489,8 +554,140 @@ class EthercatLink(DriveLink):
                     hint=hint,
                 )
             self._applied = self._sync
-            shared.master.send_processdata()
-            shared.master.receive_processdata(PROCESS_DATA_TIMEOUT_US)
+            self._confirm_exchange(shared)
+
+    def _expected_sizes(self, shared: _Master) -> dict[int, tuple[int, int]]:
+        """Each slave's output and input bytes as its PDO assignment says (1C12h / 1C13h,
+        the assigned PDOs' entries, ETG.1020 / CiA 301 §7.4.8: bits 0-7 of an entry are its
+        length), read over CoE; a slave whose assignment cannot be read (no CoE, fixed PDOs
+        from the SII) is left out and checked by the working counter alone."""
+        out: dict[int, tuple[int, int]] = {}
+        for position, s in enumerate(shared.master.slaves):
+
+            def u(index: int, sub: int, size: int, s: Any = s) -> int:
+                drain_errors(shared.master, "reading the PDO assignment")
+                data = bytes(s.sdo_read(index, sub, 8, release_gil=True))
+                return int.from_bytes(data[:size], "little")
+
+            sizes: list[int] = []
+            try:
+                for assign in (0x1C12, 0x1C13):
+                    bits = 0
+                    for n in range(1, u(assign, 0, 1) + 1):
+                        pdo = u(assign, n, 2)
+                        for e in range(1, u(pdo, 0, 1) + 1):
+                            bits += u(pdo, e, 4) & 0xFF
+                    sizes.append((bits + 7) // 8)
+            except Exception as exc:  # No CoE PDO assignment: the SII's PDOs, unchecked.
+                drain_errors(shared.master, "the rest of the PDO assignment read")
+                log.debug("slave %d: PDO assignment not readable: %s", position + 1, exc)
+                continue
+            out[position] = (sizes[0], sizes[1])
+        return out
+
+    def _map_and_check(self, shared: _Master) -> None:
+        """SOEM's config_map, then what it really mapped checked against each slave's PDO
+        assignment: a ConfigMapError (SOEM's error list was not empty) is no failure when the
+        mapping is right, and no exception is no success when it is not. A failed mapping
+        leaves the line unmapped, in PRE-OP, so that the next start maps it again."""
+        master = shared.master
+        expected = self._expected_sizes(shared)
+        drain_errors(master, "config_map")
+        soem_errors: list[str] = []
+        try:
+            master.config_map()
+        except pysoem.ConfigMapError as exc:
+            soem_errors = [soem_error_text(e) for e in exc.error_list]
+        except Exception as exc:
+            shared.mapped = False
+            raise LinkError(
+                f"mapping the process data of {self.params.channel!r} failed: {exc}"
+            ) from exc
+        soem_errors += drain_errors(master, "the end of config_map")
+        # config_map used the FMMUs of this configuration: a new mapping starts from a new one.
+        shared.was_mapped = True
+        problems: list[str] = []
+        for position, s in enumerate(master.slaves):
+            got = (len(s.output), len(s.input))
+            want = expected.get(position)
+            if want is not None and got != want:
+                problems.append(
+                    f"slave {position + 1} has {got[0]} output / {got[1]} input bytes mapped "
+                    f"where its PDO assignment (1C12h / 1C13h) has {want[0]} / {want[1]}"
+                )
+        mapped_bytes = sum(len(s.output) + len(s.input) for s in master.slaves)
+        if mapped_bytes and int(master.expected_wkc) <= 0:
+            problems.append("SOEM expects no working counter for the mapped image")
+        if soem_errors:
+            log.warning(
+                "config_map on %s reported (%s): %s",
+                self.params.channel,
+                "the mapping is nevertheless complete" if not problems else "and it is not",
+                "; ".join(soem_errors),
+            )
+        if problems:
+            shared.mapped = False
+            # SOEM requested SAFE-OP with this mapping: back to PRE-OP, where the line says
+            # what it is (no process data), rather than SAFE-OP with a wrong image.
+            master.state = AL_PREOP
+            master.write_state()
+            master.state_check(AL_PREOP, STATE_TIMEOUT_US)
+            why = "; ".join(problems + soem_errors)
+            raise LinkError(
+                f"the process data of {self.params.channel!r} were not mapped as assigned: {why}",
+                hint="check the PDO assignment on the PDO page, then start cyclic data "
+                "again (it maps the line again)",
+            )
+        shared.mapped = True
+        shared.health.expected_wkc = int(master.expected_wkc)
+
+    def _confirm_exchange(self, shared: _Master) -> None:
+        """Exchange process data until one LRW comes back with SOEM's expected working
+        counter (ETG.1000.4 §5.4.3), at most :data:`CONFIRM_CYCLES`; otherwise the line is
+        marked unmapped and the error names the slaves that do not take part and why."""
+        master = shared.master
+        expected = int(master.expected_wkc)
+        got = -1
+        for _ in range(CONFIRM_CYCLES):
+            master.send_processdata()
+            got = int(master.receive_processdata(PROCESS_DATA_TIMEOUT_US))
+            if got == expected:
+                return
+        shared.mapped = False
+        why = (
+            "no frame came back"
+            if got < 0
+            else f"the frames came back with working counter {got} of {expected}"
+        )
+        raise LinkError(
+            f"process data on {self.params.channel!r}: {why} in {CONFIRM_CYCLES} cycles "
+            f"({self._culprits(shared)})",
+            hint="check the cable and the slaves' state on the Network page; starting cyclic "
+            "data again maps the line again",
+        )
+
+    def _culprits(self, shared: _Master) -> str:
+        """The slaves not in SAFE-OP / OP, or with their error indication, and their AL
+        status codes: who does not take part in the exchange (SOEM's ``ecx_readstate``)."""
+        master = shared.master
+        try:
+            master.read_state()
+        except Exception as exc:
+            return f"the slaves' states cannot be read: {exc}"
+        found = []
+        for position, s in enumerate(master.slaves):
+            state = int(s.state)
+            if state & 0x0F not in (AL_SAFEOP, AL_OP) or state & 0x10:
+                code = int(s.al_status)
+                found.append(
+                    f"slave {position + 1} in {AL_STATES.get(state & 0x0F, 'no state')}"
+                    + (
+                        f", AL status code 0x{code:04X} {pysoem.al_status_code_to_string(code)}"
+                        if code
+                        else ""
+                    )
+                )
+        return "; ".join(found) or "every slave is in SAFE-OP or OP"
 
     def _reconfigure(self, shared: _Master) -> None:
         """SOEM's config_init again (the line's slaves back to INIT, then PRE-OP)."""
@@ -552,6 +749,7 @@ class EthercatLink(DriveLink):
             slave.write_state()
             reached = int(slave.state_check(target, STATE_TIMEOUT_US)) & 0x0F
             if reached == target:
+                shared.target_states[self.params.node_id - 1] = target
                 return
             code = int(slave.al_status)
             now = int(slave.state)

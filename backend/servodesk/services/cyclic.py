@@ -30,6 +30,7 @@ from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, Value, codec
 from servodesk.domain.profile import DeviceProfile
 from servodesk.errors import ConflictError
+from servodesk.links.base import QUICK_STOP_WORD
 from servodesk.links.cyclic import CyclicTransport
 
 if TYPE_CHECKING:
@@ -46,6 +47,10 @@ IDLE_AFTER_S = 1.0
 FIX_EVENT_TIMER_MS = 100
 #: WebSocket publishing rate of the latest values [Hz].
 PUBLISH_HZ = 20.0
+#: The controlword (CiA 402-2 §6.2.1), quick-stopped in the output image on a link loss.
+CONTROLWORD = ObjectAddress(0x6040, 0)
+#: The state a transport's health reports for a lost link (links/ethercat_health.py).
+LINK_LOST = "link lost"
 
 _STRUCT = {
     DataType.INTEGER8: "b",
@@ -277,6 +282,16 @@ class CyclicExchange:
                 if hit:
                     ch.frame = pdomod.pack(self.profile, ch.pdo, ch.image)
 
+    def hold_on_link_loss(self) -> None:
+        """The link is lost (called by the SYNC thread once per loss): the controlword in
+        the output image becomes a quick stop (CiA 402-2 §6.2.1, 0002h), so that when the
+        link returns and the line is back in OP the drive is not commanded again with what
+        it was told before: motion never resumes by itself. A drive whose watchdog fired
+        meanwhile is in Fault and shows it; the user resets and enables it again."""
+        if self.outputs and self.carries(CONTROLWORD):
+            self.set_outputs({CONTROLWORD: QUICK_STOP_WORD})
+            log.warning("%s: link lost, quick stop in the output image", self.session.id)
+
     def carries(self, address: ObjectAddress) -> bool:
         return any(address in ch.image for ch in self.rx)
 
@@ -316,7 +331,18 @@ class CyclicExchange:
             if not ch.rate_time or dt >= 0.2:
                 ch.rate_count, ch.rate_time = ch.count, now
 
-    def values_view(self) -> dict[str, Any]:
+    def link_health(self) -> dict[str, Any] | None:
+        """The transport's view of the bus (EtherCAT: working counter errors, missing frames,
+        link lost), or None where it has none."""
+        return self.transport.health()
+
+    def values_view(self, health: dict[str, Any] | None = None) -> dict[str, Any]:
+        """The latest values; ``stale`` on the received ones while the transport says its
+        inputs are not the drive's present values (EtherCAT: N cycles without a valid
+        working counter, the link lost): the UI greys them rather than show a statusword
+        it cannot see as if it were the drive's."""
+        stale = bool(health and health.get("stale"))
+        rx = self.rx_addresses()
         out: dict[str, Any] = {}
         for a, (v, t, name) in self.latest().items():
             spec = self.profile.spec(a)
@@ -330,6 +356,7 @@ class CyclicExchange:
                 "raw_unit": spec.raw_unit if spec else None,
                 "pdo": name,
                 "age_s": round(time.monotonic() - t, 4) if t else None,
+                "stale": stale and a not in rx,
             }
         return out
 
@@ -387,8 +414,11 @@ class CyclicExchange:
                 "idle": None if rx else self.idle(ch, now),
             }
 
+        health = self.link_health()
         return {
             "running": self.running,
+            "link": health,
+            "stale": bool(health and health.get("stale")),
             "sync_period_ms": round(self.period * 1000, 3),
             "sync": self.sync,
             "outputs": self.outputs,
@@ -397,7 +427,7 @@ class CyclicExchange:
             "tx_pdos": [chan(c, False) for c in self.tx],
             "frames_per_s": round(frames / elapsed, 1) if elapsed else 0.0,
             "decode_errors": sum(c.errors for c in self.tx),
-            "values": self.values_view(),
+            "values": self.values_view(health),
         }
 
     async def _publish_loop(self) -> None:
@@ -408,11 +438,13 @@ class CyclicExchange:
             if not hub.watchers(sid):
                 continue
             self._rates()
+            health = self.link_health()
             hub.publish(
                 {
                     "type": "pdo",
                     "session": sid,
-                    "values": self.values_view(),
+                    "link": health,
+                    "values": self.values_view(health),
                     "rates": {c.name: round(c.rate_hz, 1) for c in self.tx},
                     "time": time.time(),
                 },
@@ -482,6 +514,7 @@ class SyncProducer:
         period = self.period
         transport = self.transport
         next_t = time.perf_counter()
+        was_lost = False
         while not self._stop.is_set():
             exchanges = self.exchanges  # Replaced (never mutated) by attach/detach.
             try:
@@ -491,6 +524,11 @@ class SyncProducer:
                             transport.send(ch.cob_id, ch.frame)
                 transport.send_sync()
                 self.syncs += 1
+                lost = transport.link_state() == LINK_LOST
+                if lost and not was_lost:
+                    for ex in exchanges:
+                        ex.hold_on_link_loss()
+                was_lost = lost
                 for ex in exchanges:
                     for ident, length in ex.rtr:
                         transport.send_rtr(ident, length)

@@ -732,12 +732,16 @@ def cached_upload(cache: dict[int, bytes], data: bytes) -> bytes | None:
     runs: a CoE server in the master's process cannot answer it. The drive's firmware
     therefore mirrors those objects into the ESC process whenever they change, as a slave's
     firmware keeps its object dictionary next to its mailbox."""
-    if len(data) < 10 or data[2] >> 5 != 2 or data[2] & ec.SDO_COMPLETE_ACCESS:
+    if len(data) < 10 or data[2] >> 5 != 2:
         return None
     try:
         sdo = ec.parse_sdo(data)
     except ec.EthercatFrameError:
         return None
+    if data[2] & ec.SDO_COMPLETE_ACCESS:
+        # The firmware offers no complete access (CoeServer): its abort, given here, where
+        # SOEM's config_map waits for it (a slave whose SII claims complete access anyway).
+        return ec.build_sdo(ec.sdo_abort(sdo.index, sdo.subindex, 0x06010000))
     value = cache.get(sdo.index << 8 | sdo.subindex)
     if value is None or len(value) > 4:
         return None

@@ -34,6 +34,7 @@ import subprocess
 import sys
 import threading
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from multiprocessing.connection import Connection
 from pathlib import Path
 
@@ -239,6 +240,11 @@ class ProcessDataServer:
         self._rx_id = 0x200 + drive.node_id
         self.engine = PdoEngine(drive, self._send, lambda code: None)
         fault = drive.profile.quirk("sm_watchdog_fault")
+        #: A firmware too slow to answer SOEM's PDO configuration reads inside
+        #: ``config_map`` (its mirror in the ESC emptied, so they wait for this process,
+        #: which pysoem's config_map holds): SOEM maps nothing for this slave while its
+        #: SDOs, outside config_map, work. What servodesk must notice (issue 46).
+        self.slow_firmware = False
         self._watchdog_fault: int | None = (
             int(fault, 0) if isinstance(fault, str) else fault if isinstance(fault, int) else None
         )
@@ -260,6 +266,9 @@ class ProcessDataServer:
         if self._mirror is None:
             return
         cache: dict[int, bytes] = {}
+        if self.slow_firmware:
+            self._mirror(cache)
+            return
         for index, sub in self._config:
             with contextlib.suppress(SimAbort):
                 cache[index << 8 | sub] = self.drive.read_bytes(index, sub)
@@ -420,11 +429,23 @@ class EthercatSlaveProcess:
     drives' CoE servers here, in a thread that answers the process's mailbox requests."""
 
     def __init__(
-        self, drives: Sequence[SimulatedDrive], ifname: str, *, mailbox_size: int = MAILBOX_SIZE
+        self,
+        drives: Sequence[SimulatedDrive],
+        ifname: str,
+        *,
+        mailbox_size: int = MAILBOX_SIZE,
+        claims_complete_access: bool = False,
     ) -> None:
+        """``claims_complete_access``: the SII's CoE details claim SDO complete access,
+        which the firmware refuses (abort 0601 0000h), as some real slaves do: SOEM's
+        config_map tries it, gets the abort into its error list and falls back to plain
+        reads, so pysoem raises ConfigMapError for a mapping that succeeded (issue 46)."""
         self.ifname = ifname
         self.servers = _servers(drives, mailbox_size)
         self._siis = [sii_from_drive(s.drive, mailbox_size) for s in self.servers]
+        if claims_complete_access:
+            details = ec.COE_DETAILS_SDO | ec.COE_DETAILS_COMPLETE_ACCESS
+            self._siis = [replace(s, coe_details=details) for s in self._siis]
         self.process_data = [
             ProcessDataServer(
                 s.drive,

@@ -1131,6 +1131,25 @@ export interface PdoLiveValue {
   raw_unit?: string | null;
   /** Backend addition: seconds since the frame that carried it. */
   age_s?: number | null;
+  /** True while the link cannot vouch for it (EtherCAT: no valid working counter for some
+   * cycles, or the link lost): the UI greys it (docs/ethercat.md "Link loss"). */
+  stale?: boolean;
+}
+
+/** What the cycles say about an EtherCAT line (null on CAN). */
+export interface PdoLinkHealth {
+  state: 'ok' | 'degraded' | 'link lost' | 'recovering';
+  reason: string | null;
+  stale: boolean;
+  cycles: number;
+  wkc_errors: number;
+  missing_frames: number;
+  last_wkc: number | null;
+  expected_wkc: number;
+  carrier: boolean | null;
+  losses: number;
+  since_good_s: number | null;
+  slaves: { position: number; node_id: number; wkc_errors: number; missing_frames: number; al_state: string | null; al_status_code: number }[];
 }
 
 export interface PdoCyclicStatus {
@@ -1144,6 +1163,10 @@ export interface PdoCyclicStatus {
   frames_per_s: number;
   decode_errors: number;
   values: Record<string, PdoLiveValue>;
+  /** EtherCAT: the line's health (link lost, working counter errors); null elsewhere. */
+  link?: PdoLinkHealth | null;
+  /** The received values are not the drive's present ones (see PdoLiveValue.stale). */
+  stale?: boolean;
   /** Backend addition: SYNCs sent. */
   syncs?: number;
   /** Why the session's link carries no cyclic data (a CC-Link IE TSN station over SLMP

@@ -175,12 +175,19 @@ export function CyclicPanel({
   const unavailable = status?.unavailable ?? null;
   const clock = syncText(status?.sync, status?.sync_period_ms);
   const rates = [...(status?.rx_pdos ?? []), ...(status?.tx_pdos ?? [])];
+  const link = status?.link ?? null;
   return (
     <section className="card" data-testid="pdo-cyclic-card">
       <h2>
         Cyclic data
         <span className="h2-side small">
-          {running ? (
+          {running && link && link.state !== 'ok' ? (
+            // The exchange runs but the line does not answer as it should: say so rather
+            // than "running" (issue 46: a stale "Operation enabled" under "running").
+            <span className="pdo-over-text" data-testid="pdo-cyclic-state" data-running="true" data-link={link.state} title={link.reason ?? undefined}>
+              {link.state}
+            </span>
+          ) : running ? (
             <span className="pdo-ok-text" data-testid="pdo-cyclic-state" data-running="true">
               running
             </span>
@@ -254,9 +261,29 @@ export function CyclicPanel({
             <span className={status.decode_errors ? 'pdo-over-text' : ''}>
               <span className="mono">{status.decode_errors}</span> decode errors
             </span>
+            {link && (
+              <span data-testid="pdo-cyclic-link-counters">
+                {' '}
+                ·{' '}
+                <span className={link.wkc_errors ? 'pdo-over-text' : ''} title="cycles whose working counter fell short (a slave did not take part)">
+                  <span className="mono">{link.wkc_errors}</span> WKC errors
+                </span>{' '}
+                ·{' '}
+                <span className={link.missing_frames ? 'pdo-over-text' : ''} title="cycles whose frame did not come back">
+                  <span className="mono">{link.missing_frames}</span> missing frames
+                </span>
+              </span>
+            )}
           </span>
         )}
       </div>
+      {running && link && link.state !== 'ok' && (
+        <div className="bk-warn small" data-testid="pdo-cyclic-link">
+          {link.state === 'link lost' ? 'Link lost' : link.state === 'recovering' ? 'Link back, bringing the line back to its state' : 'Working counter errors'}
+          {link.reason ? `: ${link.reason}` : ''}. The greyed values are the last received, not the drive&apos;s present ones.
+          {status?.outputs ? ' Motion does not resume by itself: the output image holds a quick stop.' : ''}
+        </div>
+      )}
       {cycleProblem !== null && (
         <div className="bk-warn small" data-testid="pdo-cyclic-cycle-problem">
           {period} ms is no SYNC0 cycle of this drive: {cycleProblem}.

@@ -74,7 +74,9 @@ function LiveCell({ live, address, rawUnit, testid }: { live: Observable<PdoLive
   const v = l.values[liveKey(address)];
   if (!v) return <span className="muted" data-testid={testid}>—</span>;
   const t = formatLive(v, rawUnit);
-  const stale = l.received !== null && Date.now() - l.received > 2000;
+  // Greyed when the server says the link cannot vouch for it (EtherCAT link lost), or
+  // when no update came for 2 s.
+  const stale = v.stale === true || (l.received !== null && Date.now() - l.received > 2000);
   const rawText = v.raw ?? v.value;
   return (
     <span className={`pdo-live${stale ? ' stale' : ''}`} data-testid={testid} data-raw={rawText === null ? '' : String(rawText)}>
