@@ -81,6 +81,7 @@ ROUTE_RIGHTS: dict[str, Right] = {
     "run_cyclic": R.CONTROL_DRIVE,
     "halt": R.READ,
     "quick_stop": R.READ,
+    "stop_all": R.READ,  # routes/stop_all.py: every axis the caller controls, never refused.
     "get_motion": R.READ,
     "get_limits": R.READ,
     # operation.py

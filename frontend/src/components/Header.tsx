@@ -1,7 +1,7 @@
 /**
  * The header: product name, the drive in view (name, node, profile, state, simulated badge),
- * on session pages who holds control of it (Take / Release / Force take), a drive switcher,
- * and the WebSocket connection indicator.
+ * on session pages who holds control of it (Take / Release / Force take), STOP ALL (every
+ * page: components/GlobalStop.tsx), a drive switcher, and the WebSocket connection indicator.
  */
 import type { SessionInfo } from '../api';
 import { nodeLabel } from '../lib/network';
@@ -10,6 +10,7 @@ import { navigate, useRoute } from '../state/router';
 import { liveSession, sessions, socketStatus } from '../state/store';
 import { findPage } from '../pages/registry';
 import { ControlIndicator } from './ControlIndicator';
+import { GlobalStopButton } from './GlobalStop';
 import { UserMenu } from './auth/UserMenu';
 import { StatePill } from './StatePill';
 
@@ -80,6 +81,8 @@ export function Header({ sid }: { sid: string | null }) {
         {session ? <DriveTitle session={session} /> : <span className="muted">no drive selected</span>}
       </div>
       <div className="header-right">
+        {/* Always shown, on every page: stops every axis this user controls (issue 48). */}
+        <GlobalStopButton />
         {session && page?.scope === 'session' && <ControlIndicator key={session.id} sid={session.id} />}
         {list.length > 0 && (
           <label className="session-switch">

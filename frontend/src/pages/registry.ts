@@ -9,6 +9,7 @@
 import type { ComponentType } from 'react';
 import { AlarmsPage } from './AlarmsPage';
 import { AuditPage } from './AuditPage';
+import { AxesPage } from './AxesPage';
 import { BackupPage } from './BackupPage';
 import { ConnectPage } from './ConnectPage';
 import { NetworkPage } from './NetworkPage';
@@ -40,6 +41,7 @@ export interface PageDef {
 
 export const PAGES: readonly PageDef[] = [
   { id: 'connect', title: 'Connect', group: 'Bus', scope: 'global', description: 'Scan the bus and open drive sessions', component: ConnectPage },
+  { id: 'axes', title: 'All axes', group: 'Bus', scope: 'global', description: 'Every open drive: state, position, velocity, alarm, backup, control', component: AxesPage },
   { id: 'network', title: 'Network configuration', group: 'Bus', scope: 'session', description: 'Station name, addresses, telegram, LEDs', component: NetworkPage },
   { id: 'overview', title: 'Overview', group: 'Drive', scope: 'session', description: 'Identity, state machine, statusword, live values', component: OverviewPage },
   { id: 'operation', title: 'Operation', group: 'Drive', scope: 'session', description: 'Servo on, jog, move, home with a dead-man', component: OperationPage },
