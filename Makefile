@@ -2,6 +2,8 @@
 #
 #   make demo   set everything up and serve the UI with simulated drives on http://127.0.0.1:8000
 #   make test   set everything up and run the whole suite (lint, types, unit, integration, browser)
+#   make check  the fast tier while developing (< 1 min on 2 cores): lint, layer rules, Python
+#               types and the pure tests (no bus, no browser, no wall clock; docs/testing.md)
 
 PYTHON ?= python3.11
 UV_VERSION := 0.13.9
@@ -17,7 +19,7 @@ PORT ?= 8000
 export UV_PYTHON_DOWNLOADS := never
 export UV_PROJECT_ENVIRONMENT := $(VENV)
 
-.PHONY: setup demo test lint typecheck unit wheel build clean chromium netutils bench openapi
+.PHONY: setup demo test check check-tests lint typecheck unit wheel build clean chromium netutils bench openapi
 
 setup: $(VENV)/.synced $(WEB_DIST)/index.html
 
@@ -63,6 +65,7 @@ demo: setup
 lint: $(VENV)/.synced
 	$(VENV)/bin/ruff check backend tests bench scripts
 	$(VENV)/bin/ruff format --check backend tests bench scripts
+	$(VENV)/bin/lint-imports --no-cache  # The layer rules (pyproject.toml, docs/architecture.md).
 
 typecheck: $(VENV)/.synced $(FRONTEND)/node_modules/.package-lock.json
 	$(VENV)/bin/mypy
@@ -75,6 +78,16 @@ unit: setup
 wheel: setup
 	rm -rf dist && $(UV) build --wheel -q -o dist
 	$(PY) scripts/check_wheel.py dist
+
+# The fast tier: no frontend, no browser, no bus. The pure tests are the paths of
+# tests/conftest.py CHECK_PATHS, on both cores (measured: docs/testing.md).
+check: lint
+	$(VENV)/bin/mypy
+	$(MAKE) --no-print-directory check-tests
+
+check-tests: $(VENV)/.synced
+	$(VENV)/bin/pytest -q -p no:cacheprovider -m check -n 2 \
+	  $$($(PY) -c "from tests.conftest import CHECK_PATHS; print(*CHECK_PATHS)")
 
 # The suite in two parts: the tests on simulated time on every core, then the rest one at a
 # time (scripts/run_tests.sh, tests/conftest.py).

@@ -33,11 +33,60 @@ def channel() -> str:
 SIMTIME_DIRS = ("tests/tuning", "tests/unit")
 
 
+#: The fast tier, ``make check`` (docs/testing.md): pure tests only. No bus (not even a
+#: virtual CAN channel), no server, no browser, no subprocess, nothing that waits on the wall
+#: clock: codecs, profiles, device descriptions, PDO rules, the scope's maths and files, the
+#: simulated drive's engine stepped in simulated time. A directory or a file; a test here is
+#: marked ``check`` (a wall-clock one is marked ``wallclock`` and left out).
+CHECK_PATHS = (
+    "tests/unit/test_address.py",
+    "tests/unit/test_cia402.py",
+    "tests/unit/test_datatypes.py",
+    "tests/unit/test_homing_estimate.py",
+    "tests/unit/test_ramps.py",
+    "tests/unit/test_sdo_frames.py",
+    "tests/unit/test_values.py",
+    "tests/unit/test_viewer_camera.py",
+    "tests/devdesc",
+    "tests/profiles",
+    "tests/pdo/test_domain_pdo.py",
+    "tests/pdo/test_plan_golden.py",
+    "tests/scope/test_scope_core.py",
+    "tests/scope/test_scope_export.py",
+    "tests/scope/test_scope_wire.py",
+    "tests/backup/test_paramset.py",
+    "tests/sim/test_sim_plant.py",
+    "tests/sim/test_servo.py",
+    "tests/sim/test_twomass.py",
+    "tests/sim/test_sim_objects.py",
+    "tests/sim/test_sim_state_machine.py",
+    "tests/sim/test_sim_modes.py",
+    "tests/sim/test_sim_recorder.py",
+    "tests/sim/test_onetouch.py",
+    "tests/sim/test_fused_move.py",
+)
+#: Fixtures that put a test on a bus or a server: never in the fast tier.
+_NOT_PURE = frozenset({"channel", "rig", "app_client", "loopback_app"})
+
+
+def _in(rel: str, paths: tuple[str, ...]) -> bool:
+    return any(rel == p or rel.startswith(p.rstrip("/") + "/") for p in paths)
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     root = Path(config.rootpath)
     for item in items:
         rel = Path(item.path).resolve().relative_to(root).as_posix()
-        if rel.startswith(tuple(d + "/" for d in SIMTIME_DIRS)) and not item.get_closest_marker(
-            "wallclock"
-        ):
+        wallclock = item.get_closest_marker("wallclock") is not None
+        if _in(rel, SIMTIME_DIRS) and not wallclock:
             item.add_marker(pytest.mark.simtime)
+        if _in(rel, CHECK_PATHS) and not wallclock:
+            # A bus or a server in the fast tier would make it slow and flaky on a busy
+            # machine: refused when collected, naming the test and what to do.
+            bus = _NOT_PURE.intersection(getattr(item, "fixturenames", ()))
+            if bus:
+                raise pytest.UsageError(
+                    f"{item.nodeid} uses {', '.join(sorted(bus))}: not a pure test; move it out "
+                    "of the paths in tests/conftest.py CHECK_PATHS or mark it wallclock"
+                )
+            item.add_marker(pytest.mark.check)

@@ -15,9 +15,8 @@ from fastapi.staticfiles import StaticFiles
 from servodesk import __version__
 from servodesk.api import access_log, errors
 from servodesk.api.audit_requests import AuditRequests
-from servodesk.api.auth import Auth, AuthMiddleware
+from servodesk.api.auth import AuthMiddleware
 from servodesk.api.body_limit import BodyLimit
-from servodesk.api.deps import AppState
 from servodesk.api.hsts import Hsts
 from servodesk.api.rights import check_route_right
 from servodesk.api.routes import (
@@ -30,23 +29,16 @@ from servodesk.api.routes import (
     pdo,
     scope,
     sessions,
+    stop_all,
     system,
     tuning,
     viewer,
 )
 from servodesk.api.same_origin import SameOriginGuard
 from servodesk.api.scope_ws import router as scope_ws_router
+from servodesk.api.state import AppState
 from servodesk.api.ws import router as ws_router
-from servodesk.domain.profile_loader import ProfileCatalog, default_profile_dirs
 from servodesk.hosts import HostPolicy
-from servodesk.services.audit import AuditLog
-from servodesk.services.backup import BackupService
-from servodesk.services.events import EventHub
-from servodesk.services.logins import LoginService
-from servodesk.services.manager import SessionManager
-from servodesk.services.restore import RestoreService
-from servodesk.services.store import Store
-from servodesk.services.users import UserStore
 from servodesk.settings import Settings
 
 log = logging.getLogger(__name__)
@@ -62,46 +54,17 @@ _NO_UI = """<!doctype html><title>servodesk</title>
 
 def create_app(settings: Settings | None = None) -> FastAPI:
     settings = settings or Settings()
-    catalog = ProfileCatalog(default_profile_dirs(settings.profile_paths()))
-    hub = EventHub()
-    manager = SessionManager(
-        catalog, hub, sdo_timeout=settings.sdo_timeout, poll_hz=settings.poll_hz
-    )
-    # Backups, restore reports and the audit log of every parameter write (docs/backup.md).
-    backup_service = BackupService(Store(settings.data_dir), catalog)
-    backup_service.attach(hub)
-    state = AppState(
-        settings=settings,
-        catalog=catalog,
-        hub=hub,
-        manager=manager,
-        backups=backup_service,
-        restores=RestoreService(backup_service),
-        # Beside the store, in the same database (docs/security.md, Audit log).
-        audit=AuditLog(backup_service.store.path),
-    )
-    backup_service.audit = state.audit
+    # The composition root: every service, and the one order they stop in (api/state.py).
+    state = AppState.build(settings)
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        if settings.sim:
-            from servodesk.services.simulation import start_simulation
-
-            state.sim = await start_simulation(settings, catalog, manager)
         try:
+            await state.start()
             yield
         finally:
-            await manager.close_all()
-            backup_service.store.close()
-            state.audit.close()
-            from servodesk.api import offload
-            from servodesk.services import tuning_worker
-
-            tuning_worker.shutdown()
-            offload.shutdown()
-            if state.sim is not None:
-                state.sim.stop()
-                state.sim = None
+            # Also after a failed start: what did start (drives, sweeper) stops again.
+            await state.aclose()
 
     app = FastAPI(
         title="servodesk",
@@ -114,12 +77,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         dependencies=[Depends(check_route_right)],
     )
     app.state.servodesk = state
-    app.state.servodesk_auth = Auth(
-        settings,
-        UserStore(settings.data_dir),
-        LoginService(idle_s=settings.session_idle_s, lockout_s=settings.lockout_s),
-    )
     errors.install(app)
+    # No router has a lifespan of its own: AppState starts and stops every service, in one
+    # documented order (tuning, motion, scope, viewer, sessions, store; api/state.py).
     app.include_router(system.router, prefix="/api/v1")
     app.include_router(auth.router, prefix="/api/v1")  # Users, login sessions, API tokens.
     app.include_router(sessions.router, prefix="/api/v1")
@@ -128,16 +88,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(audit.router, prefix="/api/v1")
     app.include_router(ws_router, prefix="/api/v1")
     app.include_router(operation.router, prefix="/api/v1")
-    app.include_router(viewer.router, prefix="/api/v1")  # Starts and stops the 3D viewer.
+    app.include_router(viewer.router, prefix="/api/v1")
     app.include_router(pdo.router, prefix="/api/v1")
-    app.include_router(scope.router, prefix="/api/v1")  # Stops the scope at shutdown.
+    app.include_router(scope.router, prefix="/api/v1")
     app.include_router(scope_ws_router, prefix="/api/v1")
-    # The routers' lifespans nest in the order they are included, and the last one included
-    # ends first at shutdown. Motion comes just before tuning: running tuning jobs stop (and
-    # put the gains back) first, then the motion router halts the axes, and only then do the
-    # scope and the 3D viewer stop (their shutdown waits on threads and sockets; an axis must
-    # not keep moving meanwhile).
-    app.include_router(motion.router, prefix="/api/v1")  # Also stops motion at shutdown.
+    app.include_router(motion.router, prefix="/api/v1")
+    app.include_router(stop_all.router, prefix="/api/v1")  # The header's global stop.
     app.include_router(tuning.router, prefix="/api/v1")
 
     swagger = WEB_DIST / "vendor" / "swagger-ui"
@@ -169,7 +125,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     # Outermost last: the same-origin checks, then authentication, then the body limit, so
     # that nothing reads a body of a request refused before (docs/security.md).
     app.add_middleware(BodyLimit)
-    app.add_middleware(AuthMiddleware, auth=app.state.servodesk_auth)
+    app.add_middleware(AuthMiddleware, auth=state.auth)
     app.add_middleware(
         SameOriginGuard,
         policy=HostPolicy.for_server(settings.host, settings.allowed_hosts),

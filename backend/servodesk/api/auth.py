@@ -96,7 +96,7 @@ class Auth:
 
 def auth_of(conn: HTTPConnection | Any) -> Auth:
     app = conn.app if isinstance(conn, HTTPConnection) else conn
-    found: Auth = app.state.servodesk_auth
+    found: Auth = app.state.servodesk.auth  # The AppState (api/state.py).
     return found
 
 

@@ -13,17 +13,15 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import AsyncIterator
-from dataclasses import dataclass
 from typing import Annotated, Any
 
 from fastapi import Depends, Header, Request
 
-from servodesk.api.deps import AppState
 from servodesk.api.identity import identity_of
+from servodesk.api.state import AppState, state_of
 from servodesk.domain.address import ObjectAddress
 from servodesk.errors import ValidationError
-from servodesk.services.control import CONTROL_HEADER, ControlService
-from servodesk.services.motion import MotionService
+from servodesk.services.control import CONTROL_HEADER
 
 #: The client id header: any printable id up to 64 characters (a tab's random id).
 ClientHeader = Annotated[
@@ -45,34 +43,17 @@ RequiredClientHeader = Annotated[
 ]
 
 
-@dataclass
-class Operation:
-    control: ControlService
-    motion: MotionService
+def operation(app: Any) -> AppState:
+    """The application's state (api/state.py), for its control and motion services
+    (``operation(app).control``, ``.motion``): it builds and stops them."""
+    return state_of(app)
 
 
-def operation(app: Any) -> Operation:
-    """The application's control and motion services (created on first use)."""
-    op: Operation | None = getattr(app.state, "servodesk_operation", None)
-    if op is None:
-        state: AppState = app.state.servodesk
-        control = ControlService(state.hub, audit=state.audit)
-        motion = MotionService(
-            state.manager,
-            control,
-            state.hub,
-            deadman_s=state.settings.deadman_ms / 1000.0,
-        )
-        op = Operation(control, motion)
-        app.state.servodesk_operation = op
-    return op
+def get_operation(request: Request) -> AppState:
+    return state_of(request.app)
 
 
-def get_operation(request: Request) -> Operation:
-    return operation(request.app)
-
-
-OperationDep = Annotated[Operation, Depends(get_operation)]
+OperationDep = Annotated[AppState, Depends(get_operation)]
 
 
 #: The control token ``take`` returned: the authority for every request that changes a drive.

@@ -1,39 +1,18 @@
-"""FastAPI dependencies: the application state as typed aliases."""
+"""FastAPI dependencies: the application state (api/state.py) as a typed alias."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Annotated, Any
+from typing import Annotated
 
 from fastapi import Depends, Request
 
-from servodesk.domain.profile_loader import ProfileCatalog
-from servodesk.services.audit import AuditLog
-from servodesk.services.backup import BackupService
-from servodesk.services.events import EventHub
-from servodesk.services.manager import SessionManager
-from servodesk.services.restore import RestoreService
-from servodesk.settings import Settings
+from servodesk.api.state import AppState, state_of
 
-
-@dataclass
-class AppState:
-    settings: Settings
-    catalog: ProfileCatalog
-    hub: EventHub
-    manager: SessionManager
-    backups: BackupService
-    restores: RestoreService
-    #: The audit log (services/audit.py): ``state.audit.record("access.login", who=...)``.
-    audit: AuditLog
-    sim: Any = None
-    #: The PROFINET vendor and device ID each MAC answered the last DCP Identify with.
-    dcp_seen: dict[str, tuple[int | None, int | None]] = field(default_factory=dict)
+__all__ = ["AppState", "StateDep", "get_state"]
 
 
 def get_state(request: Request) -> AppState:
-    state: AppState = request.app.state.servodesk
-    return state
+    return state_of(request.app)
 
 
 StateDep = Annotated[AppState, Depends(get_state)]

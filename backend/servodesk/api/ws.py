@@ -14,8 +14,8 @@ from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
 from servodesk import __version__
 from servodesk.api.control_deps import operation
-from servodesk.api.deps import AppState
 from servodesk.api.identity import identity_of
+from servodesk.api.state import state_of
 from servodesk.errors import ServodeskError
 
 log = logging.getLogger(__name__)
@@ -30,7 +30,7 @@ _CLIENT_ID = re.compile(r"^[A-Za-z0-9._:@-]{1,64}$")
 
 @router.websocket("/ws")
 async def websocket(ws: WebSocket) -> None:
-    state: AppState = ws.app.state.servodesk
+    state = state_of(ws.app)
     offered = ws.scope.get("subprotocols") or []
     if offered and SUBPROTOCOL not in offered:
         await ws.accept()

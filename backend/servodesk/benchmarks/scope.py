@@ -188,9 +188,10 @@ async def _serve(buses: list[BusSpec], interface: str, max_channels: int, data_d
             for b in buses
         ]
     app = create_app(Settings(data_dir=Path(data_dir), viewer_port=0))
-    manager = app.state.servodesk.manager
+    state = app.state.servodesk
+    manager = state.manager
     # The bench's scope takes every drive's channels (the application's scope: 8).
-    app.state.servodesk_scope = ScopeService(manager, max_channels=max_channels)
+    state.scope = ScopeService(manager, max_channels=max_channels)
     sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
     sock.bind(("127.0.0.1", 0))

@@ -95,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
         print("servodesk: --single-user is ignored beyond loopback", flush=True)
     app = create_app(settings)
     # Say which mode it runs in (docs/security.md, Users): a login page is no surprise.
-    print(f"servodesk: {app.state.servodesk_auth.describe()}", flush=True)
+    print(f"servodesk: {app.state.servodesk.auth.describe()}", flush=True)
     uvicorn.run(
         app,
         host=settings.host,

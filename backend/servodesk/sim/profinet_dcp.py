@@ -25,7 +25,7 @@ from pathlib import Path
 
 from servodesk.domain import dcp
 from servodesk.errors import NotFoundError, ValidationError
-from servodesk.links.profinet_dcp import open_socket
+from servodesk.nic import open_raw, require
 
 log = logging.getLogger(__name__)
 
@@ -251,7 +251,15 @@ class DcpResponder:
 
     def start(self, ifname: str) -> DcpResponder:
         """Answer on ``ifname`` from a thread (LinkError when it cannot be opened)."""
-        self._sock = open_socket(ifname)
+        # The device side opens its own socket: sim never imports a link (docs/architecture.md,
+        # the layer rules that `lint-imports` checks).
+        require(ifname, hint="the simulated line's veth pair (sim/veth.py) must exist")
+        self._sock = open_raw(
+            ifname,
+            dcp.ETHERTYPE,
+            what="PROFINET DCP",
+            permission_hint="DCP is layer 2 (raw Ethernet frames): run as root or give CAP_NET_RAW",
+        )
         self._thread = threading.Thread(target=self._serve, name="dcp-device", daemon=True)
         self._thread.start()
         log.info("DCP device %s on %s", dcp.mac_text(self.mac), ifname)

@@ -10,53 +10,25 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
-from collections.abc import AsyncIterator
 from typing import Annotated
 
-from fastapi import APIRouter, FastAPI, Path, Request, Response
+from fastapi import APIRouter, Path, Request, Response
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field
 
 from servodesk.api.auth import Auth, auth_of, cookie_header
 from servodesk.api.identity import identity_of
 from servodesk.api.schemas import ERROR_RESPONSES, ErrorOut
+from servodesk.api.state import state_of
 from servodesk.domain.roles import Role, rights_of
 from servodesk.errors import ConflictError, LockedOut, Unauthorized
 from servodesk.services.audit import Actor
-from servodesk.services.logins import LoginSession
 from servodesk.services.users import MAX_PASSWORD, MIN_PASSWORD
 
 UserName = Annotated[str, Path(max_length=64)]
 
-
-@contextlib.asynccontextmanager
-async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
-    auth = auth_of(app)
-    audit = getattr(app.state.servodesk, "audit", None)
-
-    def ended(session: LoginSession, reason: str) -> None:
-        # IEC 62443-4-2 CR 2.8: session termination is an access-control event.
-        if audit is not None:
-            audit.record(
-                "access.session_ended",
-                who=Actor(session.user, session.address),
-                message=reason,
-                details={"session": session.id},
-            )
-
-    auth.logins.on_end = ended
-    every = min(2.0, max(0.2, auth.logins.idle_s / 4))
-    sweeper = asyncio.create_task(auth.logins.run_sweeper(auth.enabled, every), name="logins")
-    try:
-        yield
-    finally:
-        sweeper.cancel()
-        with contextlib.suppress(asyncio.CancelledError):
-            await sweeper
-        auth.users.close()
-
-
-router = APIRouter(prefix="/auth", tags=["auth"], responses=ERROR_RESPONSES, lifespan=_lifespan)
+# The login sweeper (idle sessions end) is started and stopped by AppState (api/state.py).
+router = APIRouter(prefix="/auth", tags=["auth"], responses=ERROR_RESPONSES)
 
 
 class LoginRequest(BaseModel):
@@ -136,9 +108,7 @@ def _audit(
 ) -> None:
     """Record an access-control or user-administration event (docs/security.md, Audit log):
     never a password or a token's secret."""
-    audit = getattr(request.app.state.servodesk, "audit", None)
-    if audit is not None:
-        audit.record(event, who=who, ok=ok, message=message, details=details)
+    state_of(request.app).audit.record(event, who=who, ok=ok, message=message, details=details)
 
 
 def _me(request: Request, auth: Auth) -> MeOut:

@@ -1,16 +1,14 @@
 """Operation routes: control ownership, motion (jog, move, velocity, torque, cyclic), limits.
 
-The router's lifespan stops every running motion when the backend shuts down (it is nested
-inside the application's lifespan, so it ends before the sessions close).
+AppState (api/state.py) stops every running motion when the backend shuts down, after the
+tuning jobs and before the scope, the viewer and the sessions.
 """
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import AsyncIterator
 from typing import Any
 
-from fastapi import APIRouter, FastAPI, Request
+from fastapi import APIRouter, Request
 
 from servodesk.api.control_deps import (
     ClientId,
@@ -18,7 +16,6 @@ from servodesk.api.control_deps import (
     MotionControl,
     OperationDep,
     RequiredClientId,
-    operation,
 )
 from servodesk.api.identity import identity_of
 from servodesk.api.rights import demand
@@ -37,18 +34,7 @@ from servodesk.api.schemas import (
 )
 from servodesk.domain.roles import Right
 
-
-@contextlib.asynccontextmanager
-async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
-    op = operation(app)
-    try:
-        yield
-    finally:
-        await op.motion.shutdown()
-        op.control.close()
-
-
-router = APIRouter(tags=["operation"], responses=ERROR_RESPONSES, lifespan=_lifespan)
+router = APIRouter(tags=["operation"], responses=ERROR_RESPONSES)
 
 
 def _status(d: dict[str, Any]) -> MotionStatusOut:

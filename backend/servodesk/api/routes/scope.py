@@ -4,23 +4,22 @@ The scope belongs to the application (its channels may come from several session
 routes sit under ``/scope``; only the drive-side recorder's description is per session. The
 scope reads the drives and never changes the axis (a recorder's configuration objects are
 the only writes), so no route needs control ownership. The binary stream is
-api/scope_ws.py. The router's lifespan stops the acquisition before the sessions close.
+api/scope_ws.py. AppState (api/state.py) stops the acquisition before the sessions close.
 """
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import AsyncIterator
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, FastAPI, Query, Request
+from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
 from pydantic import BaseModel, ConfigDict, Field
 
-from servodesk.api.deps import AppState, StateDep
+from servodesk.api.deps import StateDep
 from servodesk.api.downloads import content_disposition
 from servodesk.api.offload import in_process
 from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.api.state import state_of
 from servodesk.api.uploads import openapi_file_body, read_file
 from servodesk.domain import scope as core
 from servodesk.services import scope as scopesvc
@@ -28,26 +27,11 @@ from servodesk.services.scope import ScopeService
 
 
 def scope_of(app: Any) -> ScopeService:
-    """The application's scope (created on first use)."""
-    service: ScopeService | None = getattr(app.state, "servodesk_scope", None)
-    if service is None:
-        state: AppState = app.state.servodesk
-        service = ScopeService(state.manager)
-        app.state.servodesk_scope = service
-    return service
+    """The application's scope (AppState builds it and stops it at shutdown)."""
+    return state_of(app).scope
 
 
-@contextlib.asynccontextmanager
-async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
-    try:
-        yield
-    finally:
-        service: ScopeService | None = getattr(app.state, "servodesk_scope", None)
-        if service is not None:
-            await service.close()
-
-
-router = APIRouter(tags=["scope"], responses=ERROR_RESPONSES, lifespan=_lifespan)
+router = APIRouter(tags=["scope"], responses=ERROR_RESPONSES)
 
 _BODY = ConfigDict(extra="forbid")
 

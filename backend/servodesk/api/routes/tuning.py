@@ -3,22 +3,20 @@
 Starting a tuning moves the axis: it needs control and the client's WebSocket (its dead-man
 heartbeat), like a jog. Stopping is never refused, from any client. Undo and store write
 parameters (control ownership, 409 naming the owner otherwise). Progress goes out as WebSocket
-``tuning`` messages. The router's lifespan stops running jobs at shutdown (before the motion
-router halts the axes and the sessions close).
+``tuning`` messages. AppState (api/state.py) stops running jobs first at shutdown (before
+motion halts the axes and the sessions close).
 """
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import AsyncIterator
 from typing import Any, Literal
 
-from fastapi import APIRouter, FastAPI, Request
+from fastapi import APIRouter, Request
 from pydantic import BaseModel, ConfigDict, Field
 
-from servodesk.api.control_deps import ClientId, MotionControl, WriteControl, operation
-from servodesk.api.deps import AppState
+from servodesk.api.control_deps import ClientId, MotionControl, WriteControl
 from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.api.state import state_of
 from servodesk.services.tuning import (
     MAX_MOVE_TORQUE_PCT,
     MAX_TORQUE_PCT,
@@ -27,41 +25,12 @@ from servodesk.services.tuning import (
 )
 
 
-def _recorder_busy(app: Any) -> Any:
-    def busy(sid: str) -> bool:
-        # The scope exists once someone used it; never created here.
-        scope = getattr(app.state, "servodesk_scope", None)
-        if scope is None or not scope.running:
-            return False
-        return any(r.get("session") == sid for r in scope.status().get("recorders", []))
-
-    return busy
-
-
 def tuning_of(app: Any) -> TuningService:
-    """The application's tuning service (created on first use)."""
-    service: TuningService | None = getattr(app.state, "servodesk_tuning", None)
-    if service is None:
-        state: AppState = app.state.servodesk
-        op = operation(app)
-        service = TuningService(
-            state.manager, op.motion, state.hub, recorder_busy=_recorder_busy(app)
-        )
-        app.state.servodesk_tuning = service
-    return service
+    """The application's tuning service (AppState builds it and stops its jobs at shutdown)."""
+    return state_of(app).tuning
 
 
-@contextlib.asynccontextmanager
-async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
-    try:
-        yield
-    finally:
-        service: TuningService | None = getattr(app.state, "servodesk_tuning", None)
-        if service is not None:
-            await service.shutdown()
-
-
-router = APIRouter(tags=["tuning"], responses=ERROR_RESPONSES, lifespan=_lifespan)
+router = APIRouter(tags=["tuning"], responses=ERROR_RESPONSES)
 
 _BODY = ConfigDict(extra="forbid")
 
