@@ -9,9 +9,11 @@ one line); never from the command line, where ``ps`` and the shell's history wou
 from __future__ import annotations
 
 import argparse
+import contextlib
 import getpass
 import sys
 import time
+from collections.abc import Iterator
 from typing import Any
 
 from servodesk.domain.roles import Role
@@ -57,8 +59,14 @@ def register(sub: Any) -> None:
     tok.set_defaults(func=run_token)
 
 
-def _store() -> UserStore:
-    return UserStore(Settings().data_dir)
+@contextlib.contextmanager
+def _store() -> Iterator[UserStore]:
+    """The accounts of the data directory, closed however the command ends."""
+    users = UserStore(Settings().data_dir)
+    try:
+        yield users
+    finally:
+        users.close()
 
 
 def _audit(event: str, **details: object) -> None:
@@ -90,25 +98,19 @@ def _password(args: argparse.Namespace) -> str:
 
 
 def run_add(args: argparse.Namespace) -> int:
-    users = _store()
-    try:
+    with _store() as users:
         from servodesk.services.users import check_name
 
         check_name(args.name)  # Before the prompt: a bad name needs no password typed.
         user = users.add(args.name, args.role, _password(args))
-    finally:
-        users.close()
     _audit("user.created", account=user.name, role=user.role)
     print(f"added {user.name} ({user.role})")
     return 0
 
 
 def run_list(args: argparse.Namespace) -> int:
-    users = _store()
-    try:
+    with _store() as users:
         rows = users.all()
-    finally:
-        users.close()
     if not rows:
         print("no accounts (a loopback server runs in the single-user mode)")
         return 0
@@ -121,45 +123,33 @@ def run_list(args: argparse.Namespace) -> int:
 
 
 def run_passwd(args: argparse.Namespace) -> int:
-    users = _store()
-    try:
+    with _store() as users:
         users.require(args.name)
         users.set_password(args.name, _password(args))
-    finally:
-        users.close()
     _audit("user.password_set", account=args.name)
     print(f"password of {args.name} set")
     return 0
 
 
 def run_disable(args: argparse.Namespace) -> int:
-    users = _store()
-    try:
+    with _store() as users:
         users.set_disabled(args.name, args.disabled)
-    finally:
-        users.close()
     _audit("user.disabled" if args.disabled else "user.enabled", account=args.name)
     print(f"{args.name} {'disabled' if args.disabled else 'enabled'}")
     return 0
 
 
 def run_remove(args: argparse.Namespace) -> int:
-    users = _store()
-    try:
+    with _store() as users:
         users.remove(args.name)
-    finally:
-        users.close()
     _audit("user.removed", account=args.name)
     print(f"removed {args.name}")
     return 0
 
 
 def run_token(args: argparse.Namespace) -> int:
-    users = _store()
-    try:
+    with _store() as users:
         token, secret = users.create_token(args.name, args.label)
-    finally:
-        users.close()
     _audit("user.token_created", account=args.name, token=token.id, label=token.label)
     print(
         f"API token {token.id} of {args.name} (shown once; send it as Authorization: Bearer):",
