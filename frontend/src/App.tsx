@@ -8,7 +8,7 @@ import { Nav } from './components/Nav';
 import { Notices } from './components/Notices';
 import { findPage } from './pages/registry';
 import { useObservable } from './state/observable';
-import { currentSession, navigate, routeHref, useRoute } from './state/router';
+import { currentSession, navigate, parseHash, routeHref, useRoute } from './state/router';
 import { sessions } from './state/store';
 
 export function App() {
@@ -23,7 +23,9 @@ export function App() {
   const sid = page?.scope === 'session' ? (route.sid ?? fallbackSid) : null;
 
   useEffect(() => {
-    if (!page) navigate('connect');
+    // The address as it is now, not as it was at render: a link followed between the render
+    // and this effect (a bookmark opened right after logging in) must not be sent to Connect.
+    if (!page && !findPage(parseHash(window.location.hash).page)) navigate('connect');
   }, [page]);
 
   useEffect(() => {

@@ -341,8 +341,11 @@ def test_the_drives_error_code_is_decoded(channel, tmp_path) -> None:  # type: i
 
 
 def test_the_deadman_stops_a_tuning_motion(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
-    # 500 ms: on a busy 2-core machine the test's heartbeat thread can be late by 250 ms.
-    with operation_app(channel, tmp_path, "lecsn-t", deadman_ms=500) as (client, sim):
+    # 1000 ms: the test's heartbeat thread shares the GIL with the app and the twin, and on the
+    # loaded 2-core CI machine one beat came 613 ms late (a 500 ms dead-man stopped the tuning
+    # before the test stopped beating). What this test holds is that the dead-man ends the
+    # tuning's motion and the tuning with it; how fast is bench/bench_deadman.py's measure.
+    with operation_app(channel, tmp_path, "lecsn-t", deadman_ms=1000) as (client, sim):
         drive = sim.drives[0]
         with client.websocket_connect("/api/v1/ws?client=A") as ws:
             beats = take_and_enable(client, SID, "A", ws)  # Heartbeats every 50 ms.
@@ -350,9 +353,9 @@ def test_the_deadman_stops_a_tuning_motion(channel, tmp_path) -> None:  # type: 
             wait_progress(client, SID, 0.3)
             assert drive.read(P11600, 0) == 1
             last = beats.stop()
-            stood = wait_until(lambda: abs(drive.velocity) < 100, 2.0)
+            stood = wait_until(lambda: abs(drive.velocity) < 100, 3.0)
             assert stood is not None, "the axis did not stop"
-            assert stood - last < 1.5, stood - last
+            assert stood - last < 2.0, stood - last
             end = wait_job(client, SID, 20.0)
         assert end["state"] == "failed", end
         assert "dead-man" in end["message"] and "heartbeat" in end["message"]
