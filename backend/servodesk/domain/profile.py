@@ -17,6 +17,7 @@ from typing import Any, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from servodesk.domain import quirks
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, Value, coerce_int
 from servodesk.domain.tuning.gains import ServoGains
@@ -884,6 +885,9 @@ class DeviceProfile(BaseModel):
         return self.variables.get(address)
 
     def quirk(self, quirk_id: str, default: Any = None) -> Any:
+        """The value of quirk ``quirk_id`` (``default`` where the family has none). An id not in
+        the registry (domain/quirks.py) raises: a typo must not read as "no quirk"."""
+        quirks.spec(quirk_id)
         for q in self.quirks:
             if q.id == quirk_id:
                 return q.value

@@ -21,6 +21,7 @@ from servodesk.domain.datatypes import DataType
 from servodesk.domain.encoder_units import INCREMENT_UNITS
 from servodesk.domain.ids import check_id
 from servodesk.domain.profile import DeviceProfile, resolve_value
+from servodesk.domain.quirks import check_quirks
 from servodesk.errors import NotFoundError, ProfileError, ServodeskError
 
 try:  # libyaml is ~10x faster on the large profiles.
@@ -56,12 +57,19 @@ def read_profile_file(path: Path) -> DeviceProfile:
 
 def parse_profile(data: dict[str, Any], source: str = "<profile>") -> DeviceProfile:
     try:
-        return DeviceProfile.model_validate(data)
+        profile = DeviceProfile.model_validate(data)
     except pydantic.ValidationError as exc:
         first = exc.errors()[0]
         where = ".".join(str(p) for p in first["loc"])
         more = f" (and {exc.error_count() - 1} more problems)" if exc.error_count() > 1 else ""
         raise ProfileError(f"{where}: {first['msg']}{more}", path=source) from exc
+    # A quirk id with a typo would read as "the family has no such deviation": refused here,
+    # naming the closest known id (domain/quirks.py).
+    problems = check_quirks([(q.id, q.value) for q in profile.quirks])
+    if problems:
+        more = f" (and {len(problems) - 1} more problems)" if len(problems) > 1 else ""
+        raise ProfileError(f"{problems[0]}{more}", path=source)
+    return profile
 
 
 def merge(base: DeviceProfile, child: DeviceProfile) -> DeviceProfile:
@@ -128,6 +136,7 @@ def check_profile(p: DeviceProfile) -> list[str]:
         for spec in p.variables.values():
             if spec.group and spec.group not in group_ids:
                 problems.append(f"{spec.address} {spec.name}: group {spec.group!r} not in groups")
+    problems.extend(check_quirks([(q.id, q.value) for q in p.quirks]))
     problems.extend(_check_pdo_rules(p))
     problems.extend(_check_tuning(p))
     problems.extend(_check_network(p))
