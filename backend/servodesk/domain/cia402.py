@@ -10,6 +10,8 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
+from servodesk.domain.address import ObjectAddress
+
 
 class State(enum.Enum):
     """Drive states; the value is the display name used in the API and UI."""
@@ -293,3 +295,43 @@ def mode_name(mode: int) -> str:
     if mode < 0:
         return f"Manufacturer-specific ({mode})"
     return MODE_NAMES.get(mode, f"Reserved ({mode})")
+
+
+# --- The CiA 402 objects servodesk reads and writes, one name each (CiA 402-2's object
+# dictionary; the sections cited are those the services cite). Services import them from
+# here (issue 51 item 5: seven service modules each defined their own, 607Ah under two
+# names). ---
+
+ERROR_CODE = ObjectAddress(0x603F)  # the last fault's code (CiA 402-2 annex A)
+CONTROLWORD = ObjectAddress(0x6040)  # §6.2.1
+STATUSWORD = ObjectAddress(0x6041)
+QUICK_STOP_OPTION = ObjectAddress(0x605A)
+HALT_OPTION = ObjectAddress(0x605D)  # §6.3.4
+MODE = ObjectAddress(0x6060)  # modes of operation
+MODE_DISPLAY = ObjectAddress(0x6061)  # modes of operation display
+POSITION = ObjectAddress(0x6064)  # position actual value
+FOLLOWING_ERROR_WINDOW = ObjectAddress(0x6065)
+VELOCITY = ObjectAddress(0x606C)  # velocity actual value
+VELOCITY_THRESHOLD = ObjectAddress(0x606F)
+TARGET_TORQUE = ObjectAddress(0x6071)  # per mille of rated torque
+MAX_TORQUE = ObjectAddress(0x6072)
+RATED_TORQUE = ObjectAddress(0x6076)  # mN m
+TORQUE_ACTUAL = ObjectAddress(0x6077)  # per mille of rated torque
+TARGET_POSITION = ObjectAddress(0x607A)
+HOME_OFFSET = ObjectAddress(0x607C)
+SOFT_LIMIT_MIN = ObjectAddress(0x607D, 1)  # software position limit, §6.5.4 (min = max = 0: off)
+SOFT_LIMIT_MAX = ObjectAddress(0x607D, 2)
+MAX_PROFILE_VELOCITY = ObjectAddress(0x607F)
+PROFILE_VELOCITY = ObjectAddress(0x6081)
+PROFILE_ACC = ObjectAddress(0x6083)
+PROFILE_DEC = ObjectAddress(0x6084)
+QUICK_STOP_DEC = ObjectAddress(0x6085)
+TORQUE_SLOPE = ObjectAddress(0x6087)
+ENCODER_INCREMENTS = ObjectAddress(0x608F, 1)  # position encoder resolution
+ENCODER_REVOLUTIONS = ObjectAddress(0x608F, 2)
+HOMING_METHOD = ObjectAddress(0x6098)
+HOMING_SPEED_SWITCH = ObjectAddress(0x6099, 1)
+HOMING_SPEED_ZERO = ObjectAddress(0x6099, 2)
+HOMING_ACC = ObjectAddress(0x609A)
+FOLLOWING_ERROR = ObjectAddress(0x60F4)  # following error actual value
+TARGET_VELOCITY = ObjectAddress(0x60FF)

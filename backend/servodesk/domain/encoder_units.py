@@ -15,14 +15,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from servodesk.domain.address import ObjectAddress
 from servodesk.domain.profile import DeviceProfile, ObjectEntry
 
 #: CiA 402-2 §6.9.4 position encoder resolution: increments (sub 1) per revolutions (sub 2).
-ENCODER_INCREMENTS = ObjectAddress(0x608F, 1)
-ENCODER_REVOLUTIONS = ObjectAddress(0x608F, 2)
-
-#: Raw units counted in encoder increments: their scales and defaults follow the encoder.
 INCREMENT_UNITS = frozenset({"inc", "inc/s", "inc/s²", "inc/s^2"})
 
 

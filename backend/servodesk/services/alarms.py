@@ -21,10 +21,11 @@ from typing import Any
 
 from servodesk.domain import cia402, diagnosis
 from servodesk.domain.address import ObjectAddress
+from servodesk.domain.cia402 import CONTROLWORD, ERROR_CODE, STATUSWORD
 from servodesk.domain.datatypes import coerce_int
 from servodesk.domain.profile import DeviceProfile, ErrorEntry
 from servodesk.errors import ServodeskError, ValidationError
-from servodesk.services.session import CONTROLWORD, ERROR_CODE, STATUSWORD, Session, error_info
+from servodesk.services.session import Session, error_info
 
 ERROR_HISTORY = 0x1003
 _TABLES = ("error_code", "emcy", "alarm")

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 from servodesk.domain import pdo as pdomod
 from servodesk.domain.address import ObjectAddress
+from servodesk.domain.cia402 import CONTROLWORD
 from servodesk.domain.datatypes import DataType, Value, codec
 from servodesk.domain.profile import DeviceProfile
 from servodesk.errors import ConflictError
@@ -48,8 +49,6 @@ FIX_EVENT_TIMER_MS = 100
 #: WebSocket publishing rate of the latest values [Hz].
 PUBLISH_HZ = 20.0
 #: The controlword (CiA 402-2 §6.2.1), quick-stopped in the output image on a link loss.
-CONTROLWORD = ObjectAddress(0x6040, 0)
-#: The state a transport's health reports for a lost link (links/ethercat_health.py).
 LINK_LOST = "link lost"
 
 _STRUCT = {

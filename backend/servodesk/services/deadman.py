@@ -26,15 +26,13 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from servodesk.domain.address import ObjectAddress
+from servodesk.domain.cia402 import CONTROLWORD
 from servodesk.links.base import QUICK_STOP_WORD
 
 if TYPE_CHECKING:
     from servodesk.services.session import Session
 
 log = logging.getLogger(__name__)
-
-CONTROLWORD = ObjectAddress(0x6040)
 
 
 def thread_stop(session: Session) -> Callable[[], None] | None:

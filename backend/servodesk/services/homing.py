@@ -32,6 +32,19 @@ from typing import Any, Literal
 
 from servodesk.domain import cia402
 from servodesk.domain.address import ObjectAddress
+from servodesk.domain.cia402 import (
+    CONTROLWORD,
+    HOME_OFFSET,
+    HOMING_ACC,
+    HOMING_METHOD,
+    HOMING_SPEED_SWITCH,
+    HOMING_SPEED_ZERO,
+    MAX_PROFILE_VELOCITY,
+    MODE,
+    MODE_DISPLAY,
+    POSITION,
+    STATUSWORD,
+)
 from servodesk.domain.datatypes import coerce_int
 from servodesk.domain.homing import (
     CW_HOMING_START,
@@ -54,19 +67,10 @@ from servodesk.domain.homing import (
 from servodesk.domain.profile import DeviceProfile
 from servodesk.domain.ramps import ramp_kind
 from servodesk.errors import DriveStateError, ServodeskError, ValidationError
-from servodesk.services.session import CONTROLWORD, STATUSWORD, DriveState, Session
+from servodesk.services.session import DriveState, Session
 
 log = logging.getLogger(__name__)
 
-MODE = ObjectAddress(0x6060)
-MODE_DISPLAY = ObjectAddress(0x6061)
-POSITION = ObjectAddress(0x6064)
-HOME_OFFSET = ObjectAddress(0x607C)
-HOMING_METHOD = ObjectAddress(0x6098)
-SPEED_SWITCH = ObjectAddress(0x6099, 1)
-SPEED_ZERO = ObjectAddress(0x6099, 2)
-HOMING_ACC = ObjectAddress(0x609A)
-MAX_PROFILE_VELOCITY = ObjectAddress(0x607F)
 HOMING_MODE = 6
 CW_HALT = 0x0100
 CW_ENABLE = 0x000F
@@ -573,11 +577,13 @@ async def plan(
             hint="the span the homing searches may cover, e.g. between the limit switches",
         )
     info = resolve_method(method, session.profile.quirk("homing_method_equivalent"))
-    raw1 = speed_switch if speed_switch is not None else await _try_read(session, SPEED_SWITCH)
-    raw2 = speed_zero if speed_zero is not None else await _try_read(session, SPEED_ZERO)
+    raw1 = (
+        speed_switch if speed_switch is not None else await _try_read(session, HOMING_SPEED_SWITCH)
+    )
+    raw2 = speed_zero if speed_zero is not None else await _try_read(session, HOMING_SPEED_ZERO)
     raw_a = acceleration if acceleration is not None else await _try_read(session, HOMING_ACC)
-    v1 = _speed(session, SPEED_SWITCH, raw1)
-    v2 = _speed(session, SPEED_ZERO, raw2)
+    v1 = _speed(session, HOMING_SPEED_SWITCH, raw1)
+    v2 = _speed(session, HOMING_SPEED_ZERO, raw2)
     acc = await _acceleration(session, raw_a)
     geometry = _geometry(session, max_travel, limits)
     estimate: HomingEstimate | None = None
@@ -669,8 +675,8 @@ async def begin(
             hint='enable the drive first (POST .../state {"command": "enable"})',
         )
     writes: list[tuple[ObjectAddress, int | None, str]] = [
-        (SPEED_SWITCH, speed_switch, "speed_switch"),
-        (SPEED_ZERO, speed_zero, "speed_zero"),
+        (HOMING_SPEED_SWITCH, speed_switch, "speed_switch"),
+        (HOMING_SPEED_ZERO, speed_zero, "speed_zero"),
         (HOMING_ACC, acceleration, "acceleration"),
         (HOME_OFFSET, offset, "offset"),
     ]

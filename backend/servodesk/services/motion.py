@@ -58,6 +58,25 @@ from typing import Any
 
 from servodesk.domain import cia402
 from servodesk.domain.address import ObjectAddress
+from servodesk.domain.cia402 import (
+    CONTROLWORD,
+    HALT_OPTION,
+    MODE,
+    MODE_DISPLAY,
+    POSITION,
+    PROFILE_ACC,
+    PROFILE_DEC,
+    PROFILE_VELOCITY,
+    QUICK_STOP_DEC,
+    STATUSWORD,
+    TARGET_POSITION,
+    TARGET_TORQUE,
+    TARGET_VELOCITY,
+    TORQUE_ACTUAL,
+    TORQUE_SLOPE,
+    VELOCITY,
+    VELOCITY_THRESHOLD,
+)
 from servodesk.domain.datatypes import DataType, Value, codec
 from servodesk.domain.ramps import ramp_kind
 from servodesk.domain.values import encode_write
@@ -78,25 +97,6 @@ from servodesk.services.session import BORROW, Borrowed, Session
 
 log = logging.getLogger(__name__)
 
-CONTROLWORD = ObjectAddress(0x6040)
-STATUSWORD = ObjectAddress(0x6041)
-MODE = ObjectAddress(0x6060)
-MODE_DISPLAY = ObjectAddress(0x6061)
-POSITION = ObjectAddress(0x6064)
-VELOCITY = ObjectAddress(0x606C)
-VELOCITY_THRESHOLD = ObjectAddress(0x606F)
-TARGET_TORQUE = ObjectAddress(0x6071)
-TORQUE_ACTUAL = ObjectAddress(0x6077)
-TARGET_POSITION = ObjectAddress(0x607A)
-PROFILE_VELOCITY = ObjectAddress(0x6081)
-PROFILE_ACC = ObjectAddress(0x6083)
-PROFILE_DEC = ObjectAddress(0x6084)
-TORQUE_SLOPE = ObjectAddress(0x6087)
-TARGET_VELOCITY = ObjectAddress(0x60FF)
-HALT_OPTION = ObjectAddress(0x605D)
-QUICK_STOP_DEC = ObjectAddress(0x6085)
-
-#: Where each limit comes from on the drive.
 LIMIT_OBJECTS: dict[str, ObjectAddress] = {
     "position_min": ObjectAddress(0x607D, 1),
     "position_max": ObjectAddress(0x607D, 2),

@@ -19,10 +19,19 @@ from typing import TYPE_CHECKING, Any
 
 from servodesk.domain import cia402
 from servodesk.domain.address import ObjectAddress
-from servodesk.domain.datatypes import DataType, Value, codec
-from servodesk.domain.encoder_units import (
+from servodesk.domain.cia402 import (
+    CONTROLWORD,
     ENCODER_INCREMENTS,
     ENCODER_REVOLUTIONS,
+    ERROR_CODE,
+    MODE,
+    MODE_DISPLAY,
+    POSITION,
+    STATUSWORD,
+    VELOCITY,
+)
+from servodesk.domain.datatypes import DataType, Value, codec
+from servodesk.domain.encoder_units import (
     counts_per_rev_from,
     rescaled,
 )
@@ -47,16 +56,7 @@ log = logging.getLogger(__name__)
 #: EMCY messages kept per session for the Alarms page (a bounded log).
 EMCY_LOG_SIZE = 200
 
-STATUSWORD = ObjectAddress(0x6041)
-CONTROLWORD = ObjectAddress(0x6040)
-MODE_DISPLAY = ObjectAddress(0x6061)
-POSITION = ObjectAddress(0x6064)
-VELOCITY = ObjectAddress(0x606C)
-ERROR_CODE = ObjectAddress(0x603F)
 HEARTBEAT_TIME = ObjectAddress(0x1017)
-MODE_OF_OPERATION = ObjectAddress(0x6060)
-
-#: State commands of the API: single controlword commands, and goals walked step by step.
 COMMANDS: dict[str, cia402.Command] = {c.value: c for c in cia402.Command}
 #: Targets that make an enabled drive move by themselves (target velocity, target torque).
 _MOTION_TARGETS = (ObjectAddress(0x60FF), ObjectAddress(0x6071))
@@ -336,7 +336,7 @@ class Session:
         setting = spec is None or (spec.persist and not spec.process)
         # The mode of operation is the motion's command, read back in 6061h (CiA 402-2
         # §6.2.4), not a setting it borrows: the homing status reads it after the run.
-        borrow = BORROW.get() if setting and address != MODE_OF_OPERATION else None
+        borrow = BORROW.get() if setting and address != MODE else None
         if borrow is not None and address not in borrow:
             # A motion's own setting (6081h profile velocity for a jog, 6098h for homing):
             # it is given back when the motion ends (issue "Motion safety" item 6), so it

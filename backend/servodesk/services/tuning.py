@@ -59,6 +59,16 @@ import numpy as np
 
 from servodesk.domain import cia402
 from servodesk.domain.address import ObjectAddress
+from servodesk.domain.cia402 import (
+    FOLLOWING_ERROR,
+    MAX_TORQUE,
+    POSITION,
+    PROFILE_ACC,
+    PROFILE_DEC,
+    PROFILE_VELOCITY,
+    TARGET_POSITION,
+    TORQUE_ACTUAL,
+)
 from servodesk.domain.datatypes import DataType, Value, codec, coerce_int
 from servodesk.domain.profile import DeviceProfile, ObjectSpec, RecorderSpec
 from servodesk.domain.ramps import ramp_kind
@@ -140,19 +150,6 @@ BUILTIN_TIMEOUT_S = 180.0
 POLL_S = 0.1
 #: How long stop() waits for the job to wind down [s].
 STOP_WAIT_S = 15.0
-
-POSITION = ObjectAddress(0x6064)
-STATUSWORD = ObjectAddress(0x6041)
-TORQUE_ACTUAL = ObjectAddress(0x6077)
-MAX_TORQUE = ObjectAddress(0x6072)
-PROFILE_VELOCITY = ObjectAddress(0x6081)
-PROFILE_ACC = ObjectAddress(0x6083)
-PROFILE_DEC = ObjectAddress(0x6084)
-TARGET_POSITION = ObjectAddress(0x607A)
-FOLLOWING_ERROR = ObjectAddress(0x60F4)
-
-
-# Kind, gains, units (pure) ------------------------------------------------------------------
 
 
 def _quirk_dict(profile: DeviceProfile, quirk: str) -> dict[str, Any] | None:

@@ -50,7 +50,32 @@ import numpy as np
 from scipy.signal import lfilter  # type: ignore[import-untyped]
 
 from servodesk.domain.address import ObjectAddress
-from servodesk.domain.cia402 import State, decode_state
+from servodesk.domain.cia402 import (
+    CONTROLWORD,
+    ENCODER_INCREMENTS,
+    ENCODER_REVOLUTIONS,
+    FOLLOWING_ERROR,
+    FOLLOWING_ERROR_WINDOW,
+    HALT_OPTION,
+    MAX_PROFILE_VELOCITY,
+    MAX_TORQUE,
+    MODE,
+    POSITION,
+    PROFILE_ACC,
+    PROFILE_DEC,
+    PROFILE_VELOCITY,
+    QUICK_STOP_DEC,
+    QUICK_STOP_OPTION,
+    RATED_TORQUE,
+    SOFT_LIMIT_MAX,
+    SOFT_LIMIT_MIN,
+    STATUSWORD,
+    TARGET_POSITION,
+    VELOCITY,
+    VELOCITY_THRESHOLD,
+    State,
+    decode_state,
+)
 from servodesk.domain.datatypes import Value
 from servodesk.domain.profile import TuningSpec
 from servodesk.domain.tuning.gains import ServoGains
@@ -105,29 +130,6 @@ log = logging.getLogger(__name__)
 _T = TypeVar("_T")
 
 Progress = Callable[[float, str], None]
-
-CONTROLWORD = ObjectAddress(0x6040)
-STATUSWORD = ObjectAddress(0x6041)
-QS_OPTION = ObjectAddress(0x605A)
-HALT_OPTION = ObjectAddress(0x605D)
-MODE = ObjectAddress(0x6060)
-POSITION = ObjectAddress(0x6064)
-FE_WINDOW = ObjectAddress(0x6065)
-VELOCITY = ObjectAddress(0x606C)
-VELOCITY_THRESHOLD = ObjectAddress(0x606F)
-MAX_TORQUE = ObjectAddress(0x6072)
-RATED_TORQUE = ObjectAddress(0x6076)
-TARGET = ObjectAddress(0x607A)
-SOFT_MIN = ObjectAddress(0x607D, 1)
-SOFT_MAX = ObjectAddress(0x607D, 2)
-PROFILE_VELOCITY = ObjectAddress(0x6081)
-PROFILE_ACC = ObjectAddress(0x6083)
-PROFILE_DEC = ObjectAddress(0x6084)
-QS_DEC = ObjectAddress(0x6085)
-MAX_PROFILE_VELOCITY = ObjectAddress(0x607F)
-FOLLOWING_ERROR = ObjectAddress(0x60F4)
-ENCODER_INCREMENTS = ObjectAddress(0x608F, 1)
-ENCODER_REVOLUTIONS = ObjectAddress(0x608F, 2)
 
 PP = 1
 CW_ENABLED = 0x000F
@@ -984,9 +986,9 @@ class OwnTuning:
         if half is None:
             half = half_window(self.request.travel_window_rev, cpr)
         bound = TravelBound(p0, half)
-        if await self._has(SOFT_MIN) and await self._has(SOFT_MAX):
-            lo = await read_float(io, SOFT_MIN)
-            hi = await read_float(io, SOFT_MAX)
+        if await self._has(SOFT_LIMIT_MIN) and await self._has(SOFT_LIMIT_MAX):
+            lo = await read_float(io, SOFT_LIMIT_MIN)
+            hi = await read_float(io, SOFT_LIMIT_MAX)
             # Both 0 switches the limits off (CiA 402-2 §6.5.4).
             if lo < hi and (bound.low < lo or bound.high > hi):
                 raise ValidationError(
@@ -1014,14 +1016,14 @@ class OwnTuning:
         saved: list[tuple[ObjectAddress, Value]] = []
         for a in (
             MODE,
-            FE_WINDOW,
+            FOLLOWING_ERROR_WINDOW,
             MAX_TORQUE,
-            SOFT_MIN,
-            SOFT_MAX,
+            SOFT_LIMIT_MIN,
+            SOFT_LIMIT_MAX,
             PROFILE_VELOCITY,
             PROFILE_ACC,
             PROFILE_DEC,
-            QS_DEC,
+            QUICK_STOP_DEC,
         ):
             spec = self.io.profile.spec(a)
             if spec is not None and spec.access.readable and spec.access.writable:
@@ -1049,13 +1051,13 @@ class OwnTuning:
             MAX_TORQUE, max(1, round(drive.limit_torque / drive.rated_torque * 1e3))
         )
         b = drive.bound
-        if self._writable(SOFT_MIN) and self._writable(SOFT_MAX):
+        if self._writable(SOFT_LIMIT_MIN) and self._writable(SOFT_LIMIT_MAX):
             # CiA 402-2 §6.5.4: the drive limits every target to 607Dh:01..02 (min = max = 0
             # switches them off; a bound of at least one count either side never is 0..0).
             # The backstop behind servodesk's own planning: a target outside never reaches
             # the axis, whatever computed it.
-            await self.io.write(SOFT_MIN, b.low)
-            await self.io.write(SOFT_MAX, b.high)
+            await self.io.write(SOFT_LIMIT_MIN, b.low)
+            await self.io.write(SOFT_LIMIT_MAX, b.high)
             self._notes.append(
                 f"the drive's software position limits 607Dh were {b.low} .. {b.high} (the "
                 f"travel bound) from before the first move, and are back as they were"
@@ -1065,9 +1067,9 @@ class OwnTuning:
                 f"{self.io.profile.name} has no writable software position limits (607Dh): only "
                 f"servodesk's own bound ({b.low} .. {b.high}) applied, not the drive's"
             )
-        await self._write_if(FE_WINDOW, round(drive.width))
+        await self._write_if(FOLLOWING_ERROR_WINDOW, round(drive.width))
         await self.io.write(MODE, PP)
-        self._qs_writable = self._writable(QS_DEC)
+        self._qs_writable = self._writable(QUICK_STOP_DEC)
         self._qs_dec = None
         guard = self._guard
         assert guard is not None
@@ -1082,21 +1084,21 @@ class OwnTuning:
         move's own where it is writable, 3, 4, 7, 8 at the current or voltage limit. Option 0
         lets the axis coast: the result's notes say that its run-out is not bounded."""
         options: dict[ObjectAddress, int] = {}
-        for a in (QS_OPTION, HALT_OPTION):
+        for a in (QUICK_STOP_OPTION, HALT_OPTION):
             if await self._has(a):
                 with contextlib.suppress(ServodeskError):
                     options[a] = int(await read_float(self.io, a))
-        if options.get(QS_OPTION) == 0:
+        if options.get(QUICK_STOP_OPTION) == 0:
             self._notes.append(
                 "the quick stop option (605Ah = 0) lets the axis coast: a dead-man stop's "
                 "run-out is the machine's friction and is not bounded by the travel window"
             )
         # Without 605Ah a drive's quick stop is taken to brake on 6085h (CiA 402-2's default).
-        qs = options.get(QS_OPTION, 2)
+        qs = options.get(QUICK_STOP_OPTION, 2)
         on_qs_ramp = qs in (2, 6) or options.get(HALT_OPTION) == 2
-        if not on_qs_ramp or self._qs_writable or not await self._has(QS_DEC):
+        if not on_qs_ramp or self._qs_writable or not await self._has(QUICK_STOP_DEC):
             return None
-        dec = await read_float(self.io, QS_DEC)
+        dec = await read_float(self.io, QUICK_STOP_DEC)
         self._notes.append(
             f"the quick-stop deceleration 6085h ({dec:.0f} counts/s²) is not writable: each "
             f"move's reserve includes the run-out of a stop on it"
@@ -1271,12 +1273,12 @@ class OwnTuning:
         if self._qs_writable and (self._qs_dec is None or plan.acc > self._qs_dec):
             # A dead-man stop then brakes no gentler than the move would have (605Ah option
             # 2: the quick-stop ramp; stop_overrun): 6085h at least the move's deceleration.
-            await self.io.write(QS_DEC, round(plan.acc))
+            await self.io.write(QUICK_STOP_DEC, round(plan.acc))
             self._qs_dec = plan.acc
         await self.io.write(PROFILE_VELOCITY, round(plan.velocity))
         await self.io.write(PROFILE_ACC, round(plan.acc))
         await self.io.write(PROFILE_DEC, round(plan.acc))
-        await self.io.write(TARGET, round(plan.target))
+        await self.io.write(TARGET_POSITION, round(plan.target))
         await self.io.write(CONTROLWORD, CW_ENABLED | CW_IMMEDIATE)
         await self.io.write(CONTROLWORD, CW_ENABLED | CW_IMMEDIATE | CW_NEW_SETPOINT)
         await self.io.write(CONTROLWORD, CW_ENABLED | CW_IMMEDIATE)
@@ -2202,7 +2204,7 @@ class OwnTuning:
             "highest": round(b.start + g.highest),
             "max_excursion": round(reach),
             "max_excursion_rev": reach / drive.counts_per_rev,
-            "software_limits": self._writable(SOFT_MIN) and self._writable(SOFT_MAX),
+            "software_limits": self._writable(SOFT_LIMIT_MIN) and self._writable(SOFT_LIMIT_MAX),
         }
 
     def _travel_notes(self, drive: _Drive) -> list[str]:

@@ -37,6 +37,7 @@ import numpy as np
 from servodesk import hosts
 from servodesk.domain import cia402
 from servodesk.domain.address import ObjectAddress
+from servodesk.domain.cia402 import POSITION, SOFT_LIMIT_MAX, SOFT_LIMIT_MIN, TARGET_POSITION
 from servodesk.domain.datatypes import DataType, codec
 from servodesk.domain.profile import DeviceProfile
 from servodesk.errors import ServodeskError, ValidationError
@@ -47,10 +48,6 @@ log = logging.getLogger(__name__)
 
 StageKind = Literal["rotary", "linear"]
 
-POSITION = ObjectAddress(0x6064)
-TARGET_POSITION = ObjectAddress(0x607A)
-LIMIT_MIN = ObjectAddress(0x607D, 1)
-LIMIT_MAX = ObjectAddress(0x607D, 2)
 INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
 
 #: Distance between two stages along x, in scene units (metres in the viewer).
@@ -731,8 +728,8 @@ class ViewerService:
         if self.target_of is None or self.target_of(session.id) is None:
             stage.target = await _read_int(session, TARGET_POSITION)
         if read_limits:
-            lo = await _read_int(session, LIMIT_MIN)
-            hi = await _read_int(session, LIMIT_MAX)
+            lo = await _read_int(session, SOFT_LIMIT_MIN)
+            hi = await _read_int(session, SOFT_LIMIT_MAX)
             # CiA 402-2 §6.5.4: min = max = 0 switches the software limits off; the whole
             # INTEGER32 range (the generic default) limits nothing either.
             limits = None
