@@ -45,6 +45,7 @@ CHECK_PATHS = (
     "tests/unit/test_homing_estimate.py",
     "tests/unit/test_ramps.py",
     "tests/unit/test_sdo_frames.py",
+    "tests/unit/test_sdo_block_frames.py",
     "tests/unit/test_values.py",
     "tests/unit/test_viewer_camera.py",
     "tests/devdesc",

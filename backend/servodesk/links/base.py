@@ -168,6 +168,12 @@ class ObjectAccess(ABC):
         self, address: ObjectAddress, data: bytes, *, timeout: float | None = None
     ) -> None: ...
 
+    async def read_large(self, address: ObjectAddress, *, timeout: float | None = None) -> bytes:
+        """Read an object expected to be large (a recording, a DOMAIN). A fieldbus with a
+        transfer made for bulk data overrides this (CANopen: SDO block upload, docs/scope.md
+        "Block upload"); elsewhere it is the plain read."""
+        return await self.read(address, timeout=timeout)
+
     async def read_many(self, addresses: Sequence[ObjectAddress]) -> list[bytes | ServodeskError]:
         """Read several objects; a refused one yields its error in its place and the rest go
         on. A link error (no answer, the bus is gone) ends the reads: the remaining ones

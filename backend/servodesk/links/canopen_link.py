@@ -3,10 +3,10 @@
 One canopen ``Network`` (one python-can bus and its notifier thread) is shared by every link
 on the same interface and channel, reference-counted, because most adapters can be opened
 only once. canopen handles NMT, heartbeat, EMCY and the bus scan; object access uses
-servodesk's asyncio SDO client (expedited and segmented, frames from
-:mod:`servodesk.domain.sdo`), because awaiting the answer on the event loop is as fast as a
-plain blocking canopen loop while a thread hand-over per request costs 40 %. Abort codes
-become :class:`ObjectAccessError` with the CiA 301 text.
+servodesk's asyncio SDO client (expedited, segmented and block upload, frames from
+:mod:`servodesk.domain.sdo` and :mod:`servodesk.domain.sdo_block`), because awaiting the
+answer on the event loop is as fast as a plain blocking canopen loop while a thread hand-over
+per request costs 40 %. Abort codes become :class:`ObjectAccessError` with the CiA 301 text.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from typing import Any
 import can
 import canopen
 
-from servodesk.domain import sdo
+from servodesk.domain import sdo, sdo_block
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.sdo_abort import abort_error
 from servodesk.errors import (
@@ -172,8 +172,28 @@ HEARTBEAT_PERIOD_S = 0.1
 CONSUMER_TIME_MS = 1000
 CONSUMER = ObjectAddress(0x1016, 1)
 
-#: Longest segmented upload accepted (a DOMAIN could be larger; servodesk does not read those).
+#: Longest upload accepted (a DOMAIN could be larger; servodesk does not read those).
 _MAX_SEGMENTED = 1 << 20
+#: Block upload (CiA 301 §7.2.4.3.9-§7.2.4.3.12, docs/scope.md "Block upload"): used for
+#: :meth:`CanopenLink.read_large` (the drive-side recorder's data) and for any object whose
+#: segmented upload announced more than this many bytes (DOMAIN and string objects, learnt
+#: per link on their first read). It is also the request's pst: a server may answer an object
+#: of at most this size with the normal upload (§7.2.4.3.9). Round trips: segmented
+#: 1 + ceil(n / 7), block 3 + ceil(n / 889) (initiate, one per sub-block of 127 segments,
+#: end); block wins from 15 bytes, and 32 keeps the short strings (1008h-100Ah on most
+#: drives) on the protocol every server has.
+BLOCK_THRESHOLD = 32
+#: Segments per sub-block asked for: the most (127 x 7 = 889 bytes per acknowledgement).
+BLOCK_SIZE = 127
+#: Aborts of a block initiate after which the same object is read by segmented upload: the
+#: server does not do block transfers (0504 0001h, the one certain refusal), or refuses this
+#: one (block size, memory, access, a general error). Any other abort is the object's own
+#: answer (no such object, write-only, ...) and is raised as it is.
+_BLOCK_REFUSALS = frozenset({0x05040001, 0x05040002, 0x05040005, 0x06010000, 0x08000000})
+#: The abort code of a block upload the link ends itself (cancelled): general error.
+_ABORT_GENERAL = 0x08000000
+#: Time-outs in a row, with nothing received in between, after which a block upload gives up.
+_BLOCK_SILENCES = 3
 #: Heartbeats read this soon after an NMT command may predate it (see _on_heartbeat).
 HEARTBEAT_STALE_S = 0.05
 #: The scs bits of a download's answer (CiA 301 §7.2.4.3.3: initiate download response,
@@ -280,6 +300,20 @@ class CanopenLink(DriveLink):
         self._watchdog_text: str | None = None
         #: When servodesk last commanded an NMT state (monotonic), see _on_heartbeat.
         self._nmt_commanded_at = -math.inf
+        #: Block upload for large reads (False: segmented only, e.g. a benchmark's baseline).
+        self.block_upload = True
+        #: The node refused a block upload and served the segmented one (asked once per link).
+        self.block_refused = False
+        #: Objects whose upload was longer than BLOCK_THRESHOLD: read by block upload.
+        self._large: set[ObjectAddress] = set()
+        #: SDO frames this link sent and received (requests, answers, block segments), for
+        #: the bus load a benchmark reports.
+        self.sdo_frames_tx = 0
+        self.sdo_frames_rx = 0
+        #: Block segments dropped (out of order, or after a gap) and sent again by the server;
+        #: sub-blocks ended by the response time-out (their tail lost).
+        self.block_resent = 0
+        self.block_timeouts = 0
 
     # Hooks -------------------------------------------------------------------------
 
@@ -352,6 +386,7 @@ class CanopenLink(DriveLink):
             loop.call_soon_threadsafe(self._deliver, bytes(data))
 
     def _deliver(self, frame: bytes) -> None:
+        self.sdo_frames_rx += 1
         waiter = self._waiter
         if waiter is None:
             # No request in flight: a late answer to one that timed out or was cancelled,
@@ -364,6 +399,16 @@ class CanopenLink(DriveLink):
             # The waiter holds an answer _transact has not looked at yet; if that one is
             # stale, this may be the real one, so it is kept for the request, not dropped.
             self._unread.append(frame)
+
+    def _arm(self, loop: asyncio.AbstractEventLoop) -> None:
+        """The response time-out of the answer now awaited (see :meth:`_on_watchdog`)."""
+        deadline = self._deadline = loop.time() + self.request_timeout
+        dog = self._watchdog
+        if dog is None or self._watchdog_at > deadline:
+            if dog is not None:
+                dog.cancel()
+            self._watchdog_at = deadline
+            self._watchdog = loop.call_at(deadline, self._on_watchdog)
 
     def _on_watchdog(self) -> None:
         """The response time-out: one timer per link, moved only when it fires too early.
@@ -536,23 +581,23 @@ class CanopenLink(DriveLink):
             raise LinkError("the CANopen link is not open")
         cob_id = 0x600 + self.params.node_id
         ccs = request[0] & 0xE0
-        initiate = ccs in (0x20, 0x40)  # ccs 1 / 2: initiate download / upload
-        # Their answers: scs 3 (download) or 2 (upload), or an abort (CiA 301 §7.2.4.3).
-        answer_scs = (0x60 if ccs == 0x20 else 0x40, 0x80)
+        # ccs 1 / 2 / 5: initiate download / upload / block upload (cs 0 is the only block
+        # upload request sent through here).
+        initiate = ccs in (0x20, 0x40, 0xA0)
+        # Their answers: scs 3 (download), 2 (upload), 6 (block upload, or 2 where the server
+        # switches protocol, §7.2.4.3.9), or an abort (CiA 301 §7.2.4.3).
+        answer_scs: tuple[int, ...] = (
+            (0x60, 0x80) if ccs == 0x20 else (0xC0, 0x40, 0x80) if ccs == 0xA0 else (0x40, 0x80)
+        )
         # CiA 301 leaves retries to the client; like canopen, send once more on silence.
         for attempt in range(2):
             waiter: asyncio.Future[bytes] = loop.create_future()
             self._waiter = waiter
-            deadline = self._deadline = loop.time() + self.request_timeout
-            dog = self._watchdog
-            if dog is None or self._watchdog_at > deadline:
-                if dog is not None:
-                    dog.cancel()
-                self._watchdog_at = deadline
-                self._watchdog = loop.call_at(deadline, self._on_watchdog)
+            self._arm(loop)
             sent = False
             try:
                 try:
+                    self.sdo_frames_tx += 1
                     network.send_message(cob_id, request)
                 except (can.CanError, RuntimeError) as exc:
                     # python-can's send failures (a full transmit queue, a bus that is off)
@@ -632,7 +677,18 @@ class CanopenLink(DriveLink):
                 self._unread.clear()
         raise AssertionError("unreachable")
 
+    async def read_large(self, address: ObjectAddress, *, timeout: float | None = None) -> bytes:
+        """Read an object expected to be large (a recording, a DOMAIN) by SDO block upload,
+        or by segmented upload where the node refuses block transfers (docs/scope.md)."""
+        return await self._acall(self._aread_large, address, timeout=timeout)
+
     async def _aread(self, address: ObjectAddress) -> bytes:
+        if address in self._large and self.block_upload and not self.block_refused:
+            return await self._aread_large(address)
+        return await self._aread_normal(address)
+
+    async def _aread_normal(self, address: ObjectAddress) -> bytes:
+        """Expedited or segmented upload (CiA 301 §7.2.4.3.6-§7.2.4.3.7)."""
         idx, sub = address.index, address.subindex
         try:
             request = sdo.initiate_upload(idx, sub)
@@ -644,24 +700,160 @@ class CanopenLink(DriveLink):
             start = sdo.parse_initiate_upload(answer, idx, sub)
             if start.data is not None:
                 return start.data
-            out, toggle = bytearray(), 0
-            while True:
-                seg = sdo.parse_upload_segment(
-                    await self._transact(sdo.upload_segment(toggle), address), toggle, idx, sub
-                )
-                out += seg.data
-                if seg.last:
-                    break
-                toggle ^= 1
-                if len(out) > _MAX_SEGMENTED:
-                    raise sdo.SdoProtocolError("upload longer than servodesk accepts")
-            if start.size is not None and len(out) != start.size:
-                raise sdo.SdoProtocolError(f"announced {start.size} bytes, sent {len(out)}")
-            return bytes(out)
+            if start.size is not None and start.size > BLOCK_THRESHOLD:
+                self._large.add(address)  # Block upload from its next read on.
+            return await self._segments(start, address)
         except sdo.SdoAbort as exc:
             raise abort_error(exc.code, address, "read") from exc
         except sdo.SdoProtocolError as exc:
             raise self._protocol_error(exc, address) from exc
+
+    async def _segments(self, start: sdo.UploadStart, address: ObjectAddress) -> bytes:
+        """The segments of an upload the server started (CiA 301 §7.2.4.3.7)."""
+        idx, sub = address.index, address.subindex
+        out, toggle = bytearray(), 0
+        while True:
+            seg = sdo.parse_upload_segment(
+                await self._transact(sdo.upload_segment(toggle), address), toggle, idx, sub
+            )
+            out += seg.data
+            if seg.last:
+                break
+            toggle ^= 1
+            if len(out) > _MAX_SEGMENTED:
+                raise sdo.SdoProtocolError("upload longer than servodesk accepts")
+        if start.size is not None and len(out) != start.size:
+            raise sdo.SdoProtocolError(f"announced {start.size} bytes, sent {len(out)}")
+        return bytes(out)
+
+    async def _aread_large(self, address: ObjectAddress) -> bytes:
+        if not self.block_upload or self.block_refused:
+            return await self._aread_normal(address)
+        idx, sub = address.index, address.subindex
+        try:
+            request = sdo_block.initiate_upload(idx, sub, BLOCK_SIZE, BLOCK_THRESHOLD)
+            try:
+                answer = await self._transact(request, address)
+                start = sdo_block.parse_initiate_response(answer, idx, sub)
+            except sdo.SdoAbort as exc:
+                if exc.code not in _BLOCK_REFUSALS:
+                    raise
+                return await self._after_refusal(exc.code, address)
+            if isinstance(start, sdo.UploadStart):
+                # The server switched to the normal upload (§7.2.4.3.9): small enough, or a
+                # server without block transfers that says so this way (python-canopen's).
+                if start.data is not None:
+                    return start.data
+                return await self._segments(start, address)
+            return await self._blocks(start, address)
+        except sdo.SdoAbort as exc:
+            raise abort_error(exc.code, address, "read") from exc
+        except sdo.SdoProtocolError as exc:
+            raise self._protocol_error(exc, address) from exc
+
+    async def _after_refusal(self, code: int, address: ObjectAddress) -> bytes:
+        """The block initiate was aborted with ``code``: read by segmented upload, and
+        remember that the node refuses block transfers once the segmented read shows that
+        the object itself was readable (0504 0001h says so on its own)."""
+        try:
+            data = await self._aread_normal(address)
+        finally:
+            if code == sdo.ABORT_COMMAND:
+                self.block_refused = True
+        if not self.block_refused:
+            log.info(
+                "node %d refuses SDO block upload (abort 0x%08X): segmented from now on",
+                self.params.node_id,
+                code,
+            )
+        self.block_refused = True
+        return data
+
+    async def _blocks(self, start: sdo_block.BlockStart, address: ObjectAddress) -> bytes:
+        """The sub-blocks of a block upload, acknowledged, and its end (§7.2.4.3.10-13).
+
+        A sub-block whose tail is lost ends by the response time-out: the acknowledgement
+        names the last segment received in order and the server sends the rest again
+        (:class:`~servodesk.domain.sdo_block.BlockReceiver`)."""
+        network, loop = self._network, self._loop
+        if network is None or loop is None:
+            raise LinkError("the CANopen link is not open")
+        idx, sub = address.index, address.subindex
+        cob_id = 0x600 + self.params.node_id
+        rx = sdo_block.BlockReceiver(idx, sub, BLOCK_SIZE, _MAX_SEGMENTED)
+
+        def send(frame: bytes) -> None:
+            self.sdo_frames_tx += 1
+            try:
+                network.send_message(cob_id, frame)
+            except (can.CanError, RuntimeError) as exc:
+                raise LinkError(
+                    f"{address}: the SDO request could not be sent: {exc}",
+                    hint="check the CAN adapter, and that the bus is not in bus-off",
+                ) from exc
+
+        try:
+            send(sdo_block.START)
+            heard, silences = False, 0
+            while True:
+                try:
+                    frame = await self._next_frame(loop)
+                except TimeoutError:
+                    silences += 1
+                    self.block_timeouts += 1
+                    if self._network is None or silences >= _BLOCK_SILENCES:
+                        raise
+                    # Nothing since the start: it may be lost, send it again. Else the end
+                    # of the sub-block is: acknowledge what came in order (§7.2.4.3.12).
+                    send(rx.ack() if heard else sdo_block.START)
+                    continue
+                heard, silences = True, 0
+                dropped = rx.dropped
+                over = rx.segment(frame)
+                self.block_resent += rx.dropped - dropped
+                if over:
+                    send(rx.ack())
+                    if rx.complete:
+                        break
+            end = sdo_block.parse_end(await self._next_frame(loop), idx, sub)
+            data = rx.finish(end, start.crc, start.size)
+            send(sdo_block.END_RESPONSE)
+            return data
+        except asyncio.CancelledError:
+            # Cancelled on the bus (the scope stopped): the server is still in the transfer
+            # and would take the link's next request for a wrong block command. Abort it
+            # (CiA 301 §7.2.4.3.17: either side may, at any time).
+            with contextlib.suppress(Exception):
+                network.send_message(cob_id, sdo.abort(idx, sub, _ABORT_GENERAL))
+            raise
+        except TimeoutError:
+            if self._network is None:
+                raise LinkClosedError(
+                    "the link was closed while a request waited for the drive's answer",
+                    hint="open the session again",
+                ) from None
+            with contextlib.suppress(Exception):
+                network.send_message(cob_id, sdo.abort(idx, sub, sdo.ABORT_TIMEOUT))
+            raise LinkTimeoutError(
+                f"{address}: the block upload from node {self.params.node_id} stopped: no "
+                f"segment within {self.request_timeout:g} s",
+                hint="check the bus load and cabling; a drive may limit block transfers",
+            ) from None
+        finally:
+            self._waiter = None
+            self._unread.clear()
+
+    async def _next_frame(self, loop: asyncio.AbstractEventLoop) -> bytes:
+        """The next SDO frame from the node, within the response time-out.
+
+        The waiter stays in place once resolved, so frames that arrive before the next call
+        queue in ``_unread`` (:meth:`_deliver`) instead of being dropped."""
+        if self._unread:
+            return self._unread.popleft()
+        waiter: asyncio.Future[bytes] = loop.create_future()
+        self._waiter = waiter
+        self._arm(loop)
+        return await waiter
 
     async def _awrite(self, address: ObjectAddress, data: bytes) -> None:
         idx, sub = address.index, address.subindex

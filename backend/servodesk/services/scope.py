@@ -1356,7 +1356,9 @@ class RecorderSource:
         t_done = time.monotonic()
         count = await self._read_int(self._address(RecorderSpec.COUNT))
         trig = await self._read_int(self._address(RecorderSpec.TRIGGER_INDEX))
-        data = await self.session.link.read(self._address(RecorderSpec.DATA))
+        # By SDO block upload on CANopen (falling back to segmented for a drive that refuses
+        # it; docs/scope.md "Block upload"), the plain read elsewhere.
+        data = await self.session.link.read_large(self._address(RecorderSpec.DATA))
         self.upload_s += time.monotonic() - t_done
         self.upload_bytes += len(data)
         self.record_s += t_done - started

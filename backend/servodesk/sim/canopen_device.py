@@ -9,6 +9,15 @@ CiA 301 behaviour implemented here (beyond python-canopen's ``LocalNode``):
 
 - A segmented download is refused at its initiation when the object does not exist or is not
   writable (python-canopen would only check after the last segment).
+- SDO block upload (CiA 301 §7.2.4.3.9-§7.2.4.3.12, frames from
+  :mod:`servodesk.domain.sdo_block`; python-canopen's server answers a block initiate with a
+  normal upload): with CRC, the size indicated, sub-blocks of the client's blksize, the
+  segments after the acknowledged ackseq sent again; objects of at most the client's pst bytes
+  (pst non-zero) switch to the normal upload. Strict: a command other than the one the
+  transfer expects, a blksize outside 1..127 or an ackseq beyond the sub-block aborts
+  (0504 0001h, 0504 0002h, 0504 0003h) and ends the transfer. ``drop_segments`` /
+  ``late_segments`` (the n-th segment frame of a transfer, from 1) lose a segment or send it
+  after the next, as a bus could, for the client's tests.
 - In NMT STOPPED the node answers no SDO and sends no EMCY (CiA 301 §7.3.2.2.1 table 35);
   heartbeat and NMT keep working.
 - Reset node reloads the stored parameters and restarts the drive; reset communication
@@ -37,7 +46,9 @@ from canopen.sdo.constants import EXPEDITED, REQUEST_DOWNLOAD, SDO_STRUCT
 from canopen.sdo.exceptions import SdoAbortedError
 from canopen.sdo.server import SdoServer
 
+from servodesk.domain import sdo_block
 from servodesk.domain.datatypes import Value
+from servodesk.domain.sdo import SdoProtocolError
 from servodesk.sim.engine import K_HEARTBEAT, SimAbort, SimulatedDrive
 from servodesk.sim.heartbeat_consumer import HEARTBEAT_EVENT, HeartbeatConsumer
 from servodesk.sim.od_build import build_object_dictionary
@@ -52,11 +63,141 @@ NMT_PRE_OPERATIONAL = 0x7F
 _NMT_NAMES = {NMT_BOOTUP: "init", NMT_STOPPED: "stopped", NMT_OPERATIONAL: "op"}
 
 
+class _BlockUpload:
+    """A block upload in progress: the data, what the client acknowledged, what is due."""
+
+    def __init__(self, data: bytes, blksize: int, crc: bool) -> None:
+        self.data = data
+        self.blksize = blksize
+        self.crc = crc
+        #: Bytes the client acknowledged (the next sub-block starts there).
+        self.pos = 0
+        #: Segments in the sub-block last sent (an ackseq beyond it is refused).
+        self.sent = 0
+        #: The command the client must send next: start, ack, end response.
+        self.expect = sdo_block.CS_START
+        #: Segment frames sent in this transfer (for drop_segments / late_segments).
+        self.frames = 0
+        #: The sub-block last sent holds the last segment (c set).
+        self.ends = False
+
+
 class _SdoServer(SdoServer):
+    def __init__(self, rx_cobid: int, tx_cobid: int, node: Any) -> None:
+        super().__init__(rx_cobid, tx_cobid, node)
+        self._block: _BlockUpload | None = None
+        #: Fault injection (tests): segment frames of a transfer, counted from 1, that are
+        #: not sent (lost on the bus) or sent after the next one (out of order).
+        self.drop_segments: set[int] = set()
+        self.late_segments: set[int] = set()
+        #: Block upload initiates served (not switched), for tests and benchmarks.
+        self.block_uploads = 0
+
     def on_request(self, can_id: int, data: bytearray, timestamp: float) -> None:
         if self._node.nmt_state_byte == NMT_STOPPED:
             return
+        if self._block is not None:
+            self._block_step(bytes(data))
+            return
         super().on_request(can_id, data, timestamp)
+
+    # Block upload (CiA 301 §7.2.4.3.9-§7.2.4.3.12) ---------------------------------------
+
+    def block_upload(self, data: bytearray) -> None:
+        """An initiate block upload request (ccs 5) with no block transfer in progress."""
+        frame = bytes(data)
+        self._index, self._subindex = struct.unpack_from("<HB", frame, 1)
+        if sdo_block.client_cs(frame) != sdo_block.CS_INITIATE:
+            # A start, ack or end with no transfer: not valid now (§7.2.4.3.17).
+            self.abort(0x05040001)
+            return
+        try:
+            req = sdo_block.parse_initiate_request(frame)
+        except SdoProtocolError as exc:
+            self.abort(exc.abort_code)
+            return
+        value = self._node.get_data(req.index, req.subindex, check_readable=True)
+        if req.pst and len(value) <= req.pst:
+            # §7.2.4.3.9: at most pst bytes, the server may switch to the normal upload.
+            self.init_upload(data)
+            return
+        self.block_uploads += 1
+        # This server does CRC. It says so (sc) when the client asked for it (cc): the CRC is
+        # used only when both do, and the end frame's CRC field is 0 otherwise; python-canopen
+        # 2.4.1's client checks the CRC whenever sc is set, asked for or not.
+        self._block = _BlockUpload(bytes(value), req.blksize, req.crc)
+        self.send_response(
+            sdo_block.initiate_response(req.index, req.subindex, len(value), crc=req.crc)
+        )
+
+    def _block_step(self, frame: bytes) -> None:
+        block = self._block
+        assert block is not None
+        if frame[0] == 0x80:  # The client aborts (§7.2.4.3.17): the transfer ends, unanswered.
+            self._block = None
+            return
+        cs = sdo_block.client_cs(frame)
+        if cs != block.expect:
+            self._block = None
+            self.abort(0x05040001)
+            return
+        if cs == sdo_block.CS_END:
+            self._block = None  # Done; the end response is not answered.
+            return
+        if cs == sdo_block.CS_ACK:
+            try:
+                ackseq, blksize = sdo_block.parse_ack(frame)
+            except SdoProtocolError as exc:
+                self._block = None
+                self.abort(exc.abort_code)
+                return
+            if ackseq > block.sent:
+                self._block = None
+                self.abort(sdo_block.ABORT_SEQNO)
+                return
+            block.pos = min(len(block.data), block.pos + 7 * ackseq)
+            block.blksize = blksize
+            if block.ends and ackseq == block.sent:
+                # Every segment acknowledged, the c segment among them: the end (§7.2.4.3.13),
+                # with the bytes of the last segment that carry no data and the CRC.
+                n = len(block.data)
+                unused = 7 - (n - 7 * ((n - 1) // 7)) if n else 7
+                crc = sdo_block.crc16(block.data) if block.crc else 0
+                block.expect = sdo_block.CS_END
+                self.send_response(sdo_block.end(unused, crc))
+                return
+        self._send_sub_block(block)
+
+    def _send_sub_block(self, block: _BlockUpload) -> None:
+        """Segments from the acknowledged position: blksize of them, or up to the last."""
+        data, pos = block.data, block.pos
+        frames: list[bytes] = []
+        seqno = 0
+        while seqno < block.blksize:
+            seqno += 1
+            chunk = data[pos : pos + 7]
+            pos += 7
+            last = pos >= len(data)
+            frames.append(sdo_block.segment(seqno, chunk, last))
+            if last:
+                break
+        block.ends = frames[-1][0] & 0x80 != 0
+        block.sent = len(frames)
+        block.expect = sdo_block.CS_ACK
+        late: bytes | None = None
+        for f in frames:
+            block.frames += 1
+            if block.frames in self.drop_segments:
+                continue
+            if block.frames in self.late_segments:
+                late = f
+                continue
+            self.send_response(f)
+            if late is not None:
+                self.send_response(late)
+                late = None
+        if late is not None:
+            self.send_response(late)
 
     def init_download(self, request: bytearray) -> None:
         command, index, subindex = SDO_STRUCT.unpack_from(request)
@@ -115,7 +256,7 @@ class SimCanopenDevice(LocalNode):
         super().__init__(drive.node_id, build_object_dictionary(drive.profile, drive.node_id))
         self.drive = drive
         self.node_id = node_id = drive.node_id
-        self.sdo = _SdoServer(0x600 + node_id, 0x580 + node_id, self)
+        self.sdo: _SdoServer = _SdoServer(0x600 + node_id, 0x580 + node_id, self)
         self.nmt = _NmtSlave(node_id, self)
         self._write_callbacks = []  # LocalNode's NmtSlave hook is replaced by _on_drive_write.
         #: The drive's process data (``pdo`` is python-canopen's own, unused PDO object).
