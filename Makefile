@@ -19,7 +19,7 @@ PORT ?= 8000
 export UV_PYTHON_DOWNLOADS := never
 export UV_PROJECT_ENVIRONMENT := $(VENV)
 
-.PHONY: setup demo test check check-tests lint typecheck unit wheel build clean chromium netutils bench openapi
+.PHONY: setup demo test check check-tests lint typecheck unit wheel build clean chromium netutils postgres bench openapi
 
 setup: $(VENV)/.synced $(WEB_DIST)/index.html
 
@@ -59,6 +59,12 @@ netutils:
 	@command -v setpriv >/dev/null 2>&1 || \
 	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends util-linux >/dev/null; }
 
+# Debian's PostgreSQL for the store's tests (tests/store/conftest.py starts a throw-away
+# server with its initdb and pg_ctl; nothing is started or enabled as a service here).
+postgres:
+	@ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || command -v initdb >/dev/null 2>&1 || \
+	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends postgresql >/dev/null; }
+
 demo: setup
 	$(VENV)/bin/servodesk serve --sim --single-user --host $(HOST) --port $(PORT)
 
@@ -91,7 +97,7 @@ check-tests: $(VENV)/.synced
 
 # The suite in two parts: the tests on simulated time on every core, then the rest one at a
 # time (scripts/run_tests.sh, tests/conftest.py).
-test: setup chromium netutils lint typecheck unit wheel
+test: setup chromium netutils postgres lint typecheck unit wheel
 	scripts/run_tests.sh
 
 bench: setup

@@ -56,6 +56,11 @@ class Settings(BaseSettings):
     profile_dirs: str = ""
     #: Where backups, the audit log and the store live.
     data_dir: Path = Path.home() / ".servodesk"
+    #: The store (backups and their content, restores, the audit log, accounts): empty, the
+    #: SQLite file ``data_dir/servodesk.db``; or ``postgresql://user@host:port/db`` (a central
+    #: PostgreSQL several gateways share; ``?sslmode=verify-full`` for TLS). Checked when the
+    #: store opens (services/db.py, docs/deployment.md).
+    store_url: str = ""
     #: How often a session polls the drive's state for live updates (Hz).
     poll_hz: float = Field(default=20.0, gt=0, le=200)
     #: SDO response time-out in seconds.

@@ -89,14 +89,14 @@ class AppState:
             catalog, hub, sdo_timeout=settings.sdo_timeout, poll_hz=settings.poll_hz
         )
         # Backups, restore reports and the audit log of every parameter write (docs/backup.md).
-        backups = BackupService(Store(settings.data_dir), catalog)
+        backups = BackupService(Store(settings.data_dir, settings.store_url), catalog)
         backups.attach(hub)
         # Beside the store, in the same database (docs/security.md, Audit log).
-        audit = AuditLog(backups.store.path)
+        audit = AuditLog(backups.store.url)
         backups.audit = audit
         auth = Auth(
             settings,
-            UserStore(settings.data_dir),
+            UserStore(settings.data_dir, settings.store_url),
             LoginService(idle_s=settings.session_idle_s, lockout_s=settings.lockout_s),
         )
         control = ControlService(hub, audit=audit)

@@ -29,6 +29,7 @@ COMMANDS = [
     "bench",
     "users",
     "audit",
+    "store",
 ]
 
 

@@ -44,7 +44,10 @@ def _data_dir(p: argparse.ArgumentParser) -> None:
 
 
 def _open(args: argparse.Namespace) -> AuditLog:
-    data_dir = Path(args.data_dir) if args.data_dir else Settings().data_dir
+    settings = Settings()
+    if settings.store_url and not args.data_dir:  # A central store (SERVODESK_STORE_URL).
+        return AuditLog(settings.store_url)
+    data_dir = Path(args.data_dir) if args.data_dir else settings.data_dir
     db = data_dir / "servodesk.db"
     if not db.is_file():
         raise NotFoundError(

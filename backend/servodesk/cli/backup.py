@@ -131,12 +131,12 @@ class _Context:
         self.hub = EventHub()
         timeout = args.timeout or settings.sdo_timeout
         self.manager = SessionManager(self.catalog, self.hub, sdo_timeout=timeout, poll_hz=1.0)
-        self.backups = BackupService(Store(settings.data_dir), self.catalog)
+        self.backups = BackupService(Store(settings.data_dir, settings.store_url), self.catalog)
         self.backups.attach(self.hub)
         # Drive writes from the CLI go to the audit log too, as this machine's user
         # (docs/security.md, Audit log); this runs inside asyncio.run, so the actor holds
         # for the whole command.
-        self.audit = AuditLog(self.backups.store.path)
+        self.audit = AuditLog(self.backups.store.url)
         self.backups.audit = self.audit
         acting(Actor(client_id(), "local"))
         self.restores = RestoreService(self.backups)

@@ -120,7 +120,7 @@ def _needs_accounts(settings: Settings) -> str | None:
         return None
     from servodesk.services.users import UserStore
 
-    users = UserStore(settings.data_dir)
+    users = UserStore(settings.data_dir, settings.store_url)
     try:
         if users.has_accounts():
             return None

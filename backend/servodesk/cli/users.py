@@ -62,7 +62,8 @@ def register(sub: Any) -> None:
 @contextlib.contextmanager
 def _store() -> Iterator[UserStore]:
     """The accounts of the data directory, closed however the command ends."""
-    users = UserStore(Settings().data_dir)
+    settings = Settings()
+    users = UserStore(settings.data_dir, settings.store_url)
     try:
         yield users
     finally:
@@ -74,8 +75,10 @@ def _audit(event: str, **details: object) -> None:
     ``cli:<user>@<host>``, as ``servodesk backup`` does."""
     from servodesk.cli.backup import client_id
     from servodesk.services.audit import Actor, AuditLog
+    from servodesk.services.db import store_url
 
-    log = AuditLog(UserStore(Settings().data_dir).path)
+    settings = Settings()
+    log = AuditLog(store_url(settings.data_dir, settings.store_url))
     try:
         log.record(event, who=Actor(client_id()), details=dict(details))
     finally:

@@ -3,24 +3,27 @@
 IEC 62443-4-2 CR 2.8 (auditable events) asks a component to record access control, request
 errors, control system events, backup and restore, configuration changes and the like, each
 with a timestamp, source, category, type, event id and result. One record per event, in the
-``audit_log`` table of the store's SQLite database (``<data_dir>/servodesk.db``).
+``audit_log`` table of the store (``<data_dir>/servodesk.db``, or the PostgreSQL of
+``SERVODESK_STORE_URL`` that several gateways share: services/db.py).
 
 **Append-only, with a hash chain** (CR 3.9, protection of audit information): record ``n``
 stores ``hash = sha256(prev_hash + canonical(record))`` where ``prev_hash`` is record
 ``n - 1``'s hash (64 zeros for the first) and ``canonical`` is the compact JSON array of its
-columns (:func:`canonical`). Triggers refuse UPDATE and DELETE; someone who edits the file
-past them changes a hash, and :meth:`AuditLog.verify` (``servodesk audit verify``) names the
-first record that no longer fits: altered, missing from the middle, or moved. Records cut
-off the end leave a shorter valid chain; compare the head hash verify prints with one noted
-earlier to see that.
+columns (:func:`canonical`). Triggers refuse UPDATE and DELETE (and TRUNCATE on PostgreSQL);
+someone who edits the database past them changes a hash, and :meth:`AuditLog.verify`
+(``servodesk audit verify``) names the first record that no longer fits: altered, missing
+from the middle, or moved. Records cut off the end leave a shorter valid chain; compare the
+head hash verify prints with one noted earlier to see that.
 
 **Recording never blocks and never fails the caller.** :meth:`AuditLog.record` queues the
 record and returns; one writer thread appends queued records in a transaction that reads the
-last hash first (``BEGIN IMMEDIATE``: a second process, the CLI, is serialised by SQLite's
-write lock, so the chain never forks). The dead-man's stop therefore never waits on the
-database (docs/security.md); a record that cannot be written is logged and dropped. Readers
-(:meth:`query`, :meth:`verify`, :meth:`export`) first wait for the queue to drain, so a
-request sees the records of everything done before it.
+last hash first, serialised with every other writer of the store, so the chain never forks:
+on SQLite by ``BEGIN IMMEDIATE`` (a second process, the CLI, waits for SQLite's write lock),
+on PostgreSQL by a transaction-scoped advisory lock that every gateway's writer takes before
+it reads the head (:func:`servodesk.services.db.serialise`). The dead-man's stop therefore
+never waits on the database (docs/security.md); a record that cannot be written is logged
+and dropped. Readers (:meth:`query`, :meth:`verify`, :meth:`export`) first wait for the
+queue to drain, so a request sees the records of everything done before it.
 
 Who did it: the ``who`` argument, else the identity of the request being served (set by the
 API's middleware through :func:`acting`), else :data:`SYSTEM` (the dead-man's thread, the
@@ -36,7 +39,6 @@ import hashlib
 import io
 import json
 import logging
-import sqlite3
 import threading
 import time
 from collections.abc import Iterator
@@ -45,7 +47,10 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, Literal, Protocol
 
-from servodesk.services.store import StoreError
+import sqlalchemy as sa
+from sqlalchemy.engine import RowMapping
+
+from servodesk.services import db
 
 log = logging.getLogger(__name__)
 
@@ -81,28 +86,6 @@ GENESIS = "0" * 64
 #: Records queued and not yet written past which new ones are dropped (with a log line): a
 #: database that cannot be written must not eat the server's memory.
 MAX_PENDING = 100_000
-
-SCHEMA = """
-CREATE TABLE IF NOT EXISTS audit_log (
-    seq INTEGER PRIMARY KEY,
-    time TEXT NOT NULL,
-    user TEXT NOT NULL,
-    address TEXT NOT NULL,
-    category TEXT NOT NULL,
-    event TEXT NOT NULL,
-    drive TEXT,
-    result TEXT NOT NULL,
-    message TEXT NOT NULL,
-    details TEXT NOT NULL,
-    prev TEXT NOT NULL,
-    hash TEXT NOT NULL
-);
-CREATE INDEX IF NOT EXISTS audit_log_time ON audit_log (time);
-CREATE TRIGGER IF NOT EXISTS audit_log_no_update BEFORE UPDATE ON audit_log
-BEGIN SELECT RAISE(ABORT, 'the audit log is append-only'); END;
-CREATE TRIGGER IF NOT EXISTS audit_log_no_delete BEFORE DELETE ON audit_log
-BEGIN SELECT RAISE(ABORT, 'the audit log is append-only'); END;
-"""
 
 _COLUMNS = (
     "seq",
@@ -222,23 +205,16 @@ class _Pending:
 
 
 class AuditLog:
-    """The append-only audit log in the SQLite database at ``path``."""
+    """The append-only audit log in the store: ``where`` is the store's URL
+    (``Store.url``), or the path of a SQLite file (``<data_dir>/servodesk.db``)."""
 
-    def __init__(self, path: Path) -> None:
-        self.path = Path(path)
-        try:
-            self._db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None)
-            self._db.row_factory = sqlite3.Row
-            self._db.execute("PRAGMA journal_mode=WAL")
-            self._db.execute("PRAGMA synchronous=FULL")
-            self._db.execute("PRAGMA busy_timeout=5000")
-            self._db.executescript(SCHEMA)
-        except sqlite3.Error as exc:
-            raise StoreError(
-                f"cannot open the audit log in {self.path}: {exc}",
-                hint="check SERVODESK_DATA_DIR (or --data-dir) and its permissions",
-            ) from exc
-        self._lock = threading.Lock()  # The connection: the writer thread and readers.
+    def __init__(self, where: Path | str) -> None:
+        if isinstance(where, Path) or "://" not in where:
+            self.path: Path | None = Path(where)
+            self.url = sa.URL.create("sqlite", database=str(where)).render_as_string()
+        else:
+            self.path, self.url = None, where
+        self._engine = db.open_engine(self.url)
         self._cond = threading.Condition()  # The queue and its counters.
         self._queue: list[_Pending] = []
         self._queued = 0
@@ -327,8 +303,7 @@ class AuditLog:
             self._cond.notify_all()
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(2.0)
-        with self._lock:
-            self._db.close()
+        self._engine.dispose()
 
     def _run(self) -> None:
         while True:
@@ -349,41 +324,34 @@ class AuditLog:
                 self._cond.notify_all()
 
     def _append(self, batch: list[_Pending]) -> None:
-        """One transaction: read the last record, chain the batch onto it."""
-        with self._lock:
-            db = self._db
-            db.execute("BEGIN IMMEDIATE")
-            try:
-                last = db.execute(
-                    "SELECT seq, hash FROM audit_log ORDER BY seq DESC LIMIT 1"
-                ).fetchone()
-                seq, prev = (last["seq"], last["hash"]) if last else (0, GENESIS)
-                for p in batch:
-                    seq += 1
-                    row = (
-                        seq,
-                        p.time,
-                        p.user,
-                        p.address,
-                        p.category,
-                        p.event,
-                        p.drive,
-                        p.result,
-                        p.message,
-                        p.details,
-                    )
-                    digest = chain_hash(prev, row)
-                    db.execute(
-                        "INSERT INTO audit_log (seq, time, user, address, category, event, "
-                        "drive, result, message, details, prev, hash) "
-                        "VALUES (?,?,?,?,?,?,?,?,?,?,?,?)",
-                        (*row, prev, digest),
-                    )
-                    prev = digest
-            except BaseException:
-                db.execute("ROLLBACK")
-                raise
-            db.execute("COMMIT")
+        """One transaction: take the chain's lock, read the last record, chain the batch
+        onto it. Another process's writer waits for the lock, then reads this batch's head."""
+        t = db.audit_log
+        with db.write(self._engine) as conn:
+            db.serialise(conn, db.LOCK_AUDIT_CHAIN)
+            last = conn.execute(
+                sa.select(t.c.seq, t.c.hash).order_by(t.c.seq.desc()).limit(1)
+            ).first()
+            seq, prev = (int(last.seq), str(last.hash)) if last else (0, GENESIS)
+            rows: list[dict[str, Any]] = []
+            for p in batch:
+                seq += 1
+                row = (
+                    seq,
+                    p.time,
+                    p.user,
+                    p.address,
+                    p.category,
+                    p.event,
+                    p.drive,
+                    p.result,
+                    p.message,
+                    p.details,
+                )
+                digest = chain_hash(prev, row)
+                rows.append({**dict(zip(_COLUMNS, row, strict=True)), "prev": prev, "hash": digest})
+                prev = digest
+            conn.execute(sa.insert(t), rows)
 
     # Reading ----------------------------------------------------------------------------
 
@@ -401,40 +369,38 @@ class AuditLog:
     ) -> list[dict[str, Any]]:
         """Records matching every given filter, newest first (``before``: seq below it)."""
         self.flush()
-        sql = "SELECT * FROM audit_log WHERE 1=1"
-        args: list[Any] = []
+        t = db.audit_log
+        query = sa.select(t)
         for column, value in (
-            ("category", category),
-            ("user", user),
-            ("drive", drive),
-            ("event", event),
+            (t.c.category, category),
+            (t.c.user, user),
+            (t.c.drive, drive),
+            (t.c.event, event),
         ):
             if value:
-                sql += f" AND {column} = ?"
-                args.append(value)
+                query = query.where(column == value)
         if since is not None:
-            sql += " AND time >= ?"
-            args.append(utc_text(since))
+            query = query.where(t.c.time >= utc_text(since))
         if until is not None:
-            sql += " AND time <= ?"
-            args.append(utc_text(until))
+            query = query.where(t.c.time <= utc_text(until))
         if before is not None:
-            sql += " AND seq < ?"
-            args.append(before)
-        sql += " ORDER BY seq DESC LIMIT ?"
-        args.append(limit)
-        with self._lock:
-            rows = self._db.execute(sql, tuple(args)).fetchall()
+            query = query.where(t.c.seq < before)
+        query = query.order_by(t.c.seq.desc()).limit(limit)
+        with db.read(self._engine) as conn:
+            rows = conn.execute(query).mappings().all()
         return [_public(r) for r in rows]
 
-    def _rows(self, since: datetime | None = None) -> Iterator[sqlite3.Row]:
-        """Every record in order, read in pages (the lock is not held between pages)."""
+    def _rows(self, since: datetime | None = None) -> Iterator[RowMapping]:
+        """Every record in order, read in pages (no transaction is held between pages)."""
+        t = db.audit_log
         after = 0
         while True:
-            with self._lock:
-                page = self._db.execute(
-                    "SELECT * FROM audit_log WHERE seq > ? ORDER BY seq LIMIT 1000", (after,)
-                ).fetchall()
+            with db.read(self._engine) as conn:
+                page = (
+                    conn.execute(sa.select(t).where(t.c.seq > after).order_by(t.c.seq).limit(1000))
+                    .mappings()
+                    .all()
+                )
             if not page:
                 return
             for r in page:
@@ -508,7 +474,7 @@ def _csv_cell(value: Any) -> Any:
     return "" if value is None else value
 
 
-def _public(r: sqlite3.Row) -> dict[str, Any]:
+def _public(r: RowMapping) -> dict[str, Any]:
     out = {c: r[c] for c in _COLUMNS}
     out["details"] = json.loads(r["details"]) if r["details"] else {}
     out["prev"] = r["prev"]

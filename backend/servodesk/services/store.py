@@ -1,101 +1,46 @@
-"""The embedded store: backup records, restore reports (item by item) and the audit log.
+"""The store: backup records and their content, restore reports (item by item) and the
+audit of parameter writes, on SQLite or PostgreSQL (services/db.py, docs/deployment.md).
 
-One SQLite database (``<data_dir>/servodesk.db``) in WAL mode with ``synchronous=FULL``:
-every change is one transaction, so a crash at any moment leaves either the old or the new
-state, and a committed restore item survives a power loss. Backup files live beside it in
-``<data_dir>/backups/`` and are written by :func:`write_new_file`: temporary file in the
-same directory, fsync, then a hard link to the final name (which fails if the name exists),
-so a file is never half-written under its name and never replaced.
+The default is one SQLite database (``<data_dir>/servodesk.db``) in WAL mode with
+``synchronous=FULL``; ``SERVODESK_STORE_URL=postgresql://...`` puts the same schema on a
+central PostgreSQL that several gateways share. Every change is one transaction, so a crash
+at any moment leaves either the old or the new state, and a committed restore item survives
+a power loss.
 
-The connection is shared by the event loop and worker threads behind one lock; every call
-is short (milliseconds).
+A backup's bytes are in the store (``backup_content``, keyed by SHA-256: identical content
+is stored once), so every machine on the store can open every backup. The data directory's
+``backups/`` keeps a local copy of each file, written by :func:`write_new_file`: temporary
+file in the same directory, fsync, then a hard link to the final name (which fails if the
+name exists), so a file is never half-written under its name and never replaced. A file
+another gateway made is copied there from the store when it is first opened here
+(:meth:`Store.backup_file_row`); the files of a data directory made before the content was
+in the store are copied into it when the store opens.
 """
 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
+import logging
 import os
-import sqlite3
 import tempfile
-import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import sqlalchemy as sa
+from sqlalchemy.engine import Connection, RowMapping
+
 from servodesk.errors import ConflictError, NotFoundError, ServodeskError
 from servodesk.files import inside, remove_stale_temp_files
+from servodesk.services import db
+from servodesk.services.db import StoreError
 
-SCHEMA = """
-CREATE TABLE IF NOT EXISTS backups (
-    id TEXT PRIMARY KEY,
-    time TEXT NOT NULL,
-    created REAL NOT NULL,
-    label TEXT NOT NULL DEFAULT '',
-    note TEXT NOT NULL DEFAULT '',
-    profile_id TEXT NOT NULL,
-    profile_version TEXT NOT NULL DEFAULT '',
-    drive_key TEXT NOT NULL,
-    identity TEXT NOT NULL,
-    firmware TEXT,
-    bus TEXT NOT NULL,
-    entries INTEGER NOT NULL,
-    file TEXT NOT NULL,
-    sha256 TEXT NOT NULL,
-    source TEXT NOT NULL DEFAULT 'drive',
-    unreadable TEXT
-);
-CREATE INDEX IF NOT EXISTS backups_drive ON backups (drive_key, created);
-CREATE TABLE IF NOT EXISTS restores (
-    id TEXT PRIMARY KEY,
-    backup TEXT NOT NULL,
-    session TEXT NOT NULL,
-    drive_key TEXT NOT NULL,
-    bus TEXT NOT NULL,
-    time TEXT NOT NULL,
-    created REAL NOT NULL,
-    dry_run INTEGER NOT NULL,
-    finished INTEGER NOT NULL DEFAULT 0,
-    stored INTEGER NOT NULL DEFAULT 0,
-    interrupted INTEGER NOT NULL DEFAULT 0,
-    pre_backup TEXT,
-    options TEXT NOT NULL,
-    message TEXT
-);
-CREATE TABLE IF NOT EXISTS restore_items (
-    restore TEXT NOT NULL,
-    seq INTEGER NOT NULL,
-    address TEXT NOT NULL,
-    source TEXT NOT NULL,
-    name TEXT NOT NULL,
-    status TEXT NOT NULL,
-    old_raw_hex TEXT,
-    new_raw_hex TEXT,
-    code INTEGER,
-    meaning TEXT,
-    message TEXT,
-    PRIMARY KEY (restore, seq)
-);
-CREATE TABLE IF NOT EXISTS audit (
-    id INTEGER PRIMARY KEY AUTOINCREMENT,
-    time REAL NOT NULL,
-    client TEXT NOT NULL,
-    session TEXT NOT NULL,
-    drive_key TEXT NOT NULL,
-    address TEXT NOT NULL,
-    name TEXT,
-    old_raw_hex TEXT,
-    new_raw_hex TEXT NOT NULL,
-    old_value TEXT,
-    new_value TEXT
-);
-CREATE INDEX IF NOT EXISTS audit_session ON audit (session, id);
-"""
+__all__ = ["Store", "StoreError", "write_new_file"]
 
-
-class StoreError(ServodeskError):
-    """The store or a backup file cannot be written or read."""
+log = logging.getLogger(__name__)
 
 
 def write_new_file(path: Path, data: bytes) -> None:
@@ -169,9 +114,11 @@ def _fsync_dir(directory: Path) -> None:
 
 
 class Store:
-    """Backups, restores and the audit log in ``data_dir``."""
+    """Backups, restores and the audit of parameter writes, for the data directory
+    ``data_dir`` (its local backup files) on the store at ``url`` (empty: the SQLite file
+    in ``data_dir``)."""
 
-    def __init__(self, data_dir: Path) -> None:
+    def __init__(self, data_dir: Path, url: str = "") -> None:
         self.data_dir = Path(data_dir)
         self.backups_dir = self.data_dir / "backups"
         try:
@@ -185,48 +132,70 @@ class Store:
             ) from exc
         # A crash in the middle of write_new_file can leave its temporary file behind.
         remove_stale_temp_files(self.backups_dir)
-        self.path = self.data_dir / "servodesk.db"
-        self._lock = threading.RLock()
+        #: The SQLite file of the default store (also where the audit log was before the URL).
+        self.path = self.data_dir / db.SQLITE_FILE
+        #: The store's URL: what AuditLog and UserStore open to share it.
+        self.url = db.store_url(self.data_dir, url)
+        self._engine = db.open_engine(self.url)
+        self._postgres = db.is_postgres(self._engine)
         try:
-            self._db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None)
-            self._db.row_factory = sqlite3.Row
-            self._db.execute("PRAGMA journal_mode=WAL")
-            self._db.execute("PRAGMA synchronous=FULL")
-            self._db.execute("PRAGMA busy_timeout=5000")
-            self._db.executescript(SCHEMA)
-            self._migrate()
-        except sqlite3.Error as exc:
-            raise StoreError(
-                f"cannot open the store {self.path}: {exc}",
-                hint="check SERVODESK_DATA_DIR and its permissions",
-            ) from exc
+            self._repair_columns()
+            self._migrate_files()
+        except sa.exc.SQLAlchemyError as exc:
+            self._engine.dispose()
+            raise db.store_error(exc) from exc
 
-    def _migrate(self) -> None:
-        """Bring a store of an older servodesk up to this schema.
+    @property
+    def engine(self) -> sa.Engine:
+        return self._engine
 
-        The ``unreadable`` column (issue 48) came later: a record without it takes the list
-        from its own file, so an old incomplete backup is shown as incomplete too.
-        """
-        columns = {r["name"] for r in self._db.execute("PRAGMA table_info(backups)")}
+    def _repair_columns(self) -> None:
+        """``backups.unreadable`` (issue 48) is in revision 0001; a database that an older
+        servodesk changed after it was upgraded (run against it again, or a copy taken back)
+        can lack it while it says 0002. Added here, as that older servodesk did."""
+        columns = {c["name"] for c in sa.inspect(self._engine).get_columns("backups")}
         if "unreadable" not in columns:
-            self._db.execute("ALTER TABLE backups ADD COLUMN unreadable TEXT")
-        for row in self._db.execute(
-            "SELECT id, file FROM backups WHERE unreadable IS NULL"
-        ).fetchall():
+            with db.write(self._engine) as conn:
+                conn.execute(sa.text("ALTER TABLE backups ADD COLUMN unreadable TEXT"))
+
+    def _migrate_files(self) -> None:
+        """Bring records of an older servodesk up to this schema, from their files.
+
+        - Content: a backup whose bytes are not in the store yet (made before revision 0002)
+          gets them from its file here, when the file is intact (its SHA-256 matches).
+        - ``unreadable`` (issue 48) came later: a record without it takes the list from its
+          own file, so an old incomplete backup is shown as incomplete too.
+
+        A missing or damaged file is left alone: it is reported when the backup is used.
+        """
+        b, c = db.backups, db.backup_content
+        query = (
+            sa.select(b.c.id, b.c.file, b.c.sha256, b.c.unreadable, c.c.sha256.label("have"))
+            .select_from(b.outerjoin(c, b.c.sha256 == c.c.sha256))
+            .where(sa.or_(c.c.sha256.is_(None), b.c.unreadable.is_(None)))
+        )
+        with db.read(self._engine) as conn:
+            rows = conn.execute(query).mappings().all()
+        for row in rows:
             try:
-                doc = json.loads(self.backup_file(str(row["file"])).read_bytes())
-                items = doc.get("unreadable", []) if isinstance(doc, dict) else None
-            except (OSError, ValueError, ServodeskError):
-                continue  # A missing or damaged file is reported when it is used.
-            if isinstance(items, list):
-                self._db.execute(
-                    "UPDATE backups SET unreadable = ? WHERE id = ?",
-                    (json.dumps(items), row["id"]),
-                )
+                data = self.backup_file(str(row["file"])).read_bytes()
+            except (OSError, ServodeskError):
+                continue
+            intact = hashlib.sha256(data).hexdigest() == row["sha256"]
+            with db.write(self._engine) as conn:
+                if row["have"] is None and intact:
+                    conn.execute(db.insert_ignore(conn, c), _content_row(data))
+                elif row["have"] is None:
+                    log.warning("backup %s: its file differs from its SHA-256", row["id"])
+                if row["unreadable"] is None:
+                    items = _unreadable_of(data)
+                    if items is not None:
+                        conn.execute(
+                            sa.update(b).where(b.c.id == row["id"]).values(unreadable=items)
+                        )
 
     def close(self) -> None:
-        with self._lock:
-            self._db.close()
+        self._engine.dispose()
 
     def backup_file(self, name: str) -> Path:
         """The path of backup file ``name``, confirmed inside the backups directory (a name
@@ -234,56 +203,68 @@ class Store:
         return inside(self.backups_dir, name)
 
     @contextlib.contextmanager
-    def _tx(self) -> Iterator[sqlite3.Connection]:
-        with self._lock:
-            try:
-                self._db.execute("BEGIN IMMEDIATE")
-                try:
-                    yield self._db
-                except BaseException:
-                    self._db.execute("ROLLBACK")
-                    raise
-                self._db.execute("COMMIT")
-            except sqlite3.Error as exc:
-                raise StoreError(f"store error: {exc}", hint="see the server log") from exc
+    def _tx(self) -> Iterator[Connection]:
+        try:
+            with db.write(self._engine) as conn:
+                yield conn
+        except sa.exc.SQLAlchemyError as exc:
+            raise db.store_error(exc) from exc
 
-    def _query(self, sql: str, args: tuple[Any, ...] = ()) -> list[sqlite3.Row]:
-        with self._lock:
-            try:
-                return list(self._db.execute(sql, args).fetchall())
-            except sqlite3.Error as exc:
-                raise StoreError(f"store error: {exc}", hint="see the server log") from exc
+    def _query(self, statement: sa.Executable) -> list[RowMapping]:
+        try:
+            with db.read(self._engine) as conn:
+                return list(conn.execute(statement).mappings().all())
+        except sa.exc.SQLAlchemyError as exc:
+            raise db.store_error(exc) from exc
 
     # Backups -------------------------------------------------------------------------------
 
     def add_backup(self, info: dict[str, Any], source: str = "drive") -> None:
-        with self._tx() as db:
-            db.execute(
-                "INSERT INTO backups (id, time, created, label, note, profile_id, "
-                "profile_version, drive_key, identity, firmware, bus, entries, file, sha256, "
-                "source, unreadable) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
-                (
-                    info["id"],
-                    info["time"],
-                    time.time(),
-                    info["label"],
-                    info["note"],
-                    info["profile_id"],
-                    info["profile_version"],
-                    info["drive_key"],
-                    json.dumps(info["identity"]),
-                    info["firmware"],
-                    json.dumps(info["bus"]),
-                    info["entries"],
-                    info["file"],
-                    info["sha256"],
-                    source,
-                    json.dumps(info.get("unreadable", [])),
-                ),
+        """The record of a backup whose file the caller has written (``info["file"]``), and
+        the file's bytes, in one transaction.
+
+        A file that cannot be read here or no longer matches ``info["sha256"]`` leaves the
+        record without content, as the record of a lost file was before: opening the
+        backup then says that the file is missing or was changed (backup_files.read_checked).
+        """
+        data: bytes | None = None
+        try:
+            data = self.backup_file(info["file"]).read_bytes()
+        except (OSError, ServodeskError) as exc:
+            log.warning(
+                "backup %s: its file cannot be read (%s); recorded without it", info["id"], exc
+            )
+        if data is not None and hashlib.sha256(data).hexdigest() != info["sha256"]:
+            log.warning(
+                "backup %s: its file differs from its SHA-256; recorded without it", info["id"]
+            )
+            data = None
+        with self._tx() as conn:
+            if data is not None:
+                conn.execute(db.insert_ignore(conn, db.backup_content), _content_row(data))
+            conn.execute(
+                sa.insert(db.backups).values(
+                    id=info["id"],
+                    time=info["time"],
+                    created=time.time(),
+                    label=info["label"],
+                    note=info["note"],
+                    profile_id=info["profile_id"],
+                    profile_version=info["profile_version"],
+                    drive_key=info["drive_key"],
+                    identity=json.dumps(info["identity"]),
+                    firmware=info["firmware"],
+                    bus=json.dumps(info["bus"]),
+                    entries=info["entries"],
+                    file=info["file"],
+                    sha256=info["sha256"],
+                    source=source,
+                    unreadable=json.dumps(info.get("unreadable", [])),
+                )
             )
 
     @staticmethod
-    def _backup_row(r: sqlite3.Row) -> dict[str, Any]:
+    def _backup_row(r: RowMapping) -> dict[str, Any]:
         unreadable = json.loads(r["unreadable"]) if r["unreadable"] else []
         return {
             "id": r["id"],
@@ -306,7 +287,7 @@ class Store:
         }
 
     def get_backup(self, bid: str) -> dict[str, Any]:
-        rows = self._query("SELECT * FROM backups WHERE id = ?", (bid,))
+        rows = self._query(sa.select(db.backups).where(db.backups.c.id == bid))
         if not rows:
             raise NotFoundError(f"no backup {bid!r}", hint="list the backups with GET /backups")
         return self._backup_row(rows[0])
@@ -314,114 +295,133 @@ class Store:
     def backup_file_row(self, bid: str) -> dict[str, Any]:
         """Only what opening the backup's file needs (file, sha256, profile_id, label, note):
         nothing whose size the file decides is parsed here, on the caller's thread (the
-        heavy part is parsed in the documents' worker: api/backup_documents.py)."""
+        heavy part is parsed in the documents' worker: api/backup_documents.py).
+
+        A file this data directory lacks (the backup was made by another gateway on the
+        same store) is copied here from the store first, so that the path is there to read.
+        """
+        b = db.backups
         rows = self._query(
-            "SELECT file, sha256, profile_id, label, note FROM backups WHERE id = ?", (bid,)
+            sa.select(b.c.file, b.c.sha256, b.c.profile_id, b.c.label, b.c.note).where(
+                b.c.id == bid
+            )
         )
         if not rows:
             raise NotFoundError(f"no backup {bid!r}", hint="list the backups with GET /backups")
-        return dict(rows[0])
+        row = dict(rows[0])
+        self._materialise(str(row["file"]), str(row["sha256"]))
+        return row
+
+    def _materialise(self, name: str, sha256: str) -> None:
+        path = self.backup_file(name)
+        if path.exists():
+            return
+        data = self.content(sha256)
+        if data is None:
+            return  # Neither here nor in the store: read_checked reports it missing.
+        with contextlib.suppress(ConflictError):  # Another thread wrote it meanwhile.
+            write_new_file(path, data)
+
+    def content(self, sha256: str) -> bytes | None:
+        """The backup content of this SHA-256, or None when the store lacks it."""
+        c = db.backup_content
+        rows = self._query(sa.select(c.c.data).where(c.c.sha256 == sha256))
+        return bytes(rows[0]["data"]) if rows else None
 
     def list_backups(
         self, drive_key: str | None = None, profile_id: str | None = None, limit: int = 1000
     ) -> list[dict[str, Any]]:
-        sql = "SELECT * FROM backups WHERE 1=1"
-        args: list[Any] = []
+        b = db.backups
+        query = sa.select(b)
         if drive_key:
-            sql += " AND drive_key = ?"
-            args.append(drive_key)
+            query = query.where(b.c.drive_key == drive_key)
         if profile_id:
-            sql += " AND profile_id = ?"
-            args.append(profile_id)
-        sql += " ORDER BY created DESC, rowid DESC LIMIT ?"
-        args.append(limit)
-        return [self._backup_row(r) for r in self._query(sql, tuple(args))]
+            query = query.where(b.c.profile_id == profile_id)
+        # The same second's backups in the order they were made: SQLite's rowid; PostgreSQL
+        # has none, and a time-stamped id is the closest.
+        tie = b.c.id.desc() if self._postgres else sa.literal_column("rowid").desc()
+        query = query.order_by(b.c.created.desc(), tie).limit(limit)
+        return [self._backup_row(r) for r in self._query(query)]
 
     def update_backup(self, bid: str, label: str | None, note: str | None) -> dict[str, Any]:
         self.get_backup(bid)
-        with self._tx() as db:
-            if label is not None:
-                db.execute("UPDATE backups SET label = ? WHERE id = ?", (label, bid))
-            if note is not None:
-                db.execute("UPDATE backups SET note = ? WHERE id = ?", (note, bid))
+        values = {k: v for k, v in (("label", label), ("note", note)) if v is not None}
+        if values:
+            with self._tx() as conn:
+                conn.execute(sa.update(db.backups).where(db.backups.c.id == bid).values(values))
         return self.get_backup(bid)
 
     # Restores ------------------------------------------------------------------------------
 
     def add_restore(self, meta: dict[str, Any], items: list[dict[str, Any]]) -> None:
         """A restore and all its items, in one transaction (before the first write)."""
-        with self._tx() as db:
-            db.execute(
-                "INSERT INTO restores (id, backup, session, drive_key, bus, time, created, "
-                "dry_run, finished, stored, interrupted, pre_backup, options, message) "
-                "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?)",
-                (
-                    meta["id"],
-                    meta["backup"],
-                    meta["session"],
-                    meta["drive_key"],
-                    json.dumps(meta["bus"]),
-                    meta["time"],
-                    time.time(),
-                    int(meta["dry_run"]),
-                    int(meta.get("finished", False)),
-                    0,
-                    0,
-                    meta.get("pre_backup"),
-                    json.dumps(meta["options"]),
-                    meta.get("message"),
-                ),
+        with self._tx() as conn:
+            conn.execute(
+                sa.insert(db.restores).values(
+                    id=meta["id"],
+                    backup=meta["backup"],
+                    session=meta["session"],
+                    drive_key=meta["drive_key"],
+                    bus=json.dumps(meta["bus"]),
+                    time=meta["time"],
+                    created=time.time(),
+                    dry_run=int(meta["dry_run"]),
+                    finished=int(meta.get("finished", False)),
+                    stored=0,
+                    interrupted=0,
+                    pre_backup=meta.get("pre_backup"),
+                    options=json.dumps(meta["options"]),
+                    message=meta.get("message"),
+                )
             )
-            db.executemany(
-                "INSERT INTO restore_items (restore, seq, address, source, name, status, "
-                "old_raw_hex, new_raw_hex, code, meaning, message) VALUES (?,?,?,?,?,?,?,?,?,?,?)",
-                [
-                    (
-                        meta["id"],
-                        i,
-                        it["address"],
-                        it["source"],
-                        it["name"],
-                        it["status"],
-                        it.get("old_raw_hex"),
-                        it.get("new_raw_hex"),
-                        it.get("code"),
-                        it.get("meaning"),
-                        it.get("message"),
-                    )
-                    for i, it in enumerate(items)
-                ],
-            )
+            if items:
+                conn.execute(
+                    sa.insert(db.restore_items),
+                    [
+                        {
+                            "restore": meta["id"],
+                            "seq": i,
+                            "address": it["address"],
+                            "source": it["source"],
+                            "name": it["name"],
+                            "status": it["status"],
+                            "old_raw_hex": it.get("old_raw_hex"),
+                            "new_raw_hex": it.get("new_raw_hex"),
+                            "code": it.get("code"),
+                            "meaning": it.get("meaning"),
+                            "message": it.get("message"),
+                        }
+                        for i, it in enumerate(items)
+                    ],
+                )
 
     def set_item(self, rid: str, seq: int, **fields: Any) -> None:
         """Record one item's new status (committed before the next write goes out)."""
         allowed = {"status", "old_raw_hex", "code", "meaning", "message"}
-        cols = [k for k in fields if k in allowed]
-        if not cols:
+        values = {k: v for k, v in fields.items() if k in allowed}
+        if not values:
             return
-        sets = ", ".join(f"{c} = ?" for c in cols)
-        with self._tx() as db:
-            db.execute(
-                f"UPDATE restore_items SET {sets} WHERE restore = ? AND seq = ?",
-                (*[fields[c] for c in cols], rid, seq),
-            )
+        ri = db.restore_items
+        with self._tx() as conn:
+            conn.execute(sa.update(ri).where(ri.c.restore == rid, ri.c.seq == seq).values(values))
 
     def set_restore(self, rid: str, **fields: Any) -> None:
         allowed = {"finished", "stored", "interrupted", "message", "session", "pre_backup"}
-        cols = [k for k in fields if k in allowed]
-        if not cols:
+        values = {
+            k: int(v) if isinstance(v, bool) else v for k, v in fields.items() if k in allowed
+        }
+        if not values:
             return
-        sets = ", ".join(f"{c} = ?" for c in cols)
-        vals = [int(v) if isinstance(v, bool) else v for v in (fields[c] for c in cols)]
-        with self._tx() as db:
-            db.execute(f"UPDATE restores SET {sets} WHERE id = ?", (*vals, rid))
+        with self._tx() as conn:
+            conn.execute(sa.update(db.restores).where(db.restores.c.id == rid).values(values))
 
     def get_restore(self, rid: str) -> dict[str, Any]:
-        rows = self._query("SELECT * FROM restores WHERE id = ?", (rid,))
+        rows = self._query(sa.select(db.restores).where(db.restores.c.id == rid))
         if not rows:
             raise NotFoundError(f"no restore {rid!r}", hint="see the id in the restore report")
         r = rows[0]
-        items = self._query("SELECT * FROM restore_items WHERE restore = ? ORDER BY seq", (rid,))
+        ri = db.restore_items
+        items = self._query(sa.select(ri).where(ri.c.restore == rid).order_by(ri.c.seq))
         return {
             "id": r["id"],
             "backup": r["backup"],
@@ -456,32 +456,28 @@ class Store:
     # Audit ---------------------------------------------------------------------------------
 
     def add_audit(self, rec: dict[str, Any]) -> None:
-        with self._tx() as db:
-            db.execute(
-                "INSERT INTO audit (time, client, session, drive_key, address, name, "
-                "old_raw_hex, new_raw_hex, old_value, new_value) VALUES (?,?,?,?,?,?,?,?,?,?)",
-                (
-                    rec["time"],
-                    rec["client"],
-                    rec["session"],
-                    rec["drive_key"],
-                    rec["address"],
-                    rec.get("name"),
-                    rec.get("old_raw_hex"),
-                    rec["new_raw_hex"],
-                    json.dumps(rec.get("old_value")),
-                    json.dumps(rec.get("new_value")),
-                ),
+        with self._tx() as conn:
+            conn.execute(
+                sa.insert(db.audit).values(
+                    time=rec["time"],
+                    client=rec["client"],
+                    session=rec["session"],
+                    drive_key=rec["drive_key"],
+                    address=rec["address"],
+                    name=rec.get("name"),
+                    old_raw_hex=rec.get("old_raw_hex"),
+                    new_raw_hex=rec["new_raw_hex"],
+                    old_value=json.dumps(rec.get("old_value")),
+                    new_value=json.dumps(rec.get("new_value")),
+                )
             )
 
     def list_audit(self, session: str | None = None, limit: int = 100) -> list[dict[str, Any]]:
-        sql = "SELECT * FROM audit"
-        args: list[Any] = []
+        a = db.audit
+        query = sa.select(a)
         if session:
-            sql += " WHERE session = ?"
-            args.append(session)
-        sql += " ORDER BY id DESC LIMIT ?"
-        args.append(limit)
+            query = query.where(a.c.session == session)
+        query = query.order_by(a.c.id.desc()).limit(limit)
         return [
             {
                 "time": r["time"],
@@ -495,5 +491,19 @@ class Store:
                 "old_value": json.loads(r["old_value"]) if r["old_value"] else None,
                 "new_value": json.loads(r["new_value"]) if r["new_value"] else None,
             }
-            for r in self._query(sql, tuple(args))
+            for r in self._query(query)
         ]
+
+
+def _content_row(data: bytes) -> dict[str, Any]:
+    return {"sha256": hashlib.sha256(data).hexdigest(), "size": len(data), "data": data}
+
+
+def _unreadable_of(data: bytes) -> str | None:
+    """The ``unreadable`` list of a backup file as stored JSON text (None: not a list)."""
+    try:
+        doc = json.loads(data)
+    except ValueError:
+        return None
+    items = doc.get("unreadable", []) if isinstance(doc, dict) else None
+    return json.dumps(items) if isinstance(items, list) else None

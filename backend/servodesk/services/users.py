@@ -1,4 +1,5 @@
-"""Local accounts and their API tokens, in servodesk's store (``<data_dir>/servodesk.db``).
+"""Local accounts and their API tokens, in servodesk's store (``<data_dir>/servodesk.db``, or
+the PostgreSQL of ``SERVODESK_STORE_URL``: services/db.py).
 
 - Passwords are hashed with argon2id (argon2-cffi's defaults: RFC 9106 §4's second
   recommended set, 64 MiB, 3 passes); only the hash is stored, nothing logs a password.
@@ -12,7 +13,7 @@
   mode's caller (api/identity.py) and cannot be an account.
 
 Sessions (logins) are not stored: they live in the server's memory (services/logins.py) and
-end with it. Issue 49 moves this store to SQLAlchemy; the tables are kept small for that.
+end with it (a gateway's logins are its own; the accounts are the store's, shared).
 """
 
 from __future__ import annotations
@@ -21,37 +22,19 @@ import hashlib
 import hmac
 import re
 import secrets
-import sqlite3
 import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import sqlalchemy as sa
 from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError
 
 from servodesk.domain.roles import Role, parse_role
 from servodesk.errors import ConflictError, NotFoundError, ServodeskError, ValidationError
-
-SCHEMA = """
-CREATE TABLE IF NOT EXISTS users (
-    name TEXT PRIMARY KEY,
-    role TEXT NOT NULL,
-    hash TEXT NOT NULL,
-    disabled INTEGER NOT NULL DEFAULT 0,
-    created REAL NOT NULL
-);
-CREATE TABLE IF NOT EXISTS api_tokens (
-    id TEXT PRIMARY KEY,
-    user TEXT NOT NULL,
-    label TEXT NOT NULL DEFAULT '',
-    sha256 TEXT NOT NULL,
-    created REAL NOT NULL,
-    last_used REAL
-);
-CREATE INDEX IF NOT EXISTS api_tokens_user ON api_tokens (user);
-"""
+from servodesk.services import db
 
 NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._@-]{0,63}$")
 #: IEC 62443-4-2 CR 1.7 (password strength): a minimum length; the upper bound keeps one
@@ -137,58 +120,62 @@ def _sha256(secret: str) -> str:
 
 
 class UserStore:
-    """Accounts and API tokens. One connection, shared behind a lock; every call is short
-    except :meth:`verify_password` (argon2: run it in a thread)."""
+    """Accounts and API tokens in the store at ``url`` (empty: the SQLite file in
+    ``data_dir``). Every call is short and one transaction, except
+    :meth:`verify_password` (argon2: run it in a thread)."""
 
-    def __init__(self, data_dir: Path) -> None:
-        self.path = Path(data_dir) / "servodesk.db"
+    def __init__(self, data_dir: Path, url: str = "") -> None:
+        self.path = Path(data_dir) / db.SQLITE_FILE
+        self.url = db.store_url(Path(data_dir), url)
         self._lock = threading.RLock()
-        self._conn: sqlite3.Connection | None = None
+        self._engine: sa.Engine | None = None
         _ = self._db  # Opened now: a store that cannot be opened is refused at start-up.
 
     @property
-    def _db(self) -> sqlite3.Connection:
-        """The connection, opened again after :meth:`close` (an application's lifespan may
-        run more than once, as in tests)."""
+    def _db(self) -> sa.Engine:
+        """The engine, opened again after :meth:`close` (an application's lifespan may run
+        more than once, as in tests)."""
         with self._lock:
-            if self._conn is None:
+            if self._engine is None:
                 try:
-                    self.path.parent.mkdir(parents=True, exist_ok=True)
-                    db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None)
-                    db.row_factory = sqlite3.Row
-                    db.execute("PRAGMA journal_mode=WAL")
-                    db.execute("PRAGMA synchronous=FULL")
-                    db.execute("PRAGMA busy_timeout=5000")
-                    db.executescript(SCHEMA)
-                except (OSError, sqlite3.Error) as exc:
-                    raise UsersError(
-                        f"cannot open the account store {self.path}: {exc}",
-                        hint="set SERVODESK_DATA_DIR to a directory you can write",
-                    ) from exc
-                self._conn = db
-            return self._conn
+                    self._engine = db.open_engine(self.url)
+                except db.StoreError as exc:
+                    raise UsersError(exc.message, hint=exc.hint) from exc
+            return self._engine
 
     def close(self) -> None:
         with self._lock:
-            if self._conn is not None:
-                self._conn.close()
-                self._conn = None
+            if self._engine is not None:
+                self._engine.dispose()
+                self._engine = None
 
-    def _rows(self, sql: str, args: tuple[Any, ...] = ()) -> list[sqlite3.Row]:
-        with self._lock:
-            return self._db.execute(sql, args).fetchall()
+    def _rows(self, statement: sa.Executable) -> list[sa.RowMapping]:
+        try:
+            with db.read(self._db) as conn:
+                return list(conn.execute(statement).mappings().all())
+        except sa.exc.SQLAlchemyError as exc:
+            raise _error(exc) from exc
 
-    def _write(self, sql: str, args: tuple[Any, ...] = ()) -> int:
-        with self._lock:
-            return self._db.execute(sql, args).rowcount
+    def _write(self, *statements: sa.Executable) -> int:
+        """The statements in one transaction; the rows the last one changed."""
+        try:
+            with db.write(self._db) as conn:
+                count = 0
+                for statement in statements:
+                    count = conn.execute(statement).rowcount
+                return count
+        except sa.exc.IntegrityError:
+            raise
+        except sa.exc.SQLAlchemyError as exc:
+            raise _error(exc) from exc
 
     # Accounts ---------------------------------------------------------------------------
 
     def has_accounts(self) -> bool:
-        return bool(self._rows("SELECT 1 FROM users LIMIT 1"))
+        return bool(self._rows(sa.select(sa.literal(1)).select_from(_U).limit(1)))
 
     def get(self, name: str) -> User | None:
-        rows = self._rows("SELECT * FROM users WHERE name = ?", (name,))
+        rows = self._rows(sa.select(_U).where(_U.c.name == name))
         return _user(rows[0]) if rows else None
 
     def require(self, name: str) -> User:
@@ -198,7 +185,7 @@ class UserStore:
         return user
 
     def all(self) -> list[User]:
-        return [_user(r) for r in self._rows("SELECT * FROM users ORDER BY name")]
+        return [_user(r) for r in self._rows(sa.select(_U).order_by(_U.c.name))]
 
     def add(self, name: str, role: str, password: str) -> User:
         check_name(name)
@@ -206,10 +193,9 @@ class UserStore:
         digest = hash_password(password)
         try:
             self._write(
-                "INSERT INTO users (name, role, hash, created) VALUES (?, ?, ?, ?)",
-                (name, role, digest, time.time()),
+                sa.insert(_U).values(name=name, role=role, hash=digest, created=time.time())
             )
-        except sqlite3.IntegrityError:
+        except sa.exc.IntegrityError:
             raise ConflictError(
                 f"the account {name!r} exists",
                 hint="choose another name, or change its password (users passwd)",
@@ -218,24 +204,26 @@ class UserStore:
 
     def set_password(self, name: str, password: str) -> None:
         self.require(name)
-        self._write("UPDATE users SET hash = ? WHERE name = ?", (hash_password(password), name))
+        self._write(sa.update(_U).where(_U.c.name == name).values(hash=hash_password(password)))
 
     def set_role(self, name: str, role: str) -> User:
         parse_role(role)
         self._refuse_last_admin(name, losing=role != Role.ADMINISTRATOR)
-        self._write("UPDATE users SET role = ? WHERE name = ?", (role, name))
+        self._write(sa.update(_U).where(_U.c.name == name).values(role=role))
         return self.require(name)
 
     def set_disabled(self, name: str, disabled: bool) -> User:
         self._refuse_last_admin(name, losing=disabled)
-        self._write("UPDATE users SET disabled = ? WHERE name = ?", (int(disabled), name))
+        self._write(sa.update(_U).where(_U.c.name == name).values(disabled=int(disabled)))
         return self.require(name)
 
     def remove(self, name: str) -> None:
         self._refuse_last_admin(name, losing=True)
-        with self._lock:
-            self._db.execute("DELETE FROM api_tokens WHERE user = ?", (name,))
-            self._db.execute("DELETE FROM users WHERE name = ?", (name,))
+        # The account and its tokens together: never tokens left of a removed account.
+        self._write(
+            sa.delete(_T).where(_T.c.user == name),
+            sa.delete(_U).where(_U.c.name == name),
+        )
 
     def _refuse_last_admin(self, name: str, *, losing: bool) -> None:
         """Nobody could manage accounts any more: refused (the CLI can still add one)."""
@@ -243,8 +231,9 @@ class UserStore:
         if not losing or user.role != Role.ADMINISTRATOR or user.disabled:
             return
         others = self._rows(
-            "SELECT 1 FROM users WHERE role = ? AND disabled = 0 AND name != ?",
-            (Role.ADMINISTRATOR.value, name),
+            sa.select(sa.literal(1))
+            .select_from(_U)
+            .where(_U.c.role == Role.ADMINISTRATOR.value, _U.c.disabled == 0, _U.c.name != name)
         )
         if not others:
             raise ConflictError(
@@ -256,7 +245,7 @@ class UserStore:
     def verify_password(self, name: str, password: str) -> User | None:
         """The enabled account ``name`` if ``password`` is its password, else None. Slow
         (argon2): call it in a thread from the event loop."""
-        row = self._rows("SELECT * FROM users WHERE name = ?", (name,)) if NAME.match(name) else []
+        row = self._rows(sa.select(_U).where(_U.c.name == name)) if NAME.match(name) else []
         digest = str(row[0]["hash"]) if row else _DUMMY
         try:
             _hasher.verify(digest, password)
@@ -268,7 +257,7 @@ class UserStore:
         if user.disabled:
             return None
         if _hasher.check_needs_rehash(digest):  # Parameters raised since it was made.
-            self._write("UPDATE users SET hash = ? WHERE name = ?", (_hasher.hash(password), name))
+            self._write(sa.update(_U).where(_U.c.name == name).values(hash=_hasher.hash(password)))
         return user
 
     # API tokens -------------------------------------------------------------------------
@@ -285,23 +274,22 @@ class UserStore:
         secret = secrets.token_urlsafe(32)
         full = f"{TOKEN_PREFIX}{tid}_{secret}"
         self._write(
-            "INSERT INTO api_tokens (id, user, label, sha256, created) VALUES (?, ?, ?, ?, ?)",
-            (tid, user, label, _sha256(full), time.time()),
+            sa.insert(_T).values(
+                id=tid, user=user, label=label, sha256=_sha256(full), created=time.time()
+            )
         )
         return self.tokens(user, tid)[0], full
 
     def tokens(self, user: str | None = None, tid: str | None = None) -> list[ApiToken]:
-        sql, args = "SELECT * FROM api_tokens WHERE 1=1", []
+        query = sa.select(_T)
         if user is not None:
-            sql += " AND user = ?"
-            args.append(user)
+            query = query.where(_T.c.user == user)
         if tid is not None:
-            sql += " AND id = ?"
-            args.append(tid)
-        return [_token(r) for r in self._rows(sql + " ORDER BY created", tuple(args))]
+            query = query.where(_T.c.id == tid)
+        return [_token(r) for r in self._rows(query.order_by(_T.c.created))]
 
     def delete_token(self, user: str, tid: str) -> None:
-        if not self._write("DELETE FROM api_tokens WHERE id = ? AND user = ?", (tid, user)):
+        if not self._write(sa.delete(_T).where(_T.c.id == tid, _T.c.user == user)):
             raise NotFoundError(f"{user!r} has no API token {tid!r}")
 
     def verify_token(self, presented: bytes) -> tuple[User, ApiToken] | None:
@@ -313,7 +301,7 @@ class UserStore:
         m = _TOKEN.match(text)
         if m is None:
             return None
-        rows = self._rows("SELECT * FROM api_tokens WHERE id = ?", (m.group(1),))
+        rows = self._rows(sa.select(_T).where(_T.c.id == m.group(1)))
         if not rows or not hmac.compare_digest(str(rows[0]["sha256"]), _sha256(text)):
             return None
         token = _token(rows[0])
@@ -322,15 +310,23 @@ class UserStore:
             return None
         now = time.time()
         if token.last_used is None or now - token.last_used > 60:  # Not a write per request.
-            self._write("UPDATE api_tokens SET last_used = ? WHERE id = ?", (now, token.id))
+            self._write(sa.update(_T).where(_T.c.id == token.id).values(last_used=now))
         return user, token
 
 
-def _user(r: sqlite3.Row) -> User:
+_U, _T = db.users, db.api_tokens
+
+
+def _error(exc: sa.exc.SQLAlchemyError) -> UsersError:
+    err = db.store_error(exc)
+    return UsersError(err.message, hint=err.hint)
+
+
+def _user(r: sa.RowMapping) -> User:
     return User(str(r["name"]), str(r["role"]), bool(r["disabled"]), float(r["created"]))
 
 
-def _token(r: sqlite3.Row) -> ApiToken:
+def _token(r: sa.RowMapping) -> ApiToken:
     last = r["last_used"]
     return ApiToken(
         str(r["id"]),
