@@ -1,5 +1,5 @@
 """Per-tick cost of the move simulation the own tuning ranks its candidates with and the
-benchmark's oracle is chosen with: the fused tick loop (sim/fused.py, what ``run_move`` takes
+benchmark's oracle is chosen with: the fused tick loop (model/fused.py, what ``run_move`` takes
 for a noiseless axis; compiled by numba) against the call-per-tick path through
 ``ServoLoop.update`` and ``Plant.step`` (``run_move_stepwise``, the baseline) and against the
 same fused loop run as Python (``python_fused``, what ran before numba compiled it),
@@ -38,10 +38,10 @@ from servodesk.domain.tuning.design import design_gains
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.model import PlantModel
 from servodesk.domain.tuning.search import reference_move
-from servodesk.sim import fused as fused_module
-from servodesk.sim.plant import PlantParams
-from servodesk.sim.plantfile import PlantSpec
-from servodesk.sim.replay import (
+from servodesk.model import fused as fused_module
+from servodesk.model.plant import PlantParams
+from servodesk.model.plantfile import PlantSpec
+from servodesk.model.replay import (
     ModelMoves,
     RecordedMove,
     run_move,
@@ -186,7 +186,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = [one_plant(n, args.rounds, np_) for n in names for np_ in (False, True)]
     recorded = [one_recorded(n, args.rounds) for n in names]
     out = {
-        "what": "reference move on an exact plant model, fused tick loop (sim/fused.py, "
+        "what": "reference move on an exact plant model, fused tick loop (model/fused.py, "
         "compiled) against ServoLoop.update + Plant.step per tick (baseline) and against the "
         "fused loop as Python (python_fused), same process",
         "rounds": args.rounds,

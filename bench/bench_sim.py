@@ -21,9 +21,9 @@ import sys
 import time
 
 from servodesk.domain.profile_loader import ProfileCatalog
+from servodesk.model.plant import PlantParams
+from servodesk.model.plantfile import load_plant_file
 from servodesk.sim.engine import SimulatedDrive
-from servodesk.sim.plant import PlantParams
-from servodesk.sim.plantfile import load_plant_file
 
 REV = 131072
 # (target, relative) pairs the sequence cycles through, in revolutions.

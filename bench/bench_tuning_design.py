@@ -27,7 +27,7 @@ from servodesk.benchmarks.tuning import default_plants, exact_model, plant_names
 from servodesk.domain.tuning import model as loop_model
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.search import tune_on_model
-from servodesk.sim.replay import ModelMoves
+from servodesk.model.replay import ModelMoves
 
 DEFAULT_PLANTS = "R3-400Hz,R10-200Hz,R30-800Hz,R3-rigid"
 

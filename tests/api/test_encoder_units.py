@@ -18,9 +18,9 @@ import pytest_asyncio
 from servodesk.api.app import create_app
 from servodesk.domain.paramset import checksum
 from servodesk.domain.profile_loader import ProfileCatalog, check_profile
+from servodesk.model.plantfile import parse_plant_toml
 from servodesk.settings import Settings
 from servodesk.sim.bus import SimulatedBus
-from servodesk.sim.plantfile import parse_plant_toml
 from tests.control_helpers import take_control
 
 GENERIC = "cia402-generic"

@@ -88,7 +88,7 @@ def test_a_plant_file_is_read_with_a_bound(
     endless: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from servodesk.errors import ValidationError
-    from servodesk.sim.plantfile import load_plant_file
+    from servodesk.model.plantfile import load_plant_file
 
     with pytest.raises(ValidationError) as info:
         load_plant_file(_named(endless, tmp_path / "big.toml"))

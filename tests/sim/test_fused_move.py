@@ -1,5 +1,5 @@
-"""The fused tick loop (sim/fused.py) computes exactly what the servo loop and the plant compute
-call by call (sim/replay.py ``run_move_stepwise``): the tuning ranks its candidates and the
+"""The fused tick loop (model/fused.py) computes exactly what the servo loop and the plant compute
+call by call (model/replay.py ``run_move_stepwise``): the tuning ranks its candidates and the
 benchmark's oracle is chosen with it, so a difference of one count would move both."""
 
 from __future__ import annotations
@@ -12,10 +12,10 @@ import pytest
 
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.search import ReferenceMove, reference_move
-from servodesk.sim import fused, replay
-from servodesk.sim.fused import applies, fused_move
-from servodesk.sim.plant import PlantParams
-from servodesk.sim.replay import RecordedMove
+from servodesk.model import fused, replay
+from servodesk.model.fused import applies, fused_move
+from servodesk.model.plant import PlantParams
+from servodesk.model.replay import RecordedMove
 
 RATE = 16000.0
 COUNTS = 1 << 20

@@ -15,10 +15,10 @@ import pytest
 
 from servodesk.domain.cia402 import State
 from servodesk.domain.profile_loader import ProfileCatalog
+from servodesk.model.plant import PlantParams
 from servodesk.sim import onetouch as ot
 from servodesk.sim.engine import SimAbort, SimulatedDrive
 from servodesk.sim.onetouch import PbGains, controller_gains_from_pb
-from servodesk.sim.plant import PlantParams
 
 LECSN = ProfileCatalog().get("lecsn-t")
 MODE, STATUS, STOP, CLEAR, ERROR = 0x2D50, 0x2D51, 0x2D52, 0x2D53, 0x2D54

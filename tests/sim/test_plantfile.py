@@ -1,4 +1,4 @@
-"""Plant files (docs/tuning.md, "Plant files"; sim/plantfile.py): defaults, values, every
+"""Plant files (docs/tuning.md, "Plant files"; model/plantfile.py): defaults, values, every
 refusal with its message, the hash, and ``servodesk sim --plant``."""
 
 from __future__ import annotations
@@ -16,15 +16,15 @@ import pytest
 
 from servodesk.cli import main
 from servodesk.errors import ServodeskError, ValidationError
-from servodesk.sim.bus import SimulatedBus
-from servodesk.sim.plant import TwoMassMechanics
-from servodesk.sim.plantfile import (
+from servodesk.model.plant import TwoMassMechanics
+from servodesk.model.plantfile import (
     PlantFileError,
     PlantSpec,
     load_plant_file,
     parse_plant_toml,
     spec_keys,
 )
+from servodesk.sim.bus import SimulatedBus
 
 FULL = """
 [motor]
@@ -101,7 +101,7 @@ def test_every_key_is_read() -> None:
 def test_a_compliance_section_makes_a_two_mass_axis_with_its_defaults() -> None:
     spec = parse_plant_toml("[compliance]\n")
     assert (spec.resonance_hz, spec.damping, spec.rigid) == (400.0, 0.03, False)
-    from servodesk.sim.plant import Plant
+    from servodesk.model.plant import Plant
 
     plant = Plant(spec.plant_params())
     assert isinstance(plant.mechanics, TwoMassMechanics)

@@ -1,4 +1,4 @@
-"""The servo loop of the simulated drives (sim/servo.py), its filters, the test signal
+"""The servo loop of the simulated drives (model/servo.py), its filters, the test signal
 generator (sim/siggen.py) and their objects on the generic twin (docs/tuning.md)."""
 
 from __future__ import annotations
@@ -16,10 +16,9 @@ from servodesk.domain.profile import SERVO_GAIN_NAMES, DeviceProfile, TuningSpec
 from servodesk.domain.profile_loader import check_profile, parse_profile
 from servodesk.domain.tuning.gains import ServoGains as DomainGains
 from servodesk.errors import ProfileError
-from servodesk.sim.engine import SIGNATURE_SAVE, SimAbort, SimulatedDrive
-from servodesk.sim.plant import Plant
-from servodesk.sim.plantfile import PlantSpec
-from servodesk.sim.servo import (
+from servodesk.model.plant import Plant
+from servodesk.model.plantfile import PlantSpec
+from servodesk.model.servo import (
     POSITION,
     TORQUE,
     VELOCITY,
@@ -30,6 +29,7 @@ from servodesk.sim.servo import (
     lowpass_coefficients,
     notch_coefficients,
 )
+from servodesk.sim.engine import SIGNATURE_SAVE, SimAbort, SimulatedDrive
 from servodesk.sim.siggen import (
     CHIRP,
     DONE,

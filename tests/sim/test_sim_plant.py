@@ -7,7 +7,7 @@ import statistics
 
 import pytest
 
-from servodesk.sim.plant import Plant, PlantParams
+from servodesk.model.plant import Plant, PlantParams
 
 FRICTIONLESS = PlantParams(viscous=0.0, coulomb=0.0, current_tau=0.0)
 

@@ -1,4 +1,4 @@
-"""The two-mass plant (sim/plant.py, docs/tuning.md "Plant files"): the motor velocity's
+"""The two-mass plant (model/plant.py, docs/tuning.md "Plant files"): the motor velocity's
 resonance and anti-resonance, the integrator at 16 kHz, friction, gravity and torque noise on
 the axis a plant file describes."""
 
@@ -14,8 +14,8 @@ from scipy import signal as sps  # type: ignore[import-untyped]
 
 from servodesk.domain.tuning.identify import frequency_response
 from servodesk.domain.tuning.model import PlantModel
-from servodesk.sim.plant import Plant, PlantParams, RigidMechanics, TwoMassMechanics
-from servodesk.sim.plantfile import PlantSpec
+from servodesk.model.plant import Plant, PlantParams, RigidMechanics, TwoMassMechanics
+from servodesk.model.plantfile import PlantSpec
 from servodesk.sim.siggen import PRBS, SignalConfig, SignalGenerator
 
 RATE = 16000

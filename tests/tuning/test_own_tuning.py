@@ -45,6 +45,7 @@ from servodesk.domain.tuning.model import LoopModel
 from servodesk.domain.tuning.oracle import oracle_search
 from servodesk.domain.tuning.search import reference_move
 from servodesk.errors import DriveStateError, ValidationError
+from servodesk.model.plantfile import PlantSpec
 from servodesk.services import tuning_worker
 from servodesk.services.tuning_own import (
     TRY_WATCH_MAX_S,
@@ -54,7 +55,6 @@ from servodesk.services.tuning_own import (
     TuningFailed,
     refuse_if_worse,
 )
-from servodesk.sim.plantfile import PlantSpec
 
 GAINS = [(0x2100, 0), (0x2101, 0), (0x2102, 0), (0x2104, 0), (0x2106, 1)]
 

@@ -1,5 +1,5 @@
 """The model fitted to the tries' recordings (services/tuning_calibrate.py,
-sim/replay.run_recorded_move, sim/profile_position.py).
+sim/replay.run_recorded_move, model/profile_position.py).
 
 A try the tuning runs on the twin is recorded through the drive's own recorder (60F4h and the
 torque command with the position, at the loop rate), and replayed on a model through the same
@@ -22,6 +22,9 @@ from servodesk.benchmarks.tuning import (
     build_drive,
     default_plants,
 )
+from servodesk.model.plant import PlantParams
+from servodesk.model.profile_position import CONTROL_PERIOD_S, pp_duration_s, pp_step
+from servodesk.model.replay import RecordedMove
 from servodesk.services.tuning_calibrate import (
     fit_inertias,
     fit_split,
@@ -35,9 +38,6 @@ from servodesk.services.tuning_own import (
     OwnTuning,
     OwnTuningRequest,
 )
-from servodesk.sim.plant import PlantParams
-from servodesk.sim.profile_position import CONTROL_PERIOD_S, pp_duration_s, pp_step
-from servodesk.sim.replay import RecordedMove
 
 # A load as heavy as the motor behind a 200 Hz shaft, without torque noise.
 SPEC = replace(dict(default_plants())["R1-200Hz"], noise_torque=0.0)

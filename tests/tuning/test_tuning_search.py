@@ -52,9 +52,9 @@ from servodesk.domain.tuning.search import (
     worth_trying,
 )
 from servodesk.domain.tuning.simulate import friction_step, simulate_batch
-from servodesk.sim.plant import PlantParams
-from servodesk.sim.plantfile import PlantSpec
-from servodesk.sim.replay import ModelMoves, OwnMove, WorstOf, run_move
+from servodesk.model.plant import PlantParams
+from servodesk.model.plantfile import PlantSpec
+from servodesk.model.replay import ModelMoves, OwnMove, WorstOf, run_move
 
 RATE = 16000.0
 JM = 3.7e-5
@@ -86,7 +86,7 @@ def test_friction_holds_breaks_away_and_stops_at_zero() -> None:
     assert out[3] == pytest.approx(0.4)  # Moving: decelerated by Fc.
     assert out[4] == 0.0  # Would cross zero while friction could hold it: stops.
     # Driven through zero by more than Fc: moves on (friction opposes the velocity the step
-    # started with, as sim/plant.py's RigidMechanics does).
+    # started with, as model/plant.py's RigidMechanics does).
     assert out[5] == pytest.approx(-0.01 + 0.2 + 0.1)
     # Without Coulomb friction it is the plain viscous step.
     plain = friction_step(w, drive, 0.5, 0.0, k)
@@ -265,7 +265,7 @@ def test_only_runners_up_the_model_cannot_tell_from_the_winner_go_to_the_axis() 
 
 def _true_tail(gains: ServoGains) -> float:
     """Peak-to-peak error over the last 0.3 s of the reference move on the drive's own plant
-    simulation (sim/plant.py: exact two-mass, Coulomb friction sticking on the load)."""
+    simulation (model/plant.py: exact two-mass, Coulomb friction sticking on the load)."""
     params = PlantParams(
         motor_inertia=JM,
         load_inertia=JM,

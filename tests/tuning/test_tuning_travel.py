@@ -36,6 +36,7 @@ from servodesk.domain.profile import Access, DeviceProfile, ObjectSpec
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.travel import TravelBound, bound_text, half_window, stop_overrun
 from servodesk.errors import ServodeskError
+from servodesk.model.plantfile import PlantSpec, load_plant_file
 from servodesk.services.tuning_own import OwnTuning, OwnTuningRequest
 from servodesk.services.tuning_travel import (
     MIN_RESERVE_SHARE,
@@ -45,7 +46,6 @@ from servodesk.services.tuning_travel import (
     TravelExceeded,
     TravelGuard,
 )
-from servodesk.sim.plantfile import PlantSpec, load_plant_file
 
 PLANT_FILES = Path(__file__).resolve().parents[2] / "bench" / "plants"
 

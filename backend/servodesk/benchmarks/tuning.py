@@ -9,7 +9,7 @@ For each plant (a plant file, docs/tuning.md; by default the set of issue 8: ine
    drive and simulated time, stepped as fast as the computer allows.
 2. The harness runs the reference move (domain/tuning/search.py: 0.5 rev, jerk-limited,
    0.7 x peak torque / total inertia, 50 rev/s at most) on the true plant with the tuned gains:
-   the drive's servo loop (sim/servo.py) on the drive's plant (sim/plant.py), friction, gravity
+   the drive's servo loop (model/servo.py) on the drive's plant (model/plant.py), friction, gravity
    and torque noise included. Bandwidth and margins are computed on the exact plant's linear
    model with the tuned gains (domain/tuning/model.py).
 3. The oracle: the same gain features searched globally with exact plant knowledge (filters
@@ -60,8 +60,8 @@ from servodesk.domain.tuning.search import (
     reference_move,
 )
 from servodesk.files import write_atomic
-from servodesk.sim import replay
-from servodesk.sim.plantfile import PlantSpec, load_plant_file
+from servodesk.model import replay
+from servodesk.model.plantfile import PlantSpec, load_plant_file
 
 #: The travel window and torque limit the benchmark confirms for every tuning run.
 TRAVEL_WINDOW_REV = 0.5

@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
         overrides["sim"] = True
     if args.plant:
         from servodesk.errors import ServodeskError
-        from servodesk.sim.plantfile import load_plant_file
+        from servodesk.model.plantfile import load_plant_file
 
         if not args.sim:
             print(

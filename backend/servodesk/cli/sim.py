@@ -25,7 +25,7 @@ on that network interface (CoE SDO; docs/ethercat.md), e.g. the slave end of a v
 CAP_NET_RAW).
 
 ``--plant FILE`` simulates the axis a TOML plant file describes (docs/tuning.md, "Plant
-files"; sim/plantfile.py) at its loop rate, in place of the profile's ``simulation`` section;
+files"; model/plantfile.py) at its loop rate, in place of the profile's ``simulation`` section;
 a file that cannot be read or holds a bad key or value is refused with the message (exit 2).
 """
 
@@ -92,8 +92,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 def run(args: argparse.Namespace) -> int:
     # Imported here so that `servodesk --help` does not load canopen.
+    from servodesk.model.plantfile import PlantSpec, load_plant_file
     from servodesk.sim.bus import SimulatedBus
-    from servodesk.sim.plantfile import PlantSpec, load_plant_file
 
     stop = threading.Event()
 

@@ -626,7 +626,7 @@ class SimSettings(BaseModel):
     #: cycle (docs/tuning.md; 4 kHz keeps five live twins in real time on a laptop).
     loop_rate_hz: int = Field(default=4000, ge=1000, le=32000)
     #: Integrate the plant exactly for the torque held over each step, as plant files do
-    #: (sim/plant.py ``PlantParams.exact``); false keeps the semi-implicit step every twin
+    #: (model/plant.py ``PlantParams.exact``); false keeps the semi-implicit step every twin
     #: had until the third session of 2026-11-29, whose half-step phase lead damps a fast loop
     #: more than the machine would and biased what a tuning measured on the twin (the generic
     #: twin's friction at the test moves' speed 39 % high).

@@ -51,8 +51,8 @@ def _add_note(session: Any, text: str) -> None:
 async def start_simulation(
     settings: Settings, catalog: ProfileCatalog, manager: SessionManager
 ) -> Any:
+    from servodesk.model.plantfile import load_plant_file
     from servodesk.sim.bus import SimulatedBus
-    from servodesk.sim.plantfile import load_plant_file
 
     drives = simulated_drives(catalog, settings.sim_profiles)
     plant = load_plant_file(settings.sim_plant) if settings.sim_plant is not None else None

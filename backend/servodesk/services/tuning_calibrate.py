@@ -5,7 +5,7 @@ off on the benchmark's 100-200 Hz axes, and there the gains that settle fastest 
 with that error (docs/tuning.md, "the ninth session of 2026-11-29"). A try is a brisk move
 under gains the tuner chose, recorded at the loop rate with the drive's following error; its
 motor position answers exactly the inertias those gains meet. This module replays the move on
-the model (sim/replay.py :func:`~servodesk.sim.replay.run_recorded_move`: the drive's own
+the model (model/replay.py :func:`~servodesk.model.replay.run_recorded_move`: the drive's own
 set-point generator and loop) and fits the two inertias to the recording by output error, the
 square difference of the motor positions summed over the move and the settling after it.
 """
@@ -21,9 +21,9 @@ import numpy.typing as npt
 from scipy.optimize import minimize, minimize_scalar  # type: ignore[import-untyped]
 
 from servodesk.domain.tuning.gains import ServoGains
-from servodesk.sim.plant import PlantParams
-from servodesk.sim.profile_position import CONTROL_PERIOD_S, pp_duration_s, pp_step
-from servodesk.sim.replay import RecordedMove, run_recorded_move
+from servodesk.model.plant import PlantParams
+from servodesk.model.profile_position import CONTROL_PERIOD_S, pp_duration_s, pp_step
+from servodesk.model.replay import RecordedMove, run_recorded_move
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -67,7 +67,7 @@ def recorded_move(
     gains: ServoGains,
     torque_limit: float,
 ) -> RecordedMove | None:
-    """The move as :func:`~servodesk.sim.replay.run_recorded_move` replays it, from a recording
+    """The move as :func:`~servodesk.model.replay.run_recorded_move` replays it, from a recording
     at the loop rate of the motor position (6064h), the following error (60F4h) and the torque
     command [N m]; ``origin`` is where the demand rested, the velocity and acceleration as
     written (6081h, 6083h = 6084h). None where the recording does not show the move's first

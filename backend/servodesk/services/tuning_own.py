@@ -111,6 +111,8 @@ from servodesk.domain.tuning.search import (
 )
 from servodesk.domain.tuning.travel import TravelBound, half_window
 from servodesk.errors import DriveStateError, ServodeskError, ValidationError
+from servodesk.model.plant import PlantParams
+from servodesk.model.replay import ModelMoves, OwnMove, RecordedMove, WorstOf
 from servodesk.services import tuning_worker
 from servodesk.services.session import Session
 from servodesk.services.tuning_calibrate import fit_inertias, fit_split, recorded_move
@@ -122,8 +124,6 @@ from servodesk.services.tuning_travel import (
     TravelGuard,
     model_overshoots,
 )
-from servodesk.sim.plant import PlantParams
-from servodesk.sim.replay import ModelMoves, OwnMove, RecordedMove, WorstOf
 
 log = logging.getLogger(__name__)
 #: What a job handed to the design worker returns (:meth:`OwnTuning._compute`).

@@ -41,9 +41,9 @@ import numpy as np
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.travel import TravelBound, stop_overrun
 from servodesk.errors import ServodeskError
-from servodesk.sim.plant import PlantParams
-from servodesk.sim.profile_position import pp_duration_s
-from servodesk.sim.replay import RecordedMove, run_recorded_move
+from servodesk.model.plant import PlantParams
+from servodesk.model.profile_position import pp_duration_s
+from servodesk.model.replay import RecordedMove, run_recorded_move
 
 #: A move's reserve past its target: this many times the larger of its gains' measured run-on
 #: at its speed and the model's prediction. On R30-100Hz the factory gains' run-on at the
@@ -228,7 +228,7 @@ def model_overshoots(
     """How far each move (gains, distance, velocity, acceleration as written) runs past its
     target on the simulated axis ``params`` [units]: the drive's set-point generator and loop
     from rest (the loop's integral holding the axis's constant torque), watched ``watch_s``
-    after its profile (sim/replay.py :func:`run_recorded_move`, 0.2-0.4 ms each). A move the
+    after its profile (model/replay.py :func:`run_recorded_move`, 0.2-0.4 ms each). A move the
     loop does not keep finite gives infinity. Picklable, for the design worker."""
     out: list[float] = []
     for gains, distance, velocity, acc in moves:

@@ -6,7 +6,7 @@ same channel, ``udp_multicast`` between processes), attaches one
 :class:`~servodesk.sim.canopen_device.SimCanopenDevice` per drive, sends their boot-up
 messages and steps them all from one :class:`~servodesk.sim.runner.SimRunner` thread.
 ``servodesk serve --sim`` and ``servodesk sim`` use it. With a ``plant``
-(:class:`~servodesk.sim.plantfile.PlantSpec`, ``servodesk sim --plant FILE``) every drive
+(:class:`~servodesk.model.plantfile.PlantSpec`, ``servodesk sim --plant FILE``) every drive
 simulates that axis at its loop rate instead of the profile's ``simulation`` section (the
 torque noise seeded with the node id).
 
@@ -46,10 +46,10 @@ import canopen
 from servodesk.domain import pnio, slmp
 from servodesk.domain.profile_loader import ProfileCatalog
 from servodesk.errors import LinkError, LinkUnavailableError, ValidationError
+from servodesk.model.plantfile import PlantSpec
 from servodesk.sim.canopen_device import SimCanopenDevice
 from servodesk.sim.engine import SimulatedDrive
 from servodesk.sim.ethercat_slave import EthercatSlaveProcess
-from servodesk.sim.plantfile import PlantSpec
 from servodesk.sim.profinet_device import ProfinetDevice
 from servodesk.sim.runner import SimRunner
 from servodesk.sim.slmp_station import SlmpStation

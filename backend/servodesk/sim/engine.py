@@ -53,7 +53,7 @@ Choices where the standard leaves room (documented here once):
   arithmetic, so a hook never changes the simulation.
 - The loop rate (``simulation.loop_rate_hz``, or a plant file's ``[loop] rate_hz`` given to
   the constructor) sets the plant sub-steps: rate / 1000 per 1 ms control cycle. A profile
-  with ``tuning.kind: gains`` (docs/tuning.md) runs the servo loop of sim/servo.py once per
+  with ``tuning.kind: gains`` (docs/tuning.md) runs the servo loop of model/servo.py once per
   sub-step, its gains read from the mapped objects (raw * scale) and reloaded after every
   write to one of them (and after a node reset restores them); the control cycle only
   generates the demand, which the loop interpolates linearly across the cycle. The test
@@ -79,14 +79,14 @@ from servodesk.domain.encoder_units import INCREMENT_UNITS
 from servodesk.domain.homing import resolve_method
 from servodesk.domain.profile import DeviceProfile, ErrorEntry, ObjectSpec, SimSettings
 from servodesk.domain.sdo_abort import ABORT_CODES
+from servodesk.model.plant import Plant, PlantParams
+from servodesk.model.profile_position import CONTROL_PERIOD_S, pp_step
+from servodesk.model.servo import POSITION, TORQUE, VELOCITY, ServoGains, ServoLoop
 from servodesk.sim.faults import FaultModel
 from servodesk.sim.homing import HomingProcedure, SwitchLayout
 from servodesk.sim.onetouch import OneTouchTuning
 from servodesk.sim.pdo import pdo_kind
-from servodesk.sim.plant import Plant, PlantParams
-from servodesk.sim.profile_position import CONTROL_PERIOD_S, pp_step
 from servodesk.sim.recorder import Recorder
-from servodesk.sim.servo import POSITION, TORQUE, VELOCITY, ServoGains, ServoLoop
 from servodesk.sim.siggen import (
     SUB_AMPLITUDE,
     SUB_CONTROL,
@@ -1446,7 +1446,7 @@ class SimulatedDrive:
 
     def _pp_generate(self) -> None:
         """Trapezoidal profile toward ``_pp_target`` (6081h, 6083h, 6084h, limited by 607Fh):
-        one step of :func:`~servodesk.sim.profile_position.pp_step`."""
+        one step of :func:`~servodesk.model.profile_position.pp_step`."""
         vmax = float(self._c[K_PROFILE_VEL])
         lim = self._c[K_MAX_PROFILE_VEL]
         if lim:
@@ -1700,7 +1700,7 @@ class SimulatedDrive:
     # ------------------------------------------------------------------ the servo loop
 
     def _init_servo(self, profile: DeviceProfile) -> None:
-        """The servo loop of a ``tuning.kind: gains`` profile (docs/tuning.md, sim/servo.py):
+        """The servo loop of a ``tuning.kind: gains`` profile (docs/tuning.md, model/servo.py):
         gains from the mapped objects, the loop rate object, the test signal generator."""
         #: The servo loop (None: the profile keeps the cycle-rate controller).
         self.servo: ServoLoop | None = None

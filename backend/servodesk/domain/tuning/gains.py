@@ -2,7 +2,7 @@
 
 :class:`ServoGains` is the contract of ``docs/tuning.md`` ("Canonical gains"): every field is an
 SI quantity at the motor shaft, and the profile's ``tuning.gains`` map turns each into a drive
-object with a scale. The simulated servo loop (``sim/servo.py``) runs exactly these gains, and the
+object with a scale. The simulated servo loop (``model/servo.py``) runs exactly these gains, and the
 analysis in this package (``model.py``) evaluates exactly these gains, so a tuned result means the
 same thing on both sides.
 

@@ -11,7 +11,7 @@ following error RMS.
 
 - The tuner calls :func:`tune_on_model` with the plant it identified, its stuck-load models
   (:func:`stuck_load_set`) and a finer, tick-by-tick simulation of that plant to order the
-  feasible candidates (``rerank``; the service passes sim/replay.py's ``ModelMoves``). Where
+  feasible candidates (``rerank``; the service passes model/replay.py's ``ModelMoves``). Where
   the caller asks for it (``structure_runs``; the service: a compliant axis whose
   anti-resonance the frequency response shows), the oracle's structure search (oracle.py)
   runs on the identified plant too, with the tuner's margins, and its candidates are ranked
@@ -680,7 +680,7 @@ def tune_on_model(
     best move among the variations that keep the margins on every plant the identification
     may have been (:func:`identification_set`) and are stable with the load stuck
     (:func:`stuck_load_set`). ``rerank``: a finer simulation of the identified axis that
-    orders those variations instead of the batch model (sim/replay.py's ``ModelMoves``; the
+    orders those variations instead of the batch model (model/replay.py's ``ModelMoves``; the
     caller supplies it, this module simulates nothing but the batch model). ``variations``:
     the grid of :func:`candidates_around`. ``structure_runs``: with ``rerank``, also run the
     oracle's structure search (oracle.py: filter structures, each at its highest gain, then a

@@ -5,16 +5,16 @@ following error), not only by margins: the same objective the benchmark's oracle
 (anchors-tuning.md §3.4). It cannot run candidates on the drive, so it runs them on the plant
 it identified; the benchmark's oracle runs the same candidates on the exact plant.
 
-The controller arithmetic is the drive's, tick for tick (sim/servo.py documents it and
+The controller arithmetic is the drive's, tick for tick (model/servo.py documents it and
 docs/tuning.md states it): position P with velocity feed-forward, velocity PI with conditional
 integration, inertia feed-forward, low-pass and two notches (transposed direct form II), the
 clamp, and the one-tick compute delay; velocity by a backward difference of the quantised
 encoder. The plant is the model's: current loop as a first-order lag (exact discretisation),
 rigid or two-mass mechanics by semi-implicit Euler with ``substeps`` steps per tick, viscous
-friction at the motor, Coulomb friction with sticking (as sim/plant.py, vectorised:
+friction at the motor, Coulomb friction with sticking (as model/plant.py, vectorised:
 :func:`friction_step`) and a constant gravity torque at the load.
 
-Sticking is what the drive's plant does (sim/plant.py), so the ranking sees the same friction:
+Sticking is what the drive's plant does (model/plant.py), so the ranking sees the same friction:
 on a two-mass axis a load held by static friction leaves the motor ringing against the shaft,
 and gains whose linear margins are fine can hunt in a friction limit cycle (R1-400Hz of the
 benchmark: 380 Hz, +-190 counts, at 47 deg / 9 dB). The smooth ``tanh`` sign used before shows
@@ -97,7 +97,7 @@ def friction_step(
 ) -> FloatArray:
     """The velocity after one step of an inertia driven by ``drive`` (N m, gravity included)
     against viscous friction and Coulomb friction with sticking, per candidate:
-    ``RigidMechanics.advance`` of sim/plant.py, vectorised. At rest the inertia stays at rest
+    ``RigidMechanics.advance`` of model/plant.py, vectorised. At rest the inertia stays at rest
     while ``|drive|`` does not exceed the Coulomb torque; a velocity that would cross zero
     within the step while the friction could hold it stops at zero."""
     if coulomb <= 0.0:

@@ -29,10 +29,10 @@ from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.metrics import MoveMetrics, move_metrics
 from servodesk.domain.tuning.model import PlantModel
 from servodesk.domain.tuning.search import ReferenceMove, Rerank, reference_move
-from servodesk.sim.fused import applies, fused_move, fused_ticks
-from servodesk.sim.plant import Plant, PlantParams, TwoMassMechanics, mechanics_for
-from servodesk.sim.profile_position import CONTROL_PERIOD_S, pp_step
-from servodesk.sim.servo import POSITION, ServoLoop
+from servodesk.model.fused import applies, fused_move, fused_ticks
+from servodesk.model.plant import Plant, PlantParams, TwoMassMechanics, mechanics_for
+from servodesk.model.profile_position import CONTROL_PERIOD_S, pp_step
+from servodesk.model.servo import POSITION, ServoLoop
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -50,7 +50,7 @@ def run_move(
     """The motor position per tick [counts] of ``move`` on the axis ``params`` describes under
     ``gains``; NaN from the tick the loop's torque stops being finite.
 
-    A noiseless axis runs through the fused tick loop of sim/fused.py (the same arithmetic,
+    A noiseless axis runs through the fused tick loop of model/fused.py (the same arithmetic,
     several times faster); one with noise or a dead time through :func:`run_move_stepwise`."""
     if not applies(params):
         return run_move_stepwise(params, gains, rate_hz, torque_limit, move)
@@ -235,7 +235,7 @@ def run_recorded_move(params: PlantParams, move: RecordedMove, rate_hz: float) -
     recording found it: the loop's integral holding the torque it held, and on a two-mass axis
     the shaft wound by that torque (the load held by its friction, the motor by the shaft).
 
-    A noiseless axis runs through the fused tick loop of sim/fused.py, the generator's demand
+    A noiseless axis runs through the fused tick loop of model/fused.py, the generator's demand
     laid out per tick beforehand: the same arithmetic as :func:`run_recorded_move_stepwise`
     (tests/sim/test_fused_move.py holds the two equal to the count), some 25 times faster
     (bench/bench_replay.py). The fit of the inertias to a try replays its moves some 80 times

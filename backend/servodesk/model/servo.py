@@ -75,7 +75,7 @@ TWO_PI = 2.0 * math.pi
 POSITION, VELOCITY, TORQUE = 1, 2, 3
 
 #: ``tick(command, dt) -> counts``: advance the plant one tick with a torque command and read
-#: the encoder (:meth:`servodesk.sim.plant.Plant.step_counts`).
+#: the encoder (:meth:`servodesk.model.plant.Plant.step_counts`).
 Tick = Callable[[float, float], int]
 
 

@@ -2,7 +2,7 @@
 trapezoidal step toward the target per control cycle.
 
 Two users: the drive engine (engine.py) steps it every cycle in mode pp, and the own tuning
-replays a try the axis ran (replay.py :func:`~servodesk.sim.replay.run_recorded_move`) through
+replays a try the axis ran (replay.py :func:`~servodesk.model.replay.run_recorded_move`) through
 the same steps, so that the model and the record see the same demand to the count."""
 
 from __future__ import annotations

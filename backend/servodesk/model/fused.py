@@ -1,5 +1,5 @@
 """One move of a noiseless simulated axis with the servo loop and the plant fused into one
-tick loop: what sim/replay.py's ``run_move`` computes, several times faster.
+tick loop: what model/replay.py's ``run_move`` computes, several times faster.
 
 The tuning ranks its candidates by running each through the reference move on the identified
 axis (``ModelMoves``), and the benchmark's oracle runs hundreds more on the true plant: these
@@ -38,8 +38,14 @@ import numpy as np
 import numpy.typing as npt
 
 from servodesk.domain.tuning.gains import ServoGains
-from servodesk.sim.plant import Plant, PlantParams, RigidMechanics, TwoMassMechanics, mechanics_for
-from servodesk.sim.servo import ServoLoop
+from servodesk.model.plant import (
+    Plant,
+    PlantParams,
+    RigidMechanics,
+    TwoMassMechanics,
+    mechanics_for,
+)
+from servodesk.model.servo import ServoLoop
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -25,7 +25,7 @@ section      key               default    range
 Why these bounds: the inertia and torque ranges cover small servo motors to large ones; an
 encoder below 256 counts cannot close a velocity loop by differencing. The resonance must
 stay at or below an eighth of the loop rate: the plant is exact for a torque held over each
-tick (sim/plant.py), but above ``rate / 8`` the hold and the loop's one-tick delays leave
+tick (model/plant.py), but above ``rate / 8`` the hold and the loop's one-tick delays leave
 little of the mode for a loop to act on, and a frequency response has few points per
 resonance. The loop rate is a whole number of ticks per 1 ms motion cycle. Gravity above 0.8
 of the peak torque leaves the drive too little to move.
@@ -47,7 +47,7 @@ from typing import Any
 
 from servodesk.errors import ValidationError
 from servodesk.files import read_bounded
-from servodesk.sim.plant import PlantParams
+from servodesk.model.plant import PlantParams
 
 
 class PlantFileError(ValidationError):
@@ -141,7 +141,7 @@ class PlantSpec:
             gravity=self.gravity * pk,
             torque_noise=self.noise_torque * pk,
             seed=seed,
-            exact=True,  # A plant file's axis is simulated exactly (sim/plant.py).
+            exact=True,  # A plant file's axis is simulated exactly (model/plant.py).
         )
 
     def canonical(self) -> dict[str, dict[str, float | int]]:
