@@ -72,9 +72,12 @@ lint: $(VENV)/.synced
 	$(VENV)/bin/ruff check backend tests bench scripts
 	$(VENV)/bin/ruff format --check backend tests bench scripts
 	$(VENV)/bin/lint-imports --no-cache  # The layer rules (pyproject.toml, docs/architecture.md).
+	$(VENV)/bin/pytest -q -p no:cacheprovider tests/unit/test_openapi_contract.py  # openapi.json is the code's
 
 typecheck: $(VENV)/.synced $(FRONTEND)/node_modules/.package-lock.json
 	$(VENV)/bin/mypy
+	@cd $(FRONTEND) && npm run --silent check:api || \
+	  { echo "frontend/src/api/schema.ts is stale against backend/openapi.json: run make openapi"; exit 1; }
 	cd $(FRONTEND) && npm run --silent typecheck
 
 unit: setup
@@ -109,8 +112,11 @@ bench: setup
 	$(PY) bench/bench_tuning_loop.py --json
 	$(VENV)/bin/servodesk bench scope --json
 
-openapi: $(VENV)/.synced
-	$(VENV)/bin/servodesk openapi > backend/openapi.json
+# The wire contract (docs/architecture.md): the OpenAPI of the code, and the UI's types from it.
+# Both files are committed; `make lint` and `make typecheck` fail when either is stale.
+openapi: $(VENV)/.synced $(FRONTEND)/node_modules/.package-lock.json
+	$(VENV)/bin/servodesk openapi > backend/openapi.json.tmp && mv backend/openapi.json.tmp backend/openapi.json
+	cd $(FRONTEND) && npm run --silent gen:api
 
 clean:
 	rm -rf $(VENV) $(TOOLS) $(FRONTEND)/node_modules $(WEB_DIST)

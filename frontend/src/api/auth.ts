@@ -7,17 +7,15 @@
  * sees it); nothing is ever taken from or put into the URL. `getToken()` stays for the
  * callers that add an Authorization header: the browser has no token, so it is always null.
  */
+import { ApiError, apiRequest } from './http';
+import type { components } from './schema';
 import { Observable } from '../state/observable';
 
-export interface Me {
-  user: string;
-  role: string;
-  rights: string[];
+/** GET /auth/me; `mode` narrowed to the two the server documents (its schema says string). */
+export type Me = Omit<components['schemas']['MeOut'], 'mode'> & {
   /** "single-user" (loopback, no login) or "login". */
   mode: 'single-user' | 'login';
-  session: string | null;
-  idle_timeout_s: number;
-}
+};
 
 /** undefined: not read yet; null: not logged in (show the login page). */
 export const me = new Observable<Me | null | undefined>(undefined);
@@ -40,16 +38,15 @@ export function getToken(): string | null {
 
 export async function refreshMe(): Promise<Me | null> {
   try {
-    const res = await fetch('/api/v1/auth/me', { headers: { Accept: 'application/json' } });
-    if (res.status === 401) {
+    // authLost: false, since a 401 here is how the UI learns that nobody is logged in.
+    const m = (await apiRequest('Read who is logged in', 'GET', '/auth/me', { authLost: false })) as Me;
+    me.set(m);
+    return m;
+  } catch (e) {
+    if (e instanceof ApiError && e.status === 401) {
       me.set(null);
       return null;
     }
-    if (!res.ok) throw new Error(`HTTP ${res.status}`);
-    const m = (await res.json()) as Me;
-    me.set(m);
-    return m;
-  } catch {
     // The server did not answer: show the app, whose pages say the server is unreachable.
     const fallback: Me = { user: '?', role: '?', rights: [], mode: 'login', session: null, idle_timeout_s: 0 };
     me.set(fallback);
@@ -74,26 +71,21 @@ export interface LoginFailure {
 
 /** Log in; on success the page reloads with the session cookie set. */
 export async function login(user: string, password: string): Promise<LoginFailure | null> {
-  let res: Response;
   try {
-    res = await fetch('/api/v1/auth/login', {
-      method: 'POST',
-      headers: { 'Content-Type': 'application/json', Accept: 'application/json' },
-      body: JSON.stringify({ user, password }),
+    // A wrong password is a 401 too: it is the answer here, not a lost login.
+    await apiRequest('Log in', 'POST', '/auth/login', {
+      body: { user, password },
+      authLost: false,
+      networkError: { error: 'NetworkError', message: 'the servodesk server did not answer' },
     });
-  } catch {
-    return { message: 'the servodesk server did not answer' };
+  } catch (e) {
+    if (!(e instanceof ApiError)) return { message: String(e) };
+    // A lock-out (429) says until when (Unix time); the error schema does not list `until`.
+    const until = (e.payload as { until?: unknown } | null)?.until;
+    return { message: e.body.message, hint: e.body.hint ?? null, until: typeof until === 'number' ? until : undefined };
   }
-  if (res.ok) {
-    loginReason.set(null);
-    return null;
-  }
-  try {
-    const body = (await res.json()) as { message?: string; hint?: string | null; until?: number };
-    return { message: body.message ?? `HTTP ${res.status}`, hint: body.hint ?? null, until: body.until };
-  } catch {
-    return { message: `HTTP ${res.status}` };
-  }
+  loginReason.set(null);
+  return null;
 }
 
 export async function logout(): Promise<void> {
@@ -107,9 +99,9 @@ export async function logout(): Promise<void> {
 /** End this login session on the server (its sockets close), without reloading the page. */
 export async function endSession(): Promise<void> {
   try {
-    await fetch('/api/v1/auth/logout', { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: '{}' });
+    await apiRequest('Log out', 'POST', '/auth/logout', { authLost: false });
   } catch {
-    // The server is gone: its own idle time-out ends the session.
+    // The server is gone, or the session had ended already: its own idle time-out ends it.
   }
 }
 

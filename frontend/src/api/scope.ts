@@ -3,15 +3,16 @@
  * and the address of its binary WebSocket.
  *
  * The scope belongs to the application, not to one session: its channels may come from
- * several drives. Requests carry the same headers as the shared client (token, the tab's
- * client id); files (exports) come back as bytes with the name the server gave them, and an
- * import sends the file's bytes as they are (CSV text or an MDF4 binary).
+ * several drives. Requests go through the one fetch wrapper (`./http`); files (exports) come
+ * back as bytes with the name the server gave them, and an import sends the file's bytes as
+ * they are (CSV text or an MDF4 binary). The routes still answer `dict[str, Any]` (issue 51
+ * item 1): the shapes below are the UI's until the backend gives them response models.
  */
 import { getToken } from './auth';
-import { API_BASE, ApiError, type DownloadedFile, fileForm, filenameFromDisposition, normaliseErrorBody } from './client';
-import type { ApiErrorBody } from './types';
-import { CLIENT_HEADER, tabClientId } from '../lib/backupClientId';
-import { controlHeaders } from '../lib/controlToken';
+import { API_BASE, apiDownload, apiRequest, fileForm, untyped } from './http';
+import type { components } from './schema';
+
+type S = components['schemas'];
 
 /** Where a channel's samples come from; `auto` lets the server choose (docs/scope.md "Model"). */
 export type ScopeSource = 'auto' | 'pdo' | 'sdo' | 'recorder';
@@ -140,70 +141,30 @@ export function scopeSocketUrl(): string {
   return url.toString();
 }
 
-const NETWORK_ERROR: ApiErrorBody = {
-  error: 'NetworkError',
-  message: 'the servodesk server did not answer',
-  hint: 'check that "servodesk serve" is still running and reachable from this browser',
-};
-
-function headers(contentType: string | null): Record<string, string> {
-  const h: Record<string, string> = { Accept: 'application/json', [CLIENT_HEADER]: tabClientId(), ...controlHeaders() };
-  const token = getToken();
-  if (token) h.Authorization = `Bearer ${token}`;
-  if (contentType) h['Content-Type'] = contentType;
-  return h;
-}
-
-async function send(action: string, method: string, path: string, body: BodyInit | null, contentType: string | null): Promise<Response> {
-  try {
-    return await fetch(API_BASE + path, { method, headers: headers(body === null ? null : contentType), body });
-  } catch {
-    throw new ApiError(action, 0, NETWORK_ERROR);
-  }
-}
-
-async function fail(action: string, res: Response): Promise<never> {
-  const text = await res.text();
-  let payload: unknown = text;
-  try {
-    payload = text ? JSON.parse(text) : null;
-  } catch {
-    // Keep the text: normaliseErrorBody shows it when it is short.
-  }
-  throw new ApiError(action, res.status, normaliseErrorBody(res.status, res.statusText, payload));
-}
-
-async function request<T>(action: string, method: string, path: string, body?: unknown): Promise<T> {
-  const res = await send(action, method, path, body === undefined ? null : JSON.stringify(body), 'application/json');
-  if (!res.ok) return fail(action, res);
-  const text = await res.text();
-  return (text ? JSON.parse(text) : null) as T;
-}
-
-async function fetchFile(action: string, path: string): Promise<DownloadedFile> {
-  const res = await send(action, 'GET', path, null, null);
-  if (!res.ok) return fail(action, res);
-  return { blob: await res.blob(), filename: filenameFromDisposition(res.headers.get('Content-Disposition')) };
-}
-
 export const scopeApi = {
-  status: () => request<ScopeStatus>('Read the scope', 'GET', '/scope'),
+  status: () => untyped(apiRequest('Read the scope', 'GET', '/scope')) as Promise<ScopeStatus>,
   setChannels: (channels: ScopeChannelConfig[]) =>
-    request<ScopeStatus>('Set the scope channels', 'PUT', '/scope/channels', { channels }),
-  setTrigger: (trigger: ScopeTrigger) => request<ScopeStatus>('Set the trigger', 'PUT', '/scope/trigger', trigger),
+    // A channel may leave out rate_hz (the server's default): ServerDefaults one level down.
+    untyped(
+      apiRequest('Set the scope channels', 'PUT', '/scope/channels', { body: { channels } as S['ChannelsIn'] }),
+    ) as Promise<ScopeStatus>,
+  setTrigger: (trigger: ScopeTrigger) =>
+    untyped(apiRequest('Set the trigger', 'PUT', '/scope/trigger', { body: trigger })) as Promise<ScopeStatus>,
   run: (action: 'start' | 'stop' | 'arm') =>
-    request<ScopeStatus>({ start: 'Start the scope', stop: 'Stop the scope', arm: 'Arm the trigger' }[action], 'POST', '/scope/run', { action }),
-  capture: () => request<ScopeRecording>('Load the captured window', 'GET', '/scope/capture'),
+    untyped(
+      apiRequest({ start: 'Start the scope', stop: 'Stop the scope', arm: 'Arm the trigger' }[action], 'POST', '/scope/run', {
+        body: { action },
+      }),
+    ) as Promise<ScopeStatus>,
+  capture: () => untyped(apiRequest('Load the captured window', 'GET', '/scope/capture')) as Promise<ScopeRecording>,
   export: (format: ScopeExportFormat, window: ScopeExportWindow) =>
-    fetchFile(`Export the recording as ${format === 'csv' ? 'CSV' : 'MDF4'}`, `/scope/export?format=${format}&window=${window}`),
+    apiDownload(`Export the recording as ${format === 'csv' ? 'CSV' : 'MDF4'}`, '/scope/export', { query: { format, window } }),
   /** Send a recording file (CSV or MDF4) as it is; the answer is the recording to open. */
-  import: async (filename: string, bytes: ArrayBuffer): Promise<ScopeRecording> => {
-    const action = `Import ${filename}`;
+  import: (filename: string, bytes: ArrayBuffer) =>
     // multipart/form-data (field `file`, docs/security.md); the browser sets the type.
-    const res = await send(action, 'POST', `/scope/import?filename=${encodeURIComponent(filename)}`, fileForm(filename, bytes), null);
-    if (!res.ok) return fail(action, res);
-    return (await res.json()) as ScopeRecording;
-  },
+    untyped(
+      apiRequest(`Import ${filename}`, 'POST', '/scope/import', { query: { filename }, body: fileForm(filename, bytes) }),
+    ) as Promise<ScopeRecording>,
   recorder: (sid: string) =>
-    request<RecorderInfo>('Read the drive-side recorder', 'GET', `/sessions/${encodeURIComponent(sid)}/recorder`),
+    untyped(apiRequest('Read the drive-side recorder', 'GET', '/sessions/{sid}/recorder', { params: { sid } })) as Promise<RecorderInfo>,
 };

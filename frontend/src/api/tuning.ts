@@ -2,15 +2,12 @@
  * REST client and shapes of the tuning routes (docs/tuning.md "Service and API", docs/api.md
  * "Tuning"): `/api/v1/sessions/{sid}/tuning...`.
  *
- * Requests carry the same headers as the shared client (token, this tab's client id, which the
- * server needs for control ownership and the dead-man), and failures become {@link ApiError}s
- * with the server's message and hint.
+ * Requests go through the one fetch wrapper (`./http`), and failures become `ApiError`s
+ * with the server's message and hint. The routes still answer `dict[str, Any]` (issue 51 item
+ * 1): the shapes below are the UI's until the backend gives them response models.
  */
-import { getToken } from './auth';
-import { API_BASE, ApiError, normaliseErrorBody } from './client';
+import { apiRequest, untyped } from './http';
 import type { StoreResult } from './types';
-import { CLIENT_HEADER, tabClientId } from '../lib/backupClientId';
-import { controlHeaders } from '../lib/controlToken';
 
 export type TuningKind = 'builtin' | 'gains' | 'none';
 export type TuningMode = 'low' | 'basic' | 'high';
@@ -261,40 +258,24 @@ export interface UndoResult {
   note: string;
 }
 
-async function request<T>(action: string, method: string, path: string, body?: unknown): Promise<T> {
-  const headers: Record<string, string> = { Accept: 'application/json', [CLIENT_HEADER]: tabClientId(), ...controlHeaders() };
-  const token = getToken();
-  if (token) headers.Authorization = `Bearer ${token}`;
-  if (body !== undefined) headers['Content-Type'] = 'application/json';
-  let res: Response;
-  try {
-    res = await fetch(API_BASE + path, { method, headers, body: body === undefined ? null : JSON.stringify(body) });
-  } catch {
-    throw new ApiError(action, 0, {
-      error: 'NetworkError',
-      message: 'the servodesk server did not answer',
-      hint: 'check that "servodesk serve" is still running and reachable from this browser',
-    });
-  }
-  const text = await res.text();
-  let payload: unknown = text;
-  try {
-    payload = text ? JSON.parse(text) : null;
-  } catch {
-    // Keep the text: normaliseErrorBody shows it when it is short.
-  }
-  if (!res.ok) throw new ApiError(action, res.status, normaliseErrorBody(res.status, res.statusText, payload));
-  return payload as T;
-}
-
-const base = (sid: string) => `/sessions/${encodeURIComponent(sid)}/tuning`;
-
 export const tuningApi = {
-  info: (sid: string) => request<TuningInfo>('Read the tuning', 'GET', base(sid)),
-  start: (sid: string, body: StartRequest) => request<TuningJob>('Start the tuning', 'POST', `${base(sid)}/start`, body),
-  stop: (sid: string) => request<TuningJob>('Stop the tuning', 'POST', `${base(sid)}/stop`, {}),
-  result: (sid: string) => request<TuningResult>('Read the tuning result', 'GET', `${base(sid)}/result`),
+  info: (sid: string) =>
+    untyped(apiRequest('Read the tuning', 'GET', '/sessions/{sid}/tuning', { params: { sid } })) as Promise<TuningInfo>,
+  start: (sid: string, body: StartRequest) =>
+    untyped(apiRequest('Start the tuning', 'POST', '/sessions/{sid}/tuning/start', { params: { sid }, body })) as Promise<TuningJob>,
+  stop: (sid: string) =>
+    untyped(apiRequest('Stop the tuning', 'POST', '/sessions/{sid}/tuning/stop', { params: { sid }, body: {} })) as Promise<TuningJob>,
+  result: (sid: string) =>
+    untyped(apiRequest('Read the tuning result', 'GET', '/sessions/{sid}/tuning/result', { params: { sid } })) as Promise<TuningResult>,
   undo: (sid: string, to: 'before' | 'defaults') =>
-    request<UndoResult>(to === 'before' ? 'Undo to the gains before tuning' : 'Undo to the default gains', 'POST', `${base(sid)}/undo`, { to }),
-  store: (sid: string) => request<StoreResult & { session: string }>('Store to EEPROM', 'POST', `${base(sid)}/store`, {}),
+    untyped(
+      apiRequest(to === 'before' ? 'Undo to the gains before tuning' : 'Undo to the default gains', 'POST', '/sessions/{sid}/tuning/undo', {
+        params: { sid },
+        body: { to },
+      }),
+    ) as Promise<UndoResult>,
+  store: (sid: string) =>
+    untyped(apiRequest('Store to EEPROM', 'POST', '/sessions/{sid}/tuning/store', { params: { sid }, body: {} })) as Promise<
+      StoreResult & { session: string }
+    >,
 };

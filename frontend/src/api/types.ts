@@ -1,391 +1,118 @@
 /**
- * REST shapes of the servodesk API v1, written by hand from docs/api.md.
+ * REST shapes of the servodesk API v1: aliases of the generated `./schema.ts` (npm run gen:api
+ * from backend/openapi.json; docs/architecture.md "Wire contract"), so that a change of the
+ * backend's models shows here as a type error rather than at run time.
  *
- * This file stands in for the generated `schema.ts` (npm run gen:api) until the backend's
- * openapi.json exists. Nothing imports it directly: every module imports from `./index`,
- * which is the one file to change when switching to the generated types.
+ * Written here, and only where the UI knows more than the schema: `Always` for lists the
+ * server always sends (a pydantic default_factory leaves them optional in the schema),
+ * `ServerDefaults` for request fields the UI leaves to the server's default, narrower unions
+ * the UI switches on, the request bodies the UI builds (the wrapper checks them against the
+ * schema's), and the answers of routes that still return `dict[str, Any]` (PDO), until the
+ * backend gives them response models (issue 51 item 1).
  */
+import type { Always, ServerDefaults } from './http';
+import type { components, paths } from './schema';
 
-export interface ApiErrorBody {
-  error: string;
-  message: string;
-  hint?: string | null;
-  field?: string | null;
-  code?: number | null;
-  code_hex?: string | null;
-  meaning?: string | null;
-  protocol?: string | null;
-  address?: string | null;
-}
+type S = components['schemas'];
 
-export interface Health {
-  status: string;
-  version: string;
-  simulation: boolean;
-  /** Link name -> null when usable, else the reason it is not. */
-  links: Record<string, string | null>;
-}
+/** The `format` query parameter of a download route. */
+type ExportFormat<P extends keyof paths> = paths[P] extends { get: { parameters: { query?: infer Q } } }
+  ? Q extends { format?: infer F }
+    ? F
+    : never
+  : never;
 
-export interface ProfileSummary {
-  id: string;
-  name: string;
-  vendor: string;
-  fieldbus: string;
-  description: string | null;
-  objects: number;
-  variables: number;
-  errors: number;
-  modes: number[];
-  homing_methods: number[];
-}
+export type ApiErrorBody = S['ErrorOut'];
+
+export type Health = S['HealthOut'];
+
+export type ProfileSummary = S['ProfileSummary'];
 
 /** python-can interface names the backend accepts. */
-export type BusInterface =
-  | 'canalystii'
-  | 'cantact'
-  | 'etas'
-  | 'gs_usb'
-  | 'iscan'
-  | 'ixxat'
-  | 'kvaser'
-  | 'neousys'
-  | 'neovi'
-  | 'nican'
-  | 'nixnet'
-  | 'pcan'
-  | 'robotell'
-  | 'seeedstudio'
-  | 'serial'
-  | 'slcan'
-  | 'socketcan'
-  | 'socketcand'
-  | 'systec'
-  | 'udp_multicast'
-  | 'usb2can'
-  | 'vector'
-  | 'virtual';
+export type BusInterface = Exclude<S['ScanRequest']['interface'], 'ethercat'>;
 
 /** Every interface a session opens on: python-can's (CANopen), slmp for a CC-Link IE TSN
  * station reached by SLMP over UDP (channel host:port, node id = axis + 1), profinet for a
  * PROFIdrive drive reached by PNIO-CM record access over UDP (channel host[:port], node id =
  * DO-ID), and ethercat for an EtherCAT line (channel the network interface, node id = slave
  * position + 1). */
-export type SessionInterface = BusInterface | 'slmp' | 'profinet' | 'ethercat';
+export type SessionInterface = S['SessionCreate']['interface'];
 
-export interface ScanRequest {
-  /** A python-can interface, or ethercat: the slaves of the line on the network interface
-   * given as channel (node id = position + 1). */
-  interface: BusInterface | 'ethercat';
-  channel: string;
-  bitrate: number | null;
-  timeout: number;
-}
+export type ScanRequest = S['ScanRequest'];
 
-export interface ScanNode {
-  node_id: number;
-  vendor_id: number;
-  product_code: number;
-  revision: number;
-  serial: number;
-  device_name: string | null;
-  hardware_version?: string | null;
-  software_version?: string | null;
-  profile_id: string | null;
-  /** The open session of this node, if any (backend addition, not in docs/api.md). */
-  session_id?: string | null;
-}
+export type ScanNode = S['ScanNode'];
 
-export interface ScanResult {
-  nodes: ScanNode[];
-}
+export type ScanResult = S['ScanOut'];
 
 /** POST /dcp/identify: the PROFINET devices on a network interface (docs/profinet.md, DCP). */
-export interface DcpIdentifyRequest {
-  nic: string;
-  timeout?: number;
-  name_of_station?: string | null;
-}
+export type DcpIdentifyRequest = ServerDefaults<S['DcpIdentifyRequest'], 'timeout'>;
 
-export interface DcpDevice {
-  mac: string;
-  /** "" when the device has none (its Network Status LED: red single flash, 004 §20.2.3). */
-  name_of_station: string | null;
-  ip: string | null;
-  netmask: string | null;
-  gateway: string | null;
-  ip_origin: 'not set' | 'static' | 'dhcp' | null;
-  ip_conflict: boolean;
-  vendor_id: number | null;
-  device_id: number | null;
-  type_of_station: string | null;
-  roles: string[];
-  instance: number | null;
-  /** The open PROFINET session at this device's IP address, if any. */
-  session_id: string | null;
-  /** The channel to open a session with: its IP address (with the port where it is not
-   * 34964, as for serve --sim's twin); null without an address. */
-  channel: string | null;
-  /** The profile whose vendor and device ID these are (its `dcp` quirk), if any. */
-  profile_id?: string | null;
-}
+export type DcpDevice = S['DcpDeviceOut'];
 
-export interface DcpIdentifyResult {
-  nic: string;
-  devices: DcpDevice[];
-  malformed: number;
-}
+export type DcpIdentifyResult = S['DcpIdentifyOut'];
 
-export interface DcpSetRequest {
-  nic: string;
-  mac: string;
-  name_of_station?: string | null;
-  ip?: { ip: string; netmask: string; gateway: string } | null;
-  permanent?: boolean;
-}
+export type DcpSetRequest = ServerDefaults<S['DcpSetRequest'], 'permanent'>;
 
-export interface DcpDone {
-  mac: string;
-  done: string[];
-}
+export type DcpDone = S['DcpDone'];
 
-export interface Identity {
-  vendor_id: number | null;
-  product_code: number | null;
-  revision: number | null;
-  serial: number | null;
-  device_name: string | null;
-  hardware_version: string | null;
-  software_version: string | null;
-}
+export type Identity = S['IdentityOut'];
 
-export interface SessionRequest {
-  interface: SessionInterface;
-  channel: string;
-  bitrate: number | null;
-  node_id: number;
-  profile: string | null;
-}
+export type SessionRequest = S['SessionCreate'];
 
-export interface SessionInfo {
-  id: string;
-  node_id: number;
-  interface: string;
-  channel: string;
-  bitrate: number | null;
-  profile_id: string;
-  profile_name: string;
-  fieldbus: string;
-  /** The link that carries the session (may differ from fieldbus for a simulated twin). */
-  link?: string;
-  simulated: boolean;
-  note: string | null;
-  identity: Identity;
-  connected: boolean;
-  state: string;
-  nmt_state: string;
-  /**
-   * Addresses written through servodesk since the last store ("0x6081:00"): they differ from
-   * the drive's non-volatile copy. Optional so an older server without it still type-checks.
-   */
-  dirty?: string[];
-  /**
-   * The encoder the session's engineering units are for. `rescaled`: the drive's 608Fh differs
-   * from the profile's encoder, so the session's scales (GET /sessions/{sid}/profile) differ
-   * from the family's (GET /profiles/{id}). Optional for an older server.
-   */
-  encoder?: SessionEncoder;
-}
+export type SessionInfo = S['SessionInfo'];
 
-export interface SessionEncoder {
-  counts_per_rev: number;
-  source: '608Fh' | 'profile';
-  rescaled: boolean;
-}
+export type SessionEncoder = S['EncoderOut'];
 
 export type ObjectScalar = number | string | boolean;
 
-export interface ObjectValue {
-  address: string;
-  index: number;
-  subindex: number;
-  name: string | null;
-  data_type: string | null;
-  access: string | null;
-  value: ObjectScalar | null;
-  raw_hex: string;
-  engineering: number | null;
-  unit: string | null;
-  raw_unit: string | null;
-  value_text: string | null;
-}
+export type ObjectValue = S['ObjectValueOut'];
 
-export type ObjectWrite = { value: ObjectScalar } | { raw_hex: string };
+export type ObjectWrite = S['WriteRequest'];
 
-export interface ErrorInfo {
-  table: string;
-  code: number;
-  code_hex: string;
-  display: string | null;
-  name: string;
-  kind: string | null;
-  cause: string | null;
-  remedy: string | null;
-  section: string | null;
-}
+export type ErrorInfo = S['ErrorInfo'];
 
-export interface StatusBit {
-  bit: number;
-  name: string;
-  set: boolean;
-}
+export type StatusBit = S['StatusBit'];
 
-export interface DriveState {
-  state: string;
-  statusword: number;
-  statusword_hex: string;
-  bits: StatusBit[];
-  mode: number | null;
-  mode_name: string | null;
-  position: number | null;
-  velocity: number | null;
-  position_unit: string | null;
-  velocity_unit: string | null;
-  position_eng: number | null;
-  velocity_eng: number | null;
-  /** Raw units of 6064h / 606Ch (backend addition, not in docs/api.md). */
-  position_raw_unit?: string | null;
-  velocity_raw_unit?: string | null;
-  error_code: number | null;
-  error: ErrorInfo | null;
-  nmt_state: string | null;
-  time: number;
-}
+export type DriveState = S['DriveStateOut'];
 
-export type StateCommand =
-  | 'shutdown'
-  | 'switch_on'
-  | 'switch_on_enable'
-  | 'enable_operation'
-  | 'disable_operation'
-  | 'disable_voltage'
-  | 'quick_stop'
-  | 'fault_reset'
-  | 'enable'
-  | 'disable';
+export type StateCommand = S['StateCommand']['command'];
 
-export interface StateCommandRequest {
-  command: StateCommand;
-}
+export type StateCommandRequest = S['StateCommand'];
 
 /** One object of a profile's dictionary (GET /profiles/{id} `object_list`). */
-export interface ObjectInfo {
-  index: number;
-  subindex: number;
-  address: string;
-  name: string;
-  name_local: string | null;
-  data_type: string;
-  /** "ro", "wo", "rw", "const" (CiA 301 access). */
-  access: string;
-  /** "none", "rx", "tx" (or "both"). */
-  pdo_mapping: string;
-  default: ObjectScalar | null;
-  min: number | null;
-  max: number | null;
-  unit: string | null;
-  scale: number;
-  raw_unit: string | null;
-  group: string | null;
-  persist: boolean;
-  process: boolean;
-  description: string | null;
-  section: string | null;
-  values: Record<string, string> | null;
-  pnu: number | null;
-  symbol: string | null;
-}
+export type ObjectInfo = S['ObjectInfo'];
 
-export interface GroupInfo {
-  id: string;
-  name: string;
-  name_local: string | null;
-  description: string | null;
-}
+export type GroupInfo = S['GroupInfo'];
 
-export interface QuirkInfo {
-  id: string;
-  value: unknown;
-  section: string | null;
-  note: string | null;
-}
+export type QuirkInfo = S['QuirkInfo'];
 
 /** An object of the profile's `network:` section: its address as `object_list` names it. */
-export interface NetworkObjectInfo {
-  address: string;
-  note: string;
-  section: string;
-}
+export type NetworkObjectInfo = S['NetworkObjectInfo'];
 
-export interface NetworkRuleInfo {
-  text: string;
-  section: string;
-}
+export type NetworkRuleInfo = S['NetworkRuleInfo'];
 
-export interface NetworkLedInfo {
-  led: string;
-  state: string;
-  meaning: string;
-  section: string;
-}
+export type NetworkLedInfo = S['NetworkLedInfo'];
 
 /** How the family is addressed on its fieldbus (profile `network:`, docs/profiles.md). */
-export interface NetworkInfo {
-  summary: string;
-  section: string;
-  objects: NetworkObjectInfo[];
-  addressing: NetworkRuleInfo[];
-  leds: NetworkLedInfo[];
-}
+export type NetworkInfo = S['NetworkInfo'];
 
 /** GET /profiles/{id}. */
-export interface ProfileDetail extends ProfileSummary {
-  groups: GroupInfo[];
-  object_list: ObjectInfo[];
-  error_list: ErrorInfo[];
-  quirks: QuirkInfo[];
-  /** null: the profile documents no network section. Optional for an older server. */
-  network?: NetworkInfo | null;
-}
+export type ProfileDetail = S['ProfileDetail'];
 
 /** One answer of POST /sessions/{sid}/read: the value, or why that one address failed. */
-export type ReadItem = ObjectValue | { address: string; error: ApiErrorBody };
+export type ReadItem = S['ReadResults']['results'][number];
 
-export interface ReadRequest {
-  addresses: string[];
-}
+export type ReadRequest = S['ReadRequest'];
 
-export interface ReadResponse {
-  results: ReadItem[];
-}
+export type ReadResponse = S['ReadResults'];
 
-export interface StoreResult {
-  /** Dirty entries now saved. */
-  stored: number;
-  duration_s: number;
-  /** e.g. "0x1010:01 <- 0x65766173". */
-  procedure: string;
-}
+export type StoreResult = S['StoreResult'];
 
-export interface RestoreDefaultsRequest {
-  confirm: boolean;
-  reset: boolean;
-}
+export type RestoreDefaultsRequest = S['RestoreDefaultsRequest'];
 
-export interface RestoreDefaultsResult {
-  message: string;
-}
+export type RestoreDefaultsResult = S['MessageOut'];
 
-export type DeviceDescriptionFormat = 'eds' | 'dcf' | 'esi';
+export type DeviceDescriptionFormat = NonNullable<ExportFormat<'/api/v1/profiles/{profile_id}/export'>>;
 
 // ---------------------------------------------------------------------------------------------
 // Backups (issue 5) — docs/api.md "Backup, compare, restore (issue 5)". Appended by the
@@ -393,224 +120,60 @@ export type DeviceDescriptionFormat = 'eds' | 'dcf' | 'esi';
 // ---------------------------------------------------------------------------------------------
 
 /** Where a drive is on the bus when its backup was taken. */
-export interface BackupBus {
-  interface: string;
-  channel: string;
-  node_id: number;
-}
+export type BackupBus = S['BackupBus'];
 
 /** An object the drive refused when a set was read: the set lacks it (issue 48). */
-export interface UnreadableEntry {
-  address: string;
-  name: string;
-  code: number | null;
-  code_hex: string | null;
-  message: string;
-}
+export type UnreadableEntry = S['UnreadableOut'];
 
 /** One stored backup (the file's metadata; the file itself never changes). */
-export interface BackupInfo {
-  id: string;
-  /** When it was taken: ISO 8601 text (or seconds since the epoch from an older server). */
-  time: string | number;
-  label: string;
-  note: string;
-  profile_id: string;
-  profile_version: string | number | null;
-  /** Which physical drive it is (from its identity); GET /backups?drive= filters by it. */
-  drive_key: string;
-  identity: Identity;
-  firmware: string | null;
-  bus: BackupBus | null;
-  entries: number;
-  file: string;
-  sha256: string;
-  /** What the drive refused to give when it was read: the backup lacks these. */
-  unreadable: UnreadableEntry[];
-  /** False when `unreadable` is not empty. */
-  complete: boolean;
-}
+export type BackupInfo = Always<S['BackupInfo'], 'unreadable'>;
 
-export interface BackupRequest {
-  label: string;
-  note: string;
-}
+export type BackupRequest = S['BackupCreate'];
 
-export interface BackupPatch {
-  label?: string;
-  note?: string;
-}
+export type BackupPatch = S['BackupPatch'];
 
-export interface BackupFileEntry {
-  address: string;
-  name: string | null;
-  data_type: string | null;
-  raw_hex: string;
-  value: ObjectScalar | null;
-  unit: string | null;
-}
+export type BackupFileEntry = S['BackupEntryOut'];
 
 /** GET /backups/{bid}: the JSON file's content. */
-export interface BackupFile {
-  schema_version: number;
-  tool: string;
-  time: string | number;
-  label: string;
-  note: string;
-  profile: { id: string; version: string | number | null };
-  identity: Identity;
-  firmware: string | null;
-  bus: BackupBus | null;
-  entries: BackupFileEntry[];
-}
+export type BackupFile = S['BackupFile'];
 
-export type BackupFormat = 'json' | 'dcf' | 'csv';
+export type BackupFormat = NonNullable<ExportFormat<'/api/v1/backups/{bid}/download'>>;
 
 /** One side of a comparison. */
-export type CompareSource =
-  | { kind: 'drive'; session: string }
-  | { kind: 'backup'; id: string }
-  | { kind: 'defaults'; profile: string };
+/** `node_id` of a defaults source has a server default (1). */
+export type CompareSource = S['SourceDrive'] | S['SourceBackup'] | ServerDefaults<S['SourceDefaults'], 'node_id'>;
 
-export interface CompareRequest {
-  a: CompareSource;
-  b: CompareSource;
-  /** Also list the entries that are equal (the contract's "all"). */
-  all: boolean;
-}
+export type CompareRequest = Omit<S['CompareRequest'], 'a' | 'b'> & { a: CompareSource; b: CompareSource };
 
 /**
  * "changed" / "only_a" / "only_b" per the contract; with `all: true` the server may also list
  * equal entries, under a kind the contract does not name yet ("equal" or "same").
  */
-export type DifferenceKind = 'changed' | 'only_a' | 'only_b' | 'equal' | 'same';
+export type DifferenceKind = S['DifferenceOut']['kind'];
 
-export interface Difference {
-  address: string;
-  name: string | null;
-  group: string | null;
-  unit: string | null;
-  raw_unit: string | null;
-  a_value: ObjectScalar | null;
-  b_value: ObjectScalar | null;
-  a_raw_hex: string | null;
-  b_raw_hex: string | null;
-  a_engineering: number | null;
-  b_engineering: number | null;
-  kind: DifferenceKind;
-}
+export type Difference = S['DifferenceOut'];
 
-export interface Comparison {
-  /** What A and B are, in words. */
-  a: string;
-  b: string;
-  equal: boolean;
-  differences: Difference[];
-  /** Entries equal on both sides. */
-  same: number;
-  /** Objects a side lacks (unreadable when it was read): not compared. */
-  a_unreadable: UnreadableEntry[];
-  b_unreadable: UnreadableEntry[];
-}
+export type Comparison = Always<S['Comparison'], 'a_unreadable' | 'b_unreadable'>;
 
-export interface PreflightRequest {
-  backup: string;
-  map_by_name: boolean;
-}
+export type PreflightRequest = S['PreflightRequest'];
 
-export interface PreflightProblem {
-  address: string | null;
-  name: string | null;
-  message: string;
-  hint: string | null;
-}
+export type PreflightProblem = S['ProblemOut'];
 
-export interface NameMapping {
-  address: string;
-  name: string | null;
-  /** The address on this drive with the same name, or null when it has none. */
-  target: string | null;
-  /** Why an entry has no target (backend addition, not in docs/api.md). */
-  reason?: string | null;
-}
+export type NameMapping = S['MappingOut'];
 
-export interface Preflight {
-  ok: boolean;
-  problems: PreflightProblem[];
-  to_write: number;
-  unchanged: number;
-  read_only_skipped: number;
-  /** For a backup of another family: how names map onto this drive's objects; else null. */
-  mapping: NameMapping[] | null;
-  /** Things to know that do not block the restore (backend addition, not in docs/api.md). */
-  warnings?: string[];
-  /** What the backup lacks (unreadable when it was taken): a restore cannot set these. */
-  unreadable: UnreadableEntry[];
-}
+export type Preflight = Always<S['PreflightOut'], 'unreadable'>;
 
-export interface RestoreRequest {
-  backup: string;
-  dry_run: boolean;
-  store: boolean;
-  force: boolean;
-  map_by_name: boolean;
-}
+export type RestoreRequest = S['RestoreRequest'];
 
-export type RestoreItemStatus = 'written' | 'unchanged' | 'skipped_read_only' | 'failed' | 'pending' | 'would_write';
+export type RestoreItemStatus = S['RestoreItemOut']['status'];
 
-export interface RestoreItem {
-  address: string;
-  name: string | null;
-  status: RestoreItemStatus;
-  old_raw_hex: string | null;
-  new_raw_hex: string | null;
-  code: number | null;
-  code_hex: string | null;
-  meaning: string | null;
-  message: string | null;
-}
+export type RestoreItem = S['RestoreItemOut'];
 
-export interface RestoreCounts {
-  written: number;
-  unchanged: number;
-  skipped: number;
-  failed: number;
-  pending: number;
-}
+export type RestoreCounts = S['RestoreCounts'];
 
-export interface RestoreReport {
-  id: string;
-  backup: string;
-  session: string;
-  time: string | number;
-  dry_run: boolean;
-  finished: boolean;
-  stored: boolean;
-  interrupted: boolean;
-  /** The backup servodesk took automatically just before writing. */
-  pre_backup: string | null;
-  counts: RestoreCounts;
-  items: RestoreItem[];
-  /** Why it stopped or was not stored (backend addition, not in docs/api.md). */
-  message?: string | null;
-  /** The preflight's warnings (backend addition, not in docs/api.md). */
-  warnings?: string[];
-  /** What the backup lacks: this restore did not set these. */
-  unreadable: UnreadableEntry[];
-}
+export type RestoreReport = Always<S['RestoreReport'], 'unreadable'>;
 
-export interface AuditEntry {
-  time: string | number;
-  client: string;
-  session: string | null;
-  drive_key: string | null;
-  address: string;
-  name: string | null;
-  old_raw_hex: string | null;
-  new_raw_hex: string | null;
-  old_value: ObjectScalar | null;
-  new_value: ObjectScalar | null;
-}
+export type AuditEntry = S['AuditEntry'];
 
 // ---------------------------------------------------------------------------------------------
 // Operation and alarms (issue 4) — docs/api.md "Operation: control, motion, dead-man, homing,
@@ -618,259 +181,67 @@ export interface AuditEntry {
 // (api/schemas.py), which adds a few fields to the contract (marked "backend addition").
 // ---------------------------------------------------------------------------------------------
 
-export type ControlAction = 'take' | 'release' | 'force_take';
+export type ControlAction = S['ControlRequest']['action'];
 
-export interface Control {
-  session: string;
-  /** The holder's client label (X-Servodesk-Client when it took control), or null. */
-  owner: string | null;
-  /** The account holding control ("local" in the single-user mode), or null. */
-  user?: string | null;
-  /** Unix time (s) when it was taken. */
-  since: number | null;
-  /** The request's X-Servodesk-Control token is the holder's. */
-  you: boolean;
-  /** The control token: only in the answer to the holder (take / force_take, GET with it). */
-  token?: string | null;
-  /** A WebSocket is bound to this control as the drive's dead-man. */
-  bound?: boolean;
-  /** The holder's bound socket closed: the drive was made safe, control lapses after 5 s
-   * unless a reloaded page binds again with the token. */
-  orphaned?: boolean;
-  /** What stops this drive when its operator is lost (GET /control and the take answer). */
-  protection?: ControlProtection | null;
-}
+/** GET/POST /control; the WebSocket's control event carries only session, owner, since and you. */
+export type Control = Omit<S['ControlOut'], 'bound' | 'orphaned'> & Partial<Pick<S['ControlOut'], 'bound' | 'orphaned'>>;
 
-export interface ControlProtection {
-  /** Heartbeats older than this stop the axis. */
-  deadman_ms: number;
-  /** Where the dead-man's quick stop is sent from. */
-  stop_path: 'dead-man thread' | 'event loop';
-  /** The drive's own watchdog servodesk arms (a dead PC stops the axis), or null. */
-  drive_watchdog: string | null;
-  /** One sentence for people. */
-  summary: string;
-}
+export type ControlProtection = S['ProtectionOut'];
 
-export interface JogRequest {
-  /** Signed velocity, raw units. */
-  velocity: number;
-  /** Acceleration and deceleration, raw units (> 0). */
-  acceleration: number;
-}
+export type JogRequest = S['JogRequest'];
 
-export interface MoveRequest {
-  mode: 'absolute' | 'relative';
-  target: number;
-  velocity?: number | null;
-  acceleration?: number | null;
-  deceleration?: number | null;
-  immediate?: boolean;
-}
+export type MoveRequest = ServerDefaults<S['MoveRequest'], 'immediate'>;
 
-export interface VelocityRequest {
-  velocity: number;
-  acceleration?: number | null;
-  deceleration?: number | null;
-}
+export type VelocityRequest = S['VelocityRequest'];
 
-export interface TorqueRequest {
-  torque: number;
-  slope?: number | null;
-}
+export type TorqueRequest = S['TorqueRequest'];
 
-export type CyclicMode = 'csp' | 'csv' | 'cst';
+export type CyclicMode = S['servodesk__api__schemas__CyclicRequest']['mode'];
 
-export interface CyclicRequest {
-  mode: CyclicMode;
-  waveform: 'sine' | 'ramp';
-  amplitude: number;
-  frequency: number;
-  duration: number;
-}
+export type CyclicRequest = S['servodesk__api__schemas__CyclicRequest'];
 
-export type MotionKind = 'jog' | 'move' | 'velocity' | 'torque' | 'cyclic' | 'homing' | 'tuning';
+export type MotionKind = NonNullable<S['MotionStatusOut']['kind']>;
 
-export interface MotionStatus {
-  session: string;
-  active: boolean;
-  kind: MotionKind | null;
-  owner: string | null;
-  mode: number | null;
-  target: number | null;
-  /** idle, running, reached, done, halted, stopped, deadman or error. */
-  state: string;
-  message: string;
-}
+export type MotionStatus = S['MotionStatusOut'];
 
-export interface UnitInfo {
-  raw_unit: string | null;
-  unit: string | null;
-  scale: number;
-  /** The profile's default of the object (raw), where it has one (limits only). */
-  default?: number | null;
-  /** What the ramp objects hold (limits' acceleration only; backend domain/ramps.py): a rate
-   * in units per s², a time in ms to the rated speed (LECSN-T), or a register (CTMM04x). */
-  ramp?: 'rate' | 'time' | 'register' | null;
-}
+export type UnitInfo = S['UnitOut'];
 
-export interface Limits {
-  position_min: number | null;
-  position_max: number | null;
-  max_velocity: number | null;
-  max_torque: number | null;
-  max_acceleration: number | null;
-  /** Backend addition: 60C6h. */
-  max_deceleration: number | null;
-  modes: number[];
-  /** Backend addition: mode number -> name. */
-  mode_names: Record<string, string>;
-  /** position, velocity, torque, acceleration (each only when the profile has the object). */
-  units: Partial<Record<'position' | 'velocity' | 'torque' | 'acceleration', UnitInfo>>;
-  /** Backend addition: where each limit was read, e.g. "0x607F:00". */
-  sources: Record<string, string>;
-}
+export type Limits = S['LimitsOut'];
 
 export type HomingSignal = 'home_switch' | 'limit_negative' | 'limit_positive' | 'index';
 
-export interface HomingMethod {
-  method: number;
-  name: string;
-  description: string;
-  uses: HomingSignal[];
-  direction: 'negative' | 'positive' | null;
-  section: string | null;
-  /** Backend addition: for a vendor method, the CiA 402 method it is simulated as. */
-  equivalent?: number | null;
-  /** Backend addition: the method needs Operation enabled to start. */
-  needs_enable?: boolean;
-}
+export type HomingMethod = S['HomingMethodOut'];
 
-export interface HomingRequest {
-  method: number;
-  speed_switch?: number | null;
-  speed_zero?: number | null;
-  acceleration?: number | null;
-  offset?: number | null;
-  /** The span the searches may cover (position units), for the estimate. */
-  max_travel?: number | null;
-  /** Halt and quick-stop the run after this many seconds (default: from the estimate). */
-  timeout_s?: number | null;
-}
+export type HomingRequest = S['HomingRequest'];
 
 /** One part of a homing run at one speed (domain/homing.py). */
-export interface HomingPhase {
-  name: string;
-  distance: number;
-  speed: number;
-  seconds: number;
-  speed_object: string;
-}
+export type HomingPhase = S['HomingPhaseOut'];
 
-export interface HomingEstimate {
-  /** The longest a normal run takes from any start within the travel. */
-  seconds: number;
-  phases: HomingPhase[];
-  assumptions: string[];
-}
+export type HomingEstimate = S['HomingEstimateOut'];
 
 /** What a run is expected to take: GET /homing/plan, and part of every run. */
-export interface HomingPlan {
-  estimate_s: number | null;
-  estimate: HomingEstimate | null;
-  /** Where the travel came from, or why there is no estimate. */
-  basis: string;
-  travel: number | null;
-  speed_switch: number | null;
-  speed_zero: number | null;
-  acceleration: number | null;
-  timeout_s: number;
-  timeout_source: 'user' | 'estimate' | 'default';
-  warnings: string[];
-}
+export type HomingPlan = S['HomingPlanOut'];
 
 /** How a run ended (running while it lasts): the motion's end, not only the statusword. */
-export type HomingOutcome =
-  | 'running'
-  | 'attained'
-  | 'error'
-  | 'halted'
-  | 'stopped'
-  | 'deadman'
-  | 'control_lost'
-  | 'timeout'
-  | 'interrupted';
+export type HomingOutcome = S['HomingRunOut']['outcome'];
 
-export interface HomingRun extends HomingPlan {
-  id: number;
-  method: number;
-  active: boolean;
-  outcome: HomingOutcome;
-  message: string;
-  /** A motion under the client's dead-man. */
-  watched: boolean;
-  started_at: number;
-  elapsed_s: number;
-  /** What statusword bits 13/12/10 say (mode 6 only). */
-  phase: string | null;
-}
+export type HomingRun = S['HomingRunOut'];
 
-export interface HomingBits {
-  target_reached: boolean;
-  homing_attained: boolean;
-  homing_error: boolean;
-}
+export type HomingBits = S['HomingBits'];
 
-export type HomingState = 'idle' | 'running' | 'attained' | 'error';
+export type HomingState = S['HomingStatus']['state'];
 
-export interface HomingStatus {
-  session: string;
-  method: number | null;
-  state: HomingState;
-  position: number | null;
-  /** The backend sends the decoded bits (an object), not a list. */
-  statusword_bits: HomingBits;
-  message: string;
-  /** The last run started through servodesk on this session. */
-  run?: HomingRun | null;
-}
+export type HomingStatus = S['HomingStatus'];
 
-export interface EmcyLogEntry {
-  time: number | null;
-  code: number;
-  code_hex: string;
-  name: string | null;
-  cause: string | null;
-  remedy: string | null;
-  register: number;
-}
+export type EmcyLogEntry = S['EmcyLogEntry'];
 
-export interface AlarmHistoryEntry {
-  /** "1003h" or the family's object, e.g. "0x2A00:01". */
-  source: string;
-  index: number;
-  code: number;
-  code_hex: string;
-  name: string;
-  cause: string | null;
-  remedy: string | null;
-  /** Backend addition: operating hours of the entry, where the family records them. */
-  time_h?: number | null;
-}
+export type AlarmHistoryEntry = S['AlarmHistoryEntry'];
 
-export interface Alarms {
-  session: string;
-  current: ErrorInfo | null;
-  state: string;
-  emcy_log: EmcyLogEntry[];
-  history: AlarmHistoryEntry[];
-  reset_procedure: string;
-  can_clear_history: boolean;
-  /** POST /alarms/reset only: what the reset did (nothing is sent outside Fault). */
-  message?: string | null;
-}
+export type Alarms = S['AlarmsOut'];
 
 /** GET /viewer: the viser 3D viewer. */
+/** The UI's reading of GET /viewer: every field optional, and the `message`/`reason` an older
+ * server sent; lib/viewer.ts falls back on them. */
 export interface ViewerInfo {
   enabled: boolean;
   url: string | null;
@@ -973,10 +344,11 @@ export interface PdoOut {
   entries: PdoEntryOut[];
 }
 
-export interface PdoAssignment {
+// A type literal, not an interface: it must fit the schema's `{ [key: string]: number[] }`.
+export type PdoAssignment = {
   rx: number[];
   tx: number[];
-}
+};
 
 /** GET /pdo and the `view` of validate / templates / apply. */
 export interface PdoView {
@@ -1066,6 +438,7 @@ export interface PdoPlan {
   touched: string[];
 }
 
+/** The UI's body of apply (the wrapper checks it against the schema's ApplyRequest). */
 export interface PdoApplyRequest extends PdoLayout {
   dry_run: boolean;
 }
@@ -1179,45 +552,16 @@ export interface PdoCyclicStatus {
   dc_cycle_ns?: number[] | null;
 }
 
-export interface PdoCyclicRequest {
-  sync_period_ms: number;
-  outputs: boolean;
-  sync?: 'freerun' | 'dc';
-}
+export type PdoCyclicRequest = S['servodesk__api__routes__pdo__CyclicRequest'];
 
-export type PdoExportFormat = 'csv' | 'dcf' | 'esi' | 'json';
+export type PdoExportFormat = NonNullable<ExportFormat<'/api/v1/sessions/{sid}/pdo/export'>>;
 
 // --- Audit log (issue 45; docs/api.md "Audit log") ------------------------------------------
 
-export type AuditCategory =
-  | 'access_control'
-  | 'request_error'
-  | 'control'
-  | 'motion'
-  | 'write'
-  | 'backup'
-  | 'restore'
-  | 'configuration'
-  | 'user_admin';
+export type AuditCategory = S['AuditRecord']['category'];
 
 /** One audit record (GET /audit), with its place in the hash chain. */
-export interface AuditRecord {
-  seq: number;
-  /** ISO 8601 UTC, e.g. 2026-12-07T08:30:00.123456Z */
-  time: string;
-  user: string;
-  /** The source address of the request (empty for the system: the dead-man, timers). */
-  address: string;
-  category: AuditCategory;
-  /** Stable id, e.g. control.taken, motion.stopped, request.refused. */
-  event: string;
-  drive: string | null;
-  result: 'success' | 'failure';
-  message: string;
-  details: Record<string, unknown>;
-  prev: string;
-  hash: string;
-}
+export type AuditRecord = S['AuditRecord'];
 
 export interface AuditFilter {
   category?: AuditCategory | null;
@@ -1232,10 +576,4 @@ export interface AuditFilter {
 }
 
 /** GET /audit/verify: the chain recomputed. */
-export interface AuditVerdict {
-  ok: boolean;
-  records: number;
-  head: string;
-  broken: number | null;
-  problem: string | null;
-}
+export type AuditVerdict = S['AuditVerdict'];

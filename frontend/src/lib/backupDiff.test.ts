@@ -4,7 +4,7 @@ import { addressOrder, diffCounts, groupDifferences, isEqual, kindLabel, sideCel
 
 function diff(p: Partial<Difference> & { address: string }): Difference {
   return {
-    name: null,
+    name: '',
     group: null,
     unit: null,
     raw_unit: null,
@@ -52,7 +52,7 @@ describe('groupDifferences', () => {
     differences: [
       diff({ address: '0x6081:00', group: 'position', kind: 'changed' }),
       diff({ address: '0x6065:00', group: 'position', kind: 'only_a' }),
-      diff({ address: '0x1018:01', group: 'identity', kind: 'equal' }),
+      diff({ address: '0x1018:01', group: 'identity', kind: 'same' }),
       diff({ address: '0x2000:00', group: null, kind: 'only_b' }),
       diff({ address: '0x3000:00', group: 'vendor', kind: 'changed' }),
       diff({ address: '0x60FF:00', group: 'Velocity', kind: 'changed' }),
@@ -76,7 +76,7 @@ describe('counts and equality', () => {
     const c = { equal: false, same: 7, differences: [diff({ address: '0x1', kind: 'changed' }), diff({ address: '0x2', kind: 'only_b' })] };
     expect(diffCounts(c)).toEqual({ changed: 1, onlyA: 0, onlyB: 1, same: 7 });
     expect(isEqual(c)).toBe(false);
-    expect(isEqual({ equal: false, differences: [diff({ address: '0x1', kind: 'equal' })] })).toBe(true);
+    expect(isEqual({ equal: false, differences: [diff({ address: '0x1', kind: 'same' })] })).toBe(true);
     expect(isEqual({ equal: true, differences: [] })).toBe(true);
   });
   it('labels the kinds', () => {

@@ -3,10 +3,10 @@ import type { Preflight, RestoreItem, RestoreReport } from '../api/types';
 import { mergeProgressItem, parseBackupProgress, parseProgressItem } from './backupProgress';
 import { canResume, mappedCount, nothingToWrite, reportVerdict, restoreBlocker, sortItems, statusLabel } from './backupRestore';
 
-const OK: Preflight = { ok: true, problems: [], to_write: 3, unchanged: 10, read_only_skipped: 2, mapping: null, unreadable: [] };
+const OK: Preflight = { ok: true, problems: [], warnings: [], to_write: 3, unchanged: 10, read_only_skipped: 2, mapping: null, unreadable: [] };
 
 function item(p: Partial<RestoreItem> & { address: string }): RestoreItem {
-  return { name: null, status: 'written', old_raw_hex: null, new_raw_hex: null, code: null, code_hex: null, meaning: null, message: null, ...p };
+  return { name: '', status: 'written', old_raw_hex: null, new_raw_hex: null, code: null, code_hex: null, meaning: null, message: null, ...p };
 }
 
 function report(p: Partial<RestoreReport>): RestoreReport {
@@ -14,14 +14,17 @@ function report(p: Partial<RestoreReport>): RestoreReport {
     id: 'r1',
     backup: 'b1',
     session: 's',
-    time: 0,
+    time: '2025-11-21T15:04:09',
     dry_run: false,
     finished: true,
     stored: true,
     interrupted: false,
     pre_backup: 'b0',
-    counts: { written: 2, unchanged: 5, skipped: 1, failed: 0, pending: 0 },
+    message: '',
+    warnings: [],
+    counts: { written: 2, would_write: 0, unchanged: 5, skipped: 1, failed: 0, pending: 0 },
     items: [],
+    steps: [],
     unreadable: [],
     ...p,
   };
@@ -43,7 +46,7 @@ describe('restoreBlocker', () => {
     expect(restoreBlocker(bad, false)).toMatch(/a problem/);
   });
   it('asks for the name mapping opt-in for a backup of another family', () => {
-    const mapped = { ...OK, mapping: [{ address: '0x2000:00', name: 'Speed', target: '0x6081:00' }, { address: '0x2001:00', name: 'X', target: null }] };
+    const mapped = { ...OK, mapping: [{ address: '0x2000:00', name: 'Speed', target: '0x6081:00', reason: null }, { address: '0x2001:00', name: 'X', target: null, reason: null }] };
     expect(restoreBlocker(mapped, false)).toMatch(/map entries by name/);
     expect(restoreBlocker(mapped, true)).toBeNull();
     // Before the opt-in the server sends no mapping (and a failed preflight): say what to do.
@@ -57,12 +60,12 @@ describe('report', () => {
   it('says what happened', () => {
     expect(reportVerdict(report({})).kind).toBe('ok');
     expect(reportVerdict(report({ stored: false })).text).toMatch(/not stored/);
-    expect(reportVerdict(report({ counts: { written: 1, unchanged: 0, skipped: 0, failed: 1, pending: 0 }, stored: false })).kind).toBe('bad');
+    expect(reportVerdict(report({ counts: { written: 1, would_write: 0, unchanged: 0, skipped: 0, failed: 1, pending: 0 }, stored: false })).kind).toBe('bad');
     const dry = report({ dry_run: true, stored: false, items: [item({ address: '0x1', status: 'would_write' })] });
     expect(reportVerdict(dry).text).toMatch(/Dry run: 1 entry would be written/);
   });
   it('offers Resume only for an interrupted real restore', () => {
-    const cut = report({ interrupted: true, finished: false, counts: { written: 1, unchanged: 0, skipped: 0, failed: 0, pending: 4 } });
+    const cut = report({ interrupted: true, finished: false, counts: { written: 1, would_write: 0, unchanged: 0, skipped: 0, failed: 0, pending: 4 } });
     expect(canResume(cut)).toBe(true);
     expect(reportVerdict(cut).text).toMatch(/4 entries not yet written/);
     expect(canResume(report({}))).toBe(false);
