@@ -604,7 +604,7 @@ class TorqueRequest(BaseModel):
     slope: int | None = Field(default=None, description="Torque slope 6087h", gt=0, le=_U32_MAX)
 
 
-class CyclicRequest(BaseModel):
+class CyclicMotionRequest(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     mode: Literal["csp", "csv", "cst"]

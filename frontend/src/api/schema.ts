@@ -1998,6 +1998,35 @@ export interface components {
              */
             confirm: boolean;
         };
+        /** CyclicMotionRequest */
+        CyclicMotionRequest: {
+            /**
+             * Amplitude
+             * @description Around the start (csp) or 0 (csv, cst), raw units
+             */
+            amplitude: number;
+            /**
+             * Duration
+             * @description Seconds (rounded up to whole periods)
+             */
+            duration: number;
+            /**
+             * Frequency
+             * @description Hz
+             */
+            frequency: number;
+            /**
+             * Mode
+             * @enum {string}
+             */
+            mode: "csp" | "csv" | "cst";
+            /**
+             * Waveform
+             * @default sine
+             * @enum {string}
+             */
+            waveform: "sine" | "ramp";
+        };
         /** DcpDeviceOut */
         DcpDeviceOut: {
             /**
@@ -2942,6 +2971,25 @@ export interface components {
                 [key: string]: number | boolean;
             };
         };
+        /** PdoCyclicRequest */
+        PdoCyclicRequest: {
+            /**
+             * Outputs
+             * @default false
+             */
+            outputs: boolean;
+            /**
+             * Sync
+             * @default freerun
+             * @enum {string}
+             */
+            sync: "freerun" | "dc";
+            /**
+             * Sync Period Ms
+             * @default 10
+             */
+            sync_period_ms: number;
+        };
         /** PdoIn */
         PdoIn: {
             /** Cob Id */
@@ -3804,54 +3852,6 @@ export interface components {
              * @description Typed value of the object's kind: a number (integer, real), true/false or 0/1 (BOOLEAN), text (VISIBLE_STRING, UNICODE_STRING), hex text (OCTET_STRING, DOMAIN). A number in hex goes as raw_hex.
              */
             value?: boolean | number | string | null;
-        };
-        /** CyclicRequest */
-        servodesk__api__routes__pdo__CyclicRequest: {
-            /**
-             * Outputs
-             * @default false
-             */
-            outputs: boolean;
-            /**
-             * Sync
-             * @default freerun
-             * @enum {string}
-             */
-            sync: "freerun" | "dc";
-            /**
-             * Sync Period Ms
-             * @default 10
-             */
-            sync_period_ms: number;
-        };
-        /** CyclicRequest */
-        servodesk__api__schemas__CyclicRequest: {
-            /**
-             * Amplitude
-             * @description Around the start (csp) or 0 (csv, cst), raw units
-             */
-            amplitude: number;
-            /**
-             * Duration
-             * @description Seconds (rounded up to whole periods)
-             */
-            duration: number;
-            /**
-             * Frequency
-             * @description Hz
-             */
-            frequency: number;
-            /**
-             * Mode
-             * @enum {string}
-             */
-            mode: "csp" | "csv" | "cst";
-            /**
-             * Waveform
-             * @default sine
-             * @enum {string}
-             */
-            waveform: "sine" | "ramp";
         };
     };
     responses: never;
@@ -10416,7 +10416,7 @@ export interface operations {
         };
         requestBody: {
             content: {
-                "application/json": components["schemas"]["servodesk__api__schemas__CyclicRequest"];
+                "application/json": components["schemas"]["CyclicMotionRequest"];
             };
         };
         responses: {
@@ -11845,7 +11845,7 @@ export interface operations {
         };
         requestBody: {
             content: {
-                "application/json": components["schemas"]["servodesk__api__routes__pdo__CyclicRequest"];
+                "application/json": components["schemas"]["PdoCyclicRequest"];
             };
         };
         responses: {

@@ -196,9 +196,9 @@ export type VelocityRequest = S['VelocityRequest'];
 
 export type TorqueRequest = S['TorqueRequest'];
 
-export type CyclicMode = S['servodesk__api__schemas__CyclicRequest']['mode'];
+export type CyclicMode = S['CyclicMotionRequest']['mode'];
 
-export type CyclicRequest = S['servodesk__api__schemas__CyclicRequest'];
+export type CyclicRequest = S['CyclicMotionRequest'];
 
 export type MotionKind = NonNullable<S['MotionStatusOut']['kind']>;
 
@@ -552,7 +552,7 @@ export interface PdoCyclicStatus {
   dc_cycle_ns?: number[] | null;
 }
 
-export type PdoCyclicRequest = S['servodesk__api__routes__pdo__CyclicRequest'];
+export type PdoCyclicRequest = S['PdoCyclicRequest'];
 
 export type PdoExportFormat = NonNullable<ExportFormat<'/api/v1/sessions/{sid}/pdo/export'>>;
 

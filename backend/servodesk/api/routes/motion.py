@@ -23,7 +23,7 @@ from servodesk.api.schemas import (
     ERROR_RESPONSES,
     ControlOut,
     ControlRequest,
-    CyclicRequest,
+    CyclicMotionRequest,
     JogRequest,
     LimitsOut,
     MotionStatusOut,
@@ -122,7 +122,7 @@ async def run_torque(
 
 @router.post("/sessions/{sid}/motion/cyclic", operation_id="run_cyclic")
 async def run_cyclic(
-    sid: str, body: CyclicRequest, op: OperationDep, client: MotionControl
+    sid: str, body: CyclicMotionRequest, op: OperationDep, client: MotionControl
 ) -> MotionStatusOut:
     return _status(
         await op.motion.cyclic(

@@ -62,7 +62,7 @@ class ApplyRequest(PdoLayout):
     dry_run: bool = False
 
 
-class CyclicRequest(BaseModel):
+class PdoCyclicRequest(BaseModel):
     model_config = _BODY
     sync_period_ms: float = Field(default=10.0, ge=1.0, le=1000.0)
     outputs: bool = False
@@ -173,7 +173,7 @@ async def pdo_cyclic_status(sid: str, state: StateDep) -> dict[str, Any]:
 
 @router.post("/sessions/{sid}/pdo/cyclic", operation_id="pdo_cyclic_start")
 async def pdo_cyclic_start(
-    sid: str, body: CyclicRequest, request: Request, state: StateDep, client: WriteControl
+    sid: str, body: PdoCyclicRequest, request: Request, state: StateDep, client: WriteControl
 ) -> dict[str, Any]:
     if body.outputs:
         # servodesk then produces the RPDOs: the controlword among them (control_deps).
