@@ -348,6 +348,15 @@ def _check_value_fields(spec: Any, where: str) -> list[str]:
 def profile_to_yaml(p: DeviceProfile) -> str:
     """The profile in its authoring format (used to save imported profiles)."""
     data = p.model_dump(mode="json", exclude_defaults=True)
+    # A quirk's value is always written: exclude_defaults compares with ==, and 1 == True,
+    # so a quirk of value 1 (HIWIN's pdo_assign_max_per_sm) lost its value and read back as
+    # True (found by the quirk registry's shape check, domain/quirks.py).
+    if p.quirks:
+        data["quirks"] = [
+            {"id": q.id, "value": q.model_dump(mode="json")["value"]}
+            | {k: v for k, v in (("section", q.section), ("note", q.note)) if v is not None}
+            for q in p.quirks
+        ]
     data = {"schema_version": 1, **data}
     return str(yaml.safe_dump(data, sort_keys=False, allow_unicode=True, width=100))
 
