@@ -18,8 +18,11 @@ drives, ``--clients`` clients read the stream, and the bench reports:
 Production is never faked: the samples counted are the scope's own count of what the drives
 delivered. Where a source falls short of the issue's 4 kHz x 8 channels per drive, the JSON
 says what it achieved and why (a 1 ms SYNC is the cyclic exchange's fastest period; the
-recorder's data comes by segmented SDO upload, whose measured throughput bounds its share of
-recording time).
+recorder's data comes by SDO block upload, whose measured throughput bounds its share of
+recording time). The recorder is measured twice in one run: ``recorder_segmented`` with the
+links' block upload switched off (the baseline), then ``recorder``; ``recorder_block_vs_segmented``
+gives the ratios, and every phase the CAN bus load its frames would put on a 1 Mbit/s bus
+(``can_bus``, docs/scope.md "Block upload").
 
 Children: ``python -m servodesk.benchmarks.scope --child sim|server ...`` (internal).
 """
@@ -38,7 +41,11 @@ import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
+import urllib.error
+import urllib.request
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -212,11 +219,53 @@ async def _serve(buses: list[BusSpec], interface: str, max_channels: int, data_d
         session = await manager.open(params, PROFILE, simulated=True)
         sids.append(session.id)
     print(json.dumps({"port": sock.getsockname()[1], "sessions": sids}), flush=True)
+    links = [manager.get(sid).link for sid in sids]
+    threading.Thread(target=_commands, args=(links,), name="bench-commands", daemon=True).start()
     await task
     if sim is not None:
         for s in sim:
             s.stop()
     return 0
+
+
+def _commands(links: list[Any]) -> None:
+    """The server child's control lines on stdin (the recorder phases), one JSON reply each:
+
+    - ``upload segmented`` / ``upload block``: the CANopen links' SDO upload for large reads
+      (``CanopenLink.block_upload``), so one run measures both paths;
+    - ``frames``: the SDO frames each session's link sent and received so far.
+    """
+    for line in sys.stdin:
+        cmd = line.split()
+        reply: dict[str, Any] = {"ok": True}
+        if cmd[:1] == ["upload"] and len(cmd) == 2:
+            for link in links:
+                if hasattr(link, "block_upload"):
+                    link.block_upload = cmd[1] == "block"
+        elif cmd == ["frames"]:
+            reply["frames"] = [
+                int(getattr(link, "sdo_frames_tx", 0)) + int(getattr(link, "sdo_frames_rx", 0))
+                for link in links
+            ]
+            reply["block_resent"] = [int(getattr(link, "block_resent", 0)) for link in links]
+            reply["block_timeouts"] = [int(getattr(link, "block_timeouts", 0)) for link in links]
+        else:
+            reply = {"ok": False, "error": f"unknown command {line.strip()!r}"}
+        print(json.dumps(reply), flush=True)
+
+
+def _ask(proc: subprocess.Popen[str], command: str) -> dict[str, Any]:
+    """Send a control line to the server child and return its reply."""
+    assert proc.stdin is not None
+    proc.stdin.write(command + "\n")
+    proc.stdin.flush()
+    line = _first_line(proc, 30.0)
+    if not line:
+        raise RuntimeError(f"the server did not answer {command!r}")
+    reply: dict[str, Any] = json.loads(line)
+    if not reply.get("ok"):
+        raise RuntimeError(str(reply.get("error")))
+    return reply
 
 
 def _first_line(proc: subprocess.Popen[str], timeout: float = 60.0) -> str:
@@ -238,6 +287,7 @@ def child(args: list[str]) -> Any:
     with tempfile.TemporaryFile("w+") as err:
         proc = subprocess.Popen(
             [sys.executable, "-m", "servodesk.benchmarks.scope", "--child", *args],
+            stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=err,
             text=True,
@@ -258,6 +308,9 @@ def child(args: list[str]) -> Any:
                     proc.wait(5)
             if proc.stdout is not None:
                 proc.stdout.close()
+            if proc.stdin is not None:
+                with contextlib.suppress(OSError):
+                    proc.stdin.close()
 
 
 # Clients -----------------------------------------------------------------------------------
@@ -344,11 +397,71 @@ async def read_stream(url: str, c: Client, compression: bool) -> None:
         c.ready.set()
 
 
+# The control plane over HTTP ---------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Reply:
+    """One HTTP answer of the server: status, body text, and what was asked (for messages)."""
+
+    method: str
+    path: str
+    status_code: int
+    text: str
+
+    def json(self) -> Any:
+        return json.loads(self.text)
+
+
+class Http:
+    """The bench's REST calls, on the standard library (urllib in a worker thread).
+
+    The command ships in the wheel (``servodesk bench scope``), so it may use only the
+    wheel's dependencies; httpx is a development one (pyproject ``dependency-groups``). The
+    calls configure and read the scope outside the measured stream, so a thread per call is
+    no cost to the figures. An HTTP error status is returned, not raised, as the callers
+    check it themselves.
+    """
+
+    def __init__(self, base: str, timeout: float = 60.0) -> None:
+        self.base = base
+        self.timeout = timeout
+
+    async def __aenter__(self) -> Http:
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        return None  # No connection is kept between calls.
+
+    def _call(self, method: str, path: str, body: Any) -> Reply:
+        data = None if body is None else json.dumps(body).encode("utf-8")
+        req = urllib.request.Request(self.base + path, data=data, method=method)
+        if data is not None:
+            req.add_header("Content-Type", "application/json")
+        try:
+            with urllib.request.urlopen(req, timeout=self.timeout) as r:
+                return Reply(method, path, r.status, r.read().decode("utf-8", "replace"))
+        except urllib.error.HTTPError as e:
+            return Reply(method, path, e.code, e.read().decode("utf-8", "replace"))
+
+    async def get(self, path: str) -> Reply:
+        return await asyncio.to_thread(self._call, "GET", path, None)
+
+    async def post(self, path: str, json: Any = None) -> Reply:
+        return await asyncio.to_thread(self._call, "POST", path, {} if json is None else json)
+
+    async def put(self, path: str, json: Any = None) -> Reply:
+        return await asyncio.to_thread(self._call, "PUT", path, {} if json is None else json)
+
+    async def delete(self, path: str) -> Reply:
+        return await asyncio.to_thread(self._call, "DELETE", path, None)
+
+
 # The bench ---------------------------------------------------------------------------------
 
 
 async def _phase(
-    http: Any,
+    http: Http,
     url: str,
     sids: list[str],
     source: str,
@@ -358,12 +471,18 @@ async def _phase(
     clients: int,
     compression: bool,
     pids: dict[str, int],
+    control: Callable[[str], dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
-    """One source: configure, stream to the clients, measure, stop, drain, count."""
+    """One source: configure, stream to the clients, measure, stop, drain, count.
 
-    async def ok(r: Any) -> Any:
+    ``recorder_segmented`` is the recorder with the links' block upload switched off
+    (``control``: the server child's command line), the baseline of ``recorder``.
+    """
+    scope_source = "recorder" if source.startswith("recorder") else source
+
+    async def ok(r: Reply) -> Any:
         if r.status_code >= 300:
-            raise RuntimeError(f"{r.request.method} {r.request.url.path}: {r.text}")
+            raise RuntimeError(f"{r.method} {r.path}: {r.status_code} {r.text}")
         return r.json()
 
     for sid in sids:
@@ -394,7 +513,7 @@ async def _phase(
         else:
             await http.delete(f"/api/v1/sessions/{sid}/pdo/cyclic")
     chans = [
-        {"id": d * channels + k, "session": sid, "address": OBJECTS[k], "source": source}
+        {"id": d * channels + k, "session": sid, "address": OBJECTS[k], "source": scope_source}
         for d, sid in enumerate(sids)
         for k in range(channels)
     ]
@@ -410,6 +529,7 @@ async def _phase(
         return sum(int(ch["samples"]) for ch in st["channels"])
 
     st0 = await ok(await http.get("/api/v1/scope"))
+    frames0 = await asyncio.to_thread(control, "frames") if control is not None else None
     cpu0 = {k: cpu_seconds(p) for k, p in pids.items()}
     t0 = time.time()
     w0 = time.perf_counter()
@@ -417,6 +537,7 @@ async def _phase(
     wall = time.perf_counter() - w0
     t1 = time.time()
     cpu1 = {k: cpu_seconds(p) for k, p in pids.items()}
+    frames1 = await asyncio.to_thread(control, "frames") if control is not None else None
     st1 = await ok(await http.get("/api/v1/scope"))
     cyclic = []
     if source == "pdo":
@@ -499,10 +620,70 @@ async def _phase(
     }
     if cyclic:
         result["cyclic"] = cyclic
-    if source == "recorder":
+    if scope_source == "recorder":
         result["recorders"] = st1.get("recorders", [])
+    if frames0 is not None and frames1 is not None:
+        result["can_bus"] = _bus_load(frames0, frames1, wall, cyclic)
     result["why"] = _why(result, channels)
     return result
+
+
+#: A CAN 2.0A data frame with 8 data bytes: 111 bits (108 from SOF to EOF, 3 of
+#: intermission) and at most 24 stuff bits (one per 4 bits of the 98 stuffed ones), so at most
+#: 135 bits; at 1 Mbit/s, at least 7407 such frames per second fit (the issue's 7,000-8,000).
+CAN_FRAME_BITS = 135
+CAN_BITRATE = 1_000_000
+
+
+def _bus_load(
+    f0: dict[str, Any], f1: dict[str, Any], wall: float, cyclic: list[dict[str, Any]]
+) -> dict[str, Any]:
+    """The share of a 1 Mbit/s CAN bus the scope's frames take, per drive's bus.
+
+    Counted, not estimated: the SDO frames each session's link sent and received in the
+    window (the recorder's upload, its status polls, the session's state poll); with PDO, also
+    the TPDOs the cyclic exchange received and one SYNC per period. Every frame counts as a
+    full 8-byte frame at worst-case stuffing (CAN_FRAME_BITS), an upper bound.
+    """
+    sdo = [(b - a) / wall for a, b in zip(f0["frames"], f1["frames"], strict=True)]
+    per_bus = list(sdo)
+    for i, c in enumerate(cyclic):
+        per_bus[i] += float(c.get("tpdo_frames_per_s") or 0.0) + 1000.0 / SYNC_PERIOD_MS
+    ceiling = CAN_BITRATE / CAN_FRAME_BITS
+    return {
+        "bitrate": CAN_BITRATE,
+        "bits_per_frame": CAN_FRAME_BITS,
+        "ceiling_frames_per_s": round(ceiling),
+        "sdo_frames_per_s_per_drive": [round(x) for x in sdo],
+        "frames_per_s_per_drive": [round(x) for x in per_bus],
+        "bus_fraction_per_drive_bus": {
+            "min": round(min(per_bus) / ceiling, 3),
+            "median": round(statistics.median(per_bus) / ceiling, 3),
+            "max": round(max(per_bus) / ceiling, 3),
+        },
+        "bus_fraction_if_all_drives_shared_one_bus": round(sum(per_bus) / ceiling, 3),
+        "block_segments_resent": [
+            b - a for a, b in zip(f0["block_resent"], f1["block_resent"], strict=True)
+        ],
+        "block_sub_blocks_timed_out": [
+            b - a for a, b in zip(f0["block_timeouts"], f1["block_timeouts"], strict=True)
+        ],
+    }
+
+
+def _ratios(block: dict[str, Any], segmented: dict[str, Any]) -> dict[str, Any]:
+    """Block upload over the segmented baseline, measured in the same run."""
+
+    def ratio(a: float | None, b: float | None) -> float | None:
+        return round(a / b, 3) if a is not None and b else None
+
+    return {
+        "produced_samples_per_s": ratio(
+            block["produced_samples_per_s"], segmented["produced_samples_per_s"]
+        ),
+        "latency_p50": ratio(block["latency_ms"]["p50"], segmented["latency_ms"]["p50"]),
+        "latency_p99": ratio(block["latency_ms"]["p99"], segmented["latency_ms"]["p99"]),
+    }
 
 
 def _why(r: dict[str, Any], channels: int) -> str:
@@ -525,16 +706,15 @@ def _why(r: dict[str, Any], channels: int) -> str:
     share = [x["recording_share"] for x in recs if x.get("recording_share") is not None]
     upload = [x["upload_bytes_per_s"] for x in recs if x.get("upload_bytes_per_s")]
     need = channels * TARGET_HZ * 4
+    block = r["source"] == "recorder"
     text = (
         f"the recorder samples at {TARGET_HZ:g} Hz inside the drive, but its data comes by "
-        f"segmented SDO upload: {channels} channels x {TARGET_HZ:g} Hz x 4 bytes = "
-        f"{need / 1000:.0f} kB/s per drive"
+        f"{'block' if block else 'segmented'} SDO upload: {channels} channels x "
+        f"{TARGET_HZ:g} Hz x 4 bytes = {need / 1000:.0f} kB/s per drive"
     )
     if upload:
-        text += (
-            f" against {statistics.median(upload) / 1000:.1f} kB/s uploaded (7 bytes per "
-            "round trip)"
-        )
+        per = "889 bytes per acknowledged sub-block" if block else "7 bytes per round trip"
+        text += f" against {statistics.median(upload) / 1000:.1f} kB/s uploaded ({per})"
     if share:
         text += f", so it records {statistics.median(share) * 100:.0f} % of the time"
     return text + f"; achieved {per_drive:.0f} samples/s per drive (target {target:g})"
@@ -550,8 +730,6 @@ async def bench(
     interface: str,
     compression: bool,
 ) -> dict[str, Any]:
-    import httpx
-
     if not 1 <= channels <= len(OBJECTS):
         raise ValueError(f"--channels must be 1..{len(OBJECTS)}")
     tag = os.getpid()
@@ -605,7 +783,7 @@ async def bench(
         base = f"http://127.0.0.1:{info['port']}"
         url = f"ws://127.0.0.1:{info['port']}/api/v1/scope/ws"
         sids: list[str] = info["sessions"]
-        async with httpx.AsyncClient(base_url=base, timeout=60) as http:
+        async with Http(base, timeout=60) as http:
             # The axes move (profile velocity, CiA 402-2 §6.6): signals, not constants.
             for i, sid in enumerate(sids):
                 await http.put(f"/api/v1/sessions/{sid}/objects/0x6060:00", json={"value": 3})
@@ -614,7 +792,22 @@ async def bench(
                     f"/api/v1/sessions/{sid}/objects/0x60FF:00",
                     json={"value": 20000 * (i + 1)},
                 )
-            for source in sources:
+
+            def control(command: str) -> dict[str, Any]:
+                return _ask(server_proc, command)
+
+            # The recorder is measured twice in the same run: with the links' block upload
+            # switched off (the baseline, segmented as before issue 50), then on.
+            phases = [
+                p
+                for source in sources
+                for p in (["recorder_segmented", source] if source == "recorder" else [source])
+            ]
+            for source in phases:
+                if source.startswith("recorder"):
+                    control(
+                        "upload segmented" if source == "recorder_segmented" else "upload block"
+                    )
                 out["phases"][source] = await _phase(
                     http,
                     url,
@@ -625,6 +818,11 @@ async def bench(
                     clients=clients,
                     compression=compression,
                     pids=pids,
+                    control=control,
+                )
+            if {"recorder", "recorder_segmented"} <= out["phases"].keys():
+                out["recorder_block_vs_segmented"] = _ratios(
+                    out["phases"]["recorder"], out["phases"]["recorder_segmented"]
                 )
             for sid in sids:
                 await http.post(f"/api/v1/sessions/{sid}/state", json={"command": "disable"})

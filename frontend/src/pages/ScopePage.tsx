@@ -32,6 +32,7 @@ import { type ShownTransform, TriggerPanel, levelToShown, slopeToRaw } from '../
 import { num, secs } from '../components/scope/format';
 import { mathLabel, mathUnit } from '../components/scope/math';
 import { openScopeStream } from '../components/scope/stream';
+import { decodeFrame } from '../scope/wire';
 import '../components/scope/scope.css';
 import { type Failure, failureOf } from '../lib/codes';
 import { isIntegerType } from '../lib/format';
@@ -83,7 +84,14 @@ function toServer(drafts: readonly ScopeChannelConfig[]): ScopeChannelConfig[] {
 declare global {
   interface Window {
     /** The scope page's model, for the browser test and the frame-rate benchmark. */
-    __servodeskScope?: { model: ScopeModel; openRecording: (rec: import('../api/scope').ScopeRecording, name?: string) => void };
+    __servodeskScope?: {
+      model: ScopeModel;
+      openRecording: (rec: import('../api/scope').ScopeRecording, name?: string) => void;
+      /** A binary frame as the socket would deliver it (the benchmark's stream of 32 channels). */
+      ingestFrame: (data: ArrayBuffer) => void;
+      /** Traces to show in place of the server's channels (null: the server's again). */
+      setTraces: (traces: TraceDef[] | null) => void;
+    };
   }
 }
 
@@ -104,6 +112,7 @@ export function ScopePage({ sid }: PageProps) {
   const [recMeta, setRecMeta] = useState<RecordingMeta[] | null>(null);
   const [recName, setRecName] = useState<string | null>(null);
   const [hidden, setHidden] = useState<Set<string>>(new Set());
+  const [injectedTraces, setInjectedTraces] = useState<TraceDef[] | null>(null);
   // The data-driven parts read this; the page itself re-renders only when the view changes.
   const [summary] = useState(() => new Observable<ScopeSummary>(EMPTY_SUMMARY));
   const [view, setView] = useState<ViewKind>('live');
@@ -185,6 +194,8 @@ export function ScopePage({ sid }: PageProps) {
         setRecMeta(n.meta);
         setRecName(name ?? 'injected');
       },
+      ingestFrame: (data) => model.ingest(decodeFrame(data)),
+      setTraces: setInjectedTraces,
     };
     return () => {
       live = false;
@@ -378,6 +389,7 @@ export function ScopePage({ sid }: PageProps) {
   const statusOf = useCallback((id: number) => status?.channels.find((c) => c.id === id) ?? null, [status]);
 
   const traces: TraceDef[] = useMemo(() => {
+    if (injectedTraces) return injectedTraces;
     const defs: TraceDef[] = [];
     const kind = view;
     if (kind === 'recording' && recMeta) {
@@ -440,7 +452,7 @@ export function ScopePage({ sid }: PageProps) {
       });
     }
     return defs;
-  }, [view, recMeta, channels, statusOf, objectOf, prefs, hidden]);
+  }, [view, recMeta, channels, statusOf, objectOf, prefs, hidden, injectedTraces]);
 
   useEffect(() => model.setTraces(traces), [model, traces]);
 

@@ -7,10 +7,22 @@
  *
  * uPlot is rebuilt only when the traces change (names, colours, units); new data and a moved
  * window only call setData and setScale in one batch.
+ *
+ * While capturing, the view follows a play-head that moves every animation frame (model.tick):
+ * it used to follow the newest sample, so it moved, and the plot redrew, only when a frame of
+ * samples arrived (7-8 times a second with the drive's recorder, whose data comes in uploads).
+ * The min/max per pixel column is computed in a worker (plotFeed.ts, plot.worker.ts) and a
+ * decimated trace is drawn as one vertical stroke per column (columns.ts), so the page's main
+ * thread only draws (docs/scope.md "Drawing"). `?plot=main` in the page's URL selects the
+ * former path (no play-head, decimation on the main thread, uPlot's polyline) for comparison
+ * (bench/bench_scope_ui.py).
  */
 import { useEffect, useRef } from 'react';
 import uPlot from 'uplot';
+import { columnSegments } from './columns';
 import type { ScopeModel, TraceDef } from './model';
+import { PlotFeed, startPlotWorker } from './plotFeed';
+import { unpackYs } from './plotEngine';
 
 /** What the page wants drawn besides the traces. */
 export interface Overlay {
@@ -54,7 +66,69 @@ function ticks(values: number[], suffix = ''): string[] {
   });
 }
 
-function buildOptions(model: ScopeModel, width: number, height: number, overlay: React.MutableRefObject<Overlay>, onZoom: (x0: number, x1: number) => void): uPlot.Options {
+/** Which path draws: the worker and column strokes, or (`?plot=main`) all on the main thread. */
+export function plotPath(): 'worker' | 'main' {
+  if (typeof Worker === 'undefined') return 'main';
+  return new URLSearchParams(window.location.search).get('plot') === 'main' ? 'main' : 'worker';
+}
+
+/** Where the columns are in the data being drawn (null: not decimated, drawn as lines). */
+interface Layout {
+  columns: { off: number; count: number } | null;
+}
+
+const linear = uPlot.paths.linear?.();
+
+/** uPlot path builder: decimated data as column strokes (columns.ts), else uPlot's lines. */
+function columnPaths(layout: Layout): uPlot.Series.PathBuilder {
+  // The slots' x pixels are the same for every trace of a draw: computed once per data and scale.
+  let xsOf: unknown = null;
+  let xMin = NaN;
+  let xMax = NaN;
+  let px = new Float64Array(0);
+  let py = new Float64Array(0);
+  return (u, sidx, i0, i1) => {
+    const cols = layout.columns;
+    if (!cols) return linear ? linear(u, sidx, i0, i1) : null;
+    const xs = u.data[0];
+    const ys = u.data[sidx] as (number | null | undefined)[];
+    const { left, top, width, height } = u.bbox;
+    const sx = u.scales.x;
+    const sy = u.scales[u.series[sidx]?.scale ?? 'y'];
+    if (!sx || !sy || sx.min == null || sx.max == null || sy.min == null || sy.max == null) return null;
+    if (xsOf !== xs || xMin !== sx.min || xMax !== sx.max) {
+      // Linear scales (buildOptions): value to canvas pixel is one multiply-add.
+      const kx = width / (sx.max - sx.min || 1);
+      px = new Float64Array(xs.length);
+      for (let i = 0; i < xs.length; i++) px[i] = left + ((xs[i] as number) - sx.min) * kx;
+      py = new Float64Array(xs.length);
+      xsOf = xs;
+      xMin = sx.min;
+      xMax = sx.max;
+    }
+    const ky = height / (sy.max - sy.min || 1);
+    for (let i = 0; i < xs.length; i++) {
+      const y = ys[i];
+      py[i] = y === null || y === undefined ? NaN : top + (sy.max - y) * ky;
+    }
+    const seg = columnSegments(px, py, cols.off, cols.count);
+    const path = new Path2D();
+    for (let k = 0; k + 3 < seg.length; k += 4) {
+      path.moveTo(seg[k] as number, seg[k + 1] as number);
+      path.lineTo(seg[k + 2] as number, seg[k + 3] as number);
+    }
+    return { stroke: path, fill: null, clip: null, band: null, flags: 0 };
+  };
+}
+
+function buildOptions(
+  model: ScopeModel,
+  width: number,
+  height: number,
+  overlay: React.MutableRefObject<Overlay>,
+  onZoom: (x0: number, x1: number) => void,
+  layout: Layout | null,
+): uPlot.Options {
   const units: string[] = [];
   for (const t of model.traces) if (!units.includes(t.unit)) units.push(t.unit);
   if (!units.length) units.push('');
@@ -94,6 +168,7 @@ function buildOptions(model: ScopeModel, width: number, height: number, overlay:
       width: 1,
       dash: t.kind === 'math' ? [6, 3] : undefined,
       spanGaps: true,
+      ...(layout ? { paths: columnPaths(layout) } : {}),
     });
   }
   return {
@@ -186,37 +261,74 @@ export function ScopePlot({ model, overlay, onPlaceCursor, onApi, height = 380 }
     let built = '';
     let frame = 0;
     const widthOf = () => Math.max(300, el.clientWidth);
+    const path = plotPath();
+    el.dataset.path = path;
+    const layout: Layout | null = path === 'worker' ? { columns: null } : null;
 
     const build = () => {
       plot?.destroy();
       built = signature(model.traces);
-      plot = new uPlot(buildOptions(model, widthOf(), height, overlay, (x0, x1) => model.zoomTo(x0, x1)), [[]], el);
+      plot = new uPlot(buildOptions(model, widthOf(), height, overlay, (x0, x1) => model.zoomTo(x0, x1), layout), [[]], el);
       attach(plot);
     };
+    const columnsOf = (u: uPlot) => Math.max(50, Math.round(u.over.clientWidth || u.bbox.width / uPlot.pxRatio));
 
+    const show = (u: uPlot, x: Float64Array, ys: (number | null)[][], window: [number, number], points: number, decimated: boolean) => {
+      const [x0, x1] = window;
+      u.batch(() => {
+        u.setData([x, ...ys] as uPlot.AlignedData, false);
+        u.setScale('x', { min: x0, max: x1 > x0 ? x1 : x0 + 1e-3 });
+      });
+      el.dataset.length = String(x.length);
+      el.dataset.points = String(points);
+      el.dataset.samples = String(model.sampleCount());
+      el.dataset.decimated = String(decimated);
+      el.dataset.kind = model.kind;
+      el.dataset.x0 = x0.toFixed(6);
+      el.dataset.x1 = x1.toFixed(6);
+    };
+
+    // The worker path: a model change asks the worker; its answer is drawn at the next frame.
+    let feed: PlotFeed | null = null;
+    let drawnTraces = '';
     const draw = () => {
       frame = 0;
       const started = performance.now();
       if (!plot || signature(model.traces) !== built) build();
       const u = plot as uPlot;
-      const cols = Math.max(50, Math.round(u.over.clientWidth || u.bbox.width / uPlot.pxRatio));
-      const d = model.plotData(cols);
-      const [x0, x1] = d.window;
-      u.batch(() => {
-        u.setData([d.x, ...d.ys] as uPlot.AlignedData, false);
-        u.setScale('x', { min: x0, max: x1 > x0 ? x1 : x0 + 1e-3 });
-      });
-      el.dataset.length = String(d.x.length);
-      el.dataset.points = String(d.points);
-      el.dataset.samples = String(model.sampleCount());
-      el.dataset.decimated = String(d.decimated);
-      el.dataset.kind = model.kind;
-      el.dataset.x0 = x0.toFixed(6);
-      el.dataset.x1 = x1.toFixed(6);
+      if (feed && layout) {
+        const r = feed.take();
+        if (!r || drawnTraces !== built) {
+          // Nothing new, or data for other traces than uPlot's now: ask, draw the answer.
+          if (drawnTraces !== built) feed.request(columnsOf(u));
+          drawnTraces = built;
+          if (!r) return;
+        }
+        if (r.ys.length !== model.traces.length) return;
+        layout.columns = r.decimated ? { off: r.off, count: r.count } : null;
+        show(u, r.x, unpackYs(r.ys), r.window, r.points, r.decimated);
+      } else {
+        const d = model.plotData(columnsOf(u));
+        show(u, d.x, d.ys, d.window, d.points, d.decimated);
+      }
       model.drawMs += performance.now() - started;
     };
     const schedule = () => {
       if (!frame) frame = requestAnimationFrame(draw);
+    };
+    if (path === 'worker') feed = new PlotFeed(model, startPlotWorker(), schedule);
+    // While following live samples, the view moves every animation frame (model.tick), not
+    // only when a frame of samples arrives.
+    model.smooth = path === 'worker';
+    let ticking = 0;
+    const tick = () => {
+      model.tick();
+      ticking = requestAnimationFrame(tick);
+    };
+    if (model.smooth) ticking = requestAnimationFrame(tick);
+    const changed = () => {
+      if (feed && plot) feed.request(columnsOf(plot));
+      else schedule();
     };
 
     // Interactions on uPlot's plot area ("over").
@@ -313,18 +425,22 @@ export function ScopePlot({ model, overlay, onPlaceCursor, onApi, height = 380 }
     };
     apiRef.current?.({ png });
 
-    const unsub = model.subscribe(schedule);
+    const unsub = model.subscribe(changed);
     const ro = new ResizeObserver(() => {
       if (plot && Math.abs(plot.width - widthOf()) > 1) {
         plot.setSize({ width: widthOf(), height });
-        schedule();
+        changed();
       }
     });
     ro.observe(el);
     draw();
+    changed();
     return () => {
       unsub();
       ro.disconnect();
+      feed?.dispose();
+      if (ticking) cancelAnimationFrame(ticking);
+      model.smooth = false;
       if (frame) cancelAnimationFrame(frame);
       detach();
       plot?.destroy();

@@ -34,6 +34,10 @@ export interface PlotData {
   decimated: boolean;
   /** Stored samples inside the window, over all traces drawn. */
   points: number;
+  /** Decimated: the slots of the samples left of the window (the columns start there), and the
+   * number of columns (two slots each; the samples right of the window follow). */
+  off?: number;
+  count?: number;
 }
 
 interface Edge {
@@ -158,7 +162,7 @@ function decimated(
     columnsMinMax(tr, sp.iA, sp.iB, origin, w, cA, count, ys[k] as (number | null)[], off, entry);
   }
   if (cache) for (const key of [...cache.entries.keys()]) if (!used.has(key)) cache.entries.delete(key);
-  return { x, ys, decimated: true, points };
+  return { x, ys, decimated: true, points, off, count };
 }
 
 /** The cache entry of a trace for columns [cA, cA + count), re-based and checked. */

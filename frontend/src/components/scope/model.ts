@@ -101,6 +101,24 @@ export class ScopeModel {
   /** Draws done by the plot (the benchmark's frame count), and the time spent building them. */
   draws = 0;
   drawMs = 0;
+  /**
+   * Follow the live samples smoothly (issue 50): the window's right edge is a play-head that
+   * advances with the wall clock every animation frame (tick), a little behind the newest
+   * sample, instead of jumping to the newest sample when a frame arrives. The server sends a
+   * few frames a second (the recorder's uploads, the stream's batching), so a view that moves
+   * only with the data redraws only that often: 7-8 times a second with 8 channels of the
+   * drive's recorder. Off: the former behaviour (`?plot=main`, the benchmark's baseline).
+   */
+  smooth = false;
+  /** Wall clock in seconds (injected by the tests). */
+  now: () => number = () => performance.now() / 1000;
+  /** Backend time at the right edge while following smoothly (null: the newest sample). */
+  private playhead: number | null = null;
+  /** Newest sample's backend time minus the wall clock at its arrival (smoothed), seconds. */
+  private lead: number | null = null;
+  /** Smoothed interval between arrivals of live samples (s). */
+  private arrivalGap = 0.1;
+  private lastArrival: number | null = null;
   private readonly listeners = new Set<() => void>();
   private readonly columns = new DecimationCache();
 
@@ -144,6 +162,7 @@ export class ScopeModel {
         s.append(frame.tRef, b.t0, b.dt, b.dt > 0 ? null : b.times, b.values, b.n);
         if (this.liveOrigin === null && s.n) this.liveOrigin = s.t[0] as number;
       }
+      this.noteArrival();
       this.changed();
     } else if (frame.kind === KIND_CAPTURE) {
       const channels = frame.blocks.map((b) => {
@@ -157,8 +176,48 @@ export class ScopeModel {
     }
   }
 
+  /** Time the arrival of live samples: how far the backend's newest sample leads the wall
+   * clock, and how far apart the arrivals are. */
+  private noteArrival(): void {
+    let newest = -Infinity;
+    for (const s of this.live.values()) if (s.n) newest = Math.max(newest, s.t[s.n - 1] as number);
+    if (!Number.isFinite(newest)) return;
+    const wall = this.now();
+    if (this.lastArrival !== null) {
+      const gap = Math.min(2, Math.max(0, wall - this.lastArrival));
+      this.arrivalGap += (gap - this.arrivalGap) * 0.2;
+    }
+    this.lastArrival = wall;
+    const lead = newest - wall;
+    // A frame that came early (less delayed) sets the lead at once; late ones pull it slowly,
+    // so the play-head runs at the wall clock's pace and does not jitter with the network.
+    this.lead = this.lead === null || lead > this.lead ? lead : this.lead + (lead - this.lead) * 0.05;
+  }
+
+  /**
+   * Move the smooth play-head to the wall clock's `wall` (seconds, default now); called every
+   * animation frame by the plot. It stays behind the newest sample by about 1.5 arrival
+   * intervals, so the right edge has data between two frames, never passes the newest sample,
+   * and never runs backwards. True (and listeners told) when the view moved.
+   */
+  tick(wall = this.now()): boolean {
+    if (!this.smooth || this.kind !== 'live' || !this.running || !this.follow || this.lead === null) return false;
+    let newest = -Infinity;
+    for (const s of this.live.values()) if (s.n) newest = Math.max(newest, s.t[s.n - 1] as number);
+    if (!Number.isFinite(newest)) return false;
+    let p = Math.min(newest, wall + this.lead - 1.5 * this.arrivalGap);
+    if (this.playhead !== null) p = Math.max(p, this.playhead);
+    if (p === this.playhead) return false;
+    this.playhead = p;
+    this.changed();
+    return true;
+  }
+
   /** Forget the live samples (new channels, or a new run). */
   clearLive(ids?: readonly number[]): void {
+    this.playhead = null;
+    this.lead = null;
+    this.lastArrival = null;
     if (ids) for (const id of ids) this.live.get(id)?.clear();
     else for (const s of this.live.values()) s.clear();
     let first: number | null = null;
@@ -260,7 +319,8 @@ export class ScopeModel {
   /** The visible window [x0, x1], seconds from the origin. */
   window(): [number, number] {
     if (this.kind === 'live' && this.follow) {
-      const latest = this.latest();
+      const smooth = this.smooth && this.running && this.playhead !== null && this.liveOrigin !== null;
+      const latest = smooth ? (this.playhead as number) - (this.liveOrigin as number) : this.latest();
       if (latest === null || latest < this.span) return [0, this.span];
       return [latest - this.span, latest];
     }
