@@ -618,8 +618,8 @@ class SimSettings(BaseModel):
     #: drive whose ramps are "ms from 0 to the rated speed"); None: the maximum velocity.
     rated_speed: float | None = None
     #: The twin supervises its software position limits (607Dh:01/02) in profile velocity
-    #: too, braking to stop at them (sim/engine.py ``_limit_wall``), as servodesk's generic
-    #: drive does; false where the manual confines them to profile position (LECSN-T 004
+    #: too, braking to stop at them (sim/engine_setpoints.py ``_limit_wall``), as servodesk's
+    #: generic drive does; false where the manual confines them to profile position (LECSN-T 004
     #: §20.8.3, CTMM04x 003 §4-4-5/§4-4-6), so that the twin is no kinder than the drive.
     software_limits_in_pv: bool = True
     #: Servo loop and plant rate [Hz]: loop_rate_hz / 1000 plant sub-steps per 1 ms control
