@@ -10,11 +10,14 @@ import { captureTokenFromUrl, endSession, me, refreshMe } from './api/auth';
 import { App } from './App';
 import { LoginPage } from './components/auth/LoginPage';
 import { startIdleLock } from './lib/idleLock';
+import { startTheme } from './lib/theme';
 import { useObservable } from './state/observable';
 import { startControlStore } from './state/control';
 import { startStore } from './state/store';
 
 captureTokenFromUrl();
+// Before anything renders, the login page included: no white flash in a dark cabinet.
+startTheme();
 
 /** The login page while nobody is logged in (a login reloads the page), else the app. */
 function Root() {

@@ -6,7 +6,8 @@
 import { useEffect, useRef } from 'react';
 import uPlot from 'uplot';
 import { HISTORY_SECONDS, type LiveSession } from '../state/store';
-import type { Observable } from '../state/observable';
+import { useObservable, type Observable } from '../state/observable';
+import { plotColors, themeState } from '../lib/theme';
 
 interface Props {
   source: Observable<LiveSession>;
@@ -16,10 +17,12 @@ interface Props {
 
 export function LivePlot({ source, positionUnit, velocityUnit }: Props) {
   const host = useRef<HTMLDivElement | null>(null);
+  const theme = useObservable(themeState).theme;
 
   useEffect(() => {
     const el = host.current;
     if (!el) return;
+    const c = plotColors();
     const opts: uPlot.Options = {
       width: Math.max(200, el.clientWidth),
       height: 190,
@@ -28,21 +31,21 @@ export function LivePlot({ source, positionUnit, velocityUnit }: Props) {
       scales: { x: { time: false } },
       series: [
         { label: 't' },
-        { label: `Position [${positionUnit}]`, scale: 'pos', stroke: '#1f5fa8', width: 1.5 },
+        { label: `Position [${positionUnit}]`, scale: 'pos', stroke: c.accent, width: 1.5 },
         { label: `Velocity [${velocityUnit}]`, scale: 'vel', stroke: '#c25b12', width: 1.5 },
       ],
       axes: [
         {
-          stroke: '#555',
-          grid: { stroke: '#e4e7eb', width: 1 },
-          ticks: { stroke: '#ccd', width: 1 },
+          stroke: c.axis,
+          grid: { stroke: c.grid, width: 1 },
+          ticks: { stroke: c.ticks, width: 1 },
           values: (_u, ticks) => ticks.map((v) => `${v.toFixed(0)} s`),
           font: '11px ui-monospace, "DejaVu Sans Mono", monospace',
         },
         {
           scale: 'pos',
-          stroke: '#1f5fa8',
-          grid: { stroke: '#e4e7eb', width: 1 },
+          stroke: c.accent,
+          grid: { stroke: c.grid, width: 1 },
           font: '11px ui-monospace, "DejaVu Sans Mono", monospace',
           size: 64,
         },
@@ -84,7 +87,7 @@ export function LivePlot({ source, positionUnit, velocityUnit }: Props) {
       if (frame) cancelAnimationFrame(frame);
       plot.destroy();
     };
-  }, [source, positionUnit, velocityUnit]);
+  }, [source, positionUnit, velocityUnit, theme]);
 
   return <div className="live-plot" ref={host} data-testid="live-plot" />;
 }

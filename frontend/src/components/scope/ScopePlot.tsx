@@ -18,6 +18,7 @@
  * (bench/bench_scope_ui.py).
  */
 import { useEffect, useRef } from 'react';
+import { plotColors, themeState } from '../../lib/theme';
 import uPlot from 'uplot';
 import { columnSegments } from './columns';
 import type { ScopeModel, TraceDef } from './model';
@@ -44,8 +45,9 @@ interface Props {
 }
 
 const FONT = '11px ui-monospace, "DejaVu Sans Mono", monospace';
-const AXIS_STROKE = '#555';
-const GRID = { stroke: '#e4e7eb', width: 1 };
+// Canvas colours come from the theme's tokens when the plot is built (lib/theme.ts); a theme
+// change builds it again (the theme is part of the signature the draw checks).
+const grid = () => ({ stroke: plotColors().grid, width: 1 });
 
 function scaleKey(unit: string): string {
   return `y:${unit}`;
@@ -136,9 +138,9 @@ function buildOptions(
   for (const u of units) scales[scaleKey(u)] = { auto: true };
   const axes: uPlot.Axis[] = [
     {
-      stroke: AXIS_STROKE,
-      grid: GRID,
-      ticks: { stroke: '#ccd', width: 1 },
+      stroke: plotColors().axis,
+      grid: grid(),
+      ticks: { stroke: plotColors().ticks, width: 1 },
       font: FONT,
       values: (_u, v) => ticks(v, ' s'),
     },
@@ -149,8 +151,8 @@ function buildOptions(
       scale: scaleKey(u),
       show: i < 2,
       side: i === 0 ? 3 : 1,
-      stroke: first?.colour ?? AXIS_STROKE,
-      grid: i === 0 ? GRID : { show: false },
+      stroke: first?.colour ?? plotColors().axis,
+      grid: i === 0 ? grid() : { show: false },
       font: FONT,
       size: 70,
       label: u || undefined,
@@ -219,8 +221,9 @@ function buildOptions(
             ctx.fillText(label, cx + 3 * px, top + 12 * px);
           };
           if (model.kind !== 'live' && model.triggerTime !== null) vline(0, '#c0262d', [2, 3], 'T');
-          if (model.cursorA !== null) vline(model.cursorA, '#17324d', [], 'A');
-          if (model.cursorB !== null) vline(model.cursorB, '#17324d', [5, 3], 'B');
+          const cursor = plotColors().text;
+          if (model.cursorA !== null) vline(model.cursorA, cursor, [], 'A');
+          if (model.cursorB !== null) vline(model.cursorB, cursor, [5, 3], 'B');
           const lv = overlay.current.level;
           const tr = lv ? model.traces.find((t) => t.key === lv.key) : null;
           if (lv && tr) {
@@ -265,9 +268,10 @@ export function ScopePlot({ model, overlay, onPlaceCursor, onApi, height = 380 }
     el.dataset.path = path;
     const layout: Layout | null = path === 'worker' ? { columns: null } : null;
 
+    const shape = () => `${signature(model.traces)}|${themeState.get().theme}`;
     const build = () => {
       plot?.destroy();
-      built = signature(model.traces);
+      built = shape();
       plot = new uPlot(buildOptions(model, widthOf(), height, overlay, (x0, x1) => model.zoomTo(x0, x1), layout), [[]], el);
       attach(plot);
     };
@@ -294,7 +298,7 @@ export function ScopePlot({ model, overlay, onPlaceCursor, onApi, height = 380 }
     const draw = () => {
       frame = 0;
       const started = performance.now();
-      if (!plot || signature(model.traces) !== built) build();
+      if (!plot || shape() !== built) build();
       const u = plot as uPlot;
       if (feed && layout) {
         const r = feed.take();
@@ -426,6 +430,7 @@ export function ScopePlot({ model, overlay, onPlaceCursor, onApi, height = 380 }
     apiRef.current?.({ png });
 
     const unsub = model.subscribe(changed);
+    const unsubTheme = themeState.subscribe(changed);
     const ro = new ResizeObserver(() => {
       if (plot && Math.abs(plot.width - widthOf()) > 1) {
         plot.setSize({ width: widthOf(), height });
@@ -437,6 +442,7 @@ export function ScopePlot({ model, overlay, onPlaceCursor, onApi, height = 380 }
     changed();
     return () => {
       unsub();
+      unsubTheme();
       ro.disconnect();
       feed?.dispose();
       if (ticking) cancelAnimationFrame(ticking);

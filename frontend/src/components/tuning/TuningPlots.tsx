@@ -7,17 +7,22 @@
 import { useEffect, useRef } from 'react';
 import uPlot from 'uplot';
 import type { Bode, StepResponse } from '../../api/tuning';
+import { plotColors, themeState } from '../../lib/theme';
+import { useObservable } from '../../state/observable';
 import { bodeSeries, decadeLabel, stepSeries } from './tuningModel';
 
 const FONT = '11px ui-monospace, "DejaVu Sans Mono", monospace';
-const GRID = { stroke: '#e4e7eb', width: 1 };
 const BEFORE = '#8a8f98';
-const AFTER = '#1f5fa8';
 const MODEL = '#c25b12';
+// The theme's colours at the time a chart is made (useChart makes it again on a change).
+const grid = () => ({ stroke: plotColors().grid, width: 1 });
+const axis = () => plotColors().axis;
+const afterColor = () => plotColors().accent;
 
 /** Build a chart in ``host`` and keep it sized to it; destroys it on change. */
 function useChart(make: (el: HTMLDivElement, width: number) => uPlot | null, deps: unknown[]): React.MutableRefObject<HTMLDivElement | null> {
   const host = useRef<HTMLDivElement | null>(null);
+  const theme = useObservable(themeState).theme;
   useEffect(() => {
     const el = host.current;
     if (!el) return;
@@ -29,8 +34,8 @@ function useChart(make: (el: HTMLDivElement, width: number) => uPlot | null, dep
       ro.disconnect();
       plot.destroy();
     };
-    // The data objects are the dependencies.
-  }, deps);
+    // The data objects are the dependencies, and the theme (canvas colours are not CSS).
+  }, [...deps, theme]);
   return host;
 }
 
@@ -50,12 +55,12 @@ export function StepPlot({ before, after }: { before: StepResponse | null; after
           series: [
             { label: 't [ms]' },
             { label: 'before', stroke: BEFORE, width: 1.5, spanGaps: true },
-            { label: 'after', stroke: AFTER, width: 2, spanGaps: true },
+            { label: 'after', stroke: afterColor(), width: 2, spanGaps: true },
             { label: 'step command', stroke: '#3a3', width: 1, dash: [6, 4] },
           ],
           axes: [
-            { stroke: '#555', grid: GRID, font: FONT, values: (_u, t) => t.map((v) => `${v} ms`) },
-            { stroke: '#555', grid: GRID, font: FONT, size: 70, label: unit, labelFont: FONT },
+            { stroke: axis(), grid: grid(), font: FONT, values: (_u, t) => t.map((v) => `${v} ms`) },
+            { stroke: axis(), grid: grid(), font: FONT, size: 70, label: unit, labelFont: FONT },
           ],
         },
         data,
@@ -77,12 +82,12 @@ function bodeChart(el: HTMLDivElement, width: number, freq: number[], cols: (num
       scales: { x: { time: false, distr: 3, log: 10 } },
       series: [
         { label: 'f [Hz]' },
-        { label: `measured ${what === 'mag' ? 'magnitude' : 'phase'}`, stroke: AFTER, width: 1.5, spanGaps: false },
+        { label: `measured ${what === 'mag' ? 'magnitude' : 'phase'}`, stroke: afterColor(), width: 1.5, spanGaps: false },
         { label: 'model', stroke: MODEL, width: 1.5, dash: [5, 3], spanGaps: false },
       ],
       axes: [
-        { stroke: '#555', grid: GRID, font: FONT, values: (_u, t) => t.map((v) => decadeLabel(v)) },
-        { stroke: '#555', grid: GRID, font: FONT, size: 60, label: what === 'mag' ? 'dB' : 'deg', labelFont: FONT },
+        { stroke: axis(), grid: grid(), font: FONT, values: (_u, t) => t.map((v) => decadeLabel(v)) },
+        { stroke: axis(), grid: grid(), font: FONT, size: 60, label: what === 'mag' ? 'dB' : 'deg', labelFont: FONT },
       ],
     },
     [freq, ...cols] as uPlot.AlignedData,
