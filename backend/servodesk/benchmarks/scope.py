@@ -52,6 +52,8 @@ from typing import Any
 
 import numpy as np
 
+from servodesk.domain.address import ObjectAddress
+
 PROFILE = "cia402-generic"
 #: The drive objects a channel can take, in the order channels are assigned (the generic
 #: twin: every object is both TPDO-mappable and recordable).
@@ -220,7 +222,12 @@ async def _serve(buses: list[BusSpec], interface: str, max_channels: int, data_d
         sids.append(session.id)
     print(json.dumps({"port": sock.getsockname()[1], "sessions": sids}), flush=True)
     links = [manager.get(sid).link for sid in sids]
-    threading.Thread(target=_commands, args=(links,), name="bench-commands", daemon=True).start()
+    threading.Thread(
+        target=_commands,
+        args=(links, asyncio.get_running_loop()),
+        name="bench-commands",
+        daemon=True,
+    ).start()
     await task
     if sim is not None:
         for s in sim:
@@ -228,9 +235,33 @@ async def _serve(buses: list[BusSpec], interface: str, max_channels: int, data_d
     return 0
 
 
-def _commands(links: list[Any]) -> None:
-    """The server child's control lines on stdin (the recorder phases), one JSON reply each:
+#: The axes' motion for the bench (CiA 402-2: 6060h = 3 profile velocity, the controlword's
+#: shutdown / switch on / enable operation, 60FFh the target velocity), written through each
+#: session's link by the harness: a bench has no person in control to ask (docs/safety.md),
+#: and the signals must move, not be constants.
+_MOVE = (
+    (ObjectAddress(0x6060), (3).to_bytes(1, "little", signed=True)),
+    (ObjectAddress(0x6040), (0x0006).to_bytes(2, "little")),
+    (ObjectAddress(0x6040), (0x0007).to_bytes(2, "little")),
+    (ObjectAddress(0x6040), (0x000F).to_bytes(2, "little")),
+)
+_STOP = ((ObjectAddress(0x6040), (0x0006).to_bytes(2, "little")),)
 
+
+async def _write_all(links: list[Any], writes: Any, velocity: int = 0) -> None:
+    for i, link in enumerate(links):
+        for address, data in writes:
+            await link.write(address, data)
+        if velocity:
+            v = velocity * (i + 1)
+            await link.write(ObjectAddress(0x60FF), v.to_bytes(4, "little", signed=True))
+
+
+def _commands(links: list[Any], loop: asyncio.AbstractEventLoop) -> None:
+    """The server child's control lines on stdin, one JSON reply each:
+
+    - ``move`` / ``stop``: the axes turn at 20,000 inc/s x their number (profile velocity),
+      or are switched off again (written through the links, not the API: see ``_MOVE``);
     - ``upload segmented`` / ``upload block``: the CANopen links' SDO upload for large reads
       (``CanopenLink.block_upload``), so one run measures both paths;
     - ``frames``: the SDO frames each session's link sent and received so far.
@@ -238,7 +269,13 @@ def _commands(links: list[Any]) -> None:
     for line in sys.stdin:
         cmd = line.split()
         reply: dict[str, Any] = {"ok": True}
-        if cmd[:1] == ["upload"] and len(cmd) == 2:
+        if cmd in (["move"], ["stop"]):
+            coro = _write_all(links, _MOVE, 20000) if cmd == ["move"] else _write_all(links, _STOP)
+            try:
+                asyncio.run_coroutine_threadsafe(coro, loop).result(timeout=20)
+            except Exception as exc:  # the bench reports it and goes on
+                reply = {"ok": False, "error": f"{cmd[0]}: {exc}"}
+        elif cmd[:1] == ["upload"] and len(cmd) == 2:
             for link in links:
                 if hasattr(link, "block_upload"):
                     link.block_upload = cmd[1] == "block"
@@ -426,6 +463,10 @@ class Http:
     def __init__(self, base: str, timeout: float = 60.0) -> None:
         self.base = base
         self.timeout = timeout
+        #: The bench is one client (docs/ui.md "One token per tab"); the control token of each
+        #: session it took is sent with the writes to that session.
+        self.client = f"servodesk-bench-{os.getpid()}"
+        self.tokens: dict[str, str] = {}
 
     async def __aenter__(self) -> Http:
         return self
@@ -438,6 +479,10 @@ class Http:
         req = urllib.request.Request(self.base + path, data=data, method=method)
         if data is not None:
             req.add_header("Content-Type", "application/json")
+        req.add_header("X-Servodesk-Client", self.client)
+        for sid, token in self.tokens.items():
+            if path.startswith(f"/api/v1/sessions/{sid}/"):
+                req.add_header("X-Servodesk-Control", token)
         try:
             with urllib.request.urlopen(req, timeout=self.timeout) as r:
                 return Reply(method, path, r.status, r.read().decode("utf-8", "replace"))
@@ -784,17 +829,18 @@ async def bench(
         url = f"ws://127.0.0.1:{info['port']}/api/v1/scope/ws"
         sids: list[str] = info["sessions"]
         async with Http(base, timeout=60) as http:
-            # The axes move (profile velocity, CiA 402-2 §6.6): signals, not constants.
-            for i, sid in enumerate(sids):
-                await http.put(f"/api/v1/sessions/{sid}/objects/0x6060:00", json={"value": 3})
-                await http.post(f"/api/v1/sessions/{sid}/state", json={"command": "enable"})
-                await http.put(
-                    f"/api/v1/sessions/{sid}/objects/0x60FF:00",
-                    json={"value": 20000 * (i + 1)},
-                )
+            # Control of each drive (the PDO mapping is a write: docs/ui.md), then the axes
+            # move (profile velocity, CiA 402-2 §6.6): signals, not constants.
+            for sid in sids:
+                r = await http.post(f"/api/v1/sessions/{sid}/control", json={"action": "take"})
+                if r.status_code != 200:
+                    raise RuntimeError(f"{sid}: control refused: {r.status_code} {r.text}")
+                http.tokens[sid] = r.json()["token"]
 
             def control(command: str) -> dict[str, Any]:
                 return _ask(server_proc, command)
+
+            control("move")
 
             # The recorder is measured twice in the same run: with the links' block upload
             # switched off (the baseline, segmented as before issue 50), then on.
@@ -824,8 +870,9 @@ async def bench(
                 out["recorder_block_vs_segmented"] = _ratios(
                     out["phases"]["recorder"], out["phases"]["recorder_segmented"]
                 )
+            control("stop")
             for sid in sids:
-                await http.post(f"/api/v1/sessions/{sid}/state", json={"command": "disable"})
+                await http.post(f"/api/v1/sessions/{sid}/control", json={"action": "release"})
     out["load_after"] = [round(x, 2) for x in os.getloadavg()]
     return out
 
