@@ -320,12 +320,26 @@ def upgrade(engine: Engine) -> None:
 
     from servodesk import migrations
 
+    from alembic.script import ScriptDirectory
+    from alembic.util.exc import CommandError
+
     cfg = Config()
     cfg.set_main_option("script_location", str(Path(migrations.__file__).parent))
     with write(engine) as conn:
         serialise(conn, LOCK_MIGRATE)
         cfg.attributes["connection"] = conn
-        command.upgrade(cfg, "head")
+        try:
+            command.upgrade(cfg, "head")
+        except CommandError as exc:
+            # A store a newer servodesk upgraded (a revision this one does not ship): it is
+            # not touched, and the message says what to do rather than Alembic's words.
+            known = ScriptDirectory.from_config(cfg).get_current_head()
+            raise StoreError(
+                f"the store is at a schema revision this servodesk does not know ({exc}); "
+                f"it knows revisions up to {known}",
+                hint="a newer servodesk wrote it: use that version, or give this one "
+                "another store (SERVODESK_STORE_URL or SERVODESK_DATA_DIR)",
+            ) from exc
 
 
 def revision(engine: Engine) -> str | None:
