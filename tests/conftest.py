@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -15,6 +16,10 @@ os.environ.setdefault("SERVODESK_VIEWER_PORT", "0")
 # names, those the suite's clients send: Starlette's TestClient ("testserver") and the httpx
 # ASGITransport clients' base URLs ("http://test", "http://t").
 os.environ.setdefault("SERVODESK_ALLOWED_HOSTS", "testserver,test,t")
+# Never the user's ~/.servodesk (backups, audit log, accounts, the store's schema): a test
+# that gives no data directory of its own, and every command it starts, gets this one. A
+# store left at a newer schema revision by one checkout failed another's run.
+os.environ.setdefault("SERVODESK_DATA_DIR", tempfile.mkdtemp(prefix="servodesk-tests-"))
 
 _counter = itertools.count()
 
