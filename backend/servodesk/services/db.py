@@ -317,11 +317,10 @@ def upgrade(engine: Engine) -> None:
     processes (PostgreSQL: advisory lock; SQLite: BEGIN IMMEDIATE)."""
     from alembic import command
     from alembic.config import Config
-
-    from servodesk import migrations
-
     from alembic.script import ScriptDirectory
     from alembic.util.exc import CommandError
+
+    from servodesk import migrations
 
     cfg = Config()
     cfg.set_main_option("script_location", str(Path(migrations.__file__).parent))
