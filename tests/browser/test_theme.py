@@ -1,5 +1,5 @@
 """Light and dark (issue 48, docs/ui.md "Colours"): the UI follows the system's preference,
-the header's toggle overrides it (Auto -> Light -> Dark) and the choice survives a reload; in
+the toggle at the foot of the navigation overrides it (Auto -> Light -> Dark) and the choice survives a reload; in
 the dark set no panel of the drive pages stays white (a colour written as a literal instead of
 a token would)."""
 
@@ -56,7 +56,7 @@ def test_the_ui_follows_a_dark_system_and_the_toggle_overrides_it(dark_page: Pag
     page.goto(f"/#/overview/{SID}")
     toggle = page.get_by_test_id("theme-toggle")
     expect(toggle).to_have_attribute("data-choice", "system")
-    expect(toggle).to_have_text("☾ Auto (dark)")
+    expect(toggle).to_have_text("◐ Auto (dark)")
     expect(page.locator("html")).to_have_attribute("data-theme", "dark")
     expect(page.get_by_test_id("page-overview")).to_be_visible()
     assert page.evaluate(_LUM, "html") < 0.15

@@ -13,7 +13,6 @@ import { ControlIndicator } from './ControlIndicator';
 import { GlobalStopButton } from './GlobalStop';
 import { UserMenu } from './auth/UserMenu';
 import { StatePill } from './StatePill';
-import { ThemeToggle } from './ThemeToggle';
 
 function ConnectionIndicator() {
   const s = useObservable(socketStatus);
@@ -103,7 +102,6 @@ export function Header({ sid }: { sid: string | null }) {
           </label>
         )}
         <ConnectionIndicator />
-        <ThemeToggle />
       </div>
     </header>
   );

@@ -1,6 +1,7 @@
 /** The left navigation, generated from the page registry (only pages that work are listed). */
 import { READY_PAGES, type PageDef } from '../pages/registry';
 import { routeHref } from '../state/router';
+import { ThemeToggle } from './ThemeToggle';
 
 const GROUPS: ReadonlyArray<PageDef['group']> = ['Bus', 'Drive', 'Data', 'Service'];
 
@@ -32,7 +33,12 @@ export function Nav({ active, sid }: { active: string; sid: string | null }) {
           </div>
         );
       })}
-      <div className="nav-foot muted">API v1 · <a href="/docs" target="_blank" rel="noreferrer">/docs</a></div>
+      <div className="nav-foot muted">
+        <ThemeToggle />
+        <div>
+          API v1 · <a href="/docs" target="_blank" rel="noreferrer">/docs</a>
+        </div>
+      </div>
     </nav>
   );
 }

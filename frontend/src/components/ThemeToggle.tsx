@@ -1,4 +1,8 @@
-/** The header's light/dark toggle: Auto (the system's preference) -> Light -> Dark. */
+/**
+ * The light/dark toggle at the foot of the navigation: Auto (the system's preference) ->
+ * Light -> Dark. Not in the header: at 1024 px its room goes to the drive's state
+ * (tests/browser/test_ui.py).
+ */
 import { chooseTheme, choiceLabel, nextChoice, themeState } from '../lib/theme';
 import { useObservable } from '../state/observable';
 
@@ -16,7 +20,7 @@ export function ThemeToggle() {
       aria-label={`Colour theme: ${label}`}
       onClick={() => chooseTheme(nextChoice(choice))}
     >
-      <span aria-hidden="true">{theme === 'dark' ? '☾' : '☀'}</span> {label}
+      <span aria-hidden="true">{choice === 'system' ? '◐' : theme === 'dark' ? '☾' : '☀'}</span> {label}
     </button>
   );
 }
