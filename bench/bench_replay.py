@@ -7,7 +7,7 @@ alternating in one process.
 
 ``recorded``: the replay of a try's move from the rest the recording found the axis in
 (``run_recorded_move``, what the fit of the inertias to the winner's try runs some 80 times per
-tuning, services/tuning_calibrate.py), fused against the per-cycle path through
+tuning, services/tuning/calibrate.py), fused against the per-cycle path through
 ``ServoLoop.run`` (``run_recorded_move_stepwise``, the baseline): milliseconds per replay.
 
 Each plant runs the benchmark's reference move (0.5 rev, jerk-limited, watched 0.5 s) with the

@@ -25,8 +25,8 @@ from collections.abc import Generator
 from typing import Any
 
 from servodesk.benchmarks.tuning import SimIO, build_drive, default_plants, plant_names
-from servodesk.services import tuning_worker
-from servodesk.services.tuning_own import OwnTuning, OwnTuningRequest
+from servodesk.services.tuning import worker as tuning_worker
+from servodesk.services.tuning.own import OwnTuning, OwnTuningRequest
 
 #: A stretch longer than this counts as holding the loop (the dead-man's watchdog naps a few
 #: milliseconds; a heartbeat every 100 ms).

@@ -61,6 +61,17 @@ class Settings(BaseSettings):
     #: PostgreSQL several gateways share; ``?sslmode=verify-full`` for TLS). Checked when the
     #: store opens (services/db.py, docs/deployment.md).
     store_url: str = ""
+    #: This gateway's name in the fleet (services/drift.py); empty: the machine's host name.
+    gateway_name: str = Field(default="", max_length=64, pattern=r"^[A-Za-z0-9._-]*$")
+    #: The URL other machines reach this gateway's UI at (the fleet page's links to its
+    #: drives); empty: http(s)://<host or host name>:<port>.
+    gateway_url: str = Field(default="", max_length=300)
+    #: Compare every connected drive with its approved backup this often (s); 0: never (the
+    #: default). docs/deployment.md, "Drift".
+    drift_interval_s: float = Field(default=0.0, ge=0, le=7 * 86400)
+    #: POSTed a JSON summary when a drift check finds differences (http:// or https://);
+    #: empty: no notification.
+    drift_webhook: str = Field(default="", max_length=2000)
     #: How often a session polls the drive's state for live updates (Hz).
     poll_hz: float = Field(default=20.0, gt=0, le=200)
     #: SDO response time-out in seconds.
@@ -93,6 +104,15 @@ class Settings(BaseSettings):
     def user_profile_dir(self) -> Path:
         """Where imported device descriptions are saved as profiles."""
         return self.data_dir / "profiles"
+
+    @field_validator("drift_webhook", "gateway_url")
+    @classmethod
+    def _http_url(cls, v: str) -> str:
+        from urllib.parse import urlsplit
+
+        if v and (urlsplit(v).scheme not in ("http", "https") or not urlsplit(v).netloc):
+            raise ValueError(f"{v!r} is not an http:// or https:// URL")
+        return v.rstrip("/")
 
     @field_validator("allowed_hosts")
     @classmethod

@@ -217,7 +217,7 @@ def _recorded(gains: ServoGains, *, offset: float, hold: float, distance: float)
 def test_a_recorded_move_replays_fused_as_it_does_stepwise(
     params: PlantParams, move: RecordedMove
 ) -> None:
-    # The fit of the inertias to a try (services/tuning_calibrate.py) replays its moves some
+    # The fit of the inertias to a try (services/tuning/calibrate.py) replays its moves some
     # 80 times; the fused loop must give the per-cycle path's positions to the count, from the
     # rest the recording found the axis in (the integral holding a torque, the shaft wound).
     fused_pos = replay.run_recorded_move(params, move, RATE)

@@ -160,7 +160,7 @@ def test_profile_ramps_in_family_units_become_accelerations() -> None:
 def test_a_lecsn_twin_runs_past_its_software_limits_in_profile_velocity() -> None:
     # 004 §20.8.3: the LECSN-T's software limit works in profile position only. Its twin must not
     # be kinder than the drive: in profile velocity it runs on past 607Dh, and only servodesk's
-    # own monitor (services/motion.py) stands between a jog and the end of travel.
+    # own monitor (services/motion/) stands between a jog and the end of travel.
     d = new_drive(_CATALOG.get("lecsn-t"))
     d.write(0x6060, 0, 3)
     enable(d)

@@ -1,4 +1,4 @@
-"""servodesk's own tuning (services/tuning_own.py) on simulated drives built from plant files.
+"""servodesk's own tuning (services/tuning/own.py) on simulated drives built from plant files.
 
 The procedure talks to the twin through typed object access on simulated time (the benchmark's
 SimIO), so these run as fast as the computer allows; the API test runs the same procedure on
@@ -46,8 +46,8 @@ from servodesk.domain.tuning.oracle import oracle_search
 from servodesk.domain.tuning.search import reference_move
 from servodesk.errors import DriveStateError, ValidationError
 from servodesk.model.plantfile import PlantSpec
-from servodesk.services import tuning_worker
-from servodesk.services.tuning_own import (
+from servodesk.services.tuning import worker as tuning_worker
+from servodesk.services.tuning.own import (
     TRY_WATCH_MAX_S,
     VERIFY_SETTLE_S,
     OwnTuning,
@@ -666,7 +666,7 @@ def test_a_compliance_too_low_to_measure_is_refused_and_everything_put_back() ->
     The moves do not fit a rigid body, and that stops the tuning with a plain reason before any
     new gain reaches the drive; its gains, limits and mode are as they were. In a 0.5 rev window
     (+-0.25 rev) the factory gains overshoot so far on this axis that moves keeping inside it
-    would be 0.028 rev, too short to tell (services/tuning_own.py MIN_IDENT_SHARE): the tuning
+    would be 0.028 rev, too short to tell (services/tuning/own.py MIN_IDENT_SHARE): the tuning
     stops there, before them; with room for the 0.2 rev moves (a 2 rev window) the moves'
     rigid-body check does."""
     spec = PlantSpec(inertia_ratio=100.0, resonance_hz=30.0, damping=0.01)
@@ -868,7 +868,7 @@ def _watched(
     with the drive's demand watched during the step; (tuning, watch, what the step returned)."""
     sim = build_drive(_WATCHED_AXIS)
     # A 1 rev window (+-0.5 rev): a verification move straight from the start keeps the reserve
-    # of gains that have not moved the axis (45 % of its 0.25 rev, services/tuning_travel.py)
+    # of gains that have not moved the axis (45 % of its 0.25 rev, services/tuning/travel.py)
     # without the rest position below the start that the frequency response's way back sets.
     tuning = OwnTuning(SimIO(sim), OwnTuningRequest("high", 1.0, 175.0))
     watch = _DemandWatch(sim)

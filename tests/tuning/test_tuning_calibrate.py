@@ -1,4 +1,4 @@
-"""The model fitted to the tries' recordings (services/tuning_calibrate.py,
+"""The model fitted to the tries' recordings (services/tuning/calibrate.py,
 sim/replay.run_recorded_move, model/profile_position.py).
 
 A try the tuning runs on the twin is recorded through the drive's own recorder (60F4h and the
@@ -22,22 +22,17 @@ from servodesk.benchmarks.tuning import (
     build_drive,
     default_plants,
 )
+from servodesk.domain.cia402 import FOLLOWING_ERROR, POSITION
 from servodesk.model.plant import PlantParams
 from servodesk.model.profile_position import CONTROL_PERIOD_S, pp_duration_s, pp_step
 from servodesk.model.replay import RecordedMove
-from servodesk.services.tuning_calibrate import (
+from servodesk.services.tuning.calibrate import (
     fit_inertias,
     fit_split,
     output_error,
     recorded_move,
 )
-from servodesk.services.tuning_own import (
-    FOLLOWING_ERROR,
-    POSITION,
-    SIG_TORQUE,
-    OwnTuning,
-    OwnTuningRequest,
-)
+from servodesk.services.tuning.own import SIG_TORQUE, OwnTuning, OwnTuningRequest
 
 # A load as heavy as the motor behind a 200 Hz shaft, without torque noise.
 SPEC = replace(dict(default_plants())["R1-200Hz"], noise_torque=0.0)
@@ -49,7 +44,7 @@ async def _try_on_twin() -> tuple[list[RecordedMove], float, float, list[tuple[n
     command and following error as recorded."""
     io = SimIO(build_drive(SPEC, 1))
     # A 1 rev window (+-0.5 rev): the try straight from the start keeps the reserve of gains
-    # that have not moved the axis that fast (45 % of its 0.25 rev, services/tuning_travel.py)
+    # that have not moved the axis that fast (45 % of its 0.25 rev, services/tuning/travel.py)
     # without the rest position below the start that the frequency response's way back sets;
     # the axis moves as it did in the 0.5 rev window taken as +-0.5 rev until the first session
     # of 2026-12-07.

@@ -37,8 +37,8 @@ from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.travel import TravelBound, bound_text, half_window, stop_overrun
 from servodesk.errors import ServodeskError
 from servodesk.model.plantfile import PlantSpec, load_plant_file
-from servodesk.services.tuning_own import OwnTuning, OwnTuningRequest
-from servodesk.services.tuning_travel import (
+from servodesk.services.tuning.own import OwnTuning, OwnTuningRequest
+from servodesk.services.tuning.travel import (
     MIN_RESERVE_SHARE,
     NEW_GAINS_SHARE,
     RESERVE_FACTOR,
@@ -230,7 +230,7 @@ def test_the_drives_software_limits_hold_the_bound_from_before_the_first_move() 
 
 @pytest.mark.parametrize("end", ["cancelled", "fault"])
 def test_the_limits_are_put_back_however_the_tuning_ends(end: str) -> None:
-    """A stop or the dead-man cancels the tuning (services/tuning.py), a fault fails it: the
+    """A stop or the dead-man cancels the tuning (services/tuning/), a fault fails it: the
     axis comes to rest, then 607Dh, 6085h and the gains are as they were."""
     spec = PlantSpec(inertia_ratio=3.0)
     drive = build_drive(spec)
@@ -262,7 +262,7 @@ def test_the_limits_are_put_back_however_the_tuning_ends(end: str) -> None:
 @pytest.mark.parametrize("halt_first", [True, False], ids=["dead-man", "quick-stop"])
 def test_a_stop_at_full_speed_brakes_inside_the_window(halt_first: bool) -> None:
     """The dead-man halts the axis and then quick-stops it; the Operation page's Stop, from any
-    client, quick-stops it at once (services/motion.py). The generic twin's quick stop ramp
+    client, quick-stops it at once (services/motion/). The generic twin's quick stop ramp
     (6085h) is 38 rev/s²: from the 13 rev/s of a light axis's verification move, where this
     stop comes, the quick stop alone ran the axis 1.2 rev from the start (6085h left as it
     was). The tuning raises 6085h to each move's own deceleration, so the stop ends inside the

@@ -1,4 +1,4 @@
-"""The design worker of servodesk's own tuning (services/tuning_worker.py) ends with the
+"""The design worker of servodesk's own tuning (services/tuning/worker.py) ends with the
 server, and with a stopped tuning's job.
 
 A server stopped while the worker existed left the worker process (and its resource tracker)
@@ -20,7 +20,7 @@ import time
 
 import pytest
 
-from servodesk.services import tuning_worker
+from servodesk.services.tuning import worker as tuning_worker
 
 # Processes started, stopped and waited for on the wall clock (a job "has started" after 0.5 s).
 pytestmark = pytest.mark.wallclock
@@ -58,7 +58,7 @@ def test_shutdown_ends_the_worker() -> None:
 def test_a_killed_server_takes_its_worker_with_it() -> None:
     code = (
         "import os, sys, time\n"
-        "from servodesk.services import tuning_worker\n"
+        "from servodesk.services.tuning import worker as tuning_worker\n"
         "print(tuning_worker.pool().submit(os.getpid).result(timeout=60), flush=True)\n"
         "time.sleep(60)\n"
     )

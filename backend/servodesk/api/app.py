@@ -24,6 +24,7 @@ from servodesk.api.routes import (
     auth,
     backups,
     dcp,
+    fleet,
     motion,
     operation,
     pdo,
@@ -86,6 +87,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(dcp.router, prefix="/api/v1")
     app.include_router(backups.router, prefix="/api/v1")
     app.include_router(audit.router, prefix="/api/v1")
+    app.include_router(fleet.router, prefix="/api/v1")  # Drives of every gateway, drift.
     app.include_router(ws_router, prefix="/api/v1")
     app.include_router(operation.router, prefix="/api/v1")
     app.include_router(viewer.router, prefix="/api/v1")

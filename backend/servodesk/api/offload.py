@@ -12,7 +12,7 @@ Such routes declare ``response_model`` for the schema and return :func:`json_res
 A thread is not enough where one C call holds the GIL for long: the scope's CSV parser held
 it for up to 1.9 s at a time on a 10 MB file (NumPy's text conversion), and the loop waited as
 if the work were on it. That work runs in a spawned process (:func:`in_process`), as the
-tuning's searches do (services/tuning_worker.py); its function and arguments must pickle.
+tuning's searches do (services/tuning/worker.py); its function and arguments must pickle.
 """
 
 from __future__ import annotations
@@ -42,10 +42,11 @@ _POOL: ProcessPoolExecutor | None = None
 
 def _pool() -> ProcessPoolExecutor:
     """One spawned worker (not forked: the server's bus threads would be copied in whatever
-    state they are), started on first use; it dies with the server (tuning_worker's hook)."""
+    state they are), started on first use; it dies with the server (the hook of
+    services/tuning/worker.py)."""
     global _POOL
     if _POOL is None:
-        from servodesk.services.tuning_worker import _die_with_parent
+        from servodesk.services.tuning.worker import _die_with_parent
 
         _POOL = ProcessPoolExecutor(
             1, mp_context=multiprocessing.get_context("spawn"), initializer=_die_with_parent

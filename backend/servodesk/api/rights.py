@@ -67,6 +67,13 @@ ROUTE_RIGHTS: dict[str, Right] = {
     "get_restore": R.READ,
     "resume_restore": R.RESTORE,
     "list_parameter_writes": R.READ_AUDIT,  # Who wrote what (docs/backup.md).
+    # fleet.py (every drive of the store; approving a backup is an engineer's decision)
+    "list_fleet": R.READ,
+    "list_gateways": R.READ,
+    "list_drift": R.READ,
+    "set_plant_tag": R.WRITE_PARAMETERS,
+    "approve_backup": R.WRITE_PARAMETERS,
+    "check_drift": R.BACKUP,  # Reads the drive as a backup does; writes nothing to it.
     # audit.py (the audit log, IEC 62443-4-2 CR 2.8)
     "list_audit": R.READ_AUDIT,
     "verify_audit": R.READ_AUDIT,

@@ -12,7 +12,8 @@ The order of :meth:`AppState.aclose` is safety-relevant (docs/architecture.md, D
    release timers are cancelled;
 3. the scope and then the 3D viewer stop (their stop waits on threads and sockets: an axis
    must not keep moving meanwhile);
-4. the login sweeper stops;
+4. the login sweeper stops, then the fleet's jobs (heartbeat, scheduled drift scan: it reads
+   drives);
 5. the sessions close (their links, the buses);
 6. the store, the audit log and the accounts close, then the worker pools;
 7. the simulated drives (``serve --sim``) stop last: they are the devices the sessions talked to.
@@ -26,6 +27,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import socket
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -36,14 +38,16 @@ from servodesk.errors import ServodeskError
 from servodesk.services.audit import Actor, AuditLog
 from servodesk.services.backup import BackupService
 from servodesk.services.control import ControlService
+from servodesk.services.drift import DriftService, gateway_url
 from servodesk.services.events import EventHub
+from servodesk.services.fleet import FleetStore
 from servodesk.services.logins import LoginService, LoginSession
 from servodesk.services.manager import SessionManager
 from servodesk.services.motion import PP, MotionService
 from servodesk.services.restore import RestoreService
 from servodesk.services.scope import ScopeService
 from servodesk.services.store import Store
-from servodesk.services.tuning import TuningService
+from servodesk.services.tuning.jobs import TuningService
 from servodesk.services.users import UserStore
 from servodesk.services.viewer import ViewerService
 from servodesk.settings import Settings
@@ -74,6 +78,10 @@ class AppState:
     scope: ScopeService
     tuning: TuningService
     viewer: ViewerService
+    #: Every drive the store knows: plant tags, approved backups, drift (services/fleet.py).
+    fleet: FleetStore
+    #: This gateway in the fleet and its drift checks (services/drift.py).
+    drift: DriftService
     #: The simulated drives of ``serve --sim`` while the application runs (else None).
     sim: SimulatedBus | None = None
     #: The PROFINET vendor and device ID each MAC answered the last DCP Identify with.
@@ -102,6 +110,16 @@ class AppState:
         control = ControlService(hub, audit=audit)
         motion = MotionService(manager, control, hub, deadman_s=settings.deadman_ms / 1000.0)
         scope = ScopeService(manager)
+        fleet = FleetStore(backups.store.engine)
+        drift = DriftService(
+            fleet,
+            backups,
+            manager,
+            gateway=settings.gateway_name or socket.gethostname(),
+            url=settings.gateway_url or gateway_url(settings.host, settings.port, settings.https),
+            interval_s=settings.drift_interval_s,
+            webhook=settings.drift_webhook,
+        )
         state = cls(
             settings=settings,
             catalog=catalog,
@@ -121,10 +139,13 @@ class AppState:
                 port=settings.viewer_port,
                 public=settings.viewer_public,
             ),
+            fleet=fleet,
+            drift=drift,
         )
         # Late-bound through the state: a benchmark may put a scope of its own in place.
         state.tuning.recorder_busy = state._recorder_busy
         state.viewer.target_of = state._target_of
+        drift.on_drift = state._drift_found
         return state
 
     # Wiring between services ------------------------------------------------------------
@@ -145,6 +166,20 @@ class AppState:
         if status["active"] and status["mode"] == PP and status["target"] is not None:
             return float(status["target"])
         return None
+
+    def _drift_found(self, result: dict[str, Any]) -> None:
+        # Drift that is news (services/drift.py) is an event of the drive, like a backup.
+        self.audit.record(
+            "backup.drift",
+            drive=result["session"],
+            message=f"{result['count']} parameters differ from the approved backup",
+            details={
+                "drive_key": result["drive_key"],
+                "backup": result["backup"],
+                "result": result["id"],
+                "parameters": [d["address"] for d in result["differences"][:20]],
+            },
+        )
 
     def _session_ended(self, session: LoginSession, reason: str) -> None:
         # IEC 62443-4-2 CR 2.8: session termination is an access-control event.
@@ -171,6 +206,7 @@ class AppState:
             logins.run_sweeper(self.auth.enabled, every), name="logins"
         )
         await self.viewer.start()
+        await self.drift.start()
 
     async def aclose(self) -> None:
         """Stop everything, in the order of the module's docstring.
@@ -194,6 +230,7 @@ class AppState:
         await step("scope", self.scope.close)
         await step("viewer", self.viewer.stop)
         await step("logins", self._stop_sweeper)
+        await step("fleet", self.drift.stop)
         await step("sessions", self.manager.close_all)
         await step("store", self.backups.store.close)
         await step("audit", self.audit.close)
@@ -219,7 +256,7 @@ class AppState:
 def _stop_workers() -> None:
     """The process pools of the tuning's searches and of the off-loop work (documents)."""
     from servodesk.api import offload
-    from servodesk.services import tuning_worker
+    from servodesk.services.tuning import worker as tuning_worker
 
     tuning_worker.shutdown()
     offload.shutdown()

@@ -4,7 +4,7 @@ For each plant (a plant file, docs/tuning.md; by default the set of issue 8: ine
 1, 3, 10, 30 x rigid or a resonance at 800, 400, 200, 100 Hz, plus stress cases):
 
 1. A generic twin (cia402-generic) is built on that plant and enabled, with the profile's
-   default gains. servodesk's own tuning (services/tuning_own.py, the same code a session
+   default gains. servodesk's own tuning (services/tuning/own, the same code a session
    runs) tunes it through :class:`SimIO`: typed object access straight into the simulated
    drive and simulated time, stepped as fast as the computer allows.
 2. The harness runs the reference move (domain/tuning/search.py: 0.5 rev, jerk-limited,
@@ -129,7 +129,7 @@ def exact_model(spec: PlantSpec) -> PlantModel:
 
 
 class SimIO:
-    """:class:`~servodesk.services.tuning_io.TuningIO` straight into a simulated drive, on
+    """:class:`~servodesk.services.tuning.io.TuningIO` straight into a simulated drive, on
     simulated time (every sleep steps the drive)."""
 
     def __init__(self, drive: Any) -> None:
@@ -186,7 +186,7 @@ def build_drive(spec: PlantSpec, seed: int = 1) -> Any:
 async def tune(spec: PlantSpec, mode: str = "high", seed: int = 1) -> tuple[dict[str, Any], Any]:
     """servodesk's tuning on a twin of ``spec`` whose torque noise has ``seed``; returns
     (result JSON, drive)."""
-    from servodesk.services.tuning_own import OwnTuning, OwnTuningRequest
+    from servodesk.services.tuning.own import OwnTuning, OwnTuningRequest
 
     drive = build_drive(spec, seed)
     io = SimIO(drive)

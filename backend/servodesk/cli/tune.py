@@ -96,7 +96,11 @@ def _check_args(args: argparse.Namespace) -> None:
         )
     # The service's own bounds, checked here so that a bad argument exits 2 before the bus
     # is opened.
-    from servodesk.services.tuning import MAX_MOVE_TORQUE_PCT, MAX_TORQUE_PCT, MAX_TRAVEL_REV
+    from servodesk.services.tuning.capabilities import (
+        MAX_MOVE_TORQUE_PCT,
+        MAX_TORQUE_PCT,
+        MAX_TRAVEL_REV,
+    )
 
     if not 0 < args.travel <= MAX_TRAVEL_REV:
         raise ValidationError(
@@ -130,7 +134,7 @@ def run_tune(args: argparse.Namespace) -> int:
 async def _tune(ctx: _Context, args: argparse.Namespace) -> dict[str, Any]:
     from servodesk.services.control import ControlService
     from servodesk.services.motion import MotionService
-    from servodesk.services.tuning import TuningService
+    from servodesk.services.tuning.jobs import TuningService
     from servodesk.settings import Settings
 
     session = await ctx.session()

@@ -13,7 +13,7 @@ Three users:
   the identified model reached 0.7 (docs/tuning.md, "Ranking");
 - the same tuning fits its model to the moves the axis ran under known gains
   (:func:`run_recorded_move`: a profile-position move as the drive generates it, from the rest
-  the recording starts in; services/tuning_calibrate.py).
+  the recording starts in; services/tuning/calibrate.py).
 """
 
 from __future__ import annotations
@@ -181,7 +181,7 @@ class WorstOf:
     """Candidate gains run on several simulated axes; each candidate's metrics are those of
     the axis it settles worst on (:meth:`MoveMetrics.key`), None if it diverges on any.
 
-    The own tuning (services/tuning_own.py) ranks a rigid axis on the identified axis and on
+    The own tuning (services/tuning/own.py) ranks a rigid axis on the identified axis and on
     it a little lighter and heavier: with an inertia feed-forward near the inertia, settling
     to +-10 counts is a knife edge (the oracle's gains settle 7-33 x slower with their
     feed-forward 2 % off, docs/tuning.md), and gains that are fast only on the nominal axis
@@ -205,7 +205,7 @@ class WorstOf:
 @dataclass(frozen=True, slots=True)
 class RecordedMove:
     """A profile-position move the axis ran under known gains, as the drive's recorder saw it
-    at the loop rate: what the own tuning fits its model to (services/tuning_calibrate.py).
+    at the loop rate: what the own tuning fits its model to (services/tuning/calibrate.py).
 
     Counts are relative to where the demand rested before the move. ``position[0]`` is the
     sample after the first loop tick of the move's first control cycle."""
@@ -239,7 +239,7 @@ def run_recorded_move(params: PlantParams, move: RecordedMove, rate_hz: float) -
     laid out per tick beforehand: the same arithmetic as :func:`run_recorded_move_stepwise`
     (tests/sim/test_fused_move.py holds the two equal to the count), some 25 times faster
     (bench/bench_replay.py). The fit of the inertias to a try replays its moves some 80 times
-    (services/tuning_calibrate.py)."""
+    (services/tuning/calibrate.py)."""
     plant, loop = _at_rest(params, move, rate_hz)
     if not applies(params):
         return _replayed_stepwise(plant, loop, params, move, rate_hz)

@@ -66,6 +66,7 @@ backups = sa.Table(
     sa.Column("source", sa.Text, nullable=False, server_default="drive"),
     sa.Column("unreadable", sa.Text),
     sa.Index("backups_drive", "drive_key", "created"),
+    sa.Index("backups_created", "created"),  # revision 0003: the fleet's sync
 )
 
 #: A backup's bytes, keyed by their SHA-256: identical content (the same drive backed up
@@ -173,6 +174,68 @@ api_tokens = sa.Table(
     sa.Index("api_tokens_user", "user"),
 )
 
+#: The servodesk processes that share this store (revision 0003, services/fleet.py): each
+#: registers on start and says it is alive every heartbeat.
+gateways = sa.Table(
+    "gateways",
+    metadata,
+    sa.Column("name", sa.Text, primary_key=True),
+    sa.Column("url", sa.Text, nullable=False),
+    sa.Column("buses", sa.Text, nullable=False, server_default="[]"),
+    sa.Column("version", sa.Text, nullable=False, server_default=""),
+    sa.Column("started", sa.Float, nullable=False),
+    sa.Column("last_seen", sa.Float, nullable=False),
+)
+
+#: One row per drive the store knows (revision 0003): its identity and last backup (kept
+#: from ``backups`` by services/fleet.py), the user's plant tag, the approved ("golden")
+#: backup with who, when and why, and the last drift check's outcome. The fleet page reads
+#: this table alone, so a page of 10 000 drives is one indexed query.
+fleet_drives = sa.Table(
+    "fleet_drives",
+    metadata,
+    sa.Column("drive_key", sa.Text, primary_key=True),
+    sa.Column("plant_tag", sa.Text, unique=True),
+    sa.Column("serial", sa.Text),
+    sa.Column("profile_id", sa.Text, nullable=False, server_default=""),
+    sa.Column("firmware", sa.Text),
+    sa.Column("gateway", sa.Text),
+    sa.Column("session", sa.Text),
+    sa.Column("seen", sa.Float),
+    sa.Column("last_backup", sa.Text),
+    sa.Column("last_backup_time", sa.Text),
+    sa.Column("last_backup_created", sa.Float),
+    sa.Column("approved_backup", sa.Text),
+    sa.Column("approved_by", sa.Text),
+    sa.Column("approved_at", sa.Text),
+    sa.Column("approved_reason", sa.Text),
+    sa.Column("drift_state", sa.Text, nullable=False, server_default="unknown"),
+    sa.Column("drift_count", sa.Integer),
+    sa.Column("drift_time", sa.Text),
+    sa.Column("alarms", sa.Integer),
+    sa.Index("fleet_drives_drift", "drift_state"),
+    sa.Index("fleet_drives_backup_created", "last_backup_created"),
+)
+
+#: Every drift check: a connected drive against its approved backup (revision 0003).
+drift_results = sa.Table(
+    "drift_results",
+    metadata,
+    sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
+    sa.Column("drive_key", sa.Text, nullable=False),
+    sa.Column("time", sa.Text, nullable=False),
+    sa.Column("created", sa.Float, nullable=False),
+    sa.Column("gateway", sa.Text, nullable=False),
+    sa.Column("session", sa.Text, nullable=False),
+    sa.Column("backup", sa.Text, nullable=False),
+    sa.Column("state", sa.Text, nullable=False),
+    sa.Column("count", sa.Integer, nullable=False),
+    sa.Column("differences", sa.Text, nullable=False),
+    sa.Column("webhook", sa.Text),
+    sa.Index("drift_results_drive", "drive_key", "id"),
+    sqlite_autoincrement=True,
+)
+
 #: Every table in the order an export writes and an import reads them.
 TABLES: tuple[sa.Table, ...] = (
     backup_content,
@@ -183,6 +246,9 @@ TABLES: tuple[sa.Table, ...] = (
     audit_log,
     users,
     api_tokens,
+    gateways,
+    fleet_drives,
+    drift_results,
 )
 
 #: The advisory lock keys of :func:`serialise` (PostgreSQL): any 64-bit numbers, fixed.

@@ -10,7 +10,7 @@ messages from the session's state poll.
 
 Every run started through servodesk is a :class:`HomingRun`: its plan (the travel, the speeds in
 position units, the estimated duration and the time-out, :mod:`servodesk.domain.homing`), the
-time it has run and how it ended. A run that moves the axis is a motion (services/motion.py):
+time it has run and how it ended. A run that moves the axis is a motion (services/motion/):
 the motion's end (attained, error, halted, quick stop, dead-man, loss of control, time-out)
 ends the run and is published as the last ``homing`` message, so that the panel never stays on
 "running" after the axis stopped. The statusword cannot tell that on every family: after a
@@ -177,7 +177,7 @@ Outcome = Literal[
     "interrupted",
 ]
 
-#: The motion's end state (services/motion.py ``Motion.state``) as the run's outcome.
+#: The motion's end state (services/motion/ ``Motion.state``) as the run's outcome.
 _OUTCOME_OF_MOTION: dict[str, Outcome] = {
     "done": "attained",
     "reached": "attained",
@@ -209,7 +209,7 @@ class HomingPlan:
     warnings: tuple[str, ...] = ()
 
     def summary(self) -> str:
-        """The motion's message while the run lasts (services/motion.py)."""
+        """The motion's message while the run lasts (services/motion/)."""
         est = self.estimate
         up_to = f", up to {format_seconds(est.seconds)}" if est is not None else ""
         return f"homing method {self.method}{up_to}, time-out {format_seconds(self.timeout_s)}"
@@ -244,7 +244,7 @@ class HomingRun:
     started: float
     started_at: float
     id: int = field(default_factory=lambda: next(_run_ids))
-    #: Under the client's dead-man as a motion (services/motion.py); False: the drive was not
+    #: Under the client's dead-man as a motion (services/motion/); False: the drive was not
     #: enabled, nothing moves (quirk ``homing_without_enable``).
     watched: bool = False
     outcome: Outcome = "running"
@@ -366,7 +366,7 @@ def finish(run: HomingRun, outcome: Outcome, message: str) -> None:
 
 
 def end_with_motion(run: HomingRun, state: str, message: str, *, control_lost: bool) -> None:
-    """The motion of a watched run ended (services/motion.py ``Motion.on_end``)."""
+    """The motion of a watched run ended (services/motion/ ``Motion.on_end``)."""
     outcome: Outcome = _OUTCOME_OF_MOTION.get(state, "interrupted")
     if control_lost and outcome in ("halted", "deadman"):
         # Stopped because control moved or was released (services/control.py), which the
@@ -661,7 +661,7 @@ async def begin(
     which follows the family's mode-change quirks. ``go`` sends the starting controlword
     (default: a plain write). ``plan_`` is the run's estimate and time-out (default: the
     default time-out, no estimate); the run is the session's :func:`current_run` from here.
-    ``watched``: the run is a motion (services/motion.py) whose end ends it
+    ``watched``: the run is a motion (services/motion/) whose end ends it
     (:func:`end_with_motion`); else the statusword and the time-out end it.
     """
     profile = session.profile

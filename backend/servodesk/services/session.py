@@ -63,7 +63,7 @@ _MOTION_TARGETS = (ObjectAddress(0x60FF), ObjectAddress(0x6071))
 
 #: What a motion borrows: each setting it writes (persisted, not process data), with its raw
 #: value before the first such write (None: unreadable) and whether it was already written
-#: since the last store. Set by services/motion.py around a motion's own writes (a context
+#: since the last store. Set by services/motion/ around a motion's own writes (a context
 #: variable: only that task's writes are borrowed, not a user's write beside it).
 Borrowed = dict[ObjectAddress, tuple[bytes | None, bool]]
 BORROW: contextvars.ContextVar[Borrowed | None] = contextvars.ContextVar(

@@ -295,7 +295,7 @@ class SetPoints(ServoGlue):
         :data:`LIMIT_WALL_MARGIN` inside the limit, and brought back there if the axis crept
         past it, as drives that supervise 607Dh in every mode do (CiA 402-2 §6.5.4 leaves the
         velocity modes to the manufacturer). servodesk's own monitor halts continuous motion
-        before this (services/motion.py); this is the backstop when the monitor's samples
+        before this (services/motion/); this is the backstop when the monitor's samples
         come late. Internal limit active (bit 11) while it holds the demand. Only where the
         profile says the drive does this (``simulation.software_limits_in_pv``)."""
         lo, hi = self._c[K_SW_LIMIT_MIN], self._c[K_SW_LIMIT_MAX]

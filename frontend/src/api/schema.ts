@@ -452,6 +452,108 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/fleet": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * List Fleet
+         * @description Every drive the store knows (from every gateway's backups and connections), tagged
+         *     drives first; filtered and one page at a time.
+         */
+        get: operations["list_fleet"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/fleet/approved": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        /**
+         * Approve Backup
+         * @description Make a backup the drive's approved ("golden") one: who and when are recorded, the
+         *     reason is required. Drift checks compare the drive with it from now on.
+         */
+        put: operations["approve_backup"];
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/fleet/drift": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * List Drift
+         * @description Drift check results, newest first.
+         */
+        get: operations["list_drift"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/fleet/gateways": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * List Gateways
+         * @description The gateways that share this store, with when each was last seen.
+         */
+        get: operations["list_gateways"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/fleet/tag": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        /**
+         * Set Plant Tag
+         * @description Give a drive its plant tag (unique), or clear it (tag null or empty).
+         */
+        put: operations["set_plant_tag"];
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/health": {
         parameters: {
             query?: never;
@@ -847,6 +949,27 @@ export interface paths {
          *     ``force_control`` right) may force-take it from another user.
          */
         post: operations["set_control"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/sessions/{sid}/drift": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Check Drift
+         * @description Compare the connected drive with its approved backup now; the result is recorded
+         *     (and the webhook notified when parameters differ).
+         */
+        post: operations["check_drift"];
         delete?: never;
         options?: never;
         head?: never;
@@ -1622,6 +1745,35 @@ export interface components {
             /** Telegram */
             telegram?: number | null;
         };
+        /** ApproveRequest */
+        ApproveRequest: {
+            /**
+             * Backup
+             * @description the backup to approve
+             */
+            backup: string;
+            /**
+             * Drive
+             * @description drive_key or plant tag
+             */
+            drive: string;
+            /**
+             * Reason
+             * @description why this backup is the reference
+             */
+            reason: string;
+        };
+        /** ApprovedOut */
+        ApprovedOut: {
+            /** At */
+            at: string | null;
+            /** Backup */
+            backup: string;
+            /** By */
+            by: string | null;
+            /** Reason */
+            reason: string | null;
+        };
         /** AuditEntry */
         AuditEntry: {
             /** Address */
@@ -2210,6 +2362,89 @@ export interface components {
             /** Unit */
             unit: string | null;
         };
+        /** DriftDifference */
+        DriftDifference: {
+            /** Address */
+            address: string;
+            /** Approved Engineering */
+            approved_engineering: number | null;
+            /** Approved Raw Hex */
+            approved_raw_hex: string | null;
+            /** Approved Value */
+            approved_value: number | boolean | string | null;
+            /** Drive Engineering */
+            drive_engineering: number | null;
+            /** Drive Raw Hex */
+            drive_raw_hex: string | null;
+            /** Drive Value */
+            drive_value: number | boolean | string | null;
+            /** Group */
+            group: string | null;
+            /**
+             * Kind
+             * @description changed; only_a: only in the approved backup; only_b: only on the drive
+             * @enum {string}
+             */
+            kind: "changed" | "only_a" | "only_b";
+            /** Name */
+            name: string | null;
+            /** Raw Unit */
+            raw_unit: string | null;
+            /** Unit */
+            unit: string | null;
+        };
+        /** DriftResult */
+        DriftResult: {
+            /**
+             * Backup
+             * @description the approved backup the drive was compared with
+             */
+            backup: string;
+            /** Count */
+            count: number;
+            /** Differences */
+            differences: components["schemas"]["DriftDifference"][];
+            /** Drive Key */
+            drive_key: string;
+            /** Gateway */
+            gateway: string;
+            /** Id */
+            id: number;
+            /** Plant Tag */
+            plant_tag: string | null;
+            /** Session */
+            session: string;
+            /**
+             * State
+             * @enum {string}
+             */
+            state: "in_step" | "drifted";
+            /** Time */
+            time: string;
+            /**
+             * Webhook
+             * @description the webhook's outcome (None: not sent)
+             */
+            webhook: string | null;
+        };
+        /** DriftStateOut */
+        DriftStateOut: {
+            /**
+             * Count
+             * @description differing parameters at the last check
+             */
+            count: number | null;
+            /**
+             * State
+             * @enum {string}
+             */
+            state: "unknown" | "in_step" | "drifted";
+            /**
+             * Time
+             * @description when the last check ran (ISO 8601, UTC)
+             */
+            time: string | null;
+        };
         /** DriveStateOut */
         DriveStateOut: {
             /** Bits */
@@ -2345,6 +2580,93 @@ export interface components {
             message: string;
             /** Protocol */
             protocol?: string | null;
+        };
+        /** FleetDrive */
+        FleetDrive: {
+            /**
+             * Alarms
+             * @description open alarms when last seen (None: not known)
+             */
+            alarms: number | null;
+            approved: components["schemas"]["ApprovedOut"] | null;
+            drift: components["schemas"]["DriftStateOut"];
+            /**
+             * Drive Key
+             * @description vendor-product-serial (1018h), else profile@bus
+             */
+            drive_key: string;
+            /** Firmware */
+            firmware: string | null;
+            /**
+             * Gateway
+             * @description the gateway that connected it last
+             */
+            gateway: string | null;
+            /** Last Backup */
+            last_backup: string | null;
+            /** Last Backup Time */
+            last_backup_time: string | null;
+            /**
+             * Link
+             * @description the drive's page on its gateway
+             */
+            link: string | null;
+            /** Plant Tag */
+            plant_tag: string | null;
+            /**
+             * Profile Id
+             * @description the drive's family (profile)
+             */
+            profile_id: string;
+            /**
+             * Seen
+             * @description when a gateway last saw it connected
+             */
+            seen: string | null;
+            /** Serial */
+            serial: string | null;
+            /**
+             * Session
+             * @description its session on that gateway when last seen
+             */
+            session: string | null;
+        };
+        /** FleetPage */
+        FleetPage: {
+            /** Drives */
+            drives: components["schemas"]["FleetDrive"][];
+            /** Limit */
+            limit: number;
+            /** Offset */
+            offset: number;
+            /**
+             * Total
+             * @description drives matching the filter
+             */
+            total: number;
+        };
+        /** GatewayOut */
+        GatewayOut: {
+            /**
+             * Alive
+             * @description seen within the last three heartbeats (90 s)
+             */
+            alive: boolean;
+            /**
+             * Buses
+             * @description interface:channel of the drives it has connected
+             */
+            buses: string[];
+            /** Last Seen */
+            last_seen: string;
+            /** Name */
+            name: string;
+            /** Started */
+            started: string;
+            /** Url */
+            url: string;
+            /** Version */
+            version: string;
         };
         /** GroupInfo */
         GroupInfo: {
@@ -3026,6 +3348,19 @@ export interface components {
             pdos?: components["schemas"]["PdoIn"][];
             /** Telegram */
             telegram?: number | null;
+        };
+        /** PlantTagRequest */
+        PlantTagRequest: {
+            /**
+             * Drive
+             * @description drive_key or plant tag
+             */
+            drive: string;
+            /**
+             * Tag
+             * @description the new plant tag (e.g. L2.Press.X); null or '': clear
+             */
+            tag: string | null;
         };
         /** PreflightOut */
         PreflightOut: {
@@ -6886,6 +7221,568 @@ export interface operations {
             };
         };
     };
+    list_fleet: {
+        parameters: {
+            query?: {
+                /** @description text in the tag, key, serial or profile */
+                q?: string;
+                /** @description only drives in this drift state */
+                drift?: ("unknown" | "in_step" | "drifted") | null;
+                /** @description only drives of this gateway */
+                gateway?: string | null;
+                offset?: number;
+                limit?: number;
+            };
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["FleetPage"];
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    approve_backup: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["ApproveRequest"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["FleetDrive"];
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    list_drift: {
+        parameters: {
+            query?: {
+                /** @description drive_key or plant tag */
+                drive?: string | null;
+                limit?: number;
+            };
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["DriftResult"][];
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    list_gateways: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["GatewayOut"][];
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    set_plant_tag: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["PlantTagRequest"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["FleetDrive"];
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
     health: {
         parameters: {
             query?: never;
@@ -9618,6 +10515,118 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["ControlOut"];
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    check_drift: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                sid: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["DriftResult"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */

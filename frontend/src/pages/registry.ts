@@ -12,6 +12,7 @@ import { AuditPage } from './AuditPage';
 import { AxesPage } from './AxesPage';
 import { BackupPage } from './BackupPage';
 import { ConnectPage } from './ConnectPage';
+import { FleetPage } from './FleetPage';
 import { NetworkPage } from './NetworkPage';
 import { ObjectAccessPage } from './ObjectAccessPage';
 import { ObjectDictionaryPage } from './ObjectDictionaryPage';
@@ -52,6 +53,7 @@ export const PAGES: readonly PageDef[] = [
   { id: 'objects', title: 'Object access', group: 'Data', scope: 'session', description: 'Read and write one object by address', component: ObjectAccessPage },
   { id: 'dictionary', title: 'Object dictionary', group: 'Data', scope: 'session', description: 'Every object of the profile', component: ObjectDictionaryPage },
   { id: 'pdo', title: 'PDO mapping', group: 'Data', scope: 'session', description: 'Process data layout the PLC needs', component: PdoPage },
+  { id: 'fleet', title: 'Fleet', group: 'Data', scope: 'global', description: 'Every drive of every gateway: plant tag, approved backup, drift', component: FleetPage },
   { id: 'backup', title: 'Backup & restore', group: 'Service', scope: 'session', description: 'Back up, restore and compare parameters', component: BackupPage },
   { id: 'view3d', title: '3D view', group: 'Service', scope: 'session', description: 'Live 3D twin of the axes', component: ViewerPage },
   { id: 'audit', title: 'Audit log', group: 'Service', scope: 'global', description: 'Who did what, when, from where; hash-chained', component: AuditPage },

@@ -1,6 +1,6 @@
 """Homing and alarm routes (issue 4): thin wrappers over services/homing.py and alarms.py.
 
-Starting homing goes through the motion service (services/motion.py), which watches the run
+Starting homing goes through the motion service (services/motion/), which watches the run
 with the client's dead-man heartbeat like a jog.
 """
 

@@ -1,4 +1,4 @@
-"""Tuning routes (issue 8): thin wrappers over services/tuning.py; shapes: docs/tuning.md.
+"""Tuning routes (issue 8): thin wrappers over services/tuning/jobs.py; shapes: docs/tuning.md.
 
 Starting a tuning moves the axis: it needs control and the client's WebSocket (its dead-man
 heartbeat), like a jog. Stopping is never refused, from any client. Undo and store write
@@ -17,12 +17,12 @@ from pydantic import BaseModel, ConfigDict, Field
 from servodesk.api.control_deps import ClientId, MotionControl, WriteControl
 from servodesk.api.schemas import ERROR_RESPONSES
 from servodesk.api.state import state_of
-from servodesk.services.tuning import (
+from servodesk.services.tuning.capabilities import (
     MAX_MOVE_TORQUE_PCT,
     MAX_TORQUE_PCT,
     MAX_TRAVEL_REV,
-    TuningService,
 )
+from servodesk.services.tuning.jobs import TuningService
 
 
 def tuning_of(app: Any) -> TuningService:

@@ -11,7 +11,7 @@ was confirmed; the Tuning page computes it with the same rule and the same float
 operations (frontend/src/components/tuning/tuningModel.ts ``windowInUnits``), so the counts it
 shows are the ones the drive's software position limits (607Dh, CiA 402-2 §6.5.4) get.
 
-Pure standard library: services/tuning.py imports it at start-up.
+Pure standard library: services/tuning/ imports it at start-up.
 """
 
 from __future__ import annotations

@@ -27,7 +27,7 @@ least :data:`NEW_GAINS_SHARE` of its distance where its gains have not yet run a
 fast: the model's prediction was 1.7-6.8 x short for the first brisk try of new gains on the
 soft axes of bench/plants (docs/tuning.md). A move whose envelope, set-points plus reserve,
 leaves the bound is not sent (:meth:`TravelGuard.require`); the procedure sizes its moves so
-that they fit (services/tuning_own.py).
+that they fit (services/tuning/own).
 """
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ RESERVE_FACTOR = 1.5
 #: behind a 60 Hz shaft, whose anti-resonance the frequency response did not show, in their
 #: first brisk try; the model foretold 5 %).
 NEW_GAINS_SHARE = 0.45
-#: The same where the model is not the machine (services/tuning_own.py ``_model_foretold``):
+#: The same where the model is not the machine (services/tuning/own ``_model_foretold``):
 #: the frequency response did not show the anti-resonance, the simulation lacks a mode of the
 #: model, or the present gains' verification move ran on past what the model foretold. There
 #: the design's gains ran on 50 % of the verification move (a load 10 x the motor behind a

@@ -1,5 +1,10 @@
 """servodesk's own one-touch tuning: identify, measure, design, verify (docs/tuning.md).
 
+Over 700 lines: :class:`OwnTuning` is one run whose phases (safety, identification, design,
+tries on the axis, verification, result) share its state; a split into a module a phase was
+made and measured in issue 51 and held the event loop past the dead-man's period on the real
+server (tests/browser/test_tuning.py), so it waits for its own change.
+
 For a drive whose profile maps its servo gains (``tuning.kind: gains``). The steps, each a few
 hundred milliseconds of axis motion inside the travel window the user confirmed:
 
@@ -27,7 +32,7 @@ Safety (issue 8 §7): during tuning the torque limit 6072h is the user's and the
 window 6065h is widened (the low default gains of an untuned axis lag far behind a brisk
 identification move). The travel window W the user confirms is a total width centred on where
 the axis stands: every move is planned so that its set-points, the loop's overshoot past them and
-a stop's run-out stay within start +- W/2 (services/tuning_travel.py), and the drive's own
+a stop's run-out stay within start +- W/2 (services/tuning/travel.py), and the drive's own
 software position limits 607Dh are set there before the first move (CiA 402-2 §6.5.4), with the
 quick-stop deceleration 6085h raised to each move's own so that a dead-man stop brakes no
 gentler than the move. All of them, the mode and every gain are put back when the tuning ends,
@@ -113,11 +118,11 @@ from servodesk.domain.tuning.travel import TravelBound, half_window
 from servodesk.errors import DriveStateError, ServodeskError, ValidationError
 from servodesk.model.plant import PlantParams
 from servodesk.model.replay import ModelMoves, OwnMove, RecordedMove, WorstOf
-from servodesk.services import tuning_worker
 from servodesk.services.session import Session
-from servodesk.services.tuning_calibrate import fit_inertias, fit_split, recorded_move
-from servodesk.services.tuning_io import DriveRecorder, Recording, SessionIO, TuningIO, read_float
-from servodesk.services.tuning_travel import (
+from servodesk.services.tuning import worker as tuning_worker
+from servodesk.services.tuning.calibrate import fit_inertias, fit_split, recorded_move
+from servodesk.services.tuning.io import DriveRecorder, Recording, SessionIO, TuningIO, read_float
+from servodesk.services.tuning.travel import (
     UNSEEN_SHARE,
     PlannedMove,
     TravelExceeded,
@@ -158,19 +163,13 @@ BAND_LOW_HZ = 2.0 * CHIRP_F0_HZ
 #: The frequency response is measured travelling this far (anchors-tuning.md §3.5: at most +-0.25
 #: rev per frequency response) ...
 FRF_TRAVEL_REV = 0.45
-#: ... centred on the start, each end at most this share of the half-window from it. The way up to
-#: its start is the tuning's first move, planned before anything is known of the axis: it keeps the
-#: rest of the half-window in reserve. Over the benchmark's plants and bench/plants the factory
-#: gains ran on at most 0.0065 rev past the end of a travel at 0.39 rev/s (the motor of a load 30 x
-#: its own behind a 40 Hz shaft), a quarter of that reserve at a 0.5 rev window (docs/tuning.md,
-#: "Travel window").
+#: ... centred on the start, each end at most this share of the half-window from it: its way up, the
+#: first move, keeps the rest in reserve for run-on nothing yet foretells (measured:
+#: docs/tuning.md).
 FRF_HALF_SHARE = 0.9
-#: The way up to the travel's start accelerates and brakes over this long, and the axis rests
-#: there this long before the travel: a load 30 x the motor behind a 60 Hz shaft (anti-resonance 11
-#: Hz, damping 0.01) still swinging from 20 ms ramps put a dip into the response at 27 Hz and its
-#: peak 10 dB low, and after 0.3 s of rest the record fit's damping came out at its floor (0.002 for
-#: 0.03 on seed 4: gains that did not settle within the benchmark's second); the travel used to
-#: start from where the axis had stood at rest. Resting is not axis time.
+#: The way up to the travel's start accelerates and brakes over this long, and the axis rests there
+#: this long before the travel, so that a soft load has stopped swinging (measured: docs/tuning.md).
+#: Resting is not axis time.
 FRF_PRE_RAMP_S = 0.25
 FRF_REST_S = 1.0
 #: The recording of the frequency response's travel goes on this long after its profile ends, with
@@ -180,7 +179,7 @@ FRF_TAIL_S = 0.15
 #: window's width (and IDENT_REV, VERIFY_REV). Both run from a rest position half the verification
 #: distance below the start (``_Drive.home``): the verification move and the tries, as long as
 #: half the window, are centred on the start and keep half their distance in reserve at either
-#: end (services/tuning_travel.py NEW_GAINS_SHARE).
+#: end (services/tuning/travel.py NEW_GAINS_SHARE).
 IDENT_REV = 0.2
 IDENT_WINDOW_SHARE = 0.4
 VERIFY_WINDOW_SHARE = 0.5
@@ -198,7 +197,7 @@ REST_WAIT_S = 2.0
 #: Identification moves: inertial torque as a share of the tuning torque limit.
 MOVE_TORQUE_SHARE = 0.35
 #: An anti-resonance the record fit finds below the band is taken when its motor inertia is
-#: within this fraction of the frequency response's (OwnTuning._anti_below_band).
+#: within this fraction of the frequency response's (OwnTuning._anti_below_band) ...
 BELOW_BAND_MOTOR_TOL = 0.25
 #: ... and its anti-resonance lies below this multiple of the band's lower edge: the peak
 #: finder needs bins on both sides of a dip (8 Hz apart), so one within a bin of the edge
@@ -206,146 +205,83 @@ BELOW_BAND_MOTOR_TOL = 0.25
 BELOW_BAND_EDGE = 1.25
 #: Acceleration phases last at least this many periods of the lowest anti-resonance.
 MOVE_AR_PERIODS = 3.0
-#: Friction fit window of a compliant axis. Its inertia fit needs a window of 4 anti-resonance
-#: periods (identify.py), but so long a filter smears the torque step at each reversal over
-#: tens of milliseconds, and the regression then gives part of the Coulomb friction to the
-#: viscous term (R3-400Hz: 0.024 N m Coulomb for a true 0.089, R10-200Hz 0.059). With 4 ms
-#: the shaft oscillation stays in the signals but averages out: 0.076-0.093 on the benchmark's
-#: compliant axes, viscous near 0 as it truly is. The friction decides the settling the
-#: model predicts for each candidate (search.py), so it must be right.
+#: Friction fit window of a compliant axis: short, so that the torque step at each reversal is not
+#: smeared into the viscous term; the shaft's oscillation averages out (measured: docs/tuning.md).
 FRICTION_WINDOW_S = 0.004
 #: The identification moves of a compliant axis start this long after the last one's profile
-#: ended: its inertia is taken from each move's double integral (:meth:`OwnTuning.
-#: _moves_inertia`), which needs the load to move with the motor when a move starts. After
-#: 10 ms a load 30 x the motor still swung against its shaft, and the moves after the first
-#: came out 4-11 % light; after 100 ms they agree within 1 % (docs/tuning.md). Rest is not
-#: motion: the axis time does not grow.
+#: ended, so that the load moves with the motor when the moves' double integral begins
+#: (:meth:`OwnTuning._moves_inertia`; measured: docs/tuning.md). Rest is not axis time.
 COMPLIANT_MOVES_REST_S = 0.1
 #: The moves' double integral is taken for a compliant axis's inertia where friction is less
-#: than this share of it on every move (the benchmark's 400-800 Hz axes: 0.76-0.78, within
-#: 1.2 %; its 100-200 Hz axes, whose moves are gentle: 0.02-0.52, up to 95 % off) ...
+#: than this share of it on every move ...
 MOVES_INERTIAL_SHARE_MIN = 0.6
-#: ... and its moves agree within this (relative standard deviation).
+#: ... and its moves agree within this (relative standard deviation; measured: docs/tuning.md).
 MOVES_SPREAD_MAX = 0.015
 #: The moves' inertia fitted with a viscous friction (``MovesInertia.with_viscous``) is taken
-#: where it parts from the plain one by more than this: viscous friction makes the moves' load
-#: torque grow with their speed beyond the travel's, and the plain value comes out high by its
-#: share (R10-400Hz with 0.002 N m s/rad: +10 %, R3-800Hz +22 %; the joint fit -1.6 % and
-#: -1.0 %). Without viscous friction the two part by 0.6-1.3 % (the joint fit's end points
-#: inside the moves see the shaft's twist), and the plain one is the better.
+#: where it parts from the plain one by more than this: viscous friction makes the plain value
+#: come out high by its share (measured: docs/tuning.md).
 MOVES_VISCOUS_PART = 0.03
-#: An axis without a resonance in its frequency response must fit the rigid-body equation:
-#: the moves' fit leaves 3-12 % of the torque's spread unexplained on the benchmark's rigid
-#: axes, 44-71 % where a heavy load hangs behind an anti-resonance of about 3 Hz.
+#: An axis without a resonance in its frequency response must fit the rigid-body equation
+#: within this share of the torque's spread unexplained (measured: docs/tuning.md).
 RIGID_RESIDUAL_MAX = 0.3
 #: Verification move: at most this many rev (and VERIFY_WINDOW_SHARE of the window's width).
 VERIFY_REV = 0.25
 VERIFY_SETTLE_S = 0.25
-#: A try of a runner-up on a slow axis is watched up to this long after its profile (see
-#: ``_try_alternatives``). Against 0.25 s, over seeds 1-8 R30-100Hz seeds 4 and 5 went from
-#: 2.54 / 3.90 to 2.07 / 2.29 x the oracle, R30-200Hz s1 1.23 -> 1.03, stress-soft60Hz s2
-#: 1.26 -> 1.04, R10-100Hz s6 0.84 -> 1.52 (docs/tuning.md).
+#: A try of a runner-up on a slow axis is watched up to this long after its profile
+#: (:func:`watch_for`; measured: docs/tuning.md).
 TRY_WATCH_MAX_S = 1.0
-#: A runner-up tried on the axis replaces the pick so far only where it settles clearly sooner:
-#: in less than this share of the pick's time (``_try_alternatives``). The two moves of one try
-#: (there and back, the same gains) disagree by 10 % (median) and 31 % (75th percentile) over
-#: the benchmark's 208 tries of seeds 1-8 whose two moves settled: a smaller lead is the torque
-#: noise the try saw, and the model, which ranked the winner first on its own move, is then the
-#: better judge. Against taking any lead: within 2 x the oracle 91 -> 94 of 104 on seeds 1-4
-#: and 92 -> 92 on the held-out seeds 5-8, geometric mean 1.159 -> 1.125 and 1.144 -> 1.128
-#: (docs/tuning.md). Not where the response did not show the anti-resonance (``trust_model``).
+#: A runner-up tried on the axis replaces the pick so far only where it settles clearly sooner: in
+#: less than this share of the pick's time; a smaller lead is within what the two moves of one try
+#: disagree by (measured: docs/tuning.md). Not where the response did not show the anti-resonance.
 TRY_CLEAR_SHARE = 0.7
-#: A try's move has settled only where the 5 ms mean of its error then stays inside +-10
-#: counts for at least this long before the watch ends (``_try_key``); one that did not
-#: counts as the watch (it took at least that long). On the heavy loads behind 100-200 Hz
-#: shafts that mean jitters by 10-45 counts RMS at rest under every gain set, so its last
-#: crossing of the band was the torque noise, a few milliseconds before the watch ended, and a
-#: move that did not settle made its whole try infinite: R30-100Hz seed 1 took a runner-up
-#: "settling" in 784 ms on both moves over the model's winner (one move at 785 ms, the other
-#: crossing at the very end), 480 ms against 384 ms on the true plant without noise. Over the
-#: captured tries of seeds 1-8 the result does not depend on the hold between 0 and 0.1 s once
-#: unsettled moves are censored (docs/tuning.md).
+#: A try's move has settled only where the 5 ms mean of its error then stays inside +-10 counts for
+#: at least this long before the watch ends (``_try_key``); one that did not counts as the watch: a
+#: last crossing just before the watch ends is torque noise (measured: docs/tuning.md).
 TRY_SETTLED_HOLD_S = 0.1
-#: Axis time a tuning may spend moving (issue 8: at most 5 s); runners-up are tried only
-#: while one more try, the verification move after it and the way back to the start fit, with
-#: 0.1 s to spare for what the count of a profile's time misses (a few milliseconds a move) and
-#: a move slowed to fit the travel window. 4.6 s until the first session of 2026-12-07, without
-#: the way back (there was none), when the frequency response's gentle way up to the start of
-#: its travel (0.4 s more than the old way back) left stress-soft60Hz without a try on seeds
-#: where it had two.
+#: Axis time a tuning may spend moving (issue 8: at most 5 s); runners-up are tried only while
+#: one more try, the verification move after it and the way back to the start fit, with 0.1 s to
+#: spare for what the count of a profile's time misses (measured: docs/tuning.md).
 AXIS_BUDGET_S = 4.9
-#: The search again with the inertias the tries' recordings fit (services/tuning_calibrate.py)
+#: The search again with the inertias the tries' recordings fit (services/tuning/calibrate.py)
 #: only where one of them moved by at least this share and the fit's output error is at most
 #: this share of the model's: a model already within the noise is not searched again.
 CALIBRATE_MIN_CHANGE = 0.005
 CALIBRATE_ERROR_SHARE = 0.5
 #: Below this anti-resonance the tuning takes the record fit's whole-axis inertia,
-#: J_M (f_r / f_ar)^2 (``RecordFit.total_inertia``): the response's rigid-body band, from 20 Hz
-#: to 0.7 x the anti-resonance, then holds three or fewer of its 7.8 Hz bins. At 50 Hz
-#: (R3-100Hz) its two bins gave the inertia 12-27 % low on three of four noise seeds, at 60 Hz
-#: (R10-200Hz) three bins 3-5 % low; the record fit is within 1.5 % on both. With four bins
-#: (R1-100Hz, R30-400Hz: 71-72 Hz) the band is within 4 % and the record fit within 3 %, and
-#: the fit's inertia settled R1-100Hz slower on every seed (1.5 -> 2.1 x the oracle); on the
-#: 800 Hz axes the fit is 5-9 % high. Until the second session of 2026-11-27 this was 40 Hz
-#: (``LOW_ANTI_RESONANCE_HZ``).
+#: J_M (f_r / f_ar)^2 (``RecordFit.total_inertia``): the response's rigid-body band then holds
+#: three or fewer of its 7.8 Hz bins (measured: docs/tuning.md).
 RECORD_INERTIA_BELOW_HZ = 65.0
-#: From there up to this anti-resonance, where the test moves' double integral is not taken
-#: (friction too large a share of it: the benchmark's 100-200 Hz axes), the inertia is the
-#: geometric mean of the response's rigid-body band and the record fit's J_M (f_r / f_ar)^2,
-#: when the two agree within :data:`RECORD_BLEND_AGREE`. Their errors are independent and
-#: there fell on either side: on R1-200Hz (anti-resonance 141 Hz) the band was 1.5-5.0 % low
-#: on every noise seed and the fit -0.5 to +1.8 %; the mean is within 0.03-2.8 % (median of
-#: |error| 3.2 -> 0.9 %); R3-200Hz 0.9 -> 0.7 %, R1-100Hz about the same (median 1.1 ->
-#: 1.2 %, worst 2.3 -> 1.5 %; docs/tuning.md). Since the second session of 2026-11-28.
+#: From there up to this anti-resonance, where the test moves' double integral is not taken, the
+#: inertia is the geometric mean of the response's rigid-body band and the record fit's
+#: J_M (f_r / f_ar)^2 when they agree within :data:`RECORD_BLEND_AGREE`: their errors are
+#: independent (measured: docs/tuning.md).
 RECORD_BLEND_BELOW_HZ = 150.0
 #: How far apart the two estimates may be for :data:`RECORD_BLEND_BELOW_HZ` (a fit further
-#: off fitted something else; the benchmark's were within 5 %).
+#: off fitted something else).
 RECORD_BLEND_AGREE = 0.1
 #: Torque share of the move runners-up are compared with (search.py's reference move: 0.7).
 RANK_TORQUE_SHARE = 0.7
-#: Runs of the oracle's structure search (oracle.py: filter structures, each at its highest
-#: gain, then a coordinate search; search.tune_on_model ``structure_runs``) on the model of a
-#: compliant axis, ranked with the variations. Where the moves' double integral gave the
-#: inertia (about 0.3 % off): benchmark over seeds 1-4, median of the seeds 1.59 -> 1.37 x the
-#: oracle (R3-400Hz and R3-800Hz 2.9-4.2 -> 0.8-2.7). Since the eighth session of 2026-11-27
-#: on every compliant axis whose anti-resonance the frequency response shows, with its
-#: feed-forwards at 0.85 and 1.0 J only: 1.29 -> 1.21 (the 100-200 Hz axes, inertia from the
-#: frequency response or the record fit, 1-4 % off; R3-200Hz 1.4-1.6 -> 0.8-1.5). The sixth
-#: session measured it there with the oracle's 0.7 J among the
-#: feed-forwards, whose overshoot the model misjudges: worse (geometric mean 2.01 -> 2.22).
+#: Runs of the oracle's structure search (oracle.py; search.tune_on_model ``structure_runs``)
+#: on the model of a compliant axis whose anti-resonance the response shows, ranked with the
+#: variations (measured: docs/tuning.md).
 STRUCTURE_RUNS = 100
-#: A rigid axis whose inertia the drive's position demand instrumented (identify_rigid) is
-#: ranked on the identified axis and on it this much lighter and heavier (``WorstOf``): the
-#: instrumented fit was within 0.64 % on the benchmark's seven rigid axes over noise seeds
-#: 1-8 (the plain fit -1.5 % to +1.7 %). At 0.5 % R1-rigid seed 7 (+0.49 %) stuck 11 counts
-#: past the target for 86 ms, where the model had it stop inside +-10 (docs/tuning.md).
+#: A rigid axis whose inertia the drive's position demand instrumented (identify_rigid) is ranked on
+#: the identified axis and on it this much lighter and heavier (``WorstOf``): the instrumented fit's
+#: error on the benchmark's rigid axes, with a margin (measured: docs/tuning.md) ...
 RIGID_INERTIA_TOLERANCE = 0.0065
-#: ... and on it this much lighter too: a machine's load changes a little (another part, a
-#: tool), and an inertia feed-forward above the axis's inertia overshoots the target, where
-#: friction then holds the load until the integral frees it. With the three members above the
-#: ranking took feed-forwards up to 0.98-1.0 J, and with the load inertia 2 % lower the gains
-#: settled in 45-175 ms where they had in 1-2 ms (stress-friction5, stress-gravity10,
-#: stress-current1k, R10-rigid; the oracle's 1-10 ms). With this member: 0.8-21 ms there, at
-#: +0.1-0.3 ms on the plants as they are (docs/tuning.md).
+#: ... and on it this much lighter too: a machine's load changes a little, and an inertia
+#: feed-forward above the axis's inertia overshoots and sticks (measured: docs/tuning.md).
 RIGID_LIGHTER = 0.015
 #: A compliant axis's first candidates are re-ranked by their worst move over the model and
-#: the model with its Coulomb friction this much lower and higher (search.confirmed). The
-#: friction the moves measure was 1.4-6.9 % off on the benchmark's 400 Hz axes. Offline over
-#: its 72 compliant tunings, +-2 % left 14 of the model's picks above 2 x the oracle, against
-#: 18 without, +-1 % 16 and +-3 % 19; on the benchmark (four seeds, with the tries on the
-#: axis) 16 of 104 tunings above 2 x against 19, +-1 % 18 (docs/tuning.md).
+#: the model with its Coulomb friction this much lower and higher (search.confirmed): what the
+#: moves measure is a few percent off (measured: docs/tuning.md).
 FRICTION_CONFIRM = 0.02
 #: The least inertia change (a share of it) the same confirmation takes where the moves'
-#: double integral gave the inertia: their spread is 0.03-1.2 % there, and the inertia was
-#: 0.25 % off at the median over the benchmark's seeds (docs/tuning.md).
+#: double integral gave the inertia (measured: docs/tuning.md).
 INERTIA_CONFIRM_MIN = 0.002
 #: A mode the record fit placed may be this much less damped than the fit says (the margins
-#: hold there too, search.identification_set): on stress-soft60Hz (60 Hz, damping 0.01) the
-#: fit gave 0.0024-0.057 over noise seeds 1-8, up to 5.7 x the truth, and the estimate's own
-#: standard error (from the fit's Jacobian) put seed 8's within +-25 %: it cannot say itself
-#: how far off it is. With 0.25 every seed's gains kept PM >= 47.8 deg on the true plant; 0.15
-#: gave seed 3 (fit 0.028) gains that had not settled to +-10 counts by the end of the
-#: benchmark's observed record (docs/tuning.md).
+#: hold there too, search.identification_set): the fit cannot say itself how far off its
+#: damping is (measured: docs/tuning.md).
 LIGHT_DAMPING_FACTOR = 0.25
 
 
@@ -549,7 +485,7 @@ class OwnTuning:
             first = self._resonances(frf, j_rough, drive)
             j_frf, frf_band_ok = self._inertia_corrected(frf, drive, first, j_rough)
             # From here the model foretells how far the factory gains overshoot a move
-            # (services/tuning_travel.py), besides what the frequency response's moves showed.
+            # (services/tuning/travel.py), besides what the frequency response's moves showed.
             self._set_travel_model(
                 plant_from_identification(j_frf, first, current_loop_hz=drive.current_loop_hz),
                 drive,
@@ -655,7 +591,7 @@ class OwnTuning:
                 return self._verify_profile(drive, inertia, d)[1:]
 
             # Where the frequency response did not show the anti-resonance, the new gains'
-            # first moves are given a larger reserve (tuning_travel.UNSEEN_SHARE).
+            # first moves are given a larger reserve (travel.UNSEEN_SHARE).
             if hidden or below_band or self._travel_params is None:
                 self.guard.fresh_share = UNSEEN_SHARE
             # Shortened where the present gains' overshoot would not fit, nor the reserve of
@@ -1078,7 +1014,7 @@ class OwnTuning:
     async def _stop_deceleration(self) -> float | None:
         """The gentlest ramp a dead-man stop may brake with where servodesk cannot raise it
         [counts/s²] (TravelGuard.stop_deceleration). The dead-man halts (controlword bit 8,
-        605Dh) and then quick-stops (605Ah) the axis (services/motion.py); CiA 402-2 §6.3.4:
+        605Dh) and then quick-stops (605Ah) the axis (services/motion/); CiA 402-2 §6.3.4:
         options 1 (and 5) brake on the profile deceleration 6084h, which each move sets to its
         own, 2 (and 6) on the quick-stop deceleration 6085h, which :meth:`_move` raises to the
         move's own where it is writable, 3, 4, 7, 8 at the current or voltage limit. Option 0
@@ -1110,7 +1046,7 @@ class OwnTuning:
     def _set_travel_model(
         self, model: PlantModel, drive: _Drive, *, coulomb: float = 0.0, gravity: float = 0.0
     ) -> None:
-        """The identified axis the moves' overshoot is foretold on (tuning_travel.py
+        """The identified axis the moves' overshoot is foretold on (travel.py
         :func:`model_overshoots`), under the tuning's own torque limit; none where the
         simulation lacks the model's modes (a second resonance): then the measured run-on and
         the new gains' share of the distance alone."""
@@ -1222,7 +1158,7 @@ class OwnTuning:
 
     async def _come_to_rest(self) -> None:
         """Halt the axis (controlword bit 8 with 605Dh's ramp: at the move's own deceleration;
-        only in Operation enabled, where 0x010F cannot enable a drive, as services/motion.py
+        only in Operation enabled, where 0x010F cannot enable a drive, as services/motion/
         sends it) and wait until it stands, at most :data:`REST_WAIT_S`: after a stop, a
         dead-man (whose quick stop has the drive out of Operation enabled already) or a
         failure, before anything is put back."""
@@ -1253,7 +1189,7 @@ class OwnTuning:
         """An absolute profile-position move (CiA 402-2 §6.5: new set-point on the rising edge
         of bit 4, change immediately), checked against the travel bound first: its set-points,
         the overshoot past its target its gains may show and a stop's run-out
-        (:class:`~servodesk.services.tuning_travel.TravelGuard`). The moves are planned to fit;
+        (:class:`~servodesk.services.tuning.travel.TravelGuard`). The moves are planned to fit;
         one that does not after a move of its gains ran on further than foretold (the way
         back of a verification move or a try, whose way there showed it) is slowed, its
         velocity and acceleration by :data:`SHRINK` steps, until it fits: the run-on grows
@@ -1383,7 +1319,7 @@ class OwnTuning:
         default 0.5 rev window; until the first session of 2026-12-07 it went 0.45 rev up from
         the start, in a window confirmed as +-0.25 rev). The way up to its start is the
         tuning's first move (:data:`FRF_HALF_SHARE`, :data:`FRF_PRE_RAMP_S`); what it runs on
-        past its end (the factory gains' run-on, services/tuning_travel.py) sizes the travel,
+        past its end (the factory gains' run-on, services/tuning/travel.py) sizes the travel,
         and the travel's own what follows. The way back ends at :attr:`_Drive.home`, where the
         identification moves start."""
         r_addr = self._signal(SIG_VALUE)
@@ -1841,14 +1777,14 @@ class OwnTuning:
         split_only: bool = False,
     ) -> Redesign | None:
         """The gain search again on ``model`` with the inertias the tries' ``records`` fit
-        (services/tuning_calibrate.py) on ``nominal``, the simulation the search ranks ``model``
+        (services/tuning/calibrate.py) on ``nominal``, the simulation the search ranks ``model``
         with, where they clearly fit better than the model's: the output error at most
         :data:`CALIBRATE_ERROR_SHARE` of the model's and an inertia moved by at least
         :data:`CALIBRATE_MIN_CHANGE`, and where the new winner settles on that model in less
         than :data:`TRY_CLEAR_SHARE` of the time of ``first``, the pick so far, run there as the
         winner was. None otherwise. ``split_only``: the total inertia is trusted (the moves'
         double integral gave it) and only its split between motor and load is fitted
-        (:func:`~servodesk.services.tuning_calibrate.fit_split`)."""
+        (:func:`~servodesk.services.tuning.calibrate.fit_split`)."""
         if nominal is None or not records:
             return None
         # In the worker: some 80 replays of the recorded moves, 1.3 s of arithmetic on
@@ -1962,7 +1898,7 @@ class OwnTuning:
 
         # Each try's brisk move keeps its overshoot inside the bound: 1.5 x the model's, and a
         # share of the move where the gains have not moved the axis that fast
-        # (tuning_travel.py); shortened where it must.
+        # (travel.py); shortened where it must.
         brisk = await self._fit_profile(
             drive, brisk_speed, distance, watch_for(design), "the tries on the axis", design.gains
         )
@@ -2070,7 +2006,7 @@ class OwnTuning:
         that approach sooner and then creep (R30-400Hz 2.5 -> 1.8 x the oracle on two of four
         seeds without it; docs/tuning.md).
 
-        ``records``: each move as services/tuning_calibrate.py fits the model to it, where the
+        ``records``: each move as services/tuning/calibrate.py fits the model to it, where the
         recording shows it at the loop rate with the following error (``gains``: those the
         axis ran with)."""
         distance, velocity, acc = profile

@@ -3,7 +3,7 @@
 The gain search and the record fits are tens of milliseconds to seconds of Python arithmetic.
 On the event loop (or in a thread, which would hold the GIL) they would hold the loop that
 carries the operator's heartbeats, the dead-man and every other session's traffic, so
-services/tuning_own.py hands them to this process (:func:`run`).
+services/tuning/own hands them to this process (:func:`run`).
 
 A tuning that is stopped (the operator's stop, a lost client, a fault) while its job runs
 abandons the job: :func:`run` then ends the worker, unless another tuning's job is waiting

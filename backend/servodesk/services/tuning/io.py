@@ -1,7 +1,7 @@
 """How the tuning procedure reaches a drive: typed object access, the drive's clock, the
 drive-side recorder and the test signal generator (docs/tuning.md).
 
-The procedure (services/tuning_own.py) is written against :class:`TuningIO` only, so the same
+The procedure (services/tuning/own) is written against :class:`TuningIO` only, so the same
 code tunes a drive through a session (wall clock, SDO over the bus) and a simulated drive in the
 benchmark (simulated time, stepped as fast as the computer allows; servodesk/benchmarks/tuning.py).
 """
