@@ -1,7 +1,7 @@
 """Light and dark (issue 48, docs/ui.md "Colours"): the UI follows the system's preference,
-the toggle at the foot of the navigation overrides it (Auto -> Light -> Dark) and the choice survives a reload; in
-the dark set no panel of the drive pages stays white (a colour written as a literal instead of
-a token would)."""
+the toggle at the foot of the navigation overrides it (Auto -> Light -> Dark) and the choice
+survives a reload; in the dark set no panel of the drive pages stays white (a colour written
+as a literal instead of a token would)."""
 
 from __future__ import annotations
 
