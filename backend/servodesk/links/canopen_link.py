@@ -264,6 +264,14 @@ class _Doorbell:
             os.close(fd)
 
 
+def _closed_while_waiting() -> LinkClosedError:
+    """The link was closed (the session ended) while a transfer waited for the drive."""
+    return LinkClosedError(
+        "the link was closed while a request waited for the drive's answer",
+        hint="open the session again",
+    )
+
+
 class CanopenLink(DriveLink):
     """A CiA 301 node on a CAN bus, accessed as an SDO client."""
 
@@ -655,10 +663,7 @@ class CanopenLink(DriveLink):
                 raise
             except TimeoutError:
                 if self._network is None:
-                    raise LinkClosedError(
-                        "the link was closed while a request waited for the drive's answer",
-                        hint="open the session again",
-                    ) from None
+                    raise _closed_while_waiting() from None
                 if attempt == 0:
                     continue
                 with contextlib.suppress(Exception):
@@ -828,10 +833,7 @@ class CanopenLink(DriveLink):
             raise
         except TimeoutError:
             if self._network is None:
-                raise LinkClosedError(
-                    "the link was closed while a request waited for the drive's answer",
-                    hint="open the session again",
-                ) from None
+                raise _closed_while_waiting() from None
             with contextlib.suppress(Exception):
                 network.send_message(cob_id, sdo.abort(idx, sub, sdo.ABORT_TIMEOUT))
             raise LinkTimeoutError(
