@@ -10,6 +10,7 @@ header's Take control.
 from __future__ import annotations
 
 import re
+import time
 from pathlib import Path
 
 import pytest
@@ -121,9 +122,22 @@ def test_the_drive_state_stays_whole_in_the_header_on_a_laptop_screen(
     # arrives with /auth/me and takes its room beside the drive's title.
     expect(page.get_by_test_id("user-menu")).to_be_visible()
     title = page.locator(".drive-title")
-    box, area = pill.bounding_box(), title.bounding_box()
-    assert box is not None and area is not None
-    assert box["x"] >= area["x"] and box["x"] + box["width"] <= area["x"] + area["width"] + 0.5
+
+    def inside() -> tuple[bool, object]:
+        box, area = pill.bounding_box(), title.bounding_box()
+        assert box is not None and area is not None
+        fits = box["x"] >= area["x"] and box["x"] + box["width"] <= area["x"] + area["width"] + 0.5
+        return fits, (box, area)
+
+    # Measured once the header has settled: it is laid out again as the session's details
+    # and live state arrive, and a clean-clone run measured the pill outside once (the same
+    # code passed the run before). A pill that stays outside for 5 s still fails.
+    deadline = time.monotonic() + 5.0
+    fits, boxes = inside()
+    while not fits and time.monotonic() < deadline:
+        page.wait_for_timeout(100)
+        fits, boxes = inside()
+    assert fits, boxes
     assert pill.evaluate("e => e.scrollWidth <= e.clientWidth")
     name = page.get_by_test_id("header-drive-name")
     # The name the card reports (I&M0 order ID, 004 §20.4.4), with the profile's.
