@@ -1,13 +1,15 @@
 #!/usr/bin/env bash
-# The pytest suite as `make test` runs it, in two parts (tests/conftest.py, SIMTIME_DIRS).
+# The pytest suite as `make test` runs it, in three parts (tests/conftest.py).
 #
 # First the tests on simulated time (the tuning's searches on simulated drives: CPU-bound,
 # nothing waits on the wall clock) and the pure tests on every core (pytest -n, at most 4).
-# Then the rest, one test at a time: its drives, buses, servers and browsers run on the wall
-# clock. The two parts
-# must not overlap: run beside the first, even at nice 19, the second took 1159 s instead of
-# 690 s on this project's 2-core machine and five browser tests ran out of time.
-# Both parts always run; the exit status is 0 only if both passed.
+# Then the tests on the wall clock that are safe two at a time (-m shared: one test file per
+# worker; the twins of a fixed port share one worker, SERIAL_PATHS' comment). Last those
+# that must run alone (-m serial): they time something, run a browser or hold a fixed
+# resource. The parts must not overlap: run beside the first, even at nice 19, the wall-clock
+# tests took 1159 s instead of 690 s on this project's 2-core machine and five browser tests
+# ran out of time.
+# Every part always runs; the exit status is 0 only if all passed.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 pytest=.venv/bin/pytest
@@ -19,9 +21,12 @@ simtime_dirs=$(.venv/bin/python -c "from tests.conftest import SIMTIME_DIRS, CHE
 # shellcheck disable=SC2086 # the directories are words
 "$pytest" -q -p no:cacheprovider -m "simtime or check" -n auto --maxprocesses 4 $simtime_dirs
 sim=$?
-"$pytest" -q -p no:cacheprovider -m "not simtime and not check"
-rest=$?
-if [ "$sim" -ne 0 ] || [ "$rest" -ne 0 ]; then
-  echo "make test: failed (tests on simulated time: exit $sim; on the wall clock: exit $rest)"
+"$pytest" -q -p no:cacheprovider -m "shared" -n 2 --dist loadgroup
+shared=$?
+"$pytest" -q -p no:cacheprovider -m "serial"
+serial=$?
+if [ "$sim" -ne 0 ] || [ "$shared" -ne 0 ] || [ "$serial" -ne 0 ]; then
+  echo "make test: failed (on simulated time: exit $sim; on the wall clock two at a time:" \
+    "exit $shared; alone: exit $serial)"
   exit 1
 fi

@@ -71,6 +71,41 @@ CHECK_PATHS = (
     "tests/sim/test_onetouch.py",
     "tests/sim/test_fused_move.py",
 )
+#: Wall-clock tests that must run alone (``make test``'s last part, ``-m serial``): they time
+#: something (a dead-man's latency, a loop never held, a stream's rate), run a browser, or
+#: hold a fixed resource (a multicast group). Every other wall-clock test runs two at a time,
+#: one test file per worker (``-m shared``): measured on 2 cores, tests/security with
+#: tests/profinet took 99 s that way against 155 s one at a time, all passing.
+SERIAL_PATHS = (
+    "tests/browser",
+    "tests/operation/test_deadman.py",
+    "tests/operation/test_heavy_requests.py",
+    "tests/operation/test_stop_all.py",
+    "tests/operation/test_control.py",
+    "tests/operation/test_drive_watchdog.py",
+    "tests/operation/test_offload.py",
+    "tests/ethercat/test_link_loss.py",
+    "tests/ethercat/test_deadman_stop.py",
+    "tests/homing/test_homing_deadman.py",
+    "tests/integration/test_canopen_link.py",
+    "tests/integration/test_link_udp_multicast.py",
+    "tests/scope/test_scope_stream.py",
+    "tests/scope/test_scope_service.py",
+    "tests/tuning_api/test_tuning_api.py",
+)
+#: Tests that share something on the host run on one worker, one at a time: the twins of
+#: PROFINET (RPC port 34964, DCP on raw Ethernet), SLMP and EtherCAT (veth pairs); and CAN on
+#: UDP multicast, whose groups all use one port (python-can's), so a socket receives every
+#: group joined on the host (Linux's IP_MULTICAST_ALL): the plain-canopen master saw the
+#: schemathesis runs' SDO requests (their session bodies may name udp_multicast).
+_ONE_WORKER: dict[str, str] = {
+    "tests/profinet": "profinet",
+    "tests/slmp": "slmp",
+    "tests/ethercat": "ethercat",
+    "tests/integration/test_plain_canopen.py": "udp_multicast",
+    "tests/api/test_schemathesis.py": "udp_multicast",
+    "tests/security/test_rights_schemathesis.py": "udp_multicast",
+}
 #: Fixtures that put a test on a bus or a server: never in the fast tier.
 _NOT_PURE = frozenset({"channel", "rig", "app_client", "loopback_app"})
 
@@ -96,3 +131,12 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
                     "of the paths in tests/conftest.py CHECK_PATHS or mark it wallclock"
                 )
             item.add_marker(pytest.mark.check)
+        if item.get_closest_marker("simtime") or item.get_closest_marker("check"):
+            continue
+        if wallclock or _in(rel, SERIAL_PATHS):
+            item.add_marker(pytest.mark.serial)
+        else:
+            item.add_marker(pytest.mark.shared)
+            # pytest-xdist --dist loadgroup: one file (or one directory above) per worker.
+            one = next((g for path, g in _ONE_WORKER.items() if _in(rel, (path,))), rel)
+            item.add_marker(pytest.mark.xdist_group(one))

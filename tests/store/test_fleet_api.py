@@ -137,6 +137,25 @@ async def _generic(gw: Gateway) -> dict[str, Any]:
     return drives[0]
 
 
+async def _approved(gw: Gateway) -> dict[str, Any]:
+    """The generic drive tagged L2.Press.X with an approved backup: what the approval test
+    leaves, made here when it has not run first (pytest-xdist may order the module's tests
+    differently)."""
+    generic = await _generic(gw)
+    if generic["approved"] is None:
+        eng, key, sid = gw.clients["engineer"], generic["drive_key"], generic["session"]
+        if generic["plant_tag"] != "L2.Press.X":
+            r = await eng.put("/fleet/tag", json={"drive": key, "tag": "L2.Press.X"})
+            assert r.status_code == 200, r.text
+        r = await eng.post(f"/sessions/{sid}/backups", json={"label": "commissioned"})
+        assert r.status_code == 201, r.text
+        approve = {"drive": key, "backup": r.json()["id"], "reason": "commissioned"}
+        r = await eng.put("/fleet/approved", json=approve)
+        assert r.status_code == 200, r.text
+        generic = await _generic(gw)
+    return generic
+
+
 async def test_connected_drives_and_the_gateway_are_in_the_fleet(gw: Gateway) -> None:
     drives = await _drives(gw)
     assert {d["profile_id"] for d in drives} == {"cia402-generic", "hiwin-e"}
@@ -210,8 +229,7 @@ async def test_tags_and_approvals_need_the_right_and_say_what_is_wrong(gw: Gatew
 async def test_the_scheduled_scan_finds_a_changed_parameter_and_calls_the_webhook(
     gw: Gateway, webhook: ThreadingHTTPServer
 ) -> None:
-    generic = await _generic(gw)
-    assert generic["approved"] is not None, "runs after the approval test"
+    generic = await _approved(gw)
     state = gw.state
     session = state.manager.get(generic["session"])
     ps = await asyncio.to_thread(state.backups.load, generic["approved"]["backup"])
@@ -262,6 +280,7 @@ async def test_the_scheduled_scan_finds_a_changed_parameter_and_calls_the_webhoo
 
 
 async def test_bad_fleet_queries_are_4xx(gw: Gateway) -> None:
+    await _approved(gw)  # The drive tagged L2.Press.X, found by a search below.
     guest = gw.clients["guest"]
     r = await guest.get("/fleet", params={"drift": "sideways"})
     assert r.status_code == 422 and "drift" in r.json()["message"]
