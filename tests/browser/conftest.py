@@ -7,7 +7,7 @@ fails with a message that says how to fix it.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Generator, Iterator
 
 import pytest
 from playwright.sync_api import Browser, Page, Playwright, sync_playwright
@@ -18,7 +18,22 @@ from tests.browser.harness import (
     chromium_executable,
     release_control,
     running_server,
+    server_log_tail,
 )
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(
+    item: pytest.Item, call: pytest.CallInfo[None]
+) -> Generator[None, pytest.TestReport, pytest.TestReport]:
+    """A failed browser test carries the server's log tail: a page that waited in vain says
+    what it waited for, the server's log says why it never came."""
+    report: pytest.TestReport = yield
+    if report.failed:
+        tail = server_log_tail()
+        if tail:
+            report.sections.append(("servodesk serve log (tail)", tail))
+    return report
 
 
 @pytest.fixture(scope="package")

@@ -43,6 +43,20 @@ class HarnessError(RuntimeError):
     """The browser test environment is not usable; the message says what to do."""
 
 
+#: The logs of the servers running now: a failed browser test shows their tails
+#: (conftest.py), since what the server did is half of what went wrong.
+SERVER_LOGS: list[Path] = []
+
+
+def server_log_tail(chars: int = 6000) -> str:
+    """The last ``chars`` characters of each running server's log, headed by its path."""
+    parts = []
+    for path in SERVER_LOGS:
+        with contextlib.suppress(OSError):
+            parts.append(f"--- {path.name} ---\n" + path.read_text("utf-8", "replace")[-chars:])
+    return "\n".join(parts)
+
+
 def chromium_executable() -> str:
     """Path of the Chromium to drive: $SERVODESK_CHROMIUM, else `chromium` on PATH."""
     path = os.environ.get("SERVODESK_CHROMIUM") or shutil.which("chromium")
@@ -88,6 +102,7 @@ def running_server(
         **(env or {}),
     }
     proc = subprocess.Popen(cmd, cwd=REPO, stdout=log, stderr=subprocess.STDOUT, env=environ)
+    SERVER_LOGS.append(Path(log.name))
 
     def log_tail() -> str:
         log.flush()
@@ -132,6 +147,8 @@ def running_server(
             proc.kill()
             proc.wait(timeout=5)
         log.close()
+        with contextlib.suppress(ValueError):
+            SERVER_LOGS.remove(Path(log.name))
         with contextlib.suppress(OSError):
             os.unlink(log.name)
 
