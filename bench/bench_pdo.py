@@ -66,7 +66,7 @@ LAYOUT_B = {
 }
 
 
-def plain_apply(channel: str, node_id: int, steps: tuple[pdomod.Step, ...]) -> float:
+def plain_apply(channel: str, node_id: int, steps: tuple[pdomod.PdoStep, ...]) -> float:
     """The same writes with a plain canopen client (no verification): seconds."""
     network = canopen.Network()
     network.connect(interface="virtual", channel=channel)

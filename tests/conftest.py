@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import itertools
+import logging
 import os
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -20,6 +22,9 @@ os.environ.setdefault("SERVODESK_ALLOWED_HOSTS", "testserver,test,t")
 # that gives no data directory of its own, and every command it starts, gets this one. A
 # store left at a newer schema revision by one checkout failed another's run.
 os.environ.setdefault("SERVODESK_DATA_DIR", tempfile.mkdtemp(prefix="servodesk-tests-"))
+# A response model that leaves out a key its service sends fails the request (api/reply.py):
+# served, the key would vanish from the answer unnoticed.
+os.environ.setdefault("SERVODESK_STRICT_REPLIES", "1")
 
 _counter = itertools.count()
 
@@ -30,10 +35,39 @@ def channel() -> str:
     return f"test-{os.getpid()}-{next(_counter)}"
 
 
+class _Refused(logging.Handler):
+    """The WebSocket messages api/ws.py did not send because they are not ServerMessages."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.ERROR)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+
+@pytest.fixture(autouse=True)
+def _websocket_messages_in_contract(request: pytest.FixtureRequest) -> Iterator[None]:
+    """Every WebSocket message a test's server tries to send is one of ServerMessage's
+    (api/ws_messages.py): the UI's types are generated from it, and api/ws.py logs and drops
+    any other, so a publisher that sends a field or type the union lacks fails the test that
+    makes it send one, whatever that test is about."""
+    handler = _Refused()
+    logger = logging.getLogger("servodesk.api.ws")
+    logger.addHandler(handler)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+    refused = [m for m in handler.messages if "not sent" in m]
+    if refused and request.node.get_closest_marker("refuses_ws_messages") is None:
+        pytest.fail("WebSocket messages not sent:\n" + "\n".join(refused))
+
+
 #: Test directories whose tests run on simulated time or none: CPU-bound computation (the
 #: tuning's searches on simulated drives), nothing that waits on the wall clock. ``make test``
-#: (scripts/run_tests.sh) runs these first on every core, then the rest one at a time: those
-#: run drives, buses and browsers on the wall clock and must not be kept waiting for a core.
+#: (scripts/run_tests.sh) runs these first on every core, then the rest: those run drives,
+#: buses and browsers on the wall clock and must not be kept waiting for a core.
 #: A test here that times something is marked ``wallclock``.
 SIMTIME_DIRS = ("tests/tuning", "tests/unit")
 
@@ -61,6 +95,7 @@ CHECK_PATHS = (
     "tests/scope/test_scope_export.py",
     "tests/scope/test_scope_wire.py",
     "tests/backup/test_paramset.py",
+    "tests/report/test_report_document.py",
     "tests/sim/test_sim_plant.py",
     "tests/sim/test_servo.py",
     "tests/sim/test_twomass.py",

@@ -90,7 +90,7 @@ class ValidationError(ServodeskError):
 class PdoRefused(ValidationError):
     """A PDO configuration is refused before anything is written.
 
-    ``problems`` lists every reason (``servodesk.domain.pdo.Problem`` objects or their dicts),
+    ``problems`` lists every reason (``servodesk.domain.pdo.PdoProblem`` objects or their dicts),
     each saying what is wrong, where, and what to do; the API answers 422 with them.
     """
 
@@ -103,7 +103,7 @@ class PdoRefused(ValidationError):
         hint: str | None = None,
     ) -> None:
         super().__init__(message, field=field, hint=hint)
-        # domain.pdo.Problem objects (errors.py cannot import the domain: it imports us).
+        # domain.pdo.PdoProblem objects (errors.py cannot import the domain: it imports us).
         self.problems: list[Any] = list(problems or [])
 
     def problem_dicts(self) -> list[dict[str, object]]:
@@ -205,6 +205,11 @@ class Forbidden(ServodeskError):
 class WorkerFailed(ServodeskError):
     """A worker process (documents, tuning: api/offload.py) ended before it answered, e.g.
     killed for memory by a huge file; the next request starts a new one."""
+
+
+class ToolMissing(ServodeskError):
+    """A program the server needs for this request is not installed (Chromium for a report's
+    PDF); the hint says what to install. The request may work once it is (HTTP 503)."""
 
 
 class DriveStateError(ServodeskError):

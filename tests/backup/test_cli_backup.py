@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 import json
 import os
@@ -11,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from servodesk.cli import main
+from servodesk.services.store import Store
 from servodesk.sim.bus import SimulatedBus
 
 _n = itertools.count()
@@ -66,6 +68,34 @@ def test_backup_diff_restore(
     assert main(["backup", "-o", str(dcf), *node]) == 0
     capsys.readouterr()
     assert main(["diff", str(out), str(dcf)]) == 0
+
+
+def test_a_json_file_restored_is_kept_byte_for_byte_in_the_store(
+    sim: tuple[SimulatedBus, list[str]],
+    tmp_path: Path,
+    data_dir: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # The store's copy of a file the user restores is the user's file, not servodesk's
+    # rewrite of it: its SHA-256 is the one the user can compare.
+    _, opts = sim
+    node = [*opts, "--node-id", "3"]
+    taken = tmp_path / "taken.json"
+    assert main(["backup", "-o", str(taken), *node]) == 0
+    # Re-indented by an editor: still intact (the checksum is of the canonical JSON).
+    edited = tmp_path / "edited.json"
+    edited.write_text(json.dumps(json.loads(taken.read_bytes()), indent=4), encoding="utf-8")
+    assert main(["restore", str(edited), *node, "--dry-run"]) == 0
+    capsys.readouterr()
+
+    store = Store(data_dir)
+    try:
+        digest = hashlib.sha256(edited.read_bytes()).hexdigest()
+        [row] = [b for b in store.list_backups() if b["sha256"] == digest]
+        assert store.backup_file(row["file"]).read_bytes() == edited.read_bytes()
+        assert row["source"] == "upload"
+    finally:
+        store.close()
 
 
 def test_bad_input_exits_2(

@@ -29,7 +29,7 @@ def prof(pid: str) -> DeviceProfile:
     return CATALOG.get(pid)
 
 
-def messages(problems: list[pdo.Problem]) -> str:
+def messages(problems: list[pdo.PdoProblem]) -> str:
     return " | ".join(p.message for p in problems)
 
 

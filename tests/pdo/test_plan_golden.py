@@ -378,7 +378,7 @@ def test_fixed_family_refuses_any_change_with_the_manual_section() -> None:
         pdo.plan(p, cur, desired, nmt_state="preop")
     assert info.value.problems
     prob = info.value.problems[0]
-    assert isinstance(prob, pdo.Problem)
+    assert isinstance(prob, pdo.PdoProblem)
     assert prob.section == "003 §4-1" and "pre-assigned" in prob.message
     assert pdo.full_plan(p, cur, nmt_state="preop").steps == ()
 

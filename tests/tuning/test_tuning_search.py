@@ -16,7 +16,7 @@ from servodesk.benchmarks.tuning import plant_names, true_plant_metrics
 from servodesk.domain.tuning.design import FF_FACTOR, STUCK_GM_MIN_DB, STUCK_PM_MIN, design_gains
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.metrics import MoveMetrics
-from servodesk.domain.tuning.model import LoopModel, Mode, PlantModel
+from servodesk.domain.tuning.model import LoopModel, PlantModel, VibrationMode
 from servodesk.domain.tuning.promise import RESONANCE_DRIFT, RESONANCE_TOL, RESONANCE_TOL_PEAK
 from servodesk.domain.tuning.search import (
     ALTERNATIVE_SETTLING_FACTOR,
@@ -340,7 +340,7 @@ def test_a_finer_simulation_orders_the_variations() -> None:
     # The tuning service hands it to a worker process; a model the simulated mechanics cannot
     # represent (a second resonance) gets none and the batch model's order stands.
     assert pickle.loads(pickle.dumps(finer)) == finer
-    two = replace(plant, extra_modes=(Mode(900.0, 0.03, 1000.0),))
+    two = replace(plant, extra_modes=(VibrationMode(900.0, 0.03, 1000.0),))
     assert ModelMoves.of(two, RATE, counts_per_rev=CPR, torque_limit=PEAK) is None
 
 

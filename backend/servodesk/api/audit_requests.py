@@ -19,7 +19,7 @@ from typing import Any
 from starlette.requests import HTTPConnection
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from servodesk.api.identity import identity_of
+from servodesk.api.identity import caller_of
 from servodesk.services.audit import AuditLog, as_actor
 
 #: Paths longer than this are cut in the record (a 8 KiB URL must not fill the log).
@@ -37,11 +37,11 @@ class _Caller:
 
     @property
     def user(self) -> str:
-        return identity_of(self._conn).user
+        return caller_of(self._conn).user
 
     @property
     def address(self) -> str:
-        return identity_of(self._conn).address
+        return caller_of(self._conn).address
 
 
 class AuditRequests:

@@ -7,7 +7,7 @@ Two modes:
   everything, like anyone at this machine's keyboard).
 - **Login required** (beyond loopback, or on loopback once an account exists): every
   ``/api/`` request and WebSocket carries a login session's cookie (the browser) or
-  ``Authorization: Bearer <API token>`` (scripts); the caller's :class:`Identity` goes into
+  ``Authorization: Bearer <API token>`` (scripts); the :class:`Caller` goes into
   ``scope["state"]`` for the routes (api/rights.py checks the role's right). The UI's own files
   and the login route pass without one, as the *anonymous* caller, who has no rights.
 
@@ -30,7 +30,7 @@ from starlette.requests import HTTPConnection
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from servodesk.api.errors import refuse_websocket, send_error
-from servodesk.api.identity import KEY, Identity
+from servodesk.api.identity import KEY, Caller
 from servodesk.errors import Unauthorized
 from servodesk.services.logins import CLOSE_CODE, LoginService
 from servodesk.services.users import UserStore
@@ -121,7 +121,7 @@ class AuthMiddleware:
         self.app = app
         self.auth = auth
 
-    def _identify(self, scope: Scope) -> Identity | None:
+    def _identify(self, scope: Scope) -> Caller | None:
         """The caller by API token or session cookie; None: no valid credential."""
         auth_header, cookie = b"", b""
         for name, value in scope.get("headers", []):
@@ -138,7 +138,7 @@ class AuthMiddleware:
             if found is None:
                 return None
             user, _ = found
-            return Identity(user.name, user.role, None, address)
+            return Caller(user.name, user.role, None, address)
         if cookie:
             try:
                 jar = SimpleCookie(cookie.decode("latin-1"))
@@ -155,7 +155,7 @@ class AuthMiddleware:
             if account is None or account.disabled:
                 self.auth.logins.end(session.id, "the account is disabled or removed")
                 return None
-            return Identity(account.name, account.role, session.id, address)
+            return Caller(account.name, account.role, session.id, address)
         return None
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
@@ -169,7 +169,7 @@ class AuthMiddleware:
         path = str(scope.get("path", ""))
         state = scope.setdefault("state", {})
         if not path.startswith("/api/") or path in _PUBLIC_API:
-            state[KEY] = Identity("", ANONYMOUS_ROLE, None, _address(scope))
+            state[KEY] = Caller("", ANONYMOUS_ROLE, None, _address(scope))
             await self.app(scope, receive, send)
             return
         in_url = any(
@@ -202,7 +202,7 @@ class AuthMiddleware:
             return
         await self.app(scope, receive, send)
 
-    async def _websocket(self, scope: Scope, receive: Receive, send: Send, who: Identity) -> None:
+    async def _websocket(self, scope: Scope, receive: Receive, send: Send, who: Caller) -> None:
         """Run the socket so that ending its login session closes it at once: its handler
         then sees a disconnect, and services/control.py makes its drives safe."""
         ended = asyncio.Event()

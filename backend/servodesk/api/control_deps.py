@@ -17,7 +17,7 @@ from typing import Annotated, Any
 
 from fastapi import Depends, Header, Request
 
-from servodesk.api.identity import identity_of
+from servodesk.api.identity import caller_of
 from servodesk.api.state import AppState, state_of
 from servodesk.domain.address import ObjectAddress
 from servodesk.errors import ValidationError
@@ -83,7 +83,7 @@ def _label(client: str | None, holder: str) -> str:
 def _user(request: Request) -> str:
     """The account of the request: control is held by a user, and only their requests may
     use its token (api/identity.py)."""
-    return identity_of(request).user
+    return caller_of(request).user
 
 
 def _energising_write(request: Request) -> bool:

@@ -27,6 +27,7 @@ from servodesk.errors import (
     PdoRefused,
     ProfileError,
     ServodeskError,
+    ToolMissing,
     Unauthorized,
     UnsupportedMediaType,
     ValidationError,
@@ -48,7 +49,7 @@ def status_for(exc: ServodeskError) -> int:
         return 409
     if isinstance(exc, Forbidden):
         return 403
-    if isinstance(exc, WorkerFailed):
+    if isinstance(exc, WorkerFailed | ToolMissing):
         return 503  # RFC 9110 §15.6.4: the server cannot now; the next try may work.
     if isinstance(exc, ObjectAccessError):
         if exc.protocol == "profidrive":

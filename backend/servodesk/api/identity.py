@@ -1,8 +1,8 @@
 """Who is making a request: the one place the rest of the API asks.
 
-The authentication middleware (users, sessions, API tokens: docs/security.md) puts an
-:class:`Identity` into the ASGI scope's ``state`` under :data:`KEY` before any route runs.
-Routes, the audit log and control ask :func:`identity_of`; none of them reads cookies or
+The authentication middleware (users, sessions, API tokens: docs/security.md) puts a
+:class:`Caller` into the ASGI scope's ``state`` under :data:`KEY` before any route runs.
+Routes, the audit log and control ask :func:`caller_of`; none of them reads cookies or
 headers itself. Where no middleware set one (the loopback server's zero-setup single-user
 mode), the caller is :data:`LOCAL`, who may do everything, as anyone at this machine's
 keyboard may.
@@ -19,7 +19,7 @@ KEY = "servodesk_identity"
 
 
 @dataclass(frozen=True)
-class Identity:
+class Caller:
     """The authenticated caller.
 
     ``user`` is the account name (``"local"`` in single-user mode), ``role`` one of the roles
@@ -35,13 +35,13 @@ class Identity:
 
 
 #: The caller on a loopback server without accounts.
-LOCAL = Identity(user="local", role="administrator")
+LOCAL = Caller(user="local", role="administrator")
 
 
-def identity_of(conn: HTTPConnection) -> Identity:
+def caller_of(conn: HTTPConnection) -> Caller:
     """The caller of this request or WebSocket (:data:`LOCAL` when nobody authenticated)."""
     found = conn.scope.get("state", {}).get(KEY)
-    if isinstance(found, Identity):
+    if isinstance(found, Caller):
         return found
     client = conn.client
-    return Identity(LOCAL.user, LOCAL.role, None, client.host if client else "")
+    return Caller(LOCAL.user, LOCAL.role, None, client.host if client else "")

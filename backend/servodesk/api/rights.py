@@ -18,7 +18,7 @@ from typing import Any
 from fastapi import Depends
 from starlette.requests import HTTPConnection
 
-from servodesk.api.identity import Identity, identity_of
+from servodesk.api.identity import Caller, caller_of
 from servodesk.domain.roles import Right, rights_of
 from servodesk.errors import Forbidden
 
@@ -74,6 +74,12 @@ ROUTE_RIGHTS: dict[str, Right] = {
     "set_plant_tag": R.WRITE_PARAMETERS,
     "approve_backup": R.WRITE_PARAMETERS,
     "check_drift": R.BACKUP,  # Reads the drive as a backup does; writes nothing to it.
+    # reports.py: a report holds the drive's audit extract (who did what), so it is read
+    # with the audit log's right; making one also needs BACKUP (the route asks for it).
+    "create_report": R.READ_AUDIT,
+    "get_report": R.READ_AUDIT,
+    "report_html": R.READ_AUDIT,
+    "report_pdf": R.READ_AUDIT,
     # audit.py (the audit log, IEC 62443-4-2 CR 2.8)
     "list_audit": R.READ_AUDIT,
     "verify_audit": R.READ_AUDIT,
@@ -166,7 +172,7 @@ def right_for(key: str | None) -> Right | None:
     return ROUTE_RIGHTS.get(key, Right.MANAGE_USERS)
 
 
-def demand(who: Identity, right: Right) -> None:
+def demand(who: Caller, right: Right) -> None:
     """Raise :class:`Forbidden` unless ``who``'s role has ``right``."""
     if right not in rights_of(who.role):
         raise Forbidden(
@@ -184,15 +190,15 @@ async def check_route_right(conn: HTTPConnection) -> None:
     upgrade (code 1008, policy violation)."""
     right = right_for(route_key(conn))
     if right is not None:
-        demand(identity_of(conn), right)
+        demand(caller_of(conn), right)
 
 
 def require(right: Right) -> Any:
     """``Depends(require(Right.X))`` for a check beside the table (a route that needs a
     second right in some case, e.g. force_take)."""
 
-    async def dep(conn: HTTPConnection) -> Identity:
-        who = identity_of(conn)
+    async def dep(conn: HTTPConnection) -> Caller:
+        who = caller_of(conn)
         demand(who, right)
         return who
 

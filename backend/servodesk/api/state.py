@@ -33,17 +33,21 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from servodesk.api.auth import Auth
+from servodesk.domain.dcp import mac_text
 from servodesk.domain.profile_loader import ProfileCatalog, default_profile_dirs
 from servodesk.errors import ServodeskError
 from servodesk.services.audit import Actor, AuditLog
 from servodesk.services.backup import BackupService
 from servodesk.services.control import ControlService
+from servodesk.services.dcp import DcpService
 from servodesk.services.drift import DriftService, gateway_url
 from servodesk.services.events import EventHub
 from servodesk.services.fleet import FleetStore
 from servodesk.services.logins import LoginService, LoginSession
 from servodesk.services.manager import SessionManager
 from servodesk.services.motion import PP, MotionService
+from servodesk.services.report import ReportService
+from servodesk.services.report_store import ReportStore
 from servodesk.services.restore import RestoreService
 from servodesk.services.scope import ScopeService
 from servodesk.services.store import Store
@@ -82,10 +86,12 @@ class AppState:
     fleet: FleetStore
     #: This gateway in the fleet and its drift checks (services/drift.py).
     drift: DriftService
+    #: PROFINET DCP on the server's network interfaces (services/dcp.py).
+    dcp: DcpService
+    #: Commissioning reports: made of connected drives, kept in the store (services/report.py).
+    reports: ReportService
     #: The simulated drives of ``serve --sim`` while the application runs (else None).
     sim: SimulatedBus | None = None
-    #: The PROFINET vendor and device ID each MAC answered the last DCP Identify with.
-    dcp_seen: dict[str, tuple[int | None, int | None]] = field(default_factory=dict)
     _sweeper: asyncio.Task[None] | None = field(default=None, repr=False)
 
     @classmethod
@@ -120,6 +126,10 @@ class AppState:
             interval_s=settings.drift_interval_s,
             webhook=settings.drift_webhook,
         )
+        tuning = TuningService(manager, motion, hub)
+        reports = ReportService(
+            ReportStore(backups.store.engine), backups, fleet, audit, tuning.result
+        )
         state = cls(
             settings=settings,
             catalog=catalog,
@@ -132,7 +142,7 @@ class AppState:
             control=control,
             motion=motion,
             scope=scope,
-            tuning=TuningService(manager, motion, hub),
+            tuning=tuning,
             viewer=ViewerService(
                 manager,
                 host=settings.host,
@@ -141,11 +151,14 @@ class AppState:
             ),
             fleet=fleet,
             drift=drift,
+            dcp=DcpService(manager, catalog, backups.store, audit),
+            reports=reports,
         )
         # Late-bound through the state: a benchmark may put a scope of its own in place.
         state.tuning.recorder_busy = state._recorder_busy
         state.viewer.target_of = state._target_of
         drift.on_drift = state._drift_found
+        state.dcp.simulated_ports = state._simulated_dcp_ports
         return state
 
     # Wiring between services ------------------------------------------------------------
@@ -166,6 +179,15 @@ class AppState:
         if status["active"] and status["mode"] == PP and status["target"] is not None:
             return float(status["target"])
         return None
+
+    def _simulated_dcp_ports(self) -> dict[str, int]:
+        # The PROFINET twins of ``serve --sim`` answer DCP for a MAC on a free PNIO-CM port.
+        out: dict[str, int] = {}
+        for pn in self.sim.profinet if self.sim is not None else ():
+            mac, port = pn.dcp_mac, pn.port
+            if mac is not None and port is not None:
+                out[mac_text(mac)] = port
+        return out
 
     def _drift_found(self, result: dict[str, Any]) -> None:
         # Drift that is news (services/drift.py) is an event of the drive, like a backup.

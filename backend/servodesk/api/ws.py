@@ -1,4 +1,9 @@
-"""The one WebSocket endpoint: live state, EMCY and link events of subscribed sessions."""
+"""The one WebSocket endpoint: live state, EMCY and link events of subscribed sessions.
+
+Every message goes out through :func:`_send`, which validates it against ``ServerMessage``
+(api/ws_messages.py): a message that is not in that union is logged and not sent. Client
+frames are read as ``ClientMessage``.
+"""
 
 from __future__ import annotations
 
@@ -8,14 +13,27 @@ import json
 import logging
 import re
 import secrets
+from collections.abc import Mapping
+from dataclasses import asdict
 from typing import Any
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
+from pydantic import ValidationError
 
 from servodesk import __version__
 from servodesk.api.control_deps import operation
-from servodesk.api.identity import identity_of
+from servodesk.api.identity import caller_of
 from servodesk.api.state import state_of
+from servodesk.api.ws_messages import (
+    BindRequest,
+    HeartbeatMessage,
+    PingMessage,
+    RefusedMessage,
+    SubscribeMessage,
+    UnsubscribeMessage,
+    decode,
+    encode,
+)
 from servodesk.errors import ServodeskError
 
 log = logging.getLogger(__name__)
@@ -26,6 +44,24 @@ SUBPROTOCOL = "servodesk.v1"
 PROTOCOL = 1
 #: Client ids as the X-Servodesk-Client header takes them.
 _CLIENT_ID = re.compile(r"^[A-Za-z0-9._:@-]{1,64}$")
+
+
+async def _send(ws: WebSocket, msg: Mapping[str, Any]) -> None:
+    """Send ``msg`` if it is a ``ServerMessage``; log and drop it otherwise (its publisher
+    has a bug, and the socket carries on: one bad message must not cut a holder's dead-man)."""
+    try:
+        text = encode(msg)
+    except RefusedMessage as exc:
+        log.error("WebSocket message not sent: %s", exc)
+        return
+    await ws.send_text(text)
+
+
+def _unreadable(exc: ValidationError) -> str:
+    """A client frame's validation error for the person who sent it, in one line."""
+    first = exc.errors()[0]
+    where = ".".join(str(p) for p in first["loc"])
+    return f"{where}: {first['msg']}" if where else first["msg"]
 
 
 @router.websocket("/ws")
@@ -47,31 +83,30 @@ async def websocket(ws: WebSocket) -> None:
         client = f"tab-{secrets.token_hex(4)}"
     control = operation(ws.app).control
     connection = control.connect(client)
-    caller = identity_of(ws).user  # Only the holder's account may bind its control.
+    caller = caller_of(ws).user  # Only the holder's account may bind its control.
 
     def sessions_msg() -> dict[str, Any]:
         return {"type": "sessions", "sessions": [s.info() for s in sessions.all()]}
 
     async def sender() -> None:
-        await ws.send_text(
-            json.dumps(
-                {
-                    "type": "hello",
-                    "version": __version__,
-                    "protocol": PROTOCOL,
-                    "client": client,
-                    "connection": connection,
-                }
-            )
+        await _send(
+            ws,
+            {
+                "type": "hello",
+                "version": __version__,
+                "protocol": PROTOCOL,
+                "client": client,
+                "connection": connection,
+            },
         )
-        await ws.send_text(json.dumps(sessions_msg()))
+        await _send(ws, sessions_msg())
         while True:
             msg = await sub.queue.get()
-            if msg.get("type") == "sessions_changed":
+            if msg.get("type") == "sessions_changed":  # The hub's signal, not a message.
                 msg = sessions_msg()
             if sub.dropped:
                 msg = {**msg, "dropped": sub.dropped}
-            await ws.send_text(json.dumps(msg, default=str))
+            await _send(ws, msg)
 
     send_task = asyncio.create_task(sender())
     try:
@@ -83,35 +118,41 @@ async def websocket(ws: WebSocket) -> None:
             if text is None:
                 # A binary frame (receive_text() would fail on it with a KeyError and drop
                 # the socket): the protocol is JSON text frames; say so and keep the socket.
-                await ws.send_text(
-                    json.dumps(
-                        {"type": "error", "message": "binary frames are not read; send JSON text"}
-                    )
+                await _send(
+                    ws, {"type": "error", "message": "binary frames are not read; send JSON text"}
                 )
                 continue
             try:
-                msg = json.loads(text)
-                kind, sid = msg.get("type"), msg.get("session")
-            except (ValueError, AttributeError):
-                await ws.send_text(json.dumps({"type": "error", "message": "not a JSON object"}))
+                data = json.loads(text)
+            except ValueError:
+                data = None
+            if not isinstance(data, dict):
+                await _send(ws, {"type": "error", "message": "not a JSON object"})
                 continue
-            if kind == "subscribe" and isinstance(sid, str):
-                sub.sessions.add(sid)
+            try:
+                msg = decode(data)
+            except ValidationError as exc:
+                kind = data.get("type")
+                tag = {"union_tag_invalid", "union_tag_not_found"}
+                known = not any(e["type"] in tag for e in exc.errors())
+                why = f"{kind!r}: {_unreadable(exc)}" if known else f"unknown message type {kind!r}"
+                await _send(ws, {"type": "error", "message": why})
+                continue
+            if isinstance(msg, SubscribeMessage):
+                sub.sessions.add(msg.session)
                 with contextlib.suppress(Exception):
-                    s = sessions.get(sid)
+                    s = sessions.get(msg.session)
                     if s.last_state is not None:
-                        from dataclasses import asdict
-
-                        sub.offer({"type": "state", "session": sid, **asdict(s.last_state)})
-            elif kind == "unsubscribe" and isinstance(sid, str):
-                sub.sessions.discard(sid)
-            elif kind == "heartbeat" and isinstance(sid, str):
+                        sub.offer({"type": "state", "session": msg.session, **asdict(s.last_state)})
+            elif isinstance(msg, UnsubscribeMessage):
+                sub.sessions.discard(msg.session)
+            elif isinstance(msg, HeartbeatMessage):
                 # Dead-man: the holder's motion runs while these arrive on a bound socket.
-                control.heartbeat(connection, sid)
-            elif kind == "bind" and isinstance(sid, str):
-                token = msg.get("token")
+                control.heartbeat(connection, msg.session)
+            elif isinstance(msg, BindRequest):
+                sid = msg.session
                 try:
-                    control.bind(connection, sid, token if isinstance(token, str) else None, caller)
+                    control.bind(connection, sid, msg.token, caller)
                 except ServodeskError as exc:
                     sub.offer(
                         {
@@ -124,12 +165,8 @@ async def websocket(ws: WebSocket) -> None:
                     )
                 else:
                     sub.offer({"type": "bind", "session": sid, "ok": True})
-            elif kind == "ping":
-                sub.offer({"type": "pong", "time": msg.get("time")})
-            else:
-                await ws.send_text(
-                    json.dumps({"type": "error", "message": f"unknown message type {kind!r}"})
-                )
+            elif isinstance(msg, PingMessage):
+                sub.offer({"type": "pong", "time": msg.time})
     except WebSocketDisconnect:
         pass
     finally:

@@ -30,6 +30,7 @@ COMMANDS = [
     "users",
     "audit",
     "store",
+    "report",
 ]
 
 

@@ -23,7 +23,6 @@ from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
-from servodesk.domain import paramset
 from servodesk.domain.paramset import ParameterSet
 from servodesk.errors import ConflictError, NotFoundError, ValidationError
 from servodesk.files import read_bounded
@@ -320,40 +319,9 @@ async def _import(ctx: _Context, session: Any, data: bytes, filename: str) -> st
     pf, _ = await ctx.restores.preflight(session, ps, map_names=ctx.args.map_by_name)
     if not pf.ok:
         raise refusal(pf)
-    if Path(filename).suffix.lower() == ".json":
-        # Keep the file byte for byte: the store's copy is the user's file.
-        return str(_save_exact(ctx, ps, data))
-    return str(ctx.backups.save(ps, source="upload")["id"])
-
-
-def _save_exact(ctx: _Context, ps: ParameterSet, data: bytes) -> str:
-    from servodesk.domain.ids import check_id
-    from servodesk.services.backup import new_id
-    from servodesk.services.store import write_new_file
-
-    bid = new_id()
-    name = f"{bid}-{check_id(ps.profile_id, 'profile.id')}.json"  # domain/ids.py
-    write_new_file(ctx.backups.store.backup_file(name), data)
-    ctx.backups.store.add_backup(
-        {
-            "id": bid,
-            "time": ps.time,
-            "label": ps.label,
-            "note": ps.note,
-            "profile_id": ps.profile_id,
-            "profile_version": ps.profile_version,
-            "drive_key": ps.drive_key,
-            "identity": ps.identity,
-            "firmware": ps.firmware,
-            "bus": ps.bus,
-            "entries": len(ps.entries),
-            "file": name,
-            "sha256": hashlib.sha256(data).hexdigest(),
-            "unreadable": paramset.unreadable_dicts(ps.unreadable),
-        },
-        "upload",
-    )
-    return bid
+    # A JSON backup is kept byte for byte: the store's copy is the user's file.
+    exact = data if Path(filename).suffix.lower() == ".json" else None
+    return str(ctx.backups.save(ps, source="upload", data=exact)["id"])
 
 
 def _print_report(rep: dict[str, Any]) -> None:

@@ -565,7 +565,7 @@ def map_by_name(entries: Sequence[Entry], target: DeviceProfile) -> list[MapRow]
 
 
 @dataclass(frozen=True, slots=True)
-class Problem:
+class RestoreProblem:
     address: ObjectAddress | None
     name: str | None
     message: str
@@ -597,7 +597,7 @@ class PlanItem:
 @dataclass(frozen=True)
 class Preflight:
     ok: bool
-    problems: list[Problem]
+    problems: list[RestoreProblem]
     warnings: list[str]
     items: list[PlanItem]
     mapping: list[MapRow] | None
@@ -673,14 +673,14 @@ def state_allows(allowed: Iterable[str], state: str | None, nmt: str) -> bool | 
 def preflight(ps: ParameterSet, drive: DriveFacts, *, map_names: bool = False) -> Preflight:
     """Check a set against a drive before any write; list every problem at once."""
     profile = drive.profile
-    problems: list[Problem] = []
+    problems: list[RestoreProblem] = []
     warnings: list[str] = []
     mapping: list[MapRow] | None = None
     entries: list[tuple[Entry, ObjectAddress | None, str | None]]
     if ps.profile_id != profile.id:
         if not map_names:
             problems.append(
-                Problem(
+                RestoreProblem(
                     None,
                     None,
                     f"the backup is of profile {ps.profile_id!r}, the drive is {profile.id!r} "
@@ -705,7 +705,7 @@ def preflight(ps: ParameterSet, drive: DriveFacts, *, map_names: bool = False) -
         )
     if drive.state in _ENABLED_STATES:
         problems.append(
-            Problem(
+            RestoreProblem(
                 None,
                 None,
                 f"the drive is in {drive.state.replace('_', ' ')}; a restore needs the "
@@ -727,7 +727,7 @@ def preflight(ps: ParameterSet, drive: DriveFacts, *, map_names: bool = False) -
         old = drive.current.get(target)
         if spec is None:
             problems.append(
-                Problem(
+                RestoreProblem(
                     target,
                     e.name,
                     f"{target} {e.name} is not an object of profile {profile.id}",
@@ -761,7 +761,7 @@ def preflight(ps: ParameterSet, drive: DriveFacts, *, map_names: bool = False) -
         if allowed is False:
             where = ", ".join(x for x in (drive.state, drive.nmt) if x)
             problems.append(
-                Problem(
+                RestoreProblem(
                     target,
                     spec.name,
                     f"{target} {spec.name} is writable only in {', '.join(spec.writable_in)}; "
@@ -819,7 +819,7 @@ def _encoder_warning(ps: ParameterSet, drive: DriveFacts) -> list[str]:
 def _identity_checks(
     ps: ParameterSet,
     drive: DriveFacts,
-    problems: list[Problem],
+    problems: list[RestoreProblem],
     warnings: list[str],
     map_names: bool,
 ) -> None:
@@ -828,7 +828,7 @@ def _identity_checks(
         a, b = bi.get(key), di.get(key)
         if a is not None and b is not None and a != b:
             problems.append(
-                Problem(
+                RestoreProblem(
                     None,
                     None,
                     f"{label} differs: backup 0x{int(a):08X}, drive 0x{int(b):08X} "
@@ -848,9 +848,9 @@ def _identity_checks(
         )
 
 
-def _value_problem(e: Entry, spec: ObjectSpec) -> Problem | None:
+def _value_problem(e: Entry, spec: ObjectSpec) -> RestoreProblem | None:
     if spec.data_type != e.data_type:
-        return Problem(
+        return RestoreProblem(
             spec.address,
             spec.name,
             f"{spec.address} {spec.name} is {spec.data_type.name}, the backup holds "
@@ -859,7 +859,7 @@ def _value_problem(e: Entry, spec: ObjectSpec) -> Problem | None:
         )
     n = spec.bits // 8
     if n and len(e.raw) != n:
-        return Problem(
+        return RestoreProblem(
             spec.address,
             spec.name,
             f"{spec.address} {spec.name}: {len(e.raw)} bytes for a {n}-byte {spec.data_type.name}",
@@ -870,7 +870,7 @@ def _value_problem(e: Entry, spec: ObjectSpec) -> Problem | None:
         v = codec(spec.data_type).decode(e.raw)
         check_value(spec, v)
     except ValidationError as exc:
-        return Problem(spec.address, spec.name, exc.message, exc.hint)
+        return RestoreProblem(spec.address, spec.name, exc.message, exc.hint)
     return None
 
 
@@ -878,7 +878,7 @@ def _value_problem(e: Entry, spec: ObjectSpec) -> Problem | None:
 
 
 @dataclass(frozen=True, slots=True)
-class Step:
+class RestoreStep:
     """One write of a restore. ``entry`` is the item this write sets to its final value;
     None for the intermediate writes of a procedure (PDO disable, mapping count 0)."""
 
@@ -928,7 +928,7 @@ def plan_writes(
     to_write: Mapping[ObjectAddress, bytes],
     targets: Mapping[ObjectAddress, bytes],
     current: Mapping[ObjectAddress, bytes | None],
-) -> list[Step]:
+) -> list[RestoreStep]:
     """The ordered writes that take the drive from ``current`` to ``targets``.
 
     ``to_write``: the entries that differ (address -> bytes); ``targets``: every entry of
@@ -941,7 +941,9 @@ def plan_writes(
     mappings change and set after them (HIWIN 000 §3.1.2).
     """
     plain = [a for a in to_write if not is_pdo_object(a.index)]
-    steps = [Step(a, to_write[a], a, "parameter", str(a)) for a in write_order(profile, plain)]
+    steps = [
+        RestoreStep(a, to_write[a], a, "parameter", str(a)) for a in write_order(profile, plain)
+    ]
 
     pdo = [a for a in to_write if is_pdo_object(a.index)]
     if not pdo:
@@ -963,7 +965,9 @@ def plan_writes(
         count = ObjectAddress(idx, 0)
         if _u32(_pad(current.get(count))) != 0 and count in targets:
             steps.append(
-                Step(count, bytes(len(targets[count])), None, "assignment off", f"assign {idx:04X}")
+                RestoreStep(
+                    count, bytes(len(targets[count])), None, "assignment off", f"assign {idx:04X}"
+                )
             )
     for comm in sorted(groups):
         steps.extend(_pdo_group(comm, groups[comm], to_write, targets, current))
@@ -972,10 +976,10 @@ def plan_writes(
         count = ObjectAddress(idx, 0)
         for a in sorted(assigns.get(idx, [])):
             if a.subindex:
-                steps.append(Step(a, to_write[a], a, "assignment entry", gname))
+                steps.append(RestoreStep(a, to_write[a], a, "assignment entry", gname))
         if count in targets:
             steps.append(
-                Step(
+                RestoreStep(
                     count,
                     targets[count],
                     count if count in to_write else None,
@@ -996,18 +1000,18 @@ def _pdo_group(
     to_write: Mapping[ObjectAddress, bytes],
     targets: Mapping[ObjectAddress, bytes],
     current: Mapping[ObjectAddress, bytes | None],
-) -> list[Step]:
+) -> list[RestoreStep]:
     gname = f"PDO {comm:04X}"
     mapping = comm + 0x200
     cob = ObjectAddress(comm, 1)
-    steps: list[Step] = []
+    steps: list[RestoreStep] = []
     cur_cob = _u32(current.get(cob))
     disabled = False
     has_comm = _in(comm, _COMM_RANGES) and cob in targets
     if has_comm and cur_cob is not None:
         if not cur_cob & _COB_INVALID:
             steps.append(
-                Step(
+                RestoreStep(
                     cob,
                     (cur_cob | _COB_INVALID).to_bytes(4, "little"),
                     None,
@@ -1017,26 +1021,26 @@ def _pdo_group(
             )
         disabled = True
     for a in sorted(x for x in changed if x.index == comm and x.subindex != 1):
-        steps.append(Step(a, to_write[a], a, "PDO communication parameter", gname))
+        steps.append(RestoreStep(a, to_write[a], a, "PDO communication parameter", gname))
     entries = sorted(x for x in changed if x.index == mapping and x.subindex != 0)
     count = ObjectAddress(mapping, 0)
     if entries or count in to_write:
         cur_n = current.get(count)
         if cur_n is None or any(cur_n):
             size = len(targets[count]) if count in targets else 1
-            steps.append(Step(count, bytes(size), None, "mapping sub 0 = 0", gname))
+            steps.append(RestoreStep(count, bytes(size), None, "mapping sub 0 = 0", gname))
         for a in entries:
-            steps.append(Step(a, to_write[a], a, "mapping entry", gname))
+            steps.append(RestoreStep(a, to_write[a], a, "mapping entry", gname))
         final_n = targets.get(count, cur_n)
         if final_n is not None:
             steps.append(
-                Step(
+                RestoreStep(
                     count, final_n, count if count in to_write else None, "mapping sub 0 = n", gname
                 )
             )
     if has_comm and (disabled or cob in to_write):
         final = targets[cob]
         steps.append(
-            Step(cob, final, cob if cob in to_write else None, "COB-ID as in the set", gname)
+            RestoreStep(cob, final, cob if cob in to_write else None, "COB-ID as in the set", gname)
         )
     return steps

@@ -2,8 +2,8 @@
 
 Frozen dataclasses only (docs/pdo.md "Domain API"): a :class:`PdoConfig` holds every
 :class:`Pdo` of the family with its :class:`MapEntry` list and CANopen :class:`PdoComm`
-parameters, a :class:`Problem` is a reason a mapping is refused, a :class:`Slot` is an entry at
-its place in the frame and a :class:`Plan` is the ordered :class:`Step` list that changes a
+parameters, a :class:`PdoProblem` is a reason a mapping is refused, a :class:`Slot` is an entry at
+its place in the frame and a :class:`Plan` is the ordered :class:`PdoStep` list that changes a
 drive's mapping. The functions that build and use them live in the other ``pdo_*`` modules.
 """
 
@@ -173,7 +173,7 @@ class PdoConfig:
 
 
 @dataclass(frozen=True)
-class Problem:
+class PdoProblem:
     """A reason a mapping is refused, shown next to the field it is about."""
 
     message: str
@@ -214,7 +214,7 @@ class Slot:
 
 
 @dataclass(frozen=True)
-class Step:
+class PdoStep:
     """One action of a plan, in order."""
 
     kind: Literal["write", "nmt"]
@@ -246,7 +246,7 @@ class Step:
 class Plan:
     """The ordered steps that turn the current configuration into the desired one."""
 
-    steps: tuple[Step, ...]
+    steps: tuple[PdoStep, ...]
     touched: tuple[str, ...]
 
     def to_dict(self) -> dict[str, object]:

@@ -13,7 +13,7 @@ from dataclasses import replace
 
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType
-from servodesk.domain.pdo_model import Direction, Pdo, PdoConfig, Plan, Problem, Step
+from servodesk.domain.pdo_model import Direction, Pdo, PdoConfig, PdoProblem, PdoStep, Plan
 from servodesk.domain.pdo_objects import (
     _ASSIGN,
     _comm_fields,
@@ -48,17 +48,17 @@ def _norm_state(state: str | None) -> str:
 
 def _write(
     profile: DeviceProfile, index: int, sub: int, value: int, why: str, fallback: DataType
-) -> Step:
+) -> PdoStep:
     addr = ObjectAddress(index, sub)
     spec = profile.spec(addr)
-    return Step("write", addr, value, spec.data_type if spec else fallback, None, why)
+    return PdoStep("write", addr, value, spec.data_type if spec else fallback, None, why)
 
 
-def _nmt(command: str, why: str) -> Step:
-    return Step("nmt", None, 0, None, command, why)
+def _nmt(command: str, why: str) -> PdoStep:
+    return PdoStep("nmt", None, 0, None, command, why)
 
 
-def _mapping_steps(profile: DeviceProfile, pdo: Pdo, cite: str) -> list[Step]:
+def _mapping_steps(profile: DeviceProfile, pdo: Pdo, cite: str) -> list[PdoStep]:
     mi = pdo.mapping_index
     name = pdo.name
     steps = [
@@ -88,7 +88,7 @@ _U8, _U16, _U32 = DataType.UNSIGNED8, DataType.UNSIGNED16, DataType.UNSIGNED32
 
 def _canopen_steps(
     profile: DeviceProfile, cur: Pdo | None, pdo: Pdo, section: str | None
-) -> list[Step]:
+) -> list[PdoStep]:
     assert pdo.comm is not None and pdo.comm_index is not None
     c, ci, name, d = pdo.comm, pdo.comm_index, pdo.name, pdo.direction
     cc = cur.comm if cur is not None else None
@@ -98,7 +98,7 @@ def _canopen_steps(
         return []
     # The family's own section when it is not the standard itself (smartris 001 §2-8).
     fam = f"; {section}" if section and not section.startswith("CiA") else ""
-    steps: list[Step] = []
+    steps: list[PdoStep] = []
     written: int | None = None
     if cc is None or cc.enabled:
         # CiA 301 §7.5.2.35: the PDO is made invalid (bit 31) before its id, its
@@ -160,11 +160,11 @@ def _canopen_steps(
 
 def _body(
     profile: DeviceProfile, current: PdoConfig | None, desired: PdoConfig
-) -> tuple[list[Step], list[str]]:
+) -> tuple[list[PdoStep], list[str]]:
     rules = _rules(profile)
     kind = rules.kind
     section = rules.section
-    steps: list[Step] = []
+    steps: list[PdoStep] = []
     touched: list[str] = []
 
     def cur_of(p: Pdo) -> Pdo | None:
@@ -259,7 +259,7 @@ def _body(
     return steps, touched
 
 
-def _wrap_nmt(rules: PdoRules, nmt_state: str, body: list[Step]) -> list[Step]:
+def _wrap_nmt(rules: PdoRules, nmt_state: str, body: list[PdoStep]) -> list[PdoStep]:
     state = _norm_state(nmt_state)
     need = _norm_state(rules.mapping_state)
     if need != "preop" or state == "preop":
@@ -287,7 +287,7 @@ def _wrap_nmt(rules: PdoRules, nmt_state: str, body: list[Step]) -> list[Step]:
     return out
 
 
-def _refuse(problems: list[Problem]) -> PdoRefused:
+def _refuse(problems: list[PdoProblem]) -> PdoRefused:
     more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
     first = problems[0]
     where = f"{first.pdo}: " if first.pdo and not first.message.startswith(first.pdo) else ""

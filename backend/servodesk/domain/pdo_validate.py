@@ -3,7 +3,7 @@
 :func:`validate` checks the mapping entries against the profile (mappable direction, length,
 duplicates, dummy and Reserved entries), the sizes, the CANopen communication parameters (COB-ID
 ranges of CiA 301 §7.3.5, transmission types, timers), the EtherCAT assignment, a fixed mapping
-and a PROFIdrive telegram's layout, and returns the :class:`Problem` list the UI shows next to
+and a PROFIdrive telegram's layout, and returns the :class:`PdoProblem` list the UI shows next to
 the fields (docs/pdo.md).
 """
 
@@ -13,7 +13,7 @@ from collections.abc import Iterable
 
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType
-from servodesk.domain.pdo_model import _DUMMY, Direction, MapEntry, Pdo, PdoConfig, Problem
+from servodesk.domain.pdo_model import _DUMMY, Direction, MapEntry, Pdo, PdoConfig, PdoProblem
 from servodesk.domain.pdo_objects import (
     _ASSIGN,
     _count,
@@ -71,17 +71,17 @@ def _spec_name(profile: DeviceProfile, e: MapEntry) -> str:
 
 def _check_entries(
     profile: DeviceProfile, pdo: Pdo, max_entries: int, section: str | None
-) -> list[Problem]:
+) -> list[PdoProblem]:
     rules = _rules(profile)
     kind = rules.kind
-    out: list[Problem] = []
+    out: list[PdoProblem] = []
     name = pdo.name
     d = pdo.direction
     seen: dict[tuple[int, int], int] = {}
     for i, e in enumerate(pdo.entries):
 
         def bad(msg: str, sect: str | None = section, _i: int = i) -> None:
-            out.append(Problem(msg, pdo=name, entry=_i, field="entries", section=sect))
+            out.append(PdoProblem(msg, pdo=name, entry=_i, field="entries", section=sect))
 
         if e.index == 0:
             if kind != "telegram":
@@ -154,7 +154,7 @@ def _check_entries(
     n = len(pdo.entries)
     if n > max_entries:
         out.append(
-            Problem(
+            PdoProblem(
                 f"{n} entries: {name} holds at most {max_entries}; remove {n - max_entries}",
                 pdo=name,
                 field="entries",
@@ -164,7 +164,7 @@ def _check_entries(
     room = _entry_subs(profile, pdo.mapping_index)
     if room and n > room and n <= max_entries:
         out.append(
-            Problem(
+            PdoProblem(
                 f"{n} entries: 0x{pdo.mapping_index:04X} has only {room} entry subindices; "
                 f"remove {n - room}",
                 pdo=name,
@@ -175,12 +175,12 @@ def _check_entries(
     return out
 
 
-def validate(profile: DeviceProfile, config: PdoConfig) -> list[Problem]:
+def validate(profile: DeviceProfile, config: PdoConfig) -> list[PdoProblem]:
     """Every reason the configuration breaks the family's rules; [] when it is valid."""
     rules = _rules(profile)
     kind = rules.kind
     section = rules.section
-    out: list[Problem] = []
+    out: list[PdoProblem] = []
     if kind == "fixed":
         return _validate_fixed(profile, config)
     if kind == "telegram":
@@ -189,7 +189,7 @@ def validate(profile: DeviceProfile, config: PdoConfig) -> list[Problem]:
         out.extend(_check_entries(profile, p, rules.max_entries, section))
         if p.bits > rules.max_bits:
             out.append(
-                Problem(
+                PdoProblem(
                     f"{p.bits} bits mapped: {p.name} carries at most {rules.max_bits} bits "
                     f"({rules.max_bits // 8} bytes); remove {p.bits - rules.max_bits} bits",
                     pdo=p.name,
@@ -208,7 +208,7 @@ def validate(profile: DeviceProfile, config: PdoConfig) -> list[Problem]:
             nbytes = (total + 7) // 8
             if nbytes > rules.max_bytes:
                 out.append(
-                    Problem(
+                    PdoProblem(
                         f"{nbytes} bytes of {d.value.upper()} process data: this drive takes at "
                         f"most {rules.max_bytes} bytes per direction; remove "
                         f"{nbytes - rules.max_bytes} bytes",
@@ -230,7 +230,7 @@ def validate(profile: DeviceProfile, config: PdoConfig) -> list[Problem]:
                     key = (e.index, e.subindex)
                     if key in seen and seen[key] != p.name:
                         out.append(
-                            Problem(
+                            PdoProblem(
                                 f"{e} is already mapped in {seen[key]}; this drive maps an "
                                 "object only once per direction, remove one",
                                 pdo=p.name,
@@ -243,9 +243,9 @@ def validate(profile: DeviceProfile, config: PdoConfig) -> list[Problem]:
     return out
 
 
-def _validate_comm(profile: DeviceProfile, config: PdoConfig) -> list[Problem]:
+def _validate_comm(profile: DeviceProfile, config: PdoConfig) -> list[PdoProblem]:
     rules = _rules(profile)
-    out: list[Problem] = []
+    out: list[PdoProblem] = []
     ids: dict[int, str] = {}
     for p in config.pdos:
         c, ci = p.comm, p.comm_index
@@ -256,7 +256,7 @@ def _validate_comm(profile: DeviceProfile, config: PdoConfig) -> list[Problem]:
         fam = rules.section
 
         def bad(msg: str, fld: str, sect: str | None, _name: str = name) -> None:
-            out.append(Problem(msg, pdo=_name, field=fld, section=sect))
+            out.append(PdoProblem(msg, pdo=_name, field=fld, section=sect))
 
         if c.cob_id > 0x7FF or c.enabled:
             why = _cob_problem(c.cob_id)
@@ -356,9 +356,9 @@ def _types_hint(allowed: frozenset[int], d: Direction) -> str:
     )
 
 
-def _validate_assignment(profile: DeviceProfile, config: PdoConfig) -> list[Problem]:
+def _validate_assignment(profile: DeviceProfile, config: PdoConfig) -> list[PdoProblem]:
     rules = _rules(profile)
-    out: list[Problem] = []
+    out: list[PdoProblem] = []
     for d in Direction:
         idx = _ASSIGN[d.value]
         assigned = (config.assignment or {}).get(d, ())
@@ -366,7 +366,7 @@ def _validate_assignment(profile: DeviceProfile, config: PdoConfig) -> list[Prob
         maps = {p.mapping_index for p in config.of(d)}
         if len(assigned) > room:
             out.append(
-                Problem(
+                PdoProblem(
                     f"{len(assigned)} mapping objects assigned to 0x{idx:04X}: this drive takes "
                     f"{room} per sync manager; assign one",
                     field="assignment",
@@ -377,7 +377,7 @@ def _validate_assignment(profile: DeviceProfile, config: PdoConfig) -> list[Prob
             if a not in maps:
                 lo = _map_index(d, 1)
                 out.append(
-                    Problem(
+                    PdoProblem(
                         f"0x{a:04X} is not a {d.value.upper()} mapping object; assign one of "
                         f"0x{lo:04X}-0x{lo + _count(profile, d) - 1:04X}",
                         field="assignment",
@@ -386,7 +386,7 @@ def _validate_assignment(profile: DeviceProfile, config: PdoConfig) -> list[Prob
                 )
             elif a in assigned[:k]:
                 out.append(
-                    Problem(
+                    PdoProblem(
                         f"0x{a:04X} is assigned twice to 0x{idx:04X}; assign it once",
                         field="assignment",
                         section=rules.section,
@@ -395,23 +395,23 @@ def _validate_assignment(profile: DeviceProfile, config: PdoConfig) -> list[Prob
     return out
 
 
-def _validate_fixed(profile: DeviceProfile, config: PdoConfig) -> list[Problem]:
+def _validate_fixed(profile: DeviceProfile, config: PdoConfig) -> list[PdoProblem]:
     base = default_config(profile, 1)
-    out: list[Problem] = []
+    out: list[PdoProblem] = []
     for p in config.pdos:
         try:
             ref = base.pdo(p.direction, p.number)
         except NotFoundError:
-            out.append(Problem(f"{p.name} does not exist on this drive", pdo=p.name))
+            out.append(PdoProblem(f"{p.name} does not exist on this drive", pdo=p.name))
             continue
         if p.entries != ref.entries:
             out.append(_fixed_problem(profile, p.name))
     return out
 
 
-def _fixed_problem(profile: DeviceProfile, name: str | None) -> Problem:
+def _fixed_problem(profile: DeviceProfile, name: str | None) -> PdoProblem:
     sect = _rules(profile).section
-    return Problem(
+    return PdoProblem(
         f"the PDO mapping of {profile.name} is pre-assigned and cannot be changed ({sect}); "
         "keep the fixed mapping and use the objects it carries",
         pdo=name,
@@ -420,25 +420,25 @@ def _fixed_problem(profile: DeviceProfile, name: str | None) -> Problem:
     )
 
 
-def _validate_telegram(profile: DeviceProfile, config: PdoConfig) -> list[Problem]:
+def _validate_telegram(profile: DeviceProfile, config: PdoConfig) -> list[PdoProblem]:
     rules = _rules(profile)
     tg = rules.telegram(config.telegram) if config.telegram is not None else None
     if tg is None:
         known = ", ".join(str(t.number) for t in rules.telegrams)
         return [
-            Problem(
+            PdoProblem(
                 f"telegram {config.telegram} is not supported; choose one of {known}",
                 field="telegram",
                 section=rules.section,
             )
         ]
     sect = tg.section or rules.section
-    out: list[Problem] = []
+    out: list[PdoProblem] = []
     for p in config.pdos:
         if not tg.variable:
             if p.entries != _telegram_entries(profile, tg, p.direction):
                 out.append(
-                    Problem(
+                    PdoProblem(
                         f"telegram {tg.number} has a fixed layout; choose telegram "
                         + " or ".join(str(t.number) for t in rules.telegrams if t.variable)
                         + " to map other objects",
@@ -458,7 +458,7 @@ def _validate_telegram(profile: DeviceProfile, config: PdoConfig) -> list[Proble
                 else f"remove {diff} bytes"
             )
             out.append(
-                Problem(
+                PdoProblem(
                     f"{p.name}: the mapping totals {p.bits / 8:g} bytes, telegram {tg.number} "
                     f"needs exactly {tg.bytes}; {todo}",
                     pdo=p.name,

@@ -338,7 +338,7 @@ class Contradiction(BaseModel):
     note: str | None = None
 
 
-class Identity(BaseModel):
+class FamilyIdentity(BaseModel):
     """How a session recognises the family from 1018h (or the fieldbus's identity)."""
 
     model_config = _STRICT
@@ -850,7 +850,7 @@ class DeviceProfile(BaseModel):
     manuals: tuple[Manual, ...] = ()
     #: Another profile whose objects/errors this one includes (its own win by address).
     extends: str | None = None
-    identity: Identity = Identity()
+    identity: FamilyIdentity = FamilyIdentity()
     modes: tuple[int, ...] = ()
     homing_methods: tuple[int, ...] = ()
     groups: tuple[Group, ...] = ()

@@ -54,7 +54,7 @@ class LinkParams:
 
 
 @dataclass(frozen=True, slots=True)
-class Identity:
+class DriveIdentity:
     """Identity object (1018h) and names (1008h-100Ah) or the fieldbus equivalent."""
 
     vendor_id: int | None = None
@@ -128,7 +128,7 @@ class _Turn:
         self._held = False
 
 
-async def object_identity(access: ObjectAccess) -> Identity:
+async def object_identity(access: ObjectAccess) -> DriveIdentity:
     """The identity object (1018h:01-04) and names (1008h-100Ah) read as objects, for links
     that reach the device's object dictionary (CANopen SDO, SLMP 4020h); a missing entry is
     None."""
@@ -146,7 +146,7 @@ async def object_identity(access: ObjectAccess) -> Identity:
         except ObjectAccessError:
             return None
 
-    return Identity(
+    return DriveIdentity(
         vendor_id=await u32(0x1018, 1),
         product_code=await u32(0x1018, 2),
         revision=await u32(0x1018, 3),
@@ -295,7 +295,7 @@ class DriveLink(ObjectAccess):
         """The response time-out of the request in progress."""
         return self._timeout if self._timeout is not None else self.params.timeout
 
-    async def identity(self) -> Identity:
+    async def identity(self) -> DriveIdentity:
         """Identity of the device; a missing entry is None, not an error."""
         return await self._call(self._identity)
 
@@ -471,8 +471,8 @@ class DriveLink(ObjectAccess):
     def _write(self, address: ObjectAddress, data: bytes) -> None:
         raise NotImplementedError(f"{type(self).__name__} implements neither _write nor _awrite")
 
-    def _identity(self) -> Identity:
-        return Identity()
+    def _identity(self) -> DriveIdentity:
+        return DriveIdentity()
 
     def _nmt(self, command: str) -> None:
         raise LinkError(f"{self.fieldbus} has no network management command {command!r}")

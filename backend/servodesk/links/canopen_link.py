@@ -38,7 +38,13 @@ from servodesk.errors import (
     ServodeskError,
     ValidationError,
 )
-from servodesk.links.base import QUICK_STOP_WORD, DriveLink, Identity, LinkParams, object_identity
+from servodesk.links.base import (
+    QUICK_STOP_WORD,
+    DriveIdentity,
+    DriveLink,
+    LinkParams,
+    object_identity,
+)
 
 log = logging.getLogger(__name__)
 
@@ -889,7 +895,7 @@ class CanopenLink(DriveLink):
             hint="another master may be talking to this node, or the node id is shared",
         )
 
-    async def identity(self) -> Identity:
+    async def identity(self) -> DriveIdentity:
         return await object_identity(self)
 
     def _nmt(self, command: str) -> None:

@@ -57,8 +57,8 @@ from servodesk.errors import (
 )
 from servodesk.links.base import (
     QUICK_STOP_WORD,
+    DriveIdentity,
     DriveLink,
-    Identity,
     LinkParams,
     object_identity,
 )
@@ -455,7 +455,7 @@ class EthercatLink(DriveLink):
             return LinkError(f"{op} {address} on {where}: {type(exc).__name__}: {exc}")
         return exc
 
-    async def identity(self) -> Identity:
+    async def identity(self) -> DriveIdentity:
         """CoE 1018h/1008h-100Ah, completed from the SII (the slave's EEPROM, read by SOEM's
         config_init: vendor id, product code, revision at words 8-13, the device name from
         the SII strings; ETG.1000.6 §5.4, ETG.2010). A slave without 1008h, or one that

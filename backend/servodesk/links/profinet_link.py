@@ -58,7 +58,7 @@ from servodesk.errors import (
     ServodeskError,
     ValidationError,
 )
-from servodesk.links.base import DriveLink, Identity, LinkParams
+from servodesk.links.base import DriveIdentity, DriveLink, LinkParams
 
 #: The interface name of this link (the transport: PNIO-CM connectionless RPC on UDP).
 INTERFACE = "profinet"
@@ -229,20 +229,20 @@ class ProfinetLink(DriveLink):
     async def _awrite(self, address: ObjectAddress, data: bytes) -> None:
         await self._with_ar(self._write_object, address, data)
 
-    async def identity(self) -> Identity:
+    async def identity(self) -> DriveIdentity:
         """The I&M0 name plate (manufacturer, order ID, serial, revisions, 004 §20.4.4)."""
         try:
             im = await self._acall(self._with_ar, self._read_im0)
         except (ObjectAccessError, NotFoundError):
             # No I&M0 where servodesk looks (slot 0, subslot 1): the profile is then found
             # from P964 (the profile's vendor_id_object), or chosen by the user.
-            return Identity()
+            return DriveIdentity()
         serial = im.serial.strip()
         if self.vendor_id == 0 and im.vendor_id:
             # The vendor ID of the object UUID from the name plate, from now on.
             self.vendor_id = im.vendor_id
             self._object_uuid = pnio.object_uuid(self.vendor_id, self.device_id)
-        return Identity(
+        return DriveIdentity(
             vendor_id=im.vendor_id,
             serial=int(serial) if serial.isdigit() else None,
             device_name=im.order_id or None,

@@ -38,7 +38,13 @@ from servodesk.errors import (
     ObjectAccessError,
     ValidationError,
 )
-from servodesk.links.base import QUICK_STOP_WORD, DriveLink, Identity, LinkParams, object_identity
+from servodesk.links.base import (
+    QUICK_STOP_WORD,
+    DriveIdentity,
+    DriveLink,
+    LinkParams,
+    object_identity,
+)
 
 #: The interface name of this link (the transport: SLMP 4E binary frames on UDP).
 INTERFACE = "slmp"
@@ -124,7 +130,7 @@ class SlmpLink(DriveLink):
         answer = await self._request(slmp.SUB_DOWNLOAD, body, address, "write")
         self._object(answer, address, with_value=False)
 
-    async def identity(self) -> Identity:
+    async def identity(self) -> DriveIdentity:
         return await object_identity(self)
 
     def stop_frame(self) -> Callable[[], None] | None:

@@ -102,7 +102,7 @@ _COLUMNS = (
 
 
 class Who(Protocol):
-    """Anyone with a name and an address (:class:`servodesk.api.identity.Identity`)."""
+    """Anyone with a name and an address (:class:`servodesk.api.identity.Caller`)."""
 
     @property
     def user(self) -> str: ...

@@ -215,13 +215,20 @@ class BackupService:
 
     # Saving and loading ---------------------------------------------------------------------
 
-    def save(self, ps: ParameterSet, source: str = "drive") -> dict[str, Any]:
-        """Write the file (atomic, new name) then its record; returns the BackupInfo."""
+    def save(
+        self, ps: ParameterSet, source: str = "drive", data: bytes | None = None
+    ) -> dict[str, Any]:
+        """Write the file (atomic, new name) then its record; returns the BackupInfo.
+
+        ``data``: the file's bytes where ``ps`` was read from a servodesk JSON backup that is
+        kept byte for byte (``servodesk restore FILE``: the store's copy is the user's file);
+        else ``ps`` is written out."""
         bid = new_id()
         # The profile id becomes part of the file name (domain/ids.py).
         name = f"{bid}-{check_id(ps.profile_id, 'profile.id')}.json"
         path = self.store.backup_file(name)
-        data = paramset.dumps(ps, ps.tool or TOOL)
+        if data is None:
+            data = paramset.dumps(ps, ps.tool or TOOL)
         write_new_file(path, data)
         info = {
             "id": bid,

@@ -236,6 +236,27 @@ drift_results = sa.Table(
     sqlite_autoincrement=True,
 )
 
+#: Every commissioning report made (revision 0004, services/report_store.py): its data's
+#: canonical SHA-256 (printed in the report), the HTML exactly as it was served, and the PDF
+#: once one was printed, so that ``servodesk report verify`` can check a copy later.
+reports = sa.Table(
+    "reports",
+    metadata,
+    sa.Column("id", sa.Text, primary_key=True),
+    sa.Column("drive_key", sa.Text, nullable=False),
+    sa.Column("plant_tag", sa.Text),
+    sa.Column("session", sa.Text, nullable=False),
+    sa.Column("time", sa.Text, nullable=False),
+    sa.Column("created", sa.Float, nullable=False),
+    sa.Column("by", sa.Text, nullable=False),
+    sa.Column("sha256", sa.Text, nullable=False),
+    sa.Column("html", sa.LargeBinary, nullable=False),
+    sa.Column("html_sha256", sa.Text, nullable=False),
+    sa.Column("pdf", sa.LargeBinary),
+    sa.Column("pdf_sha256", sa.Text),
+    sa.Index("reports_drive", "drive_key", "created"),
+)
+
 #: Every table in the order an export writes and an import reads them.
 TABLES: tuple[sa.Table, ...] = (
     backup_content,
@@ -249,6 +270,7 @@ TABLES: tuple[sa.Table, ...] = (
     gateways,
     fleet_drives,
     drift_results,
+    reports,
 )
 
 #: The advisory lock keys of :func:`serialise` (PostgreSQL): any 64-bit numbers, fixed.

@@ -19,7 +19,7 @@ from servodesk.errors import (
     ServodeskError,
     ValidationError,
 )
-from servodesk.links.base import DriveLink, Identity, LinkParams
+from servodesk.links.base import DriveIdentity, DriveLink, LinkParams
 from servodesk.links.registry import LinkRegistry
 from servodesk.links.registry import registry as default_registry
 from servodesk.services.events import EventHub
@@ -160,7 +160,7 @@ class SessionManager:
         except ObjectAccessError:
             pass  # It answered (with an abort): the device is there.
 
-    def _detect(self, ident: Identity, fieldbus: str) -> DeviceProfile | None:
+    def _detect(self, ident: DriveIdentity, fieldbus: str) -> DeviceProfile | None:
         return self.catalog.match(
             ident.vendor_id,
             ident.product_code,
@@ -264,7 +264,7 @@ class SessionManager:
                     await link.open()
                     ident = await link.identity()
                 except ServodeskError:
-                    ident = Identity()
+                    ident = DriveIdentity()
                 finally:
                     await link.close()
             prof = self._detect(ident, link_type.fieldbus)

@@ -151,7 +151,7 @@ def _telegram_rules(session: Session, telegram: int) -> dict[str, Any] | None:
     return None
 
 
-def problem_dict(p: pdomod.Problem) -> dict[str, Any]:
+def problem_dict(p: pdomod.PdoProblem) -> dict[str, Any]:
     return {
         "message": p.message,
         "pdo": p.pdo,
@@ -164,7 +164,7 @@ def problem_dict(p: pdomod.Problem) -> dict[str, Any]:
 async def view(
     session: Session,
     config: pdomod.PdoConfig | None = None,
-    problems: list[pdomod.Problem] | None = None,
+    problems: list[pdomod.PdoProblem] | None = None,
 ) -> dict[str, Any]:
     """The ``PdoView`` of docs/pdo.md (reads the drive when ``config`` is None)."""
     if config is None:
@@ -264,7 +264,7 @@ async def check(session: Session, body: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def step_dict(s: pdomod.Step) -> dict[str, Any]:
+def step_dict(s: pdomod.PdoStep) -> dict[str, Any]:
     return {
         "kind": s.kind,
         "address": str(s.address) if s.address is not None else None,
@@ -291,7 +291,7 @@ async def make_plan(session: Session, body: dict[str, Any]) -> pdomod.Plan:
 # Applying ------------------------------------------------------------------------------------
 
 
-async def _run_step(session: Session, step: pdomod.Step, client: str | None) -> None:
+async def _run_step(session: Session, step: pdomod.PdoStep, client: str | None) -> None:
     if step.kind == "nmt":
         assert step.command is not None
         await session.link.nmt(step.command)
@@ -309,8 +309,8 @@ async def _run_step(session: Session, step: pdomod.Step, client: str | None) -> 
 
 
 async def _run(
-    session: Session, steps: tuple[pdomod.Step, ...], label: str, client: str | None
-) -> tuple[int, pdomod.Step | None, ServodeskError | None]:
+    session: Session, steps: tuple[pdomod.PdoStep, ...], label: str, client: str | None
+) -> tuple[int, pdomod.PdoStep | None, ServodeskError | None]:
     n = len(steps)
     for i, step in enumerate(steps):
         try:

@@ -19,7 +19,13 @@ from typing import Any
 
 from servodesk.domain import cia402, paramset
 from servodesk.domain.address import ObjectAddress
-from servodesk.domain.paramset import DriveFacts, ParameterSet, Preflight, Problem, Step
+from servodesk.domain.paramset import (
+    DriveFacts,
+    ParameterSet,
+    Preflight,
+    RestoreProblem,
+    RestoreStep,
+)
 from servodesk.errors import (
     ConflictError,
     DriveStateError,
@@ -36,7 +42,7 @@ from servodesk.services.session import Session
 log = logging.getLogger(__name__)
 
 
-def _problems_text(problems: list[Problem]) -> str:
+def _problems_text(problems: list[RestoreProblem]) -> str:
     lines = []
     for p in problems:
         lines.append(f"{p.message}" + (f" ({p.hint})" if p.hint else ""))
@@ -46,7 +52,7 @@ def _problems_text(problems: list[Problem]) -> str:
 class PreflightFailed(ValidationError):
     """The preflight found problems; nothing was written. ``problems`` lists every one."""
 
-    def __init__(self, problems: list[Problem]) -> None:
+    def __init__(self, problems: list[RestoreProblem]) -> None:
         super().__init__(
             f"restore refused, nothing was written: {len(problems)} problem(s): "
             + _problems_text(problems),
@@ -64,7 +70,7 @@ class PreflightFailed(ValidationError):
 class PreflightStateConflict(DriveStateError):
     """Like :class:`PreflightFailed`, when the drive's state is among the problems (409)."""
 
-    def __init__(self, problems: list[Problem]) -> None:
+    def __init__(self, problems: list[RestoreProblem]) -> None:
         super().__init__(
             f"restore refused, nothing was written: {len(problems)} problem(s): "
             + _problems_text(problems),
@@ -221,7 +227,7 @@ class RestoreService:
 
     def _plan(
         self, session: Session, pf: Preflight, facts: DriveFacts
-    ) -> tuple[list[Step], list[paramset.PlanItem]]:
+    ) -> tuple[list[RestoreStep], list[paramset.PlanItem]]:
         to_write = {it.address: it.new_raw for it in pf.items if it.status == "would_write"}
         targets = {
             it.address: it.new_raw for it in pf.items if it.status in ("would_write", "unchanged")
@@ -241,7 +247,7 @@ class RestoreService:
         self,
         rid: str,
         session: Session,
-        steps: list[Step],
+        steps: list[RestoreStep],
         rows: list[dict[str, Any]],
         client: str,
     ) -> None:
@@ -513,7 +519,7 @@ class RestoreService:
         }
 
 
-def _step_dict(s: Step) -> dict[str, Any]:
+def _step_dict(s: RestoreStep) -> dict[str, Any]:
     return {
         "address": str(s.address),
         "raw_hex": s.raw.hex(),

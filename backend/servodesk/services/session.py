@@ -45,7 +45,7 @@ from servodesk.errors import (
     ServodeskError,
     ValidationError,
 )
-from servodesk.links.base import DriveLink, Identity, LinkEvent
+from servodesk.links.base import DriveIdentity, DriveLink, LinkEvent
 from servodesk.services.events import AuditSink, EventHub
 
 if TYPE_CHECKING:
@@ -144,7 +144,7 @@ class Session:
         profile: DeviceProfile,
         hub: EventHub,
         *,
-        identity: Identity,
+        identity: DriveIdentity,
         simulated: bool = False,
         note: str | None = None,
         poll_hz: float = 20.0,

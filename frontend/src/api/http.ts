@@ -390,16 +390,3 @@ export function fileForm(filename: string, content: BlobPart): FormData {
   form.append('file', new Blob([content]), filename);
   return form;
 }
-
-/**
- * An answer the backend does not type yet (a route returning `dict[str, Any]`, issue 51 item
- * 1): the caller states the UI's own description of its JSON (`untyped(...) as Promise<T>`).
- * Once the route has a response model the call stops type-checking (the second argument becomes
- * required and of type never), so the endpoint must then take the schema's type instead.
- */
-export function untyped<R>(
-  answer: Promise<R>,
-  ..._typedAlready: string extends keyof (R extends readonly (infer E)[] ? E : R) ? [] : [never]
-): Promise<unknown> {
-  return answer;
-}

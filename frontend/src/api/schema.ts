@@ -664,6 +664,67 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/reports/{rid}": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Get Report
+         * @description A report's metadata: drive, when, by whom, its hashes, where the documents are.
+         */
+        get: operations["get_report"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/reports/{rid}.html": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Report Html
+         * @description The report's HTML document, byte for byte as it was made.
+         */
+        get: operations["report_html"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/reports/{rid}.pdf": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Report Pdf
+         * @description The report printed as PDF by the server's Chromium (503 naming what to install when
+         *     it has none); printed once, then the same file on every request.
+         */
+        get: operations["report_pdf"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/restores/{rid}": {
         parameters: {
             query?: never;
@@ -1439,6 +1500,27 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/sessions/{sid}/report": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Create Report
+         * @description Read the drive and make its commissioning report (progress on the WebSocket as
+         *     operation ``report``); the report is recorded in the store with its content hash.
+         */
+        post: operations["create_report"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/sessions/{sid}/restore": {
         parameters: {
             query?: never;
@@ -1998,6 +2080,64 @@ export interface components {
             /** Version */
             version: string;
         };
+        /**
+         * BindMessage
+         * @description The answer to this socket's ``bind``: whether it is now the session's dead-man.
+         */
+        BindMessage: {
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            /** Hint */
+            hint?: string | null;
+            /** Message */
+            message?: string | null;
+            /** Ok */
+            ok: boolean;
+            /** Session */
+            session: string;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "bind";
+        };
+        /**
+         * BindRequest
+         * @description Make this socket the dead-man of a session whose control the caller holds.
+         */
+        BindRequest: {
+            /** Session */
+            session: string;
+            /**
+             * Token
+             * @description The control token (POST /sessions/{sid}/control)
+             * @default null
+             */
+            token: string | null;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "bind";
+        };
+        /** Bode */
+        Bode: {
+            /** Coherence */
+            coherence: number[];
+            /** Freq Hz */
+            freq_hz: number[];
+            /** Measured Mag Db */
+            measured_mag_db: number[];
+            /** Measured Phase Deg */
+            measured_phase_deg: number[];
+            /** Model Mag Db */
+            model_mag_db: number[];
+            /** Model Phase Deg */
+            model_phase_deg: number[];
+        };
         /** ChannelIn */
         ChannelIn: {
             /**
@@ -2056,6 +2196,7 @@ export interface components {
              */
             confirm: true;
         };
+        ClientMessage: components["schemas"]["SubscribeMessage"] | components["schemas"]["UnsubscribeMessage"] | components["schemas"]["HeartbeatMessage"] | components["schemas"]["BindRequest"] | components["schemas"]["PingMessage"];
         /** CompareRequest */
         CompareRequest: {
             /** A */
@@ -2091,6 +2232,49 @@ export interface components {
             equal: boolean;
             /** Same */
             same: number;
+        };
+        /**
+         * ControlMessage
+         * @description Who holds control of a session changed (to every socket; never the token).
+         */
+        ControlMessage: {
+            /**
+             * Bound
+             * @description A WebSocket is bound to the holder's control (its dead-man)
+             */
+            bound: boolean;
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            /**
+             * Orphaned
+             * @description The holder's socket closed: the drive was made safe; control lapses soon
+             */
+            orphaned: boolean;
+            /**
+             * Owner
+             * @description Client id (label) of the holder, or null
+             */
+            owner: string | null;
+            /** Session */
+            session: string;
+            /**
+             * Since
+             * @description When it was taken (Unix time)
+             */
+            since: number | null;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "control";
+            /**
+             * User
+             * @description The account holding control, or null
+             */
+            user: string | null;
         };
         /** ControlOut */
         ControlOut: {
@@ -2332,6 +2516,52 @@ export interface components {
              */
             permanent: boolean;
         };
+        /**
+         * DeadmanMessage
+         * @description The dead-man stopped a subscribed session's axis (docs/safety.md).
+         */
+        DeadmanMessage: {
+            /**
+             * Client
+             * @description The client whose motion was stopped
+             */
+            client?: string | null;
+            /** Detect Ms */
+            detect_ms?: number | null;
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            /**
+             * From
+             * @description Which path sent the first stop
+             */
+            from?: ("dead-man thread" | "event loop") | null;
+            /**
+             * Latency Ms
+             * @description From the last heartbeat to the first stop
+             */
+            latency_ms: number | null;
+            /**
+             * Message
+             * @description Set when the stop could not be sent
+             */
+            message?: string | null;
+            /** Quick Stop Ms */
+            quick_stop_ms?: number | null;
+            /** Reason */
+            reason: string;
+            /** Session */
+            session: string;
+            /** Stop Frame Ms */
+            stop_frame_ms?: number | null;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "deadman";
+        };
         /** DifferenceOut */
         DifferenceOut: {
             /** A Engineering */
@@ -2503,6 +2733,46 @@ export interface components {
             /** Time */
             time: number | null;
         };
+        /**
+         * EmcyMessage
+         * @description An emergency message of a subscribed session's drive (CiA 301 §7.2.7).
+         */
+        EmcyMessage: {
+            /** Cause */
+            cause: string | null;
+            /** Code */
+            code: number;
+            /** Code Hex */
+            code_hex: string;
+            /**
+             * Data
+             * @description The manufacturer-specific bytes of the EMCY frame, hex
+             */
+            data: string;
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            /** Name */
+            name: string | null;
+            /**
+             * Register
+             * @description error register (1001h)
+             */
+            register: number;
+            /** Remedy */
+            remedy: string | null;
+            /** Session */
+            session: string;
+            /** Time */
+            time: number | null;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "emcy";
+        };
         /** EmptyBody */
         EmptyBody: Record<string, never>;
         /** EncoderOut */
@@ -2553,6 +2823,24 @@ export interface components {
             section: string | null;
             /** Table */
             table: string;
+        };
+        /**
+         * ErrorMessage
+         * @description A client frame the server could not read; the socket stays open.
+         */
+        ErrorMessage: {
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            /** Message */
+            message: string;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "error";
         };
         /** ErrorOut */
         ErrorOut: {
@@ -2645,6 +2933,37 @@ export interface components {
              */
             total: number;
         };
+        /** GainRow */
+        GainRow: {
+            /** Default */
+            default: number | string | null;
+            /**
+             * Error
+             * @description why the gain could not be read
+             */
+            error: string | null;
+            /** Label */
+            label: string;
+            /** Name */
+            name: string;
+            /** Object */
+            object: string;
+            /** Raw */
+            raw: number | string | null;
+            /** Raw Unit */
+            raw_unit: string | null;
+            /**
+             * Scale
+             * @description value = raw x scale
+             */
+            scale: number;
+            /** Symbol */
+            symbol: string | null;
+            /** Unit */
+            unit: string | null;
+            /** Value */
+            value: number | null;
+        };
         /** GatewayOut */
         GatewayOut: {
             /**
@@ -2700,6 +3019,55 @@ export interface components {
             /** Version */
             version: string;
         };
+        /**
+         * HeartbeatMessage
+         * @description The dead-man's heartbeat: counts only on a socket bound to the session's control.
+         */
+        HeartbeatMessage: {
+            /** Session */
+            session: string;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "heartbeat";
+        };
+        /**
+         * HelloMessage
+         * @description The first message on every socket.
+         */
+        HelloMessage: {
+            /**
+             * Client
+             * @description The client id the server took for this socket: a label
+             */
+            client: string;
+            /**
+             * Connection
+             * @description The server's id of this connection
+             */
+            connection: string;
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            /**
+             * Protocol
+             * @description The WebSocket protocol's version (subprotocol servodesk.v1)
+             */
+            protocol: number;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "hello";
+            /**
+             * Version
+             * @description servodesk's version
+             */
+            version: string;
+        };
         /** HomingBits */
         HomingBits: {
             /** Homing Attained */
@@ -2720,6 +3088,38 @@ export interface components {
              * @description the longest a normal run takes from any start
              */
             seconds: number;
+        };
+        /**
+         * HomingMessage
+         * @description A subscribed session's homing run: its phases and its end.
+         */
+        HomingMessage: {
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            /** Message */
+            message: string;
+            /** Method */
+            method: number | null;
+            /** Position */
+            position: number | null;
+            /** @description the last run started through servodesk on this session */
+            run?: components["schemas"]["HomingRunOut"] | null;
+            /** Session */
+            session: string;
+            /**
+             * State
+             * @enum {string}
+             */
+            state: "idle" | "running" | "attained" | "error";
+            statusword_bits: components["schemas"]["HomingBits"];
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "homing";
         };
         /** HomingMethodOut */
         HomingMethodOut: {
@@ -2931,6 +3331,37 @@ export interface components {
             state: "idle" | "running" | "attained" | "error";
             statusword_bits: components["schemas"]["HomingBits"];
         };
+        /** Identified */
+        Identified: {
+            /** Coulomb Nm */
+            coulomb_nm: number | null;
+            /** Gravity Nm */
+            gravity_nm: number | null;
+            /** Inertia Kgm2 */
+            inertia_kgm2: number | null;
+            /** Inertia Ratio */
+            inertia_ratio: number | null;
+            /**
+             * Moves Friction Nm
+             * @description servodesk's own: the test moves' friction c + b v [N m]
+             */
+            moves_friction_nm?: number | null;
+            /**
+             * Moves Speed Rad S
+             * @description their cruise speed
+             */
+            moves_speed_rad_s?: number | null;
+            /** Ranking Friction Nm */
+            ranking_friction_nm: number | null;
+            /** @description servodesk's own tuning only */
+            refit?: components["schemas"]["Refit"] | null;
+            /** Resonances */
+            resonances: components["schemas"]["Resonance"][];
+            /** Travel Friction Nm */
+            travel_friction_nm: number | null;
+            /** Viscous Nms */
+            viscous_nms: number | null;
+        };
         /** IdentityOut */
         IdentityOut: {
             /** Device Name */
@@ -3042,6 +3473,31 @@ export interface components {
                 [key: string]: components["schemas"]["UnitOut"];
             };
         };
+        /**
+         * LinkMessage
+         * @description A subscribed session's link to its drive changed.
+         */
+        LinkMessage: {
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            /**
+             * Event
+             * @enum {string}
+             */
+            event: "lost" | "restored" | "closed" | "heartbeat_lost" | "heartbeat_restored";
+            /** Message */
+            message: string | null;
+            /** Session */
+            session: string;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "link";
+        };
         /** LoginRequest */
         LoginRequest: {
             /** Password */
@@ -3067,6 +3523,28 @@ export interface components {
              */
             websockets: number;
         };
+        /** MappableObject */
+        MappableObject: {
+            /** Address */
+            address: string;
+            /** Bits */
+            bits: number;
+            /** Data Type */
+            data_type: string;
+            /**
+             * Direction
+             * @enum {string}
+             */
+            direction: "rx" | "tx" | "both";
+            /** Index */
+            index: number;
+            /** Name */
+            name: string;
+            /** Subindex */
+            subindex: number;
+            /** Unit */
+            unit: string | null;
+        };
         /** MappingOut */
         MappingOut: {
             /** Address */
@@ -3077,6 +3555,17 @@ export interface components {
             reason: string | null;
             /** Target */
             target: string | null;
+        };
+        /** Margins */
+        Margins: {
+            /** Bandwidth Hz */
+            bandwidth_hz: number | null;
+            /** Crossover Hz */
+            crossover_hz: number | null;
+            /** Gain Margin Db */
+            gain_margin_db: number | null;
+            /** Phase Margin Deg */
+            phase_margin_deg: number | null;
         };
         /** MeOut */
         MeOut: {
@@ -3109,6 +3598,63 @@ export interface components {
         MessageOut: {
             /** Message */
             message: string;
+        };
+        /**
+         * MotionMessage
+         * @description A subscribed session's motion started, changed or ended.
+         */
+        MotionMessage: {
+            /** Active */
+            active: boolean;
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            /** Kind */
+            kind: ("jog" | "move" | "velocity" | "torque" | "cyclic" | "homing" | "tuning") | null;
+            /** Message */
+            message: string;
+            /** Mode */
+            mode: number | null;
+            /** Owner */
+            owner: string | null;
+            /** Session */
+            session: string;
+            /**
+             * State
+             * @description idle, running, reached, done, halted, stopped, deadman, timeout (homing) or error
+             */
+            state: string;
+            /** Target */
+            target: number | null;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "motion";
+        };
+        /**
+         * MotionSettingsMessage
+         * @description After a motion: the settings it wrote that were put back, and those that stay written.
+         */
+        MotionSettingsMessage: {
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            /** Kept */
+            kept: string[];
+            /** Restored */
+            restored: string[];
+            /** Session */
+            session: string;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "motion_settings";
         };
         /** MotionStatusOut */
         MotionStatusOut: {
@@ -3210,6 +3756,31 @@ export interface components {
             /** Text */
             text: string;
         };
+        /**
+         * NmtMessage
+         * @description A subscribed session's NMT state, as its heartbeat or an NMT command says.
+         */
+        NmtMessage: {
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            /** Session */
+            session: string;
+            /** State */
+            state: string | null;
+            /**
+             * Time
+             * @description Unix time
+             */
+            time: number;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "nmt";
+        };
         /** ObjectInfo */
         ObjectInfo: {
             /** Access */
@@ -3293,6 +3864,49 @@ export interface components {
                 [key: string]: number | boolean;
             };
         };
+        /** PdoApplyReport */
+        PdoApplyReport: {
+            /**
+             * Done
+             * @description steps done before the end (all of them when ok)
+             */
+            done: number;
+            /** Dry Run */
+            dry_run: boolean;
+            /** Duration S */
+            duration_s: number;
+            /** Error */
+            error: string | null;
+            failed_step: components["schemas"]["PdoStepOut"] | null;
+            /** Ok */
+            ok: boolean;
+            /**
+             * Rollback Error
+             * @description a failed apply: why the previous mapping is not back
+             */
+            rollback_error?: string | null;
+            /** Rolled Back */
+            rolled_back: boolean;
+            /** Steps */
+            steps: components["schemas"]["PdoStepOut"][];
+            /** Touched */
+            touched: string[];
+            /** Verified */
+            verified: boolean;
+            /** @description the drive after the run; null when unreadable */
+            view: components["schemas"]["PdoView"] | null;
+        };
+        /**
+         * PdoAssignment
+         * @description EtherCAT: the mapping objects assigned to the sync managers (1C12h/1C13h); the
+         *     configuration always has both (domain/pdo_objects.py, domain/pdo_json.py).
+         */
+        PdoAssignment: {
+            /** Rx */
+            rx: number[];
+            /** Tx */
+            tx: number[];
+        };
         /** PdoCyclicRequest */
         PdoCyclicRequest: {
             /**
@@ -3311,6 +3925,120 @@ export interface components {
              * @default 10
              */
             sync_period_ms: number;
+        };
+        /**
+         * PdoCyclicStatus
+         * @description The cyclic exchange. Keys with a default are in some answers only: ``link`` and
+         *     ``stale`` while it runs, ``unavailable`` in GET's, the offer in all but PUT outputs'.
+         */
+        PdoCyclicStatus: {
+            /**
+             * Dc Cycle Ns
+             * @description the SYNC0 cycles the drive takes: [min, max, step] [ns]
+             */
+            dc_cycle_ns?: number[] | null;
+            /** Decode Errors */
+            decode_errors: number;
+            /** Frames Per S */
+            frames_per_s: number;
+            /** @description EtherCAT: the line's health; null elsewhere */
+            link?: components["schemas"]["PdoLinkHealth"] | null;
+            /** Outputs */
+            outputs: boolean;
+            /** Running */
+            running: boolean;
+            /** Rx Pdos */
+            rx_pdos: components["schemas"]["PdoRate"][];
+            /**
+             * Stale
+             * @description the received values are not the drive's present ones
+             * @default false
+             */
+            stale: boolean;
+            /** Sync */
+            sync: ("freerun" | "dc") | null;
+            /**
+             * Sync Modes
+             * @description "freerun", and "dc" where the drive takes SYNC0
+             */
+            sync_modes?: ("freerun" | "dc")[];
+            /** Sync Period Ms */
+            sync_period_ms: number | null;
+            /**
+             * Syncs
+             * @description SYNCs sent
+             */
+            syncs: number;
+            /** Tx Pdos */
+            tx_pdos: components["schemas"]["PdoRate"][];
+            /**
+             * Unavailable
+             * @description why the session's link carries no cyclic data (SLMP)
+             */
+            unavailable?: string | null;
+            /**
+             * Values
+             * @description by address
+             */
+            values: {
+                [key: string]: components["schemas"]["PdoLiveValue"];
+            };
+        };
+        /** PdoEntryOut */
+        PdoEntryOut: {
+            /**
+             * Address
+             * @description "0x6064:00"; null for padding
+             */
+            address: string | null;
+            /** Bits */
+            bits: number;
+            /**
+             * Data Type
+             * @description the type's name ("INTEGER32")
+             */
+            data_type: string | null;
+            /** Index */
+            index: number;
+            /** Name */
+            name: string;
+            /** Offset Bits */
+            offset_bits: number;
+            /** Offset Byte */
+            offset_byte: number;
+            /** Padding */
+            padding: boolean;
+            /**
+             * Raw Hex
+             * @description the mapping entry as written (CiA 301 §7.5.2.36)
+             */
+            raw_hex: string;
+            /** Subindex */
+            subindex: number;
+            /** Unit */
+            unit: string | null;
+        };
+        /** PdoIdle */
+        PdoIdle: {
+            /** Fixes */
+            fixes: components["schemas"]["PdoIdleFix"][];
+            /** Why */
+            why: string;
+        };
+        /**
+         * PdoIdleFix
+         * @description One change that makes a silent event-driven TPDO send (a PDO change, needs control).
+         */
+        PdoIdleFix: {
+            /**
+             * Event Timer
+             * @description [ms]
+             */
+            event_timer: number | null;
+            /** Label */
+            label: string;
+            /** Transmission Type */
+            transmission_type: number | null;
         };
         /** PdoIn */
         PdoIn: {
@@ -3349,6 +4077,373 @@ export interface components {
             /** Telegram */
             telegram?: number | null;
         };
+        /**
+         * PdoLinkHealth
+         * @description What the cycles say about an EtherCAT line (links/ethercat_health.py).
+         */
+        PdoLinkHealth: {
+            /** Carrier */
+            carrier: boolean | null;
+            /** Cycles */
+            cycles: number;
+            /** Expected Wkc */
+            expected_wkc: number;
+            /** Last Wkc */
+            last_wkc: number | null;
+            /** Losses */
+            losses: number;
+            /** Missing Frames */
+            missing_frames: number;
+            /** Reason */
+            reason: string | null;
+            /** Since Good S */
+            since_good_s: number | null;
+            /** Slaves */
+            slaves: components["schemas"]["SlaveHealth"][];
+            /** Stale */
+            stale: boolean;
+            /**
+             * State
+             * @enum {string}
+             */
+            state: "ok" | "degraded" | "link lost" | "recovering";
+            /** Wkc Errors */
+            wkc_errors: number;
+        };
+        /**
+         * PdoLiveValue
+         * @description One mapped object's latest value from the cyclic data.
+         */
+        PdoLiveValue: {
+            /**
+             * Age S
+             * @description seconds since the frame that carried it
+             */
+            age_s: number | null;
+            /** Engineering */
+            engineering: number | null;
+            /**
+             * Pdo
+             * @description the PDO that carried it
+             */
+            pdo: string;
+            /** Raw Unit */
+            raw_unit: string | null;
+            /**
+             * Stale
+             * @description the link cannot vouch for it (docs/ethercat.md)
+             */
+            stale: boolean;
+            /** Unit */
+            unit: string | null;
+            /**
+             * Value
+             * @description as the frame carries it
+             */
+            value: number | boolean | string;
+        };
+        /** PdoMappable */
+        PdoMappable: {
+            /** Rx */
+            rx: components["schemas"]["MappableObject"][];
+            /** Tx */
+            tx: components["schemas"]["MappableObject"][];
+        };
+        /**
+         * PdoMessage
+         * @description A subscribed session's cyclic data (docs/pdo.md), while cyclic data runs.
+         */
+        PdoMessage: {
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            link: components["schemas"]["PdoLinkHealth"] | null;
+            /**
+             * Rates
+             * @description Frames per second of each TPDO, by name
+             */
+            rates: {
+                [key: string]: number;
+            };
+            /** Session */
+            session: string;
+            /**
+             * Time
+             * @description Unix time
+             */
+            time: number;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "pdo";
+            /**
+             * Values
+             * @description Keyed by address, e.g. 0x606C:00
+             */
+            values: {
+                [key: string]: components["schemas"]["PdoLiveValue"];
+            };
+        };
+        /** PdoOut */
+        PdoOut: {
+            /**
+             * Active
+             * @description on the bus: enabled (canopen), assigned (ethercat), always (fixed, telegram)
+             */
+            active: boolean;
+            /** Bits */
+            bits: number;
+            /** Bytes */
+            bytes: number;
+            /**
+             * Cob Id
+             * @description the identifier it travels on: its COB-ID, or 180h/200h + node
+             */
+            cob_id: number;
+            /** Cob Id Hex */
+            cob_id_hex: string;
+            /**
+             * Comm Index
+             * @description null: the family has no communication parameters (ethercat, fixed, telegram)
+             */
+            comm_index: number | null;
+            /**
+             * Direction
+             * @enum {string}
+             */
+            direction: "rx" | "tx";
+            /** Enabled */
+            enabled: boolean;
+            /** Entries */
+            entries: components["schemas"]["PdoEntryOut"][];
+            /**
+             * Event Timer
+             * @description [ms]
+             */
+            event_timer: number | null;
+            /** Frame Length */
+            frame_length: number;
+            /**
+             * Inhibit Time
+             * @description [100 us]
+             */
+            inhibit_time: number | null;
+            /** Inhibit Time Ms */
+            inhibit_time_ms: number | null;
+            /** Mapping Index */
+            mapping_index: number;
+            /** Max Bits */
+            max_bits: number;
+            /** Name */
+            name: string;
+            /** Number */
+            number: number;
+            /** Rtr Allowed */
+            rtr_allowed: boolean | null;
+            /** Sync Start */
+            sync_start: number | null;
+            /** Transmission Text */
+            transmission_text: string | null;
+            /** Transmission Type */
+            transmission_type: number | null;
+        };
+        /** PdoPlan */
+        PdoPlan: {
+            /** Steps */
+            steps: components["schemas"]["PdoStepOut"][];
+            /**
+             * Touched
+             * @description the PDOs the plan changes
+             */
+            touched: string[];
+        };
+        /**
+         * PdoProblemOut
+         * @description A reason a mapping is refused, shown next to the PDO, entry and field it names.
+         */
+        PdoProblemOut: {
+            /**
+             * Entry
+             * @description 0-based entry position in that PDO
+             */
+            entry: number | null;
+            /**
+             * Field
+             * @description "entries", "cob_id", "assignment", "telegram", ...
+             */
+            field: string | null;
+            /** Message */
+            message: string;
+            /**
+             * Pdo
+             * @description the PDO ("TPDO2"); null: the whole mapping
+             */
+            pdo: string | null;
+            /**
+             * Section
+             * @description the manual's section of the rule
+             */
+            section: string | null;
+        };
+        /** PdoRate */
+        PdoRate: {
+            /** Cob Id */
+            cob_id: number;
+            /** Cob Id Hex */
+            cob_id_hex: string;
+            /** Count */
+            count: number;
+            /**
+             * Errors
+             * @description frames that could not be decoded
+             */
+            errors: number;
+            /** @description why this TPDO sends nothing now and what makes it send (issue 48) */
+            idle: components["schemas"]["PdoIdle"] | null;
+            /** Name */
+            name: string;
+            /**
+             * Rate Hz
+             * @description null for RX PDOs (sent with each SYNC)
+             */
+            rate_hz: number | null;
+        };
+        /** PdoRulesOut */
+        PdoRulesOut: {
+            /**
+             * Mapping State
+             * @description "preop", "safeop", "any" or "fixed"
+             */
+            mapping_state: string;
+            /** Max Bits */
+            max_bits: number;
+            /**
+             * Max Bytes
+             * @description bytes per direction over all active PDOs
+             */
+            max_bytes: number | null;
+            /** Max Entries */
+            max_entries: number;
+            /** Rpdo Count */
+            rpdo_count: number;
+            /** Section */
+            section: string | null;
+            /**
+             * Telegrams
+             * @description empty but for the telegram kind
+             */
+            telegrams: components["schemas"]["PdoTelegramOut"][];
+            /** Tpdo Count */
+            tpdo_count: number;
+        };
+        /** PdoStepOut */
+        PdoStepOut: {
+            /** Address */
+            address: string | null;
+            /**
+             * Command
+             * @description nmt: "preop", "start" or "stop"
+             */
+            command: string | null;
+            /**
+             * Kind
+             * @enum {string}
+             */
+            kind: "write" | "nmt";
+            /** Value */
+            value: number;
+            /** Value Hex */
+            value_hex: string | null;
+            /** Why */
+            why: string;
+        };
+        /**
+         * PdoTelegramOut
+         * @description One PROFIdrive telegram of the family (004 §20.3): a fixed one's layout cannot change.
+         */
+        PdoTelegramOut: {
+            /**
+             * Bytes
+             * @description IO data per direction; a variable mapping must fill it
+             */
+            bytes: number;
+            /** Max Entries */
+            max_entries: number;
+            /** Name */
+            name: string;
+            /** Number */
+            number: number;
+            /** Variable */
+            variable: boolean;
+        };
+        /** PdoTemplateOut */
+        PdoTemplateOut: {
+            /** Description */
+            description: string;
+            /** Id */
+            id: string;
+            /** Name */
+            name: string;
+            /** Section */
+            section: string | null;
+        };
+        /** PdoValidation */
+        PdoValidation: {
+            /** Ok */
+            ok: boolean;
+            /** Problems */
+            problems: components["schemas"]["PdoProblemOut"][];
+            view: components["schemas"]["PdoView"];
+        };
+        /**
+         * PdoView
+         * @description GET /pdo, and the ``view`` of validate, templates and apply.
+         */
+        PdoView: {
+            /**
+             * Apply Unavailable
+             * @description why the session's link does not write the mapping (PROFINET: the IO controller's); the layout can still be edited, checked and exported
+             */
+            apply_unavailable: string | null;
+            /** @description EtherCAT's; null for the others */
+            assignment: components["schemas"]["PdoAssignment"] | null;
+            /**
+             * Byte Order
+             * @enum {string}
+             */
+            byte_order: "little" | "big";
+            /**
+             * Kind
+             * @enum {string}
+             */
+            kind: "canopen" | "ethercat" | "fixed" | "telegram";
+            /** Nmt State */
+            nmt_state: string;
+            /** Pdos */
+            pdos: components["schemas"]["PdoOut"][];
+            /** Problems */
+            problems: components["schemas"]["PdoProblemOut"][];
+            rules: components["schemas"]["PdoRulesOut"];
+            /** Telegram */
+            telegram: number | null;
+        };
+        /** PingMessage */
+        PingMessage: {
+            /**
+             * Time
+             * @description Sent back in the pong
+             * @default null
+             */
+            time: number | null;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "ping";
+        };
         /** PlantTagRequest */
         PlantTagRequest: {
             /**
@@ -3361,6 +4456,24 @@ export interface components {
              * @description the new plant tag (e.g. L2.Press.X); null or '': clear
              */
             tag: string | null;
+        };
+        /**
+         * PongMessage
+         * @description The answer to ``ping``, with its ``time``.
+         */
+        PongMessage: {
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            /** Time */
+            time: number | null;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "pong";
         };
         /** PreflightOut */
         PreflightOut: {
@@ -3460,6 +4573,86 @@ export interface components {
             /** Vendor */
             vendor: string;
         };
+        /**
+         * ProgressItem
+         * @description The step a restore is writing (services/restore.py).
+         */
+        ProgressItem: {
+            /** Address */
+            address: string;
+            /** Name */
+            name: string | null;
+            /**
+             * Why
+             * @description Why this write: "entry", or a step of a PDO mapping
+             */
+            why: string;
+        };
+        /**
+         * ProgressMessage
+         * @description Progress of a long operation of a subscribed session (store, backup, restore, ...).
+         */
+        ProgressMessage: {
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            /** Fraction */
+            fraction: number;
+            /** @description A restore's present step */
+            item?: components["schemas"]["ProgressItem"] | null;
+            /** Message */
+            message: string | null;
+            /** Operation */
+            operation: string;
+            /** Session */
+            session: string;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "progress";
+        };
+        /**
+         * ProtectionMessage
+         * @description What stops a session's drive when its operator is lost changed (a watchdog armed).
+         */
+        ProtectionMessage: {
+            /**
+             * Deadman Ms
+             * @description Heartbeats older than this stop the axis
+             */
+            deadman_ms: number;
+            /**
+             * Drive Watchdog
+             * @description The drive's own watchdog armed by servodesk (a dead PC stops the axis), or null: none is armed
+             */
+            drive_watchdog: string | null;
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            /** Session */
+            session: string;
+            /**
+             * Stop Path
+             * @description Where the dead-man's quick stop is sent from: its own thread straight onto the fieldbus, or the event loop (fieldbuses without such a path)
+             * @enum {string}
+             */
+            stop_path: "dead-man thread" | "event loop";
+            /**
+             * Summary
+             * @description One sentence for people
+             */
+            summary: string;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "protection";
+        };
         /** ProtectionOut */
         ProtectionOut: {
             /**
@@ -3510,6 +4703,212 @@ export interface components {
         ReadResults: {
             /** Results */
             results: (components["schemas"]["ObjectValueOut"] | components["schemas"]["ReadFailure"])[];
+        };
+        /**
+         * RecorderInfo
+         * @description GET /sessions/{sid}/recorder: the drive-side recorder.
+         */
+        RecorderInfo: {
+            /** Depth */
+            depth: number;
+            /** Max Channels */
+            max_channels: number;
+            /**
+             * Objects
+             * @description the objects it can record
+             */
+            objects: string[];
+            /** Present */
+            present: boolean;
+            /** Rate Hz */
+            rate_hz: number;
+            /**
+             * Section
+             * @description a present recorder: the manual's
+             */
+            section?: string | null;
+        };
+        /**
+         * RecorderSourceStatus
+         * @description How one session's drive-side recorder fares (the rest of its time goes to uploads).
+         */
+        RecorderSourceStatus: {
+            /** Channels */
+            channels: number[];
+            /**
+             * Drive Trigger
+             * @description the drive waits for the level crossing itself
+             */
+            drive_trigger: boolean;
+            /**
+             * Recording Share
+             * @description share of the time spent recording
+             */
+            recording_share: number | null;
+            /** Records */
+            records: number;
+            /** Sample Rate Hz */
+            sample_rate_hz: number;
+            /** Session */
+            session: string;
+            /** Upload Bytes Per S */
+            upload_bytes_per_s: number | null;
+        };
+        /**
+         * RecordingChannel
+         * @description One channel of a recording; the display settings only in a capture's.
+         */
+        RecordingChannel: {
+            /** Address */
+            address: string;
+            /**
+             * Display Scale
+             * @description a capture: shown = engineering x display_scale + offset
+             */
+            display_scale?: number | null;
+            /**
+             * Eng Scale
+             * @description a capture: scale again
+             */
+            eng_scale?: number | null;
+            /** Id */
+            id: number;
+            /**
+             * Label
+             * @description a capture of a configured channel
+             */
+            label?: string | null;
+            /** Name */
+            name: string;
+            /** Offset */
+            offset?: number | null;
+            /** Raw Unit */
+            raw_unit: string;
+            /**
+             * Scale
+             * @description the profile's raw to engineering factor
+             */
+            scale: number;
+            /** Session */
+            session: string;
+            /** Source */
+            source: string;
+            /**
+             * T
+             * @description seconds from t_ref
+             */
+            t: (number | null)[];
+            /** Unit */
+            unit: string;
+            /**
+             * V
+             * @description raw values; null where there is no sample
+             */
+            v: (number | null)[];
+        };
+        /**
+         * Refit
+         * @description The model's inertias fitted to the recordings of the winner's try (services/tuning/
+         *     own.py ``_redesign``).
+         */
+        Refit: {
+            /** Error Rms Counts After */
+            error_rms_counts_after: number;
+            /** Error Rms Counts Before */
+            error_rms_counts_before: number;
+            /** First Settling S */
+            first_settling_s: number | null;
+            /** Load Inertia Factor */
+            load_inertia_factor: number;
+            /** Motor Inertia Factor */
+            motor_inertia_factor: number;
+            /**
+             * Outcome
+             * @enum {string}
+             */
+            outcome: "fit_not_used" | "searched_again" | "first_kept";
+            /** Searched Settling S */
+            searched_settling_s: number | null;
+            /**
+             * Total Held
+             * @description only the split between motor and load was fitted
+             */
+            total_held: boolean;
+        };
+        /**
+         * ReportInfo
+         * @description A commissioning report in the store (its metadata; the document is at ``url``).
+         */
+        ReportInfo: {
+            /**
+             * By
+             * @description the user who made it
+             */
+            by: string;
+            /**
+             * Drive Key
+             * @description vendor-product-serial (1018h), else profile@bus
+             */
+            drive_key: string;
+            /**
+             * Html Sha256
+             * @description SHA-256 of the HTML document as the store keeps it
+             */
+            html_sha256: string;
+            /**
+             * Id
+             * @description printed in the report's footer and title
+             */
+            id: string;
+            /**
+             * Pdf Sha256
+             * @description SHA-256 of its PDF (None: not printed yet)
+             */
+            pdf_sha256: string | null;
+            /**
+             * Pdf Url
+             * @description the PDF (GET; printed on the first request)
+             */
+            pdf_url: string;
+            /**
+             * Plant Tag
+             * @description the drive's plant tag when the report was made
+             */
+            plant_tag: string | null;
+            /**
+             * Session
+             * @description the session the drive was read through
+             */
+            session: string;
+            /**
+             * Sha256
+             * @description SHA-256 of the report's data as canonical JSON (printed in the report)
+             */
+            sha256: string;
+            /**
+             * Time
+             * @description when it was made (ISO 8601, UTC)
+             */
+            time: string;
+            /**
+             * Url
+             * @description the HTML document (GET)
+             */
+            url: string;
+        };
+        /** Resonance */
+        Resonance: {
+            /** Anti Freq Hz */
+            anti_freq_hz: number | null;
+            /**
+             * Damping
+             * @description the damping ratio the design used
+             */
+            damping: number;
+            /** Freq Hz */
+            freq_hz: number;
+            /** Peak Db */
+            peak_db: number | null;
         };
         /** RestoreCounts */
         RestoreCounts: {
@@ -3644,6 +5043,32 @@ export interface components {
             /** Why */
             why: string;
         };
+        /** ResultGain */
+        ResultGain: {
+            /** After */
+            after: number | null;
+            /** Before */
+            before: number | null;
+            /**
+             * Label
+             * @description the drive's own tuning
+             */
+            label?: string | null;
+            /** Name */
+            name: string;
+            /** Object */
+            object: string;
+            /** Raw After */
+            raw_after: number | string | null;
+            /** Raw Before */
+            raw_before: number | string | null;
+            /** Raw Unit */
+            raw_unit?: string | null;
+            /** Symbol */
+            symbol?: string | null;
+            /** Unit */
+            unit: string | null;
+        };
         /**
          * Role
          * @enum {string}
@@ -3656,6 +5081,40 @@ export interface components {
              * @enum {string}
              */
             action: "start" | "stop" | "arm";
+        };
+        /**
+         * SafeStateMessage
+         * @description A drive was made safe because its holder was lost: motion stopped, drive disabled.
+         */
+        SafeStateMessage: {
+            /** Client */
+            client: string | null;
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            /** Message */
+            message: string;
+            /**
+             * Ok
+             * @description The drive reached Switch on disabled
+             */
+            ok: boolean;
+            /** Reason */
+            reason: string;
+            /** Session */
+            session: string;
+            /**
+             * State
+             * @description The state it ended in (absent: unread)
+             */
+            state?: string | null;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "safe_state";
         };
         /** ScanNode */
         ScanNode: {
@@ -3713,6 +5172,152 @@ export interface components {
              */
             timeout: number;
         };
+        /**
+         * ScopeChannelStatus
+         * @description One channel as the scope has it (ScopeStatus.channels).
+         */
+        ScopeChannelStatus: {
+            /** Address */
+            address: string;
+            /**
+             * Eng Scale
+             * @description engineering = raw x eng_scale (profile)
+             */
+            eng_scale: number;
+            /** Error */
+            error: string | null;
+            /** Id */
+            id: number;
+            /** Label */
+            label: string | null;
+            /** Name */
+            name: string;
+            /** Offset */
+            offset: number;
+            /**
+             * Rate Hz
+             * @description achieved sample rate (the samples' spacing)
+             */
+            rate_hz: number | null;
+            /**
+             * Raw Unit
+             * @description unit of the raw value in the drive (profile)
+             */
+            raw_unit: string | null;
+            /**
+             * Requested Rate Hz
+             * @description null: as fast as it goes
+             */
+            requested_rate_hz: number | null;
+            /**
+             * Requested Source
+             * @enum {string}
+             */
+            requested_source: "auto" | "pdo" | "sdo" | "recorder";
+            /** Samples */
+            samples: number;
+            /**
+             * Scale
+             * @description display scale: shown = engineering x scale + offset
+             */
+            scale: number;
+            /** Session */
+            session: string;
+            /**
+             * Source
+             * @description the source the channel got
+             * @enum {string}
+             */
+            source: "pdo" | "sdo" | "recorder";
+            /**
+             * Throughput Hz
+             * @description samples per second that arrived lately (a recorder's uploads leave gaps)
+             */
+            throughput_hz: number | null;
+            /**
+             * Unit
+             * @description engineering unit (profile)
+             */
+            unit: string | null;
+            /** Visible */
+            visible: boolean;
+        };
+        /**
+         * ScopeRecording
+         * @description GET /scope/capture and POST /scope/import.
+         */
+        ScopeRecording: {
+            /** Channels */
+            channels: components["schemas"]["RecordingChannel"][];
+            /**
+             * T Ref
+             * @description backend clock (time.time() seconds)
+             */
+            t_ref: number;
+            /** Trigger Time */
+            trigger_time: number | null;
+            /**
+             * Window
+             * @description a capture: the window's bounds, seconds from t_ref
+             */
+            window?: number[] | null;
+        };
+        /** ScopeStatus */
+        ScopeStatus: {
+            /** Buffer S */
+            buffer_s: number;
+            /** Channels */
+            channels: components["schemas"]["ScopeChannelStatus"][];
+            /**
+             * Clients
+             * @description stream clients connected
+             */
+            clients: number;
+            /** Frame Period Ms */
+            frame_period_ms: number;
+            /** Recorders */
+            recorders: components["schemas"]["RecorderSourceStatus"][];
+            /** Running */
+            running: boolean;
+            /**
+             * State
+             * @enum {string}
+             */
+            state: "idle" | "rolling" | "armed" | "triggered" | "done";
+            trigger: components["schemas"]["ScopeTrigger"];
+        };
+        /** ScopeTrigger */
+        ScopeTrigger: {
+            /** Channel */
+            channel: number;
+            /** Holdoff S */
+            holdoff_s: number;
+            /**
+             * Kind
+             * @enum {string}
+             */
+            kind: "level" | "edge" | "state" | "fault";
+            /** Level */
+            level: number;
+            /**
+             * Mode
+             * @enum {string}
+             */
+            mode: "roll" | "single" | "normal";
+            /**
+             * Pre
+             * @description fraction of the window before the trigger, 0..1
+             */
+            pre: number;
+            /**
+             * Slope
+             * @enum {string}
+             */
+            slope: "rising" | "falling" | "either";
+            /** Window S */
+            window_s: number;
+        };
+        ServerMessage: components["schemas"]["HelloMessage"] | components["schemas"]["SessionsMessage"] | components["schemas"]["StateMessage"] | components["schemas"]["EmcyMessage"] | components["schemas"]["NmtMessage"] | components["schemas"]["LinkMessage"] | components["schemas"]["ProgressMessage"] | components["schemas"]["ControlMessage"] | components["schemas"]["ProtectionMessage"] | components["schemas"]["BindMessage"] | components["schemas"]["SafeStateMessage"] | components["schemas"]["MotionSettingsMessage"] | components["schemas"]["MotionMessage"] | components["schemas"]["DeadmanMessage"] | components["schemas"]["HomingMessage"] | components["schemas"]["TuningMessage"] | components["schemas"]["PdoMessage"] | components["schemas"]["PongMessage"] | components["schemas"]["ErrorMessage"];
         /** SessionCreate */
         SessionCreate: {
             /** Bitrate */
@@ -3774,6 +5379,39 @@ export interface components {
             simulated: boolean;
             /** State */
             state: string;
+        };
+        /**
+         * SessionsMessage
+         * @description The open sessions: on connect and whenever the list or a session's summary changes.
+         */
+        SessionsMessage: {
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            /** Sessions */
+            sessions: components["schemas"]["SessionInfo"][];
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "sessions";
+        };
+        /** SlaveHealth */
+        SlaveHealth: {
+            /** Al State */
+            al_state: string | null;
+            /** Al Status Code */
+            al_status_code: number;
+            /** Missing Frames */
+            missing_frames: number;
+            /** Node Id */
+            node_id: number;
+            /** Position */
+            position: number;
+            /** Wkc Errors */
+            wkc_errors: number;
         };
         /** SourceBackup */
         SourceBackup: {
@@ -3843,6 +5481,59 @@ export interface components {
              */
             command: "shutdown" | "switch_on" | "switch_on_enable" | "enable_operation" | "disable_operation" | "disable_voltage" | "quick_stop" | "fault_reset" | "enable" | "disable";
         };
+        /**
+         * StateMessage
+         * @description A subscribed session's drive state: on a change, and once a second unchanged.
+         */
+        StateMessage: {
+            /** Bits */
+            bits: components["schemas"]["StatusBit"][];
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            error: components["schemas"]["ErrorInfo"] | null;
+            /** Error Code */
+            error_code: number | null;
+            /** Mode */
+            mode: number | null;
+            /** Mode Name */
+            mode_name: string | null;
+            /** Nmt State */
+            nmt_state: string;
+            /** Position */
+            position: number | null;
+            /** Position Eng */
+            position_eng: number | null;
+            /** Position Raw Unit */
+            position_raw_unit: string | null;
+            /** Position Unit */
+            position_unit: string | null;
+            /** Session */
+            session: string;
+            /** State */
+            state: string;
+            /** Statusword */
+            statusword: number;
+            /** Statusword Hex */
+            statusword_hex: string;
+            /** Time */
+            time: number;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "state";
+            /** Velocity */
+            velocity: number | null;
+            /** Velocity Eng */
+            velocity_eng: number | null;
+            /** Velocity Raw Unit */
+            velocity_raw_unit: string | null;
+            /** Velocity Unit */
+            velocity_unit: string | null;
+        };
         /** StatusBit */
         StatusBit: {
             /** Bit */
@@ -3851,6 +5542,48 @@ export interface components {
             name: string;
             /** Set */
             set: boolean;
+        };
+        /** StepMetrics */
+        StepMetrics: {
+            /** Following Error Rms */
+            following_error_rms: number | null;
+            /** Overshoot */
+            overshoot: number | null;
+            /** Overshoot Counts */
+            overshoot_counts?: number | null;
+            /** Settling 100 S */
+            settling_100_s?: number | null;
+            /** Settling 10 S */
+            settling_10_s?: number | null;
+            /** Settling 10 Smoothed S */
+            settling_10_smoothed_s?: number | null;
+            /** Settling S */
+            settling_s: number | null;
+        };
+        /** StepPair */
+        StepPair: {
+            after: components["schemas"]["StepResponse"] | null;
+            before: components["schemas"]["StepResponse"] | null;
+        };
+        /** StepResponse */
+        StepResponse: {
+            metrics: components["schemas"]["StepMetrics"];
+            /** Note */
+            note?: string | null;
+            /** Position */
+            position: number[];
+            /** Rate Hz */
+            rate_hz?: number | null;
+            /** Source */
+            source?: ("recorder" | "sdo") | null;
+            /** T S */
+            t_s: number[];
+            /** Target */
+            target: number;
+            /** Unit */
+            unit: string;
+            /** Units Per Rev */
+            units_per_rev?: number | null;
         };
         /** StopAllItem */
         StopAllItem: {
@@ -3900,6 +5633,19 @@ export interface components {
              * @description Dirty entries now saved
              */
             stored: number;
+        };
+        /**
+         * SubscribeMessage
+         * @description Follow a session: its state, EMCY, link, progress, motion, ... messages.
+         */
+        SubscribeMessage: {
+            /** Session */
+            session: string;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "subscribe";
         };
         /** TokenCreate */
         TokenCreate: {
@@ -3953,6 +5699,43 @@ export interface components {
              */
             torque: number;
         };
+        /**
+         * TravelBound
+         * @description The travel bound: start +- half the window [position units] (docs/tuning.md "Travel
+         *     window"); servodesk's own tuning adds how far the axis went.
+         */
+        TravelBound: {
+            /** Half */
+            half: number;
+            /** Half Rev */
+            half_rev: number | null;
+            /** High */
+            high: number;
+            /** Highest */
+            highest?: number | null;
+            /** Low */
+            low: number;
+            /** Lowest */
+            lowest?: number | null;
+            /** Max Excursion */
+            max_excursion?: number | null;
+            /** Max Excursion Rev */
+            max_excursion_rev?: number | null;
+            /** Raw Unit */
+            raw_unit: string | null;
+            /**
+             * Software Limits
+             * @description the drive's software position limits (607Dh) held it too
+             */
+            software_limits?: boolean | null;
+            /** Start */
+            start: number;
+            /**
+             * Text
+             * @description the bound in words, rev and units
+             */
+            text?: string | null;
+        };
         /** TriggerIn */
         TriggerIn: {
             /**
@@ -3999,8 +5782,323 @@ export interface components {
              */
             window_s: number;
         };
+        /**
+         * TuningApplies
+         * @description Where to tune a drive servodesk does not tune (a parameters page).
+         */
+        TuningApplies: {
+            /** Group */
+            group: string;
+            /** Label */
+            label: string;
+            /** Page */
+            page: string;
+        };
+        /** TuningDefaults */
+        TuningDefaults: {
+            /**
+             * Mode
+             * @enum {string}
+             */
+            mode: "low" | "basic" | "high";
+            /** Torque Limit Pct */
+            torque_limit_pct: number;
+            /** Travel Window Rev */
+            travel_window_rev: number;
+        };
+        /**
+         * TuningError
+         * @description A decoded result code: the drive's (builtin: P11604 with the profile's table) or
+         *     servodesk's reason (code null).
+         */
+        TuningError: {
+            /** Cause */
+            cause: string | null;
+            /** Code */
+            code: number | null;
+            /** Code Hex */
+            code_hex: string | null;
+            /** Name */
+            name: string;
+            /** Remedy */
+            remedy: string | null;
+            /**
+             * Section
+             * @description the drive's codes only
+             */
+            section?: string | null;
+        };
+        /**
+         * TuningInfo
+         * @description GET /tuning: what the drive's tuning is, its gains and limits, and the job.
+         */
+        TuningInfo: {
+            /** Applies */
+            applies: components["schemas"]["TuningApplies"][];
+            defaults: components["schemas"]["TuningDefaults"];
+            /** Gains */
+            gains: components["schemas"]["GainRow"][];
+            job: components["schemas"]["TuningJob"] | null;
+            /**
+             * Kind
+             * @enum {string}
+             */
+            kind: "builtin" | "gains" | "none";
+            limits: components["schemas"]["TuningLimits"];
+            /** Loop Rate Hz */
+            loop_rate_hz: number | null;
+            /**
+             * Mode Notes
+             * @description what servodesk's own tuning promises at each level (empty otherwise)
+             */
+            mode_notes: {
+                [key: string]: string;
+            };
+            /** Modes */
+            modes: ("low" | "basic" | "high")[];
+            position: components["schemas"]["TuningPosition"];
+            /** Profile Id */
+            profile_id: string;
+            /** Profile Name */
+            profile_name: string;
+            /** Reason */
+            reason: string;
+            /** Result Available */
+            result_available: boolean;
+            /** Session */
+            session: string;
+            /**
+             * State
+             * @description the CiA 402 state
+             */
+            state: string;
+            /** Step Source */
+            step_source: ("recorder" | "sdo") | null;
+            torque_limit: components["schemas"]["TuningTorqueLimit"];
+            /**
+             * Travel Rule
+             * @description what the travel window means for this kind
+             */
+            travel_rule: string | null;
+            undo: components["schemas"]["TuningUndo"];
+        };
+        /** TuningJob */
+        TuningJob: {
+            /** @description the bound the window gives around the start */
+            bound: components["schemas"]["TravelBound"] | null;
+            /** Ended */
+            ended: number | null;
+            error: components["schemas"]["TuningError"] | null;
+            /** Id */
+            id: string;
+            /**
+             * Kind
+             * @enum {string}
+             */
+            kind: "builtin" | "gains" | "none";
+            /** Message */
+            message: string;
+            /** Mode */
+            mode: string;
+            /**
+             * Move Torque Pct
+             * @description null: the torque limit of the run
+             */
+            move_torque_pct: number | null;
+            /** Owner */
+            owner: string;
+            /** Progress */
+            progress: number;
+            /** Session */
+            session: string;
+            /** Started */
+            started: number;
+            /**
+             * State
+             * @enum {string}
+             */
+            state: "running" | "done" | "failed" | "stopped";
+            /** Step */
+            step: string;
+            /** Torque Limit Pct */
+            torque_limit_pct: number;
+            /** Travel Window Rev */
+            travel_window_rev: number;
+        };
+        /** TuningLimits */
+        TuningLimits: {
+            move_torque_pct: components["schemas"]["TuningRange"];
+            torque_limit_pct: components["schemas"]["TuningRange"];
+            travel_window_rev: components["schemas"]["TuningRange"];
+        };
+        /**
+         * TuningMessage
+         * @description A subscribed session's tuning job: progress and end (docs/tuning.md).
+         */
+        TuningMessage: {
+            /**
+             * Dropped
+             * @description Messages dropped for this socket so far because it read too slowly (present once any were: the oldest queued message goes first)
+             */
+            dropped?: number;
+            /** @description As GET /sessions/{sid}/tuning answers it */
+            job: components["schemas"]["TuningJob"];
+            /** Session */
+            session: string;
+            /** Sid */
+            sid: string;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "tuning";
+        };
+        /** TuningPosition */
+        TuningPosition: {
+            /** Actual */
+            actual: number | null;
+            /** Limits Source */
+            limits_source: string | null;
+            /** Max */
+            max: number | null;
+            /** Min */
+            min: number | null;
+            /** Raw Unit */
+            raw_unit: string | null;
+            /** Scale */
+            scale: number;
+            /** Unit */
+            unit: string | null;
+            /** Units Per Rev */
+            units_per_rev: number;
+            /** Units Per Rev Source */
+            units_per_rev_source: string;
+        };
+        /** TuningRange */
+        TuningRange: {
+            /** Max */
+            max: number;
+            /** Min */
+            min: number;
+        };
+        /**
+         * TuningResult
+         * @description GET /tuning/result: the last job's (docs/tuning.md ``TuningResult``).
+         */
+        TuningResult: {
+            /** Applied */
+            applied: boolean;
+            /** Axis Time S */
+            axis_time_s: number | null;
+            bode: components["schemas"]["Bode"] | null;
+            /**
+             * Counts Per Rev
+             * @description servodesk's own tuning
+             */
+            counts_per_rev?: number | null;
+            drive_code: components["schemas"]["TuningError"] | null;
+            error: components["schemas"]["TuningError"] | null;
+            /**
+             * Excursion Rev
+             * @description the span the axis moved over [rev]
+             */
+            excursion_rev: number | null;
+            /** Gains */
+            gains: components["schemas"]["ResultGain"][];
+            identified: components["schemas"]["Identified"] | null;
+            /**
+             * Job
+             * @description the job's id
+             */
+            job: string;
+            /**
+             * Kind
+             * @enum {string}
+             */
+            kind: "builtin" | "gains" | "none";
+            /**
+             * Loop Rate Hz
+             * @description servodesk's own tuning
+             */
+            loop_rate_hz?: number | null;
+            margins: components["schemas"]["Margins"] | null;
+            /** Mode */
+            mode: string;
+            /** Notes */
+            notes: string[];
+            /** Peak Torque Pct */
+            peak_torque_pct: number | null;
+            /**
+             * Peak Torque Polled S
+             * @description the peak is the largest of 6077h polls this far apart; null: recorded
+             */
+            peak_torque_polled_s: number | null;
+            /**
+             * Status
+             * @enum {string}
+             */
+            status: "done" | "failed" | "stopped";
+            step: components["schemas"]["StepPair"] | null;
+            /** Stored */
+            stored: boolean;
+            travel: components["schemas"]["TravelBound"] | null;
+            /**
+             * Undone
+             * @description the gains were put back since
+             */
+            undone?: ("before" | "defaults") | null;
+        };
+        /**
+         * TuningStored
+         * @description POST /tuning/store: the session's store (StoreResult) and the session.
+         */
+        TuningStored: {
+            /** Duration S */
+            duration_s: number;
+            /** Procedure */
+            procedure: string;
+            /** Session */
+            session: string;
+            /**
+             * Stored
+             * @description dirty entries now saved
+             */
+            stored: number;
+        };
+        /** TuningTorqueLimit */
+        TuningTorqueLimit: {
+            /** Object */
+            object: string | null;
+            /** Present Pct */
+            present_pct: number | null;
+        };
+        /** TuningUndo */
+        TuningUndo: {
+            /** Before */
+            before: boolean;
+            /** Defaults */
+            defaults: boolean;
+            /** Note */
+            note: string | null;
+        };
         /** UndoRequest */
         UndoRequest: {
+            /**
+             * To
+             * @enum {string}
+             */
+            to: "before" | "defaults";
+        };
+        /** UndoResult */
+        UndoResult: {
+            /** Gains */
+            gains: components["schemas"]["GainRow"][];
+            /** Note */
+            note: string;
+            /** Session */
+            session: string;
+            /** Stored */
+            stored: boolean;
             /**
              * To
              * @enum {string}
@@ -4041,6 +6139,16 @@ export interface components {
             message: string;
             /** Name */
             name: string;
+        };
+        /** UnsubscribeMessage */
+        UnsubscribeMessage: {
+            /** Session */
+            session: string;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "unsubscribe";
         };
         /** UserCreate */
         UserCreate: {
@@ -8452,6 +10560,345 @@ export interface operations {
             };
         };
     };
+    get_report: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the report's id (POST's answer) */
+                rid: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ReportInfo"];
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    report_html: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the report's id (POST's answer) */
+                rid: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "text/html": unknown;
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    report_pdf: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the report's id (POST's answer) */
+                rid: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/pdf": unknown;
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
     get_restore: {
         parameters: {
             query?: never;
@@ -8694,9 +11141,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["ScopeStatus"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -8797,9 +11242,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["ScopeRecording"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -8904,9 +11347,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["ScopeStatus"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -9136,9 +11577,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["ScopeRecording"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -9252,9 +11691,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["ScopeStatus"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -9368,9 +11805,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["ScopeStatus"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -12504,9 +14939,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["PdoView"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -12627,9 +15060,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["PdoApplyReport"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -12741,9 +15172,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["PdoCyclicStatus"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -12864,9 +15293,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["PdoCyclicStatus"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -12983,9 +15410,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["PdoCyclicStatus"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -13106,9 +15531,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["PdoCyclicStatus"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -13337,11 +15760,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: {
-                            [key: string]: unknown;
-                        }[];
-                    };
+                    "application/json": components["schemas"]["PdoMappable"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -13457,9 +15876,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["PdoPlan"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -13571,9 +15988,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    }[];
+                    "application/json": components["schemas"]["PdoTemplateOut"][];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -13686,9 +16101,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["PdoView"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -13804,9 +16217,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["PdoValidation"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -14146,9 +16557,119 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["RecorderInfo"];
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    create_report: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                sid: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            201: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ReportInfo"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -14968,9 +17489,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["TuningInfo"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -15082,9 +17601,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["TuningResult"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -15205,9 +17722,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["TuningJob"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -15326,9 +17841,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["TuningJob"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -15449,9 +17962,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["TuningStored"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */
@@ -15572,9 +18083,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["UndoResult"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */

@@ -5,11 +5,11 @@
  * The scope belongs to the application, not to one session: its channels may come from
  * several drives. Requests go through the one fetch wrapper (`./http`); files (exports) come
  * back as bytes with the name the server gave them, and an import sends the file's bytes as
- * they are (CSV text or an MDF4 binary). The routes still answer `dict[str, Any]` (issue 51
- * item 1): the shapes below are the UI's until the backend gives them response models.
+ * they are (CSV text or an MDF4 binary). The answers are the schema's types
+ * (api/schemas_scope.py); the channel configuration is the UI's body (checked against it).
  */
 import { getToken } from './auth';
-import { API_BASE, apiDownload, apiRequest, fileForm, untyped } from './http';
+import { API_BASE, apiDownload, apiRequest, fileForm } from './http';
 import type { components } from './schema';
 
 type S = components['schemas'];
@@ -17,7 +17,7 @@ type S = components['schemas'];
 /** Where a channel's samples come from; `auto` lets the server choose (docs/scope.md "Model"). */
 export type ScopeSource = 'auto' | 'pdo' | 'sdo' | 'recorder';
 /** A source the server achieved (never `auto`). */
-export type AchievedSource = Exclude<ScopeSource, 'auto'>;
+export type AchievedSource = S['ScopeChannelStatus']['source'];
 
 /** One channel as the page sends it (PUT /scope/channels). */
 export interface ScopeChannelConfig {
@@ -37,97 +37,25 @@ export interface ScopeChannelConfig {
 }
 
 /** One channel as the server reports it (ScopeStatus.channels). */
-export interface ScopeChannelStatus {
-  id: number;
-  session: string;
-  address: string;
-  name: string | null;
-  /** Engineering unit (profile). */
-  unit: string | null;
-  /** Unit of the raw value as the drive holds it (profile). */
-  raw_unit: string | null;
-  scale: number;
-  offset: number;
-  visible: boolean;
-  label: string | null;
-  /** The source the channel got; null while the scope has not started it. */
-  source: AchievedSource | null;
-  requested_source: ScopeSource;
-  /** Achieved sample rate (measured, the spacing of the samples), null before there is one. */
-  rate_hz: number | null;
-  /** Samples per second that arrived over the last seconds (a recorder's uploads leave gaps). */
-  throughput_hz?: number | null;
-  samples: number;
-  error: string | null;
-  /** Raw to engineering factor of the profile (engineering = raw x eng_scale). */
-  eng_scale: number | null;
-  requested_rate_hz?: number | null;
-}
+export type ScopeChannelStatus = S['ScopeChannelStatus'];
 
-export type TriggerMode = 'roll' | 'single' | 'normal';
-export type TriggerKind = 'level' | 'edge' | 'state' | 'fault';
-export type TriggerSlope = 'rising' | 'falling' | 'either';
+export type ScopeTrigger = S['ScopeTrigger'];
+export type TriggerMode = ScopeTrigger['mode'];
+export type TriggerKind = ScopeTrigger['kind'];
+export type TriggerSlope = ScopeTrigger['slope'];
 
-export interface ScopeTrigger {
-  mode: TriggerMode;
-  kind: TriggerKind;
-  channel: number;
-  level: number;
-  slope: TriggerSlope;
-  /** Fraction of the window before the trigger, 0..1. */
-  pre: number;
-  window_s: number;
-  holdoff_s: number;
-}
+export type ScopeState = S['ScopeStatus']['state'];
 
-export type ScopeState = 'idle' | 'rolling' | 'armed' | 'triggered' | 'done';
-
-export interface ScopeStatus {
-  running: boolean;
-  state: ScopeState;
-  trigger: ScopeTrigger;
-  channels: ScopeChannelStatus[];
-  clients: number;
-  buffer_s: number;
-}
+export type ScopeStatus = S['ScopeStatus'];
 
 /** One channel of a recording (a capture, or an imported file). */
-export interface RecordingChannel {
-  id: number;
-  /** Backend times (a capture) or seconds from t_ref (an imported file). */
-  t: (number | null)[];
-  /** Raw values; null where a file has no sample. */
-  v: (number | null)[];
-  label?: string | null;
-  name?: string | null;
-  unit?: string | null;
-  raw_unit?: string | null;
-  address?: string | null;
-  session?: string | null;
-  source?: string | null;
-  /** The profile's raw to engineering factor (engineering = raw x scale). */
-  scale?: number | null;
-  eng_scale?: number | null;
-  /** A capture: the channel's display scale and offset (shown = engineering x it + offset). */
-  display_scale?: number | null;
-  offset?: number | null;
-}
+export type RecordingChannel = S['RecordingChannel'];
 
 /** GET /scope/capture and POST /scope/import. */
-export interface ScopeRecording {
-  t_ref: number;
-  trigger_time: number | null;
-  channels: RecordingChannel[];
-}
+export type ScopeRecording = S['ScopeRecording'];
 
 /** GET /sessions/{sid}/recorder: the drive-side recorder. */
-export interface RecorderInfo {
-  present: boolean;
-  max_channels: number;
-  rate_hz: number;
-  depth: number;
-  objects: string[];
-}
+export type RecorderInfo = S['RecorderInfo'];
 
 export type ScopeExportFormat = 'csv' | 'mdf4';
 export type ScopeExportWindow = 'capture' | 'buffer';
@@ -142,29 +70,21 @@ export function scopeSocketUrl(): string {
 }
 
 export const scopeApi = {
-  status: () => untyped(apiRequest('Read the scope', 'GET', '/scope')) as Promise<ScopeStatus>,
+  status: () => apiRequest('Read the scope', 'GET', '/scope'),
   setChannels: (channels: ScopeChannelConfig[]) =>
     // A channel may leave out rate_hz (the server's default): ServerDefaults one level down.
-    untyped(
-      apiRequest('Set the scope channels', 'PUT', '/scope/channels', { body: { channels } as S['ChannelsIn'] }),
-    ) as Promise<ScopeStatus>,
-  setTrigger: (trigger: ScopeTrigger) =>
-    untyped(apiRequest('Set the trigger', 'PUT', '/scope/trigger', { body: trigger })) as Promise<ScopeStatus>,
+    apiRequest('Set the scope channels', 'PUT', '/scope/channels', { body: { channels } as S['ChannelsIn'] }),
+  setTrigger: (trigger: ScopeTrigger) => apiRequest('Set the trigger', 'PUT', '/scope/trigger', { body: trigger }),
   run: (action: 'start' | 'stop' | 'arm') =>
-    untyped(
-      apiRequest({ start: 'Start the scope', stop: 'Stop the scope', arm: 'Arm the trigger' }[action], 'POST', '/scope/run', {
-        body: { action },
-      }),
-    ) as Promise<ScopeStatus>,
-  capture: () => untyped(apiRequest('Load the captured window', 'GET', '/scope/capture')) as Promise<ScopeRecording>,
+    apiRequest({ start: 'Start the scope', stop: 'Stop the scope', arm: 'Arm the trigger' }[action], 'POST', '/scope/run', {
+      body: { action },
+    }),
+  capture: () => apiRequest('Load the captured window', 'GET', '/scope/capture'),
   export: (format: ScopeExportFormat, window: ScopeExportWindow) =>
     apiDownload(`Export the recording as ${format === 'csv' ? 'CSV' : 'MDF4'}`, '/scope/export', { query: { format, window } }),
   /** Send a recording file (CSV or MDF4) as it is; the answer is the recording to open. */
   import: (filename: string, bytes: ArrayBuffer) =>
     // multipart/form-data (field `file`, docs/security.md); the browser sets the type.
-    untyped(
-      apiRequest(`Import ${filename}`, 'POST', '/scope/import', { query: { filename }, body: fileForm(filename, bytes) }),
-    ) as Promise<ScopeRecording>,
-  recorder: (sid: string) =>
-    untyped(apiRequest('Read the drive-side recorder', 'GET', '/sessions/{sid}/recorder', { params: { sid } })) as Promise<RecorderInfo>,
+    apiRequest(`Import ${filename}`, 'POST', '/scope/import', { query: { filename }, body: fileForm(filename, bytes) }),
+  recorder: (sid: string) => apiRequest('Read the drive-side recorder', 'GET', '/sessions/{sid}/recorder', { params: { sid } }),
 };

@@ -6,9 +6,8 @@
  * Written here, and only where the UI knows more than the schema: `Always` for lists the
  * server always sends (a pydantic default_factory leaves them optional in the schema),
  * `ServerDefaults` for request fields the UI leaves to the server's default, narrower unions
- * the UI switches on, the request bodies the UI builds (the wrapper checks them against the
- * schema's), and the answers of routes that still return `dict[str, Any]` (PDO), until the
- * backend gives them response models (issue 51 item 1).
+ * the UI switches on, and the request bodies the UI builds (the wrapper checks them against
+ * the schema's).
  */
 import type { Always, ServerDefaults } from './http';
 import type { components, paths } from './schema';
@@ -256,93 +255,28 @@ export interface ViewerInfo {
 }
 
 // ---------------------------------------------------------------------------------------------
-// PDO mapping and cyclic process data (issue 6) — docs/pdo.md "REST". Appended by the PDO
-// mapping page; everything above belongs to the shared types.
+// PDO mapping and cyclic process data (issue 6) — docs/pdo.md "REST": the answers are the
+// schema's (api/schemas_pdo.py); the request bodies are the UI's (the wrapper checks them).
 // ---------------------------------------------------------------------------------------------
 
 /** rx: master -> drive (RPDO, setpoint telegram); tx: drive -> master (TPDO, actual values). */
-export type PdoDirection = 'rx' | 'tx';
+export type PdoDirection = S['PdoOut']['direction'];
 
 /** How a family maps process data (profile `pdo.kind`, docs/pdo.md "Families"). */
-export type PdoKind = 'canopen' | 'ethercat' | 'fixed' | 'telegram';
+export type PdoKind = S['PdoView']['kind'];
 
-export interface PdoRules {
-  max_entries: number;
-  max_bits: number;
-  /** Bytes per direction over all active PDOs (HIWIN 000 §2.2: 40), when the family has a limit. */
-  max_bytes: number | null;
-  /** "preop" or "fixed". */
-  mapping_state: string;
-  section: string | null;
-  rpdo_count: number;
-  tpdo_count: number;
-  /** The family's PROFIdrive telegrams (empty for the other kinds). */
-  telegrams?: PdoTelegramInfo[];
-}
+export type PdoRules = S['PdoRulesOut'];
 
 /** One telegram of the family (004 §20.3): a fixed one's layout cannot change. */
-export interface PdoTelegramInfo {
-  number: number;
-  name: string;
-  /** IO data per direction; a variable mapping must fill it exactly. */
-  bytes: number;
-  max_entries: number;
-  variable: boolean;
-}
+export type PdoTelegramInfo = S['PdoTelegramOut'];
 
-/** A reason a mapping is refused, shown next to the PDO / entry / field it names. */
-export interface PdoProblem {
-  message: string;
-  /** Pdo name ("TPDO2"), null for the whole mapping. */
-  pdo: string | null;
-  /** 0-based entry position in that PDO. */
-  entry: number | null;
-  /** "entries", "cob_id", "transmission_type", "assignment", "telegram", ... */
-  field: string | null;
-  section: string | null;
-}
+/** A reason a mapping is refused, shown next to the PDO / entry / field it names (also the
+ * `problems` of a refused mapping's 422). */
+export type PdoProblem = S['PdoProblemOut'];
 
-export interface PdoEntryOut {
-  index: number;
-  subindex: number;
-  bits: number;
-  raw_hex: string;
-  /** "0x6064:00"; null for padding. */
-  address: string | null;
-  name: string;
-  /** Type name ("INTEGER32"); the backend sends the CiA 306 number (4) today. */
-  data_type: string | number | null;
-  unit: string | null;
-  offset_bits: number;
-  offset_byte: number;
-  padding: boolean;
-}
+export type PdoEntryOut = S['PdoEntryOut'];
 
-export interface PdoOut {
-  direction: PdoDirection;
-  number: number;
-  name: string;
-  mapping_index: number;
-  /** Null: the family has no communication parameters (ethercat, fixed, telegram). */
-  comm_index: number | null;
-  cob_id: number | null;
-  cob_id_hex: string | null;
-  enabled: boolean | null;
-  rtr_allowed: boolean | null;
-  transmission_type: number | null;
-  transmission_text: string | null;
-  inhibit_time: number | null;
-  inhibit_time_ms: number | null;
-  event_timer: number | null;
-  sync_start: number | null;
-  /** On the bus: enabled (canopen), assigned (ethercat), always (fixed, telegram). */
-  active: boolean;
-  bits: number;
-  max_bits: number;
-  bytes: number;
-  frame_length: number;
-  entries: PdoEntryOut[];
-}
+export type PdoOut = S['PdoOut'];
 
 // A type literal, not an interface: it must fit the schema's `{ [key: string]: number[] }`.
 export type PdoAssignment = {
@@ -351,20 +285,7 @@ export type PdoAssignment = {
 };
 
 /** GET /pdo and the `view` of validate / templates / apply. */
-export interface PdoView {
-  kind: PdoKind;
-  /** "little" (CiA 301) or "big" (LECSN telegrams, 004 §20.1.2). */
-  byte_order: string;
-  rules: PdoRules;
-  pdos: PdoOut[];
-  assignment: PdoAssignment | null;
-  telegram: number | null;
-  nmt_state: string | null;
-  /** Why the session's link does not write the mapping (PROFINET: the IO controller's), or
-   * null. The layout can still be edited, checked and exported. */
-  apply_unavailable?: string | null;
-  problems: PdoProblem[];
-}
+export type PdoView = S['PdoView'];
 
 /** One mapping entry as the API takes it (index 0: LECSN Reserved padding). */
 export interface PdoLayoutEntry {
@@ -393,164 +314,42 @@ export interface PdoLayout {
   telegram?: number;
 }
 
-export interface MappableObject {
-  address: string;
-  index: number;
-  subindex: number;
-  name: string;
-  /** Type name ("INTEGER32"); the backend sends the CiA 306 number (4) today. */
-  data_type: string | number;
-  bits: number;
-  unit: string | null;
-  direction: PdoDirection | 'both';
-}
+export type MappableObject = S['MappableObject'];
 
-export interface PdoMappable {
-  rx: MappableObject[];
-  tx: MappableObject[];
-}
+export type PdoMappable = S['PdoMappable'];
 
-export interface PdoTemplate {
-  id: string;
-  name: string;
-  description: string | null;
-  section: string | null;
-}
+export type PdoTemplate = S['PdoTemplateOut'];
 
-export interface PdoValidation {
-  ok: boolean;
-  problems: PdoProblem[];
-  view: PdoView;
-}
+export type PdoValidation = S['PdoValidation'];
 
-export interface PdoStep {
-  kind: 'write' | 'nmt';
-  address: string | null;
-  value: number;
-  value_hex: string | null;
-  /** nmt: "preop" | "start" | "stop". */
-  command: string | null;
-  why: string;
-}
+export type PdoStep = S['PdoStepOut'];
 
-export interface PdoPlan {
-  steps: PdoStep[];
-  touched: string[];
-}
+export type PdoPlan = S['PdoPlan'];
 
 /** The UI's body of apply (the wrapper checks it against the schema's ApplyRequest). */
 export interface PdoApplyRequest extends PdoLayout {
   dry_run: boolean;
 }
 
-export interface PdoApplyReport {
-  ok: boolean;
-  dry_run: boolean;
-  steps: PdoStep[];
-  /** Steps done before the end (all of them when ok). */
-  done: number;
-  duration_s: number;
-  verified: boolean;
-  rolled_back: boolean;
-  error: string | null;
-  failed_step: PdoStep | null;
-  /** The drive after the run; null when it could not be read (link lost). */
-  view: PdoView | null;
-  /** Backend addition: names of the PDOs the plan changed. */
-  touched?: string[];
-  /** Backend addition: why the previous mapping could not be put back. */
-  rollback_error?: string | null;
-}
+export type PdoApplyReport = S['PdoApplyReport'];
 
-export interface PdoRate {
-  name: string;
-  cob_id: number | null;
-  /** Backend addition. */
-  cob_id_hex?: string;
-  count: number;
-  /** Null for RX PDOs (the session sends them with each SYNC). */
-  rate_hz: number | null;
-  /** Backend addition: frames that could not be decoded. */
-  errors?: number;
-  /** Why this TPDO sends nothing now and what makes it send (issue 48); null: it sends. */
-  idle?: PdoIdle | null;
-}
+export type PdoRate = S['PdoRate'];
 
 /** One change that makes a silent event-driven TPDO send: a PDO change (needs control). */
-export interface PdoIdleFix {
-  label: string;
-  /** The new transmission type, or null to keep it. */
-  transmission_type: number | null;
-  /** The new event timer [ms], or null to keep it. */
-  event_timer: number | null;
-}
+export type PdoIdleFix = S['PdoIdleFix'];
 
-export interface PdoIdle {
-  why: string;
-  fixes: PdoIdleFix[];
-}
+export type PdoIdle = S['PdoIdle'];
 
-/** One mapped object's latest value from the cyclic data. */
-export interface PdoLiveValue {
-  /** The value as the frame carries it (integer counts); the backend sends `value` only. */
-  raw?: number | string | boolean | null;
-  value: number | string | boolean | null;
-  engineering: number | null;
-  /** Engineering unit. */
-  unit: string | null;
-  /** Name of the PDO that carried it. */
-  pdo: string | null;
-  /** Raw unit, when the server sends it (else the profile's). */
-  raw_unit?: string | null;
-  /** Backend addition: seconds since the frame that carried it. */
-  age_s?: number | null;
-  /** True while the link cannot vouch for it (EtherCAT: no valid working counter for some
-   * cycles, or the link lost): the UI greys it (docs/ethercat.md "Link loss"). */
-  stale?: boolean;
-}
+/** One mapped object's latest value from the cyclic data (also in the WebSocket's `pdo`
+ * messages: services/cyclic.py values_view). */
+export type PdoLiveValue = S['PdoLiveValue'];
 
 /** What the cycles say about an EtherCAT line (null on CAN). */
-export interface PdoLinkHealth {
-  state: 'ok' | 'degraded' | 'link lost' | 'recovering';
-  reason: string | null;
-  stale: boolean;
-  cycles: number;
-  wkc_errors: number;
-  missing_frames: number;
-  last_wkc: number | null;
-  expected_wkc: number;
-  carrier: boolean | null;
-  losses: number;
-  since_good_s: number | null;
-  slaves: { position: number; node_id: number; wkc_errors: number; missing_frames: number; al_state: string | null; al_status_code: number }[];
-}
+export type PdoLinkHealth = S['PdoLinkHealth'];
 
-export interface PdoCyclicStatus {
-  running: boolean;
-  sync_period_ms: number | null;
-  /** How the drive synchronises to the exchange while it runs (null when stopped). */
-  sync?: 'freerun' | 'dc' | null;
-  outputs: boolean;
-  rx_pdos: PdoRate[];
-  tx_pdos: PdoRate[];
-  frames_per_s: number;
-  decode_errors: number;
-  values: Record<string, PdoLiveValue>;
-  /** EtherCAT: the line's health (link lost, working counter errors); null elsewhere. */
-  link?: PdoLinkHealth | null;
-  /** The received values are not the drive's present ones (see PdoLiveValue.stale). */
-  stale?: boolean;
-  /** Backend addition: SYNCs sent. */
-  syncs?: number;
-  /** Why the session's link carries no cyclic data (a CC-Link IE TSN station over SLMP
-   * exchanges it with its manager only); null or absent when it does. */
-  unavailable?: string | null;
-  /** The synchronisations the session offers: "freerun", and "dc" on an EtherCAT drive whose
-   * profile names its SYNC0 cycles. */
-  sync_modes?: ('freerun' | 'dc')[];
-  /** The SYNC0 cycles the drive takes: [min, max, step] in ns (null without DC). */
-  dc_cycle_ns?: number[] | null;
-}
+/** GET/POST/DELETE /pdo/cyclic and PUT /pdo/cyclic/outputs: keys with `?` are in some
+ * answers only (api/schemas_pdo.py). */
+export type PdoCyclicStatus = S['PdoCyclicStatus'];
 
 export type PdoCyclicRequest = S['PdoCyclicRequest'];
 

@@ -11,6 +11,7 @@ import type { DriveState, ErrorInfo, Identity, SessionInfo, StateCommand } from 
 import { api } from '../api/client';
 import { ControlNote, useWriteGate } from '../components/ControlNote';
 import { LivePlot } from '../components/LivePlot';
+import { ReportCard } from '../components/ReportCard';
 import { StateDiagram } from '../components/StateDiagram';
 import { StatePill } from '../components/StatePill';
 import { StatuswordTable } from '../components/StatuswordTable';
@@ -357,6 +358,7 @@ export function OverviewPage({ sid }: PageProps) {
       <div className="overview-grid">
         <div className="stack">
           {session && <IdentityCard session={session} />}
+          {session && <ReportCard sid={sid} />}
           <section className="card" data-testid="live">
             <h2>
               Live values

@@ -7,16 +7,12 @@
  * subscribed to the one session. Once ws/messages.ts knows `progress`, this can become
  * `socket.on('progress', ...)` with no change to its callers.
  */
+import type { components } from '../api/schema';
 import { defaultSocketUrl } from './socket';
 import { WS_SUBPROTOCOL } from './messages';
 
-export interface ProgressMessage {
-  type: 'progress';
-  session: string;
-  operation: string;
-  fraction: number;
-  message: string | null;
-}
+/** The `progress` message, generated from the backend's (api/ws_messages.py). */
+export type ProgressMessage = components['schemas']['ProgressMessage'];
 
 export function parseProgress(text: string): ProgressMessage | null {
   let data: unknown;

@@ -21,7 +21,9 @@ describe('backoffDelay', () => {
 describe('parseServerMessage', () => {
   it('keeps known messages and drops the rest', () => {
     expect(parseServerMessage('{"type":"hello","version":"0.1.0","protocol":1}')?.type).toBe('hello');
-    expect(parseServerMessage('{"type":"pong"}')).toBeNull();
+    expect(parseServerMessage('{"type":"pong","time":1}')?.type).toBe('pong');
+    expect(parseServerMessage('{"type":"surprise"}')).toBeNull();
+    expect(parseServerMessage('{"type":"toString"}')).toBeNull();
     expect(parseServerMessage('not json')).toBeNull();
     expect(parseServerMessage('[1,2]')).toBeNull();
   });

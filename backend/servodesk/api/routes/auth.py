@@ -17,7 +17,7 @@ from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field
 
 from servodesk.api.auth import Auth, auth_of, cookie_header
-from servodesk.api.identity import identity_of
+from servodesk.api.identity import caller_of
 from servodesk.api.schemas import ERROR_RESPONSES, ErrorOut
 from servodesk.api.state import state_of
 from servodesk.domain.roles import Role, rights_of
@@ -112,7 +112,7 @@ def _audit(
 
 
 def _me(request: Request, auth: Auth) -> MeOut:
-    who = identity_of(request)
+    who = caller_of(request)
     return MeOut(
         user=who.user,
         role=who.role,
@@ -177,7 +177,7 @@ def _locked(exc: LockedOut) -> JSONResponse:
 async def logout(request: Request) -> Response:
     """End this login session (its WebSockets close) and clear the cookie."""
     auth = auth_of(request)
-    who = identity_of(request)
+    who = caller_of(request)
     if who.session is not None:
         with contextlib.suppress(Exception):
             auth.logins.end(who.session, "logged out")
@@ -228,18 +228,18 @@ async def update_user(name: UserName, body: UserPatch, request: Request) -> User
         event = "user.disabled" if body.disabled else "user.enabled"
         _audit(request, event, details={"account": name})
         if body.disabled:
-            auth.logins.end_user(name, f"account disabled by {identity_of(request).user!r}")
+            auth.logins.end_user(name, f"account disabled by {caller_of(request).user!r}")
     return _user_out(auth.users.require(name))
 
 
 @router.delete("/users/{name}", status_code=204, operation_id="delete_user")
 async def delete_user(name: UserName, request: Request) -> Response:
     auth = auth_of(request)
-    if name == identity_of(request).user:
+    if name == caller_of(request).user:
         raise ConflictError("you cannot remove your own account", hint="another administrator can")
     auth.users.remove(name)
     _audit(request, "user.removed", details={"account": name})
-    auth.logins.end_user(name, f"account removed by {identity_of(request).user!r}")
+    auth.logins.end_user(name, f"account removed by {caller_of(request).user!r}")
     return Response(status_code=204)
 
 
@@ -257,7 +257,7 @@ async def end_login_session(
 ) -> Response:
     """End a login session now: its WebSockets close, so the drives it was the dead-man of
     stop (services/control.py) and its control lapses."""
-    auth_of(request).logins.end(session_id, f"ended by {identity_of(request).user!r}")
+    auth_of(request).logins.end(session_id, f"ended by {caller_of(request).user!r}")
     return Response(status_code=204)
 
 
@@ -265,7 +265,7 @@ async def end_login_session(
 
 
 def _token_owner(request: Request) -> str:
-    who = identity_of(request)
+    who = caller_of(request)
     if auth_of(request).users.get(who.user) is None:
         raise ConflictError(
             "API tokens belong to accounts; the single-user mode has none",

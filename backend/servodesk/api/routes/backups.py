@@ -11,7 +11,7 @@ from servodesk.api import backup_documents
 from servodesk.api.control_deps import ControlToken, WriteControl, operation
 from servodesk.api.deps import AppState, StateDep
 from servodesk.api.downloads import content_disposition
-from servodesk.api.identity import identity_of
+from servodesk.api.identity import caller_of
 from servodesk.api.offload import file_answer, in_process, in_worker, json_response
 from servodesk.api.schemas import (
     ERROR_RESPONSES,
@@ -242,7 +242,7 @@ async def resume_restore(
     session = _session_for(state, rec)
     # Writes need control of the drive, as every other write route (control_deps).
     holder = operation(request.app).control.check(
-        session.id, token, "resuming the restore", identity_of(request).user
+        session.id, token, "resuming the restore", caller_of(request).user
     )
     rep = await state.restores.resume(rid, session, client=holder)
     state.audit.record(

@@ -12,7 +12,7 @@ from typing import Annotated
 from fastapi import APIRouter, Query, Request
 
 from servodesk.api.deps import StateDep
-from servodesk.api.identity import identity_of
+from servodesk.api.identity import caller_of
 from servodesk.api.schemas import ERROR_RESPONSES
 from servodesk.api.schemas_fleet import (
     PRINTABLE,
@@ -75,7 +75,7 @@ def approve_backup(body: ApproveRequest, request: Request, state: StateDep) -> F
     """Make a backup the drive's approved ("golden") one: who and when are recorded, the
     reason is required. Drift checks compare the drive with it from now on."""
     backup = state.backups.info(body.backup)
-    who = identity_of(request)
+    who = caller_of(request)
     drive = FleetDrive.model_validate(
         state.fleet.approve(body.drive, backup, by=who.user, reason=body.reason)
     )

@@ -17,7 +17,7 @@ from servodesk.api.control_deps import (
     OperationDep,
     RequiredClientId,
 )
-from servodesk.api.identity import identity_of
+from servodesk.api.identity import caller_of
 from servodesk.api.rights import demand
 from servodesk.api.schemas import (
     ERROR_RESPONSES,
@@ -64,7 +64,7 @@ async def set_control(
     another user is refused (409 naming the holder); only an administrator (the
     ``force_control`` right) may force-take it from another user."""
     op.motion.manager.get(sid)
-    who = identity_of(request)
+    who = caller_of(request)
     if body.action == "take":
         token = op.control.take(sid, client, token, who.user)
     elif body.action == "release":

@@ -17,6 +17,15 @@ from servodesk.api.control_deps import EnergiseControl, WriteControl, require_en
 from servodesk.api.deps import StateDep
 from servodesk.api.downloads import content_disposition
 from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.api.schemas_pdo import (
+    PdoApplyReport,
+    PdoCyclicStatus,
+    PdoMappable,
+    PdoPlan,
+    PdoTemplateOut,
+    PdoValidation,
+    PdoView,
+)
 from servodesk.domain import pdo as pdomod
 from servodesk.services import pdo as pdosvc
 from servodesk.services.control import CONTROL_HEADER
@@ -81,40 +90,45 @@ def _body(layout: PdoLayout) -> dict[str, Any]:
 
 
 @router.get("/sessions/{sid}/pdo", operation_id="pdo_view")
-async def pdo_view(sid: str, state: StateDep) -> dict[str, Any]:
-    return await pdosvc.view(state.manager.get(sid))
+async def pdo_view(sid: str, state: StateDep) -> PdoView:
+    return PdoView.model_validate(await pdosvc.view(state.manager.get(sid)))
 
 
 @router.get("/sessions/{sid}/pdo/mappable", operation_id="pdo_mappable")
-async def pdo_mappable(sid: str, state: StateDep) -> dict[str, list[dict[str, Any]]]:
-    return pdosvc.mappable(state.manager.get(sid))
+async def pdo_mappable(sid: str, state: StateDep) -> PdoMappable:
+    return PdoMappable.model_validate(pdosvc.mappable(state.manager.get(sid)))
 
 
 @router.get("/sessions/{sid}/pdo/templates", operation_id="pdo_templates")
-async def pdo_templates(sid: str, state: StateDep) -> list[dict[str, Any]]:
-    return pdosvc.templates(state.manager.get(sid))
+async def pdo_templates(sid: str, state: StateDep) -> list[PdoTemplateOut]:
+    return [PdoTemplateOut.model_validate(t) for t in pdosvc.templates(state.manager.get(sid))]
 
 
 @router.post("/sessions/{sid}/pdo/templates/{template_id}", operation_id="pdo_from_template")
-async def pdo_from_template(sid: str, template_id: str, state: StateDep) -> dict[str, Any]:
-    return await pdosvc.from_template(state.manager.get(sid), template_id)
+async def pdo_from_template(sid: str, template_id: str, state: StateDep) -> PdoView:
+    return PdoView.model_validate(await pdosvc.from_template(state.manager.get(sid), template_id))
 
 
 @router.post("/sessions/{sid}/pdo/validate", operation_id="pdo_validate")
-async def pdo_validate(sid: str, body: PdoLayout, state: StateDep) -> dict[str, Any]:
-    return await pdosvc.check(state.manager.get(sid), _body(body))
+async def pdo_validate(sid: str, body: PdoLayout, state: StateDep) -> PdoValidation:
+    return PdoValidation.model_validate(await pdosvc.check(state.manager.get(sid), _body(body)))
 
 
 @router.post("/sessions/{sid}/pdo/plan", operation_id="pdo_plan")
-async def pdo_plan(sid: str, body: PdoLayout, state: StateDep) -> dict[str, Any]:
+async def pdo_plan(sid: str, body: PdoLayout, state: StateDep) -> PdoPlan:
     plan = await pdosvc.make_plan(state.manager.get(sid), _body(body))
-    return {"steps": [pdosvc.step_dict(s) for s in plan.steps], "touched": list(plan.touched)}
+    return PdoPlan.model_validate(
+        {"steps": [pdosvc.step_dict(s) for s in plan.steps], "touched": list(plan.touched)}
+    )
 
 
-@router.post("/sessions/{sid}/pdo/apply", operation_id="pdo_apply")
+# rollback_error is in a failed apply's report only (api/reply.py).
+@router.post(
+    "/sessions/{sid}/pdo/apply", operation_id="pdo_apply", response_model_exclude_unset=True
+)
 async def pdo_apply(
     sid: str, body: ApplyRequest, state: StateDep, client: WriteControl
-) -> dict[str, Any]:
+) -> PdoApplyReport:
     out = await pdosvc.apply(
         state.manager.get(sid), _body(body), dry_run=body.dry_run, client=client
     )
@@ -124,7 +138,7 @@ async def pdo_apply(
             drive=sid,
             details={"client": client, "steps": len(out.get("steps", []))},
         )
-    return out
+    return PdoApplyReport.model_validate(out)
 
 
 _MEDIA = {
@@ -166,15 +180,22 @@ async def pdo_export(
     )
 
 
-@router.get("/sessions/{sid}/pdo/cyclic", operation_id="pdo_cyclic_status")
-async def pdo_cyclic_status(sid: str, state: StateDep) -> dict[str, Any]:
-    return pdosvc.cyclic_status(state.manager.get(sid))
+# The cyclic status has keys only some answers send (PdoCyclicStatus, api/reply.py).
+@router.get(
+    "/sessions/{sid}/pdo/cyclic",
+    operation_id="pdo_cyclic_status",
+    response_model_exclude_unset=True,
+)
+async def pdo_cyclic_status(sid: str, state: StateDep) -> PdoCyclicStatus:
+    return PdoCyclicStatus.model_validate(pdosvc.cyclic_status(state.manager.get(sid)))
 
 
-@router.post("/sessions/{sid}/pdo/cyclic", operation_id="pdo_cyclic_start")
+@router.post(
+    "/sessions/{sid}/pdo/cyclic", operation_id="pdo_cyclic_start", response_model_exclude_unset=True
+)
 async def pdo_cyclic_start(
     sid: str, body: PdoCyclicRequest, request: Request, state: StateDep, client: WriteControl
-) -> dict[str, Any]:
+) -> PdoCyclicStatus:
     if body.outputs:
         # servodesk then produces the RPDOs: the controlword among them (control_deps).
         await require_energise(
@@ -188,18 +209,24 @@ async def pdo_cyclic_start(
     )
     facts = {"sync_period_ms": body.sync_period_ms, "outputs": body.outputs, "sync": body.sync}
     state.audit.record("write.cyclic_started", drive=sid, details=facts)
-    return out
+    return PdoCyclicStatus.model_validate(out)
 
 
-@router.delete("/sessions/{sid}/pdo/cyclic", operation_id="pdo_cyclic_stop")
-async def pdo_cyclic_stop(sid: str, state: StateDep, client: WriteControl) -> dict[str, Any]:
+@router.delete(
+    "/sessions/{sid}/pdo/cyclic", operation_id="pdo_cyclic_stop", response_model_exclude_unset=True
+)
+async def pdo_cyclic_stop(sid: str, state: StateDep, client: WriteControl) -> PdoCyclicStatus:
     out = await pdosvc.stop_cyclic(state.manager.get(sid))
     state.audit.record("write.cyclic_stopped", drive=sid)
-    return out
+    return PdoCyclicStatus.model_validate(out)
 
 
-@router.put("/sessions/{sid}/pdo/cyclic/outputs", operation_id="pdo_cyclic_outputs")
+@router.put(
+    "/sessions/{sid}/pdo/cyclic/outputs",
+    operation_id="pdo_cyclic_outputs",
+    response_model_exclude_unset=True,
+)
 async def pdo_cyclic_outputs(
     sid: str, body: OutputsRequest, state: StateDep, client: EnergiseControl
-) -> dict[str, Any]:
-    return pdosvc.set_outputs(state.manager.get(sid), body.values)
+) -> PdoCyclicStatus:
+    return PdoCyclicStatus.model_validate(pdosvc.set_outputs(state.manager.get(sid), body.values))

@@ -19,6 +19,7 @@ from servodesk.api.deps import StateDep
 from servodesk.api.downloads import content_disposition
 from servodesk.api.offload import in_process
 from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.api.schemas_scope import RecorderInfo, ScopeRecording, ScopeStatus
 from servodesk.api.state import state_of
 from servodesk.api.uploads import openapi_file_body, read_file
 from servodesk.domain import scope as core
@@ -79,33 +80,36 @@ class RunIn(BaseModel):
 
 
 @router.get("/scope", operation_id="scope_status")
-async def scope_status(request: Request) -> dict[str, Any]:
-    return scope_of(request.app).status()
+async def scope_status(request: Request) -> ScopeStatus:
+    return ScopeStatus.model_validate(scope_of(request.app).status())
 
 
 @router.put("/scope/channels", operation_id="scope_set_channels")
-async def scope_set_channels(body: ChannelsIn, request: Request, state: StateDep) -> dict[str, Any]:
+async def scope_set_channels(body: ChannelsIn, request: Request, state: StateDep) -> ScopeStatus:
     # The sessions first: a channel of a session that does not exist is a 404 naming it,
     # whatever else is wrong with the request.
     for c in body.channels:
         state.manager.get(c.session)
     configs = [scopesvc.parse_channel(c.model_dump()) for c in body.channels]
-    return await scope_of(request.app).set_channels(configs)
+    return ScopeStatus.model_validate(await scope_of(request.app).set_channels(configs))
 
 
 @router.put("/scope/trigger", operation_id="scope_set_trigger")
-async def scope_set_trigger(body: TriggerIn, request: Request) -> dict[str, Any]:
-    return await scope_of(request.app).set_trigger(core.Trigger(**body.model_dump()))
+async def scope_set_trigger(body: TriggerIn, request: Request) -> ScopeStatus:
+    trigger = core.Trigger(**body.model_dump())
+    return ScopeStatus.model_validate(await scope_of(request.app).set_trigger(trigger))
 
 
 @router.post("/scope/run", operation_id="scope_run")
-async def scope_run(body: RunIn, request: Request) -> dict[str, Any]:
-    return await scope_of(request.app).run(body.action)
+async def scope_run(body: RunIn, request: Request) -> ScopeStatus:
+    return ScopeStatus.model_validate(await scope_of(request.app).run(body.action))
 
 
-@router.get("/scope/capture", operation_id="scope_capture")
-async def scope_capture(request: Request) -> dict[str, Any]:
-    return scope_of(request.app).capture()
+# A capture's channels carry the display settings only when still configured, and the window
+# only when the trigger gave one (ScopeRecording, api/reply.py).
+@router.get("/scope/capture", operation_id="scope_capture", response_model_exclude_unset=True)
+async def scope_capture(request: Request) -> ScopeRecording:
+    return ScopeRecording.model_validate(scope_of(request.app).capture())
 
 
 @router.get("/scope/export", operation_id="scope_export", response_class=Response)
@@ -127,7 +131,8 @@ async def scope_export(
     "/scope/import",
     operation_id="scope_import",
     openapi_extra=openapi_file_body(),
-    response_model=dict[str, Any],
+    # Documentation only: the answer is the worker's JSON bytes, as they are.
+    response_model=ScopeRecording,
 )
 async def scope_import(
     request: Request,
@@ -141,6 +146,9 @@ async def scope_import(
     return Response(data, media_type="application/json")
 
 
-@router.get("/sessions/{sid}/recorder", operation_id="scope_recorder")
-async def scope_recorder(sid: str, state: StateDep) -> dict[str, Any]:
-    return scopesvc.recorder_info(state.manager.get(sid))
+# section: a present recorder's only (RecorderInfo).
+@router.get(
+    "/sessions/{sid}/recorder", operation_id="scope_recorder", response_model_exclude_unset=True
+)
+async def scope_recorder(sid: str, state: StateDep) -> RecorderInfo:
+    return RecorderInfo.model_validate(scopesvc.recorder_info(state.manager.get(sid)))

@@ -24,7 +24,7 @@ from fastapi import APIRouter, Request
 from pydantic import BaseModel, Field
 
 from servodesk.api.control_deps import ClientId, OperationDep
-from servodesk.api.identity import identity_of
+from servodesk.api.identity import caller_of
 from servodesk.api.schemas import ERROR_RESPONSES, MotionStatusOut
 from servodesk.errors import ServodeskError
 
@@ -73,7 +73,7 @@ def _late(task: asyncio.Task[dict[str, Any]]) -> None:
 async def stop_all(request: Request, op: OperationDep, client: ClientId) -> StopAllOut:
     """Quick stop every axis the caller's account holds control of, all at once: never
     refused, no control token needed. Per session: stopped, failed (why) or pending."""
-    who = identity_of(request)
+    who = caller_of(request)
     label = f"stop all from {client or 'unknown'}"
     sids = [s.id for s in op.motion.manager.all() if op.control.holder_user(s.id) == who.user]
     tasks = {sid: asyncio.create_task(op.motion.stop(sid, label)) for sid in sids}

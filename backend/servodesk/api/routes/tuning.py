@@ -16,6 +16,13 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from servodesk.api.control_deps import ClientId, MotionControl, WriteControl
 from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.api.schemas_tuning import (
+    TuningInfo,
+    TuningJob,
+    TuningResult,
+    TuningStored,
+    UndoResult,
+)
 from servodesk.api.state import state_of
 from servodesk.services.tuning.capabilities import (
     MAX_MOVE_TORQUE_PCT,
@@ -76,18 +83,25 @@ def _svc(request: Request) -> TuningService:
     return tuning_of(request.app)
 
 
-@router.get("/sessions/{sid}/tuning", operation_id="tuning_info")
-async def tuning_info(sid: str, request: Request) -> dict[str, Any]:
+# A job's bound and its error have keys some producers send only (api/schemas_tuning.py):
+# every route answers the keys the service gave, no more.
+@router.get("/sessions/{sid}/tuning", operation_id="tuning_info", response_model_exclude_unset=True)
+async def tuning_info(sid: str, request: Request) -> TuningInfo:
     """``TuningInfo``: kind (builtin / gains / none), reason, modes, gains, inputs, job."""
-    return await _svc(request).info(sid)
+    return TuningInfo.model_validate(await _svc(request).info(sid))
 
 
-@router.post("/sessions/{sid}/tuning/start", operation_id="tuning_start", status_code=202)
+@router.post(
+    "/sessions/{sid}/tuning/start",
+    operation_id="tuning_start",
+    status_code=202,
+    response_model_exclude_unset=True,
+)
 async def tuning_start(
     sid: str, body: StartRequest, request: Request, client: MotionControl
-) -> dict[str, Any]:
+) -> TuningJob:
     """Start a tuning job (moves the axis under the client's dead-man); 202 + the job."""
-    return await _svc(request).start(
+    job = await _svc(request).start(
         sid,
         client,
         mode=body.mode,
@@ -95,33 +109,40 @@ async def tuning_start(
         torque_limit_pct=body.torque_limit_pct,
         move_torque_pct=body.move_torque_pct,
     )
+    return TuningJob.model_validate(job)
 
 
-@router.post("/sessions/{sid}/tuning/stop", operation_id="tuning_stop")
+@router.post(
+    "/sessions/{sid}/tuning/stop", operation_id="tuning_stop", response_model_exclude_unset=True
+)
 async def tuning_stop(
     sid: str, request: Request, client: ClientId, body: EmptyBody | None = None
-) -> dict[str, Any]:
+) -> TuningJob:
     """Stop the job: never refused, from any client. The gains from before are put back."""
-    return await _svc(request).stop(sid, client)
+    return TuningJob.model_validate(await _svc(request).stop(sid, client))
 
 
-@router.get("/sessions/{sid}/tuning/result", operation_id="tuning_result")
-async def tuning_result(sid: str, request: Request) -> dict[str, Any]:
+@router.get(
+    "/sessions/{sid}/tuning/result",
+    operation_id="tuning_result",
+    response_model_exclude_unset=True,
+)
+async def tuning_result(sid: str, request: Request) -> TuningResult:
     """The last job's ``TuningResult``; 404 when there is none."""
-    return _svc(request).result(sid)
+    return TuningResult.model_validate(_svc(request).result(sid))
 
 
 @router.post("/sessions/{sid}/tuning/undo", operation_id="tuning_undo")
 async def tuning_undo(
     sid: str, body: UndoRequest, request: Request, client: WriteControl
-) -> dict[str, Any]:
+) -> UndoResult:
     """Gains back to before the last run or to the defaults (builtin: P11603)."""
-    return await _svc(request).undo(sid, client, body.to)
+    return UndoResult.model_validate(await _svc(request).undo(sid, client, body.to))
 
 
 @router.post("/sessions/{sid}/tuning/store", operation_id="tuning_store")
 async def tuning_store(
     sid: str, request: Request, client: WriteControl, body: EmptyBody | None = None
-) -> dict[str, Any]:
+) -> TuningStored:
     """Store the parameters to non-volatile memory (only on this explicit call)."""
-    return await _svc(request).store(sid, client)
+    return TuningStored.model_validate(await _svc(request).store(sid, client))

@@ -88,7 +88,8 @@ from servodesk.domain.tuning.model import (
 
 FloatArray = npt.NDArray[np.float64]
 ComplexArray = npt.NDArray[np.complex128]
-Response = Literal["low", "basic", "high"]
+#: The response levels a tuning offers (docs/tuning.md): how far the gains go, :data:`LEVELS`.
+ResponseLevel = Literal["low", "basic", "high"]
 
 TWO_PI = 2.0 * math.pi
 
@@ -498,7 +499,7 @@ def _stable_everywhere(
 def design_gains(
     plant: PlantModel,
     rate_hz: float,
-    response: Response | str | float = "high",
+    response: ResponseLevel | str | float = "high",
     pm_min: float = 45.0,
     gm_min_db: float = 8.0,
     ms_max_db: float = 6.0,

@@ -24,7 +24,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy import optimize, signal  # type: ignore[import-untyped]
 
-from servodesk.domain.tuning.model import Mode, PlantModel
+from servodesk.domain.tuning.model import PlantModel, VibrationMode
 
 FloatArray = npt.NDArray[np.float64]
 ComplexArray = npt.NDArray[np.complex128]
@@ -913,7 +913,7 @@ def plant_from_identification(
             current_loop_hz,
         )
         jm_base = jm
-    modes: list[Mode] = []
+    modes: list[VibrationMode] = []
     for r in resonances:
         if r is main:
             continue
@@ -924,7 +924,7 @@ def plant_from_identification(
         g_peak = 10.0 ** (r.peak_db / 20.0) / (inertia * wr)
         g_base = 1.0 / (j_here * wr)
         excess = math.sqrt(max(g_peak**2 - g_base**2, (0.5 * g_base) ** 2))
-        modes.append(Mode(r.freq_hz, zeta, 2.0 * zeta * wr * excess))
+        modes.append(VibrationMode(r.freq_hz, zeta, 2.0 * zeta * wr * excess))
     if modes:
         return PlantModel(
             base.motor_inertia,

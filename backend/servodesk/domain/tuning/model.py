@@ -59,8 +59,8 @@ __all__ = [
     "Biquad",
     "LoopModel",
     "Margins",
-    "Mode",
     "PlantModel",
+    "VibrationMode",
     "biquad_response",
     "frequency_grid",
     "lowpass_coefficients",
@@ -80,7 +80,7 @@ TWO_PI = 2.0 * math.pi
 
 
 @dataclass(frozen=True, slots=True)
-class Mode:
+class VibrationMode:
     """An extra motor-side vibration mode in modal form: ``gain * s / (s^2 + 2 z w s + w^2)``.
 
     Added to the motor velocity / torque response of the main model (a second resonance, e.g. the
@@ -113,7 +113,7 @@ class PlantModel:
     damping: float = 0.03
     viscous: float = 0.0
     current_loop_hz: float | None = 2000.0
-    extra_modes: tuple[Mode, ...] = ()
+    extra_modes: tuple[VibrationMode, ...] = ()
     load_viscous: float = 0.0
 
     def __post_init__(self) -> None:
@@ -171,7 +171,8 @@ class PlantModel:
         kept by the inertias).
         """
         modes = tuple(
-            Mode(m.freq_hz * resonance, m.damping, m.gain / inertia) for m in self.extra_modes
+            VibrationMode(m.freq_hz * resonance, m.damping, m.gain / inertia)
+            for m in self.extra_modes
         )
         return PlantModel(
             motor_inertia=self.motor_inertia,

@@ -12,7 +12,7 @@ from __future__ import annotations
 import contextlib
 import math
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.cia402 import POSITION, PROFILE_VELOCITY
@@ -21,9 +21,12 @@ from servodesk.domain.profile import DeviceProfile, ObjectSpec
 from servodesk.errors import ServodeskError
 from servodesk.services.session import Session, error_info
 
+if TYPE_CHECKING:
+    # Only the type: the design pulls in numpy, and the API and CLI import this module early.
+    from servodesk.domain.tuning.design import ResponseLevel
+
 Kind = Literal["builtin", "gains", "none"]
-ModeName = Literal["low", "basic", "high"]
-MODES: tuple[ModeName, ...] = ("low", "basic", "high")
+MODES: tuple[ResponseLevel, ...] = ("low", "basic", "high")
 #: P11600 values of the response modes (004 §20.9.3.5(27)).
 BUILTIN_MODE: dict[str, int] = {"basic": 1, "high": 2, "low": 3}
 #: P11602: the stop command (004 §20.9.3.5(29)).

@@ -49,7 +49,7 @@ import logging
 import math
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, replace
-from typing import Any, Literal, NamedTuple, TypeVar
+from typing import Any, NamedTuple, TypeVar
 
 import numpy as np
 from scipy.signal import lfilter  # type: ignore[import-untyped]
@@ -83,6 +83,7 @@ from servodesk.domain.cia402 import (
 )
 from servodesk.domain.datatypes import Value
 from servodesk.domain.profile import TuningSpec
+from servodesk.domain.tuning.design import ResponseLevel
 from servodesk.domain.tuning.gains import ServoGains
 from servodesk.domain.tuning.identify import (
     Frf,
@@ -149,9 +150,6 @@ SIG_KIND, SIG_AMPLITUDE, SIG_F0, SIG_F1, SIG_DURATION, SIG_CONTROL, SIG_TORQUE, 
     1, 9
 )
 SIG_PRBS = 2
-
-#: Response levels the page offers.
-Mode = Literal["low", "basic", "high"]
 
 #: Chirp: from this frequency, for this long, at this share of the tuning torque limit.
 CHIRP_F0_HZ = 10.0
@@ -287,7 +285,7 @@ LIGHT_DAMPING_FACTOR = 0.25
 
 @dataclass(frozen=True, slots=True)
 class OwnTuningRequest:
-    mode: Mode
+    mode: ResponseLevel
     #: The travel window's total width [rev], centred on where the axis stands: the axis stays
     #: within +- half of it (domain/tuning/travel.py).
     travel_window_rev: float

@@ -77,9 +77,8 @@ function LiveCell({ live, address, rawUnit, testid }: { live: Observable<PdoLive
   // Greyed when the server says the link cannot vouch for it (EtherCAT link lost), or
   // when no update came for 2 s.
   const stale = v.stale === true || (l.received !== null && Date.now() - l.received > 2000);
-  const rawText = v.raw ?? v.value;
   return (
-    <span className={`pdo-live${stale ? ' stale' : ''}`} data-testid={testid} data-raw={rawText === null ? '' : String(rawText)}>
+    <span className={`pdo-live${stale ? ' stale' : ''}`} data-testid={testid} data-raw={String(v.value)}>
       <span className="mono" title="raw value, as the frame carries it">
         {t.raw}
       </span>

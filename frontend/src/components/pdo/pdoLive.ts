@@ -3,25 +3,21 @@
  * "WebSocket": the latest values keyed by address, and the rate of each PDO, at up to 20 Hz
  * while cyclic data runs).
  *
- * The shared socket (ws/socket.ts) drops message types it does not know, and `pdo` is not
- * among them, so the PDO page keeps a socket of its own while it is open, subscribed to the
- * one session and reconnecting like the shared one. It connects without the tab's client id:
+ * The PDO page keeps a socket of its own while it is open (the shared one, ws/socket.ts,
+ * follows the sessions other pages subscribe to), subscribed to the one session and
+ * reconnecting like the shared one. It connects without the tab's client id:
  * the server ties control and the dead-man to that id, and this socket closing must not look
  * like the control owner leaving.
  */
+import type { components } from '../../api/schema';
 import type { PdoLiveValue } from '../../api/types';
 import { Observable } from '../../state/observable';
 import { WS_SUBPROTOCOL } from '../../ws/messages';
 import { progressSocketUrl } from '../../ws/progress';
 import { backoffDelay } from '../../ws/socket';
 
-export interface PdoMessage {
-  type: 'pdo';
-  session: string;
-  values: Record<string, PdoLiveValue>;
-  rates: Record<string, number>;
-  time: number | null;
-}
+/** The `pdo` message, generated from the backend's (api/ws_messages.py). */
+export type PdoMessage = components['schemas']['PdoMessage'];
 
 export interface PdoLive {
   values: Record<string, PdoLiveValue>;
@@ -44,19 +40,12 @@ export function parsePdoMessage(text: string): PdoMessage | null {
     return null;
   }
   if (!data || typeof data !== 'object') return null;
-  const m = data as Record<string, unknown>;
+  const m = data as Partial<PdoMessage>;
   if (m.type !== 'pdo' || typeof m.session !== 'string') return null;
-  const values: Record<string, PdoLiveValue> = {};
-  if (m.values && typeof m.values === 'object') {
-    for (const [k, v] of Object.entries(m.values as Record<string, unknown>)) {
-      if (v && typeof v === 'object') values[k.toUpperCase().replace(/^0X/, '0x')] = v as PdoLiveValue;
-    }
-  }
-  const rates: Record<string, number> = {};
-  if (m.rates && typeof m.rates === 'object') {
-    for (const [k, v] of Object.entries(m.rates as Record<string, unknown>)) if (typeof v === 'number') rates[k] = v;
-  }
-  return { type: 'pdo', session: m.session, values, rates, time: typeof m.time === 'number' ? m.time : null };
+  // The keys as liveKey() makes them, so that a page's lookup finds them whatever their case.
+  const values: PdoMessage['values'] = {};
+  for (const [k, v] of Object.entries(m.values ?? {})) if (v && typeof v === 'object') values[liveKey(k)] = v;
+  return { type: 'pdo', session: m.session, link: m.link ?? null, values, rates: m.rates ?? {}, time: m.time ?? 0 };
 }
 
 /** The canonical key of an address as the live values are stored ("0x606C:00"). */

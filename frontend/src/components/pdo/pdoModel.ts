@@ -574,18 +574,18 @@ export function paddingName(e: DraftEntry): string {
 
 /** Live value text: the raw value with its raw unit, and the engineering value with its unit. */
 export function formatLive(v: PdoLiveValue, rawUnit: string | null | undefined): { raw: string; eng: string | null } {
-  const r = v.raw ?? v.value;
+  const r = v.value;
   let raw: string;
   if (typeof r === 'number') raw = toDec(r);
   else if (typeof r === 'boolean') raw = r ? '1' : '0';
-  else raw = r ?? '—';
+  else raw = r;
   const eng = v.engineering;
   const knownRaw = v.raw_unit ?? rawUnit ?? null;
   // Scaled (another number or another unit): both. Unscaled: one number with its unit.
   const scaled = typeof eng === 'number' && (eng !== r || (!!v.unit && !!knownRaw && v.unit !== knownRaw));
   const ru = knownRaw ?? (scaled ? null : v.unit);
   // A raw unit that is a step ("0.1 %", "100 µs") reads as a multiple of it.
-  if (ru && r !== null && r !== undefined) raw = /^[\d.]/.test(ru) ? `${raw} × ${ru}` : `${raw} ${ru}`;
+  if (ru) raw = /^[\d.]/.test(ru) ? `${raw} × ${ru}` : `${raw} ${ru}`;
   const hasEng = scaled;
   return { raw, eng: hasEng ? formatEngineering(eng, v.unit) : null };
 }

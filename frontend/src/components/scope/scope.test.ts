@@ -460,7 +460,14 @@ describe('recordings from the server', () => {
   });
 
   it('opens an imported file: the profile scale, no display scale, times already absolute kept', () => {
-    const n = normaliseRecording({ t_ref: 0, trigger_time: null, channels: [{ id: 0, t: [1_700_000_000, 1_700_000_001], v: [7, 8], scale: 0.5 }] });
+    // A file's column without a title: an imported channel has no address or session
+    // (domain/scope_export.py), and here no name either.
+    const imported = { name: '', unit: '', raw_unit: '', address: '', session: '', source: 'import' };
+    const n = normaliseRecording({
+      t_ref: 0,
+      trigger_time: null,
+      channels: [{ id: 0, t: [1_700_000_000, 1_700_000_001], v: [7, 8], scale: 0.5, ...imported }],
+    });
     expect(Array.from(n.open.channels[0]?.t ?? [])).toEqual([1_700_000_000, 1_700_000_001]);
     expect(n.meta[0]).toMatchObject({ engScale: 0.5, scale: 1, offset: 0, label: 'channel 0' });
     expect(n.open.triggerTime).toBeNull();

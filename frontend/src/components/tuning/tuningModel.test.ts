@@ -21,7 +21,7 @@ import {
 } from './tuningModel';
 
 const INFO: Pick<TuningInfo, 'limits' | 'position'> = {
-  limits: { travel_window_rev: { min: 0, max: 100 }, torque_limit_pct: { min: 0, max: 300 } },
+  limits: { travel_window_rev: { min: 0, max: 100 }, torque_limit_pct: { min: 0, max: 300 }, move_torque_pct: { min: 0, max: 1000 } },
   position: {
     actual: 1000,
     raw_unit: 'pos units',
@@ -180,7 +180,14 @@ describe('plots', () => {
   });
 
   it('keeps positive frequencies for the log axis and the model where it exists', () => {
-    const b: Bode = { freq_hz: [0, 10, 100], measured_mag_db: [1, 2, 3], measured_phase_deg: [-1, -2, -3], model_mag_db: [5, 6, Number.NaN] };
+    const b: Bode = {
+      freq_hz: [0, 10, 100],
+      measured_mag_db: [1, 2, 3],
+      measured_phase_deg: [-1, -2, -3],
+      coherence: [1, 1, 1],
+      model_mag_db: [5, 6, Number.NaN],
+      model_phase_deg: [Number.NaN, Number.NaN, Number.NaN],
+    };
     const s = bodeSeries(b);
     expect(s.freq).toEqual([10, 100]);
     expect(s.mag).toEqual([[2, 3], [6, null]]);
@@ -213,6 +220,7 @@ describe('refitLines', () => {
     load_inertia_factor: 0.9965,
     error_rms_counts_before: 1540.2,
     error_rms_counts_after: 83.4,
+    total_held: false,
     outcome: 'first_kept' as const,
     searched_settling_s: 0.378,
     first_settling_s: 0.388,

@@ -104,7 +104,7 @@ export function checkInputs(inputs: Inputs, info: Pick<TuningInfo, 'limits' | 'p
   const mtText = (inputs.moveTorque ?? '').trim();
   if (mtText) {
     const mt = parseDecimal(mtText);
-    const ml = info.limits.move_torque_pct ?? { min: 0, max: 1000 };
+    const ml = info.limits.move_torque_pct;
     if (mt === null) out.moveTorque = "enter the peak torque of the machine's moves in % of rated, e.g. 300, or leave it empty";
     else if (mt <= ml.min || mt > ml.max) out.moveTorque = `the move torque must be more than ${ml.min} and at most ${ml.max} %`;
     else out.moveTorquePct = mt;

@@ -1,0 +1,115 @@
+"""Response models of the live scope routes (api/routes/scope.py, docs/scope.md "REST"), built
+from the dicts of services/scope.py and domain/scope_export.py (api/reply.py)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field
+
+from servodesk.api.reply import Reply
+
+Source = Literal["auto", "pdo", "sdo", "recorder"]
+AchievedSource = Literal["pdo", "sdo", "recorder"]
+
+
+class ScopeChannelStatus(Reply):
+    """One channel as the scope has it (ScopeStatus.channels)."""
+
+    id: int
+    session: str
+    address: str
+    name: str
+    unit: str | None = Field(description="engineering unit (profile)")
+    raw_unit: str | None = Field(description="unit of the raw value in the drive (profile)")
+    eng_scale: float = Field(description="engineering = raw x eng_scale (profile)")
+    scale: float = Field(description="display scale: shown = engineering x scale + offset")
+    offset: float
+    visible: bool
+    label: str | None
+    source: AchievedSource = Field(description="the source the channel got")
+    requested_source: Source
+    requested_rate_hz: float | None = Field(description="null: as fast as it goes")
+    rate_hz: float | None = Field(description="achieved sample rate (the samples' spacing)")
+    throughput_hz: float | None = Field(
+        description="samples per second that arrived lately (a recorder's uploads leave gaps)"
+    )
+    samples: int
+    error: str | None
+
+
+class ScopeTrigger(Reply):
+    mode: Literal["roll", "single", "normal"]
+    kind: Literal["level", "edge", "state", "fault"]
+    channel: int
+    level: float
+    slope: Literal["rising", "falling", "either"]
+    pre: float = Field(description="fraction of the window before the trigger, 0..1")
+    window_s: float
+    holdoff_s: float
+
+
+class RecorderSourceStatus(Reply):
+    """How one session's drive-side recorder fares (the rest of its time goes to uploads)."""
+
+    session: str
+    channels: list[int]
+    sample_rate_hz: float
+    drive_trigger: bool = Field(description="the drive waits for the level crossing itself")
+    records: int
+    recording_share: float | None = Field(description="share of the time spent recording")
+    upload_bytes_per_s: int | None
+
+
+class ScopeStatus(Reply):
+    running: bool
+    state: Literal["idle", "rolling", "armed", "triggered", "done"]
+    trigger: ScopeTrigger
+    channels: list[ScopeChannelStatus]
+    clients: int = Field(description="stream clients connected")
+    buffer_s: float
+    frame_period_ms: float
+    recorders: list[RecorderSourceStatus]
+
+
+class RecordingChannel(Reply):
+    """One channel of a recording; the display settings only in a capture's."""
+
+    id: int
+    name: str
+    unit: str
+    raw_unit: str
+    scale: float = Field(description="the profile's raw to engineering factor")
+    address: str
+    session: str
+    source: str
+    t: list[float | None] = Field(description="seconds from t_ref")
+    v: list[float | None] = Field(description="raw values; null where there is no sample")
+    eng_scale: float | None = Field(default=None, description="a capture: scale again")
+    label: str | None = Field(default=None, description="a capture of a configured channel")
+    display_scale: float | None = Field(
+        default=None, description="a capture: shown = engineering x display_scale + offset"
+    )
+    offset: float | None = None
+
+
+class ScopeRecording(Reply):
+    """GET /scope/capture and POST /scope/import."""
+
+    t_ref: float = Field(description="backend clock (time.time() seconds)")
+    trigger_time: float | None
+    channels: list[RecordingChannel]
+    window: list[float] | None = Field(
+        default=None, description="a capture: the window's bounds, seconds from t_ref"
+    )
+
+
+class RecorderInfo(Reply):
+    """GET /sessions/{sid}/recorder: the drive-side recorder."""
+
+    present: bool
+    max_channels: int
+    rate_hz: float
+    depth: int
+    objects: list[str] = Field(description="the objects it can record")
+    section: str | None = Field(default=None, description="a present recorder: the manual's")
