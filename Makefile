@@ -100,7 +100,10 @@ check-tests: $(VENV)/.synced
 
 # The suite in two parts: the tests on simulated time on every core, then the rest one at a
 # time (scripts/run_tests.sh, tests/conftest.py).
-test: setup chromium netutils postgres lint typecheck unit wheel
+# The static checks, the UI's unit tests and the wheel two at a time (each target's output
+# kept together), then the suite.
+test: setup chromium netutils postgres
+	$(MAKE) --no-print-directory -j2 --output-sync=target lint typecheck unit wheel
 	scripts/run_tests.sh
 
 bench: setup
