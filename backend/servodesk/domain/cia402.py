@@ -297,6 +297,32 @@ def mode_name(mode: int) -> str:
     return MODE_NAMES.get(mode, f"Reserved ({mode})")
 
 
+# --- The controlword's and statusword's bits the services set and test, one name each
+# (issue 51 item 5: motion, homing and tuning each defined their own). The state machine's
+# bits are Command/State above. ---
+
+#: Controlword (6040h, CiA 402-2 §6.2.1): switch on, enable voltage, quick stop (active low)
+#: and enable operation: the command "enable operation" with no mode-specific bit.
+CW_ENABLE = 0x000F
+#: Bit 4, mode-specific: pp "new set-point" (§6.7.1), hm "homing operation start" (§6.8.1).
+CW_NEW_SETPOINT = 0x0010
+#: Bit 5, pp: "change set immediately" (§6.7.1).
+CW_IMMEDIATE = 0x0020
+#: Bit 6, pp: the target is relative (§6.7.1).
+CW_RELATIVE = 0x0040
+#: Bit 8: halt (§6.2.1; the drive stops as 605Dh says).
+CW_HALT = 0x0100
+#: Statusword (6041h, §6.2.2) bit 3: fault.
+SW_FAULT = 0x0008
+#: Bit 10: target reached (pp, pv, hm; in pv the velocity, in hm the home).
+SW_TARGET_REACHED = 0x0400
+#: Bit 12, mode-specific: pp "set-point acknowledge" (§6.7.1), hm "homing attained" (§6.8.1).
+SW_SETPOINT_ACK = 0x1000
+SW_HOMING_ATTAINED = 0x1000
+#: Bit 13, mode-specific: hm "homing error" (§6.8.1), pp/csp "following error".
+SW_HOMING_ERROR = 0x2000
+
+
 # --- The CiA 402 objects servodesk reads and writes, one name each (CiA 402-2's object
 # dictionary; the sections cited are those the services cite). Services import them from
 # here (issue 51 item 5: seven service modules each defined their own, 607Ah under two

@@ -30,18 +30,21 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+from servodesk.domain.cia402 import (
+    CW_NEW_SETPOINT,
+    SW_HOMING_ATTAINED,
+    SW_HOMING_ERROR,
+    SW_TARGET_REACHED,
+)
 from servodesk.domain.datatypes import coerce_int
 from servodesk.domain.profile import SimSettings
 
 Signal = Literal["home_switch", "limit_negative", "limit_positive", "index"]
 Edge = Literal["limit_negative", "limit_positive", "home_low", "home_high"]
 
-#: Statusword bits of homing mode (CiA 402-2 §6.8.1, table of bits 13/12/10).
-SW_TARGET_REACHED = 0x0400
-SW_HOMING_ATTAINED = 0x1000
-SW_HOMING_ERROR = 0x2000
-#: Controlword bit 4: homing operation start (rising edge starts, 0 interrupts).
-CW_HOMING_START = 0x0010
+#: Controlword bit 4 in homing mode: homing operation start (rising edge starts, 0
+#: interrupts; CiA 402-2 §6.8.1). The statusword's bits are domain/cia402.py's.
+CW_HOMING_START = CW_NEW_SETPOINT
 
 
 @dataclass(frozen=True, slots=True)

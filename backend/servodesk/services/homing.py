@@ -34,6 +34,8 @@ from servodesk.domain import cia402
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.cia402 import (
     CONTROLWORD,
+    CW_ENABLE,
+    CW_HALT,
     HOME_OFFSET,
     HOMING_ACC,
     HOMING_METHOD,
@@ -44,15 +46,16 @@ from servodesk.domain.cia402 import (
     MODE_DISPLAY,
     POSITION,
     STATUSWORD,
+    SW_HOMING_ATTAINED,
+    SW_HOMING_ERROR,
+    SW_TARGET_REACHED,
+    Mode,
 )
 from servodesk.domain.datatypes import coerce_int
 from servodesk.domain.homing import (
     CW_HOMING_START,
     MAX_TIMEOUT_S,
     SLOW_PHASE_S,
-    SW_HOMING_ATTAINED,
-    SW_HOMING_ERROR,
-    SW_TARGET_REACHED,
     HomingEstimate,
     HomingGeometry,
     default_timeout,
@@ -71,9 +74,7 @@ from servodesk.services.session import DriveState, Session
 
 log = logging.getLogger(__name__)
 
-HOMING_MODE = 6
-CW_HALT = 0x0100
-CW_ENABLE = 0x000F
+HOMING_MODE = int(Mode.HOMING)
 
 
 def methods(profile: DeviceProfile) -> list[dict[str, Any]]:

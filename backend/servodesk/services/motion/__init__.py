@@ -63,15 +63,19 @@ The service is one class, :class:`MotionService`, made of one part per seam (sin
 - ``service.py``: :class:`MotionService`, the parts put together.
 """
 
-from servodesk.services.motion.axis import (
-    CSP,
-    CST,
-    CSV,
+from servodesk.domain.cia402 import (
     CW_ENABLE,
     CW_HALT,
     CW_IMMEDIATE,
     CW_NEW_SETPOINT,
     CW_RELATIVE,
+    SW_SETPOINT_ACK,
+    SW_TARGET_REACHED,
+)
+from servodesk.services.motion.axis import (
+    CSP,
+    CST,
+    CSV,
     CYCLIC_MODES,
     DEFAULT_STANDSTILL,
     HM,
@@ -79,8 +83,6 @@ from servodesk.services.motion.axis import (
     PP,
     PV,
     SAFE_STOP_S,
-    SW_SETPOINT_ACK,
-    SW_TARGET_REACHED,
     TQ,
     Motion,
 )

@@ -14,19 +14,17 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from servodesk.domain import cia402
+from servodesk.domain.cia402 import (
+    Mode,
+)
 from servodesk.services.motion.limits import Limits
 from servodesk.services.session import Borrowed, Session
 
-# Controlword bits (CiA 402-2 §6.2.1): enable operation, and the mode-specific bits.
-CW_ENABLE = 0x000F
-CW_NEW_SETPOINT = 0x0010
-CW_IMMEDIATE = 0x0020
-CW_RELATIVE = 0x0040
-CW_HALT = 0x0100
-SW_TARGET_REACHED = 1 << 10
-SW_SETPOINT_ACK = 1 << 12
-
-PP, PV, TQ, HM, CSP, CSV, CST = 1, 3, 4, 6, 8, 9, 10
+# The modes of operation this service commands, as plain ints (6060h's values).
+PP, PV = int(Mode.PROFILE_POSITION), int(Mode.PROFILE_VELOCITY)
+TQ, HM = int(Mode.PROFILE_TORQUE), int(Mode.HOMING)
+CSP, CSV = int(Mode.CYCLIC_SYNC_POSITION), int(Mode.CYCLIC_SYNC_VELOCITY)
+CST = int(Mode.CYCLIC_SYNC_TORQUE)
 CYCLIC_MODES = {"csp": CSP, "csv": CSV, "cst": CST}
 #: Standstill when |velocity| is within 606Fh; this when the drive has no 606Fh (inc/s).
 DEFAULT_STANDSTILL = 1000

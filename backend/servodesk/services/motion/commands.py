@@ -14,10 +14,15 @@ from typing import Any
 from servodesk.domain import cia402
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.cia402 import (
+    CW_ENABLE,
+    CW_IMMEDIATE,
+    CW_NEW_SETPOINT,
+    CW_RELATIVE,
     POSITION,
     PROFILE_ACC,
     PROFILE_DEC,
     PROFILE_VELOCITY,
+    SW_SETPOINT_ACK,
     TARGET_POSITION,
     TARGET_TORQUE,
     TARGET_VELOCITY,
@@ -28,14 +33,9 @@ from servodesk.domain.datatypes import Value
 from servodesk.errors import ConflictError, DriveStateError, ValidationError
 from servodesk.services import homing
 from servodesk.services.motion.axis import (
-    CW_ENABLE,
-    CW_IMMEDIATE,
-    CW_NEW_SETPOINT,
-    CW_RELATIVE,
     HM,
     PP,
     PV,
-    SW_SETPOINT_ACK,
     TQ,
     Motion,
 )

@@ -14,10 +14,21 @@ import math
 import time
 from typing import Any
 
-from servodesk.domain.cia402 import POSITION, TARGET_POSITION, TARGET_TORQUE, TARGET_VELOCITY
+from servodesk.domain.cia402 import (
+    CW_ENABLE,
+    POSITION,
+    TARGET_POSITION,
+    TARGET_TORQUE,
+    TARGET_VELOCITY,
+)
 from servodesk.domain.datatypes import DataType, codec
 from servodesk.errors import ServodeskError, ValidationError
-from servodesk.services.motion.axis import CSP, CSV, CW_ENABLE, CYCLIC_MODES, Motion
+from servodesk.services.motion.axis import (
+    CSP,
+    CSV,
+    CYCLIC_MODES,
+    Motion,
+)
 from servodesk.services.motion.limits import (
     check_abs,
     check_position,

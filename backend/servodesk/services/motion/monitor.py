@@ -14,13 +14,17 @@ import logging
 import time
 
 from servodesk.domain import cia402
-from servodesk.domain.cia402 import MODE_DISPLAY, POSITION, VELOCITY
+from servodesk.domain.cia402 import (
+    MODE_DISPLAY,
+    POSITION,
+    SW_SETPOINT_ACK,
+    SW_TARGET_REACHED,
+    VELOCITY,
+)
 from servodesk.errors import LinkError, ServodeskError
 from servodesk.services import homing
 from servodesk.services.motion.axis import (
     HOMING_SETTLE_S,
-    SW_SETPOINT_ACK,
-    SW_TARGET_REACHED,
     Axis,
     Motion,
 )

@@ -11,7 +11,11 @@ import time
 from typing import Any
 
 from servodesk.domain import cia402
-from servodesk.services.motion.axis import CW_ENABLE, CW_HALT, Axis, Motion
+from servodesk.domain.cia402 import CW_ENABLE, CW_HALT
+from servodesk.services.motion.axis import (
+    Axis,
+    Motion,
+)
 from servodesk.services.motion.base import MotionBase
 
 

@@ -10,21 +10,21 @@ from collections.abc import Callable
 
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.cia402 import (
+    CW_ENABLE,
+    CW_IMMEDIATE,
+    CW_NEW_SETPOINT,
     POSITION,
     PROFILE_ACC,
     PROFILE_DEC,
     PROFILE_VELOCITY,
+    SW_SETPOINT_ACK,
+    SW_TARGET_REACHED,
     TARGET_POSITION,
 )
 from servodesk.domain.datatypes import Value
 from servodesk.errors import DriveStateError
 from servodesk.services.motion.axis import (
-    CW_ENABLE,
-    CW_IMMEDIATE,
-    CW_NEW_SETPOINT,
     PP,
-    SW_SETPOINT_ACK,
-    SW_TARGET_REACHED,
     Axis,
     Motion,
 )

@@ -57,6 +57,10 @@ from scipy.signal import lfilter  # type: ignore[import-untyped]
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.cia402 import (
     CONTROLWORD,
+    CW_ENABLE,
+    CW_HALT,
+    CW_IMMEDIATE,
+    CW_NEW_SETPOINT,
     ENCODER_INCREMENTS,
     ENCODER_REVOLUTIONS,
     FOLLOWING_ERROR,
@@ -75,9 +79,11 @@ from servodesk.domain.cia402 import (
     SOFT_LIMIT_MAX,
     SOFT_LIMIT_MIN,
     STATUSWORD,
+    SW_TARGET_REACHED,
     TARGET_POSITION,
     VELOCITY,
     VELOCITY_THRESHOLD,
+    Mode,
     State,
     decode_state,
 )
@@ -132,18 +138,13 @@ from servodesk.services.tuning.travel import (
 )
 
 log = logging.getLogger(__name__)
+
+PP = int(Mode.PROFILE_POSITION)
 #: What a job handed to the design worker returns (:meth:`OwnTuning._compute`).
 _T = TypeVar("_T")
 
 Progress = Callable[[float, str], None]
 
-PP = 1
-CW_ENABLED = 0x000F
-CW_NEW_SETPOINT = 0x0010
-CW_IMMEDIATE = 0x0020
-CW_HALT = 0x0100
-SW_FAULT = 0x0008
-SW_TARGET_REACHED = 0x0400
 
 #: Test signal generator sub-indexes (docs/tuning.md).
 SIG_KIND, SIG_AMPLITUDE, SIG_F0, SIG_F1, SIG_DURATION, SIG_CONTROL, SIG_TORQUE, SIG_VALUE = range(
@@ -1161,7 +1162,7 @@ class OwnTuning:
         dead-man (whose quick stop has the drive out of Operation enabled already) or a
         failure, before anything is put back."""
         if decode_state(await self._statusword()) is State.OPERATION_ENABLED:
-            await self.io.write(CONTROLWORD, CW_ENABLED | CW_HALT)
+            await self.io.write(CONTROLWORD, CW_ENABLE | CW_HALT)
         if not await self._has(VELOCITY):
             return
         still = 0.0
@@ -1213,9 +1214,9 @@ class OwnTuning:
         await self.io.write(PROFILE_ACC, round(plan.acc))
         await self.io.write(PROFILE_DEC, round(plan.acc))
         await self.io.write(TARGET_POSITION, round(plan.target))
-        await self.io.write(CONTROLWORD, CW_ENABLED | CW_IMMEDIATE)
-        await self.io.write(CONTROLWORD, CW_ENABLED | CW_IMMEDIATE | CW_NEW_SETPOINT)
-        await self.io.write(CONTROLWORD, CW_ENABLED | CW_IMMEDIATE)
+        await self.io.write(CONTROLWORD, CW_ENABLE | CW_IMMEDIATE)
+        await self.io.write(CONTROLWORD, CW_ENABLE | CW_IMMEDIATE | CW_NEW_SETPOINT)
+        await self.io.write(CONTROLWORD, CW_ENABLE | CW_IMMEDIATE)
         self._demand = plan.target
         self._moves.append(plan)
         return plan
