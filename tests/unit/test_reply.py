@@ -13,6 +13,7 @@ from pydantic import ValidationError
 
 from servodesk.api.reply import STRICT_ENV
 from servodesk.api.schemas_pdo import PdoCyclicStatus, PdoTemplateOut
+from servodesk.services.pdo import idle_status
 
 TEMPLATE = {"id": "default", "name": "Default", "description": "as shipped", "section": None}
 
@@ -21,15 +22,7 @@ def _stopped_status() -> dict[str, Any]:
     """services/pdo.py idle_status with the offer, as DELETE /pdo/cyclic answers it: no
     ``link``, ``stale`` or ``unavailable``."""
     return {
-        "running": False,
-        "sync_period_ms": None,
-        "sync": None,
-        "outputs": False,
-        "syncs": 0,
-        "rx_pdos": [],
-        "tx_pdos": [],
-        "frames_per_s": 0.0,
-        "decode_errors": 0,
+        **idle_status(),
         "values": {
             "0x6041:00": {
                 "value": True,
