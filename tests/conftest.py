@@ -6,10 +6,14 @@ import itertools
 import logging
 import os
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import pytest
+
+if TYPE_CHECKING:
+    from servodesk.sim.bus import SimulatedBus
 
 # The 3D viewer binds a TCP port per app; tests that want it (tests/viewer, the viewer page)
 # set their own free port, every other app in the suite runs without it.
@@ -33,6 +37,33 @@ _counter = itertools.count()
 def channel() -> str:
     """A virtual CAN channel no other test uses (virtual buses are shared by name)."""
     return f"test-{os.getpid()}-{next(_counter)}"
+
+
+#: ``sim_bus(("cia402-generic", 5), ...)``: see :func:`sim_bus`.
+StartSims = Callable[..., "SimulatedBus"]
+
+
+@pytest.fixture
+def sim_bus(channel: str) -> Iterator[StartSims]:
+    """Start simulated drives: ``sim_bus(("cia402-generic", 5), channel=..., **start_args)``
+    returns the running SimulatedBus (on the test's ``channel`` unless told otherwise). Every
+    bus it started stops after the test, last first, however the test ended: after the test's
+    own clean-up (a session manager closes its links before the drives go)."""
+    from servodesk.sim.bus import SimulatedBus
+
+    started: list[SimulatedBus] = []
+
+    def start(*drives: tuple[str, int], **kwargs: Any) -> SimulatedBus:
+        kwargs.setdefault("channel", channel)
+        bus = SimulatedBus.start(drives=list(drives) or [("cia402-generic", 1)], **kwargs)
+        started.append(bus)
+        return bus
+
+    try:
+        yield start
+    finally:
+        for bus in reversed(started):
+            bus.stop()
 
 
 class _Refused(logging.Handler):
@@ -142,7 +173,7 @@ _ONE_WORKER: dict[str, str] = {
     "tests/security/test_rights_schemathesis.py": "udp_multicast",
 }
 #: Fixtures that put a test on a bus or a server: never in the fast tier.
-_NOT_PURE = frozenset({"channel", "rig", "app_client", "loopback_app"})
+_NOT_PURE = frozenset({"channel", "sim_bus", "rig", "app_client", "loopback_app"})
 
 
 def _in(rel: str, paths: tuple[str, ...]) -> bool:

@@ -14,15 +14,15 @@ import canopen
 import pytest
 from canopen.sdo.exceptions import SdoAbortedError
 
-from servodesk.sim.bus import SimulatedBus
+from tests.conftest import StartSims
 
 NODE = 5
 REV = 8388608  # hiwin-e simulation: 23-bit encoder.
 
 
 @pytest.fixture
-def hiwin(channel: str) -> Iterator[Any]:
-    sim = SimulatedBus.start(drives=[("hiwin-e", NODE), ("lecsn-t", NODE + 1)], channel=channel)
+def hiwin(channel: str, sim_bus: StartSims) -> Iterator[Any]:
+    sim_bus(("hiwin-e", NODE), ("lecsn-t", NODE + 1))
     net = canopen.Network()
     net.NOTIFIER_CYCLE = 0.05
     net.connect(interface="virtual", channel=channel)
@@ -30,7 +30,6 @@ def hiwin(channel: str) -> Iterator[Any]:
         yield net
     finally:
         net.disconnect()
-        sim.stop()
 
 
 def _w(node: Any, index: int, sub: int, value: int, size: int, signed: bool = False) -> None:

@@ -14,6 +14,7 @@ import can
 import canopen
 import pytest
 import pytest_asyncio
+from tests.conftest import StartSims
 
 from servodesk.domain.address import ObjectAddress
 from servodesk.errors import (
@@ -33,12 +34,8 @@ A = ObjectAddress
 
 
 @pytest.fixture
-def sim(channel: str):  # type: ignore[no-untyped-def]
-    bus = SimulatedBus.start(
-        drives=[("cia402-generic", 5), ("cia402-generic", 6)], interface="virtual", channel=channel
-    )
-    yield bus
-    bus.stop()
+def sim(sim_bus: StartSims) -> SimulatedBus:
+    return sim_bus(("cia402-generic", 5), ("cia402-generic", 6))
 
 
 @pytest_asyncio.fixture

@@ -3,24 +3,21 @@
 from __future__ import annotations
 
 import pytest
+from tests.conftest import StartSims
 
 from servodesk.domain.profile_loader import ProfileCatalog
 from servodesk.links.base import LinkParams
 from servodesk.services.events import EventHub
 from servodesk.services.manager import SessionManager
-from servodesk.sim.bus import SimulatedBus
 
 FAMILIES = ["cia402-generic", "hiwin-e", "smartris", "ctmm04x", "lecsn-t"]
 
 
-async def test_each_family_is_detected_and_non_canopen_twins_say_so(channel: str) -> None:
+async def test_each_family_is_detected_and_non_canopen_twins_say_so(
+    channel: str, sim_bus: StartSims
+) -> None:
     catalog = ProfileCatalog()
-    bus = SimulatedBus.start(
-        drives=[(p, n + 1) for n, p in enumerate(FAMILIES)],
-        interface="virtual",
-        channel=channel,
-        catalog=catalog,
-    )
+    sim_bus(*((p, n + 1) for n, p in enumerate(FAMILIES)), catalog=catalog)
     manager = SessionManager(catalog, EventHub())
     try:
         for n, expected in enumerate(FAMILIES):
@@ -33,11 +30,10 @@ async def test_each_family_is_detected_and_non_canopen_twins_say_so(channel: str
                 assert s.note and "runs on CANopen" in s.note
     finally:
         await manager.close_all()
-        bus.stop()
 
 
-async def test_the_user_can_override_the_detected_profile(channel: str) -> None:
-    bus = SimulatedBus.start(drives=[("smartris", 3)], interface="virtual", channel=channel)
+async def test_the_user_can_override_the_detected_profile(channel: str, sim_bus: StartSims) -> None:
+    sim_bus(("smartris", 3))
     manager = SessionManager(ProfileCatalog(), EventHub())
     try:
         s = await manager.open(
@@ -46,7 +42,6 @@ async def test_the_user_can_override_the_detected_profile(channel: str) -> None:
         assert s.profile.id == "cia402-generic"
     finally:
         await manager.close_all()
-        bus.stop()
 
 
 @pytest.mark.parametrize("vendor", [None, 0x1234])

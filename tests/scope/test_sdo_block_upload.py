@@ -28,6 +28,7 @@ from servodesk.errors import ObjectAccessError
 from servodesk.links.base import LinkParams
 from servodesk.links.canopen_link import BLOCK_THRESHOLD, CanopenLink
 from servodesk.sim.bus import SimulatedBus
+from tests.conftest import StartSims
 
 NODE = 5
 REC = 0x2F00  # The generic twin's recorder (docs/scope.md).
@@ -38,12 +39,8 @@ DEPTH = 400  # 0.1 s at 4 kHz: 400 x 6 x 4 = 9600 bytes, 11 sub-blocks of 127 se
 
 
 @pytest.fixture
-def sim(channel: str) -> Iterator[SimulatedBus]:
-    bus = SimulatedBus.start(
-        drives=[("cia402-generic", NODE)], interface="virtual", channel=channel
-    )
-    yield bus
-    bus.stop()
+def sim(sim_bus: StartSims) -> SimulatedBus:
+    return sim_bus(("cia402-generic", NODE))
 
 
 @pytest_asyncio.fixture
