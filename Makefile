@@ -41,7 +41,7 @@ $(VENV)/.synced: $(UV) pyproject.toml uv.lock
 $(FRONTEND)/node_modules/.package-lock.json: $(FRONTEND)/package.json $(FRONTEND)/package-lock.json
 	cd $(FRONTEND) && npm install --no-save --no-audit --no-fund --loglevel=error
 
-$(WEB_DIST)/index.html: $(FRONTEND)/node_modules/.package-lock.json $(shell find $(FRONTEND)/src $(FRONTEND)/index.html $(FRONTEND)/vite.config.ts -type f 2>/dev/null)
+$(WEB_DIST)/index.html: $(FRONTEND)/node_modules/.package-lock.json $(shell find $(FRONTEND)/src $(FRONTEND)/public $(FRONTEND)/index.html $(FRONTEND)/vite.config.ts -type f 2>/dev/null)
 	cd $(FRONTEND) && npm run build
 
 build: $(WEB_DIST)/index.html

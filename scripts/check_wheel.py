@@ -2,7 +2,8 @@
 
 Two checks, both on the wheel itself (run by ``make wheel``):
 
-- it carries the UI and every profile (``servodesk serve`` must work);
+- it carries the UI (with its CJK font and the font's licence) and every profile
+  (``servodesk serve`` must work);
 - every module it ships imports only the standard library, servodesk, and what the wheel's
   own ``Requires-Dist`` installs (with their dependencies). A command that imports a
   development dependency (pyproject ``[dependency-groups]``, e.g. httpx or pytest) fails for
@@ -169,6 +170,9 @@ def main(argv: list[str]) -> int:
     required = [
         "servodesk/web/dist/index.html",
         "servodesk/web/dist/vendor/swagger-ui/swagger-ui-bundle.js",
+        # The CJK names' font (issue 48) and its licence, which OFL 1.1 has travel with it.
+        "servodesk/web/dist/fonts/servodesk-cjk.woff2",
+        "servodesk/web/dist/fonts/OFL.txt",
         "servodesk/py.typed",
         *(f"servodesk/_profiles/{p}/profile.yaml" for p in profiles),
     ]
