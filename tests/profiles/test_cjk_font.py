@@ -70,3 +70,11 @@ def test_the_css_unicode_range_is_the_scripts() -> None:
     found = re.search(r"unicode-range:\s*([^;]+);", face.group(0))
     assert found is not None
     assert " ".join(found.group(1).split()) == cjk_subset().css_unicode_range()
+
+
+def test_the_reports_cjk_ranges_are_the_scripts() -> None:
+    """A commissioning report embeds the font where it holds a character of these ranges
+    (services/report_html.py): the same as the font's."""
+    from servodesk.services.report_html import CJK_RANGES
+
+    assert cjk_subset().CJK_RANGES == CJK_RANGES

@@ -4,6 +4,7 @@ units, and finding a report's id and hash in a PDF's metadata."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 from servodesk.services.report import canonical, content_hash
@@ -78,3 +79,15 @@ def test_a_tuning_result_shows_margins_gains_bode_and_steps() -> None:
     html = render({**_data(), "tuning": tuning}, "00" * 32)
     assert "47.5 deg" in html and "9.1 dB" in html and "0x2101:00" in html
     assert html.count("<svg") == 3  # magnitude, phase, the steps before and after
+
+
+def test_a_report_with_a_japanese_name_carries_the_cjk_font_inline() -> None:
+    """A report prints the same on a server and a reader without a CJK font (issue 48): the
+    UI's font is inside it where it holds a CJK character, and only then."""
+    font = Path(__file__).resolve().parents[2] / "frontend/public/fonts/servodesk-cjk.woff2"
+    japanese = _data(profile_name="速度・加減速")
+    html = render(japanese, content_hash(japanese), cjk_font=font)
+    assert "font-family: 'Servodesk CJK'" in html and "data:font/woff2;base64," in html
+    assert "font-src data:" in html  # The page's own CSP lets the inline font in, nothing more.
+    latin = _data(profile_name="CiA 402 generic")
+    assert "data:font/woff2" not in render(latin, content_hash(latin), cjk_font=font)

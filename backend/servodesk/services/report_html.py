@@ -6,16 +6,22 @@ a user is escaped (``html.escape``); the embedded JSON has its ``<`` escaped so 
 can end the script element. Values are shown raw with their raw unit and, where the profile
 gives a scale, in engineering units beside them.
 
+A report that holds a Japanese or Chinese name (a manual's, a user's reason) carries the UI's
+CJK font inline (issue 48: a server or a reader without a CJK font would print empty boxes).
+
 The footer prints the report's id and the SHA-256 of its data (services/report.py); the
 title carries both too, so that a PDF printed from the page has them in its metadata.
 """
 
 from __future__ import annotations
 
+import base64
 import json
 import math
+import re
 from collections.abc import Iterable, Sequence
 from html import escape
+from pathlib import Path
 from typing import Any
 
 from servodesk.services.report import canonical
@@ -23,9 +29,26 @@ from servodesk.services.report import canonical
 #: The id of the script element that holds the report's data (``report verify`` reads it).
 DATA_ID = "servodesk-report-data"
 
+#: The UI's CJK font as the built UI ships it (frontend/public/fonts, made by
+#: scripts/cjk_subset.py), and the blocks it covers: that script's CJK_RANGES
+#: (tests/profiles/test_cjk_font.py checks they agree).
+CJK_FONT = Path(__file__).resolve().parents[1] / "web" / "dist" / "fonts" / "servodesk-cjk.woff2"
+CJK_RANGES: tuple[tuple[int, int], ...] = (
+    (0x2E80, 0x2FDF),
+    (0x3000, 0x30FF),
+    (0x3100, 0x31FF),
+    (0x3200, 0x33FF),
+    (0x3400, 0x4DBF),
+    (0x4E00, 0x9FFF),
+    (0xF900, 0xFAFF),
+    (0xFE30, 0xFE4F),
+    (0xFF00, 0xFFEF),
+)
+_CJK = re.compile("[" + "".join(f"\\u{lo:04x}-\\u{hi:04x}" for lo, hi in CJK_RANGES) + "]")
+
 _CSS = """
 :root { color-scheme: light; font: 10pt/1.35 system-ui, -apple-system, "Segoe UI",
-  "DejaVu Sans", sans-serif; color: #111; }
+  "DejaVu Sans", sans-serif, "Servodesk CJK"; color: #111; }
 body { margin: 0 auto; max-width: 60rem; padding: 1.5rem; }
 h1 { font-size: 1.5rem; margin: 0 0 .25rem; }
 h2 { font-size: 1.1rem; margin: 1.5rem 0 .4rem; border-bottom: 1px solid #999;
@@ -40,7 +63,8 @@ td.num { text-align: right; font-variant-numeric: tabular-nums; }
 .muted { color: #555; }
 .bad { color: #a00; font-weight: 600; }
 .kv th { width: 14rem; }
-code, .mono { font-family: "DejaVu Sans Mono", Consolas, monospace; font-size: .9em; }
+code, .mono { font-family: "DejaVu Sans Mono", Consolas, monospace, "Servodesk CJK";
+  font-size: .9em; }
 svg { width: 100%; height: auto; border: 1px solid #ccc; }
 footer { margin-top: 2rem; border-top: 1px solid #999; padding-top: .5rem;
   font-size: .85em; word-break: break-all; }
@@ -574,7 +598,19 @@ def title_of(data: dict[str, Any], digest: str) -> str:
     return f"Commissioning report {name} - {data['report']['id']} sha256:{digest}"
 
 
-def render(data: dict[str, Any], digest: str) -> str:
+def cjk_face(text: str, font: Path = CJK_FONT) -> str:
+    """The @font-face of the UI's CJK font, inline, where ``text`` holds a CJK character and
+    the font is there (a source checkout without the built UI has none); else nothing."""
+    if not _CJK.search(text) or not font.is_file():
+        return ""
+    data = base64.b64encode(font.read_bytes()).decode("ascii")
+    return (
+        "@font-face { font-family: 'Servodesk CJK'; font-weight: 400; "
+        f"src: url(data:font/woff2;base64,{data}) format('woff2'); }}"
+    )
+
+
+def render(data: dict[str, Any], digest: str, cjk_font: Path = CJK_FONT) -> str:
     """The report as one HTML document (text; the caller encodes it as UTF-8)."""
     rep, drive = data["report"], data["drive"]
     name = drive.get("plant_tag") or drive.get("drive_key")
@@ -597,16 +633,17 @@ def render(data: dict[str, Any], digest: str) -> str:
         f'SHA-256 of its data <span class="mono" id="report-sha256">{_e(digest)}</span>. '
         "Check a copy with <code>servodesk report verify FILE</code>.</footer>",
     ]
+    face = cjk_face("".join(body), cjk_font)
     return (
         "<!DOCTYPE html>\n"
         '<html lang="en"><head><meta charset="utf-8">'
         '<meta name="viewport" content="width=device-width, initial-scale=1">'
         # No fetch of any kind: a saved copy reads the same anywhere (and no script runs).
         '<meta http-equiv="Content-Security-Policy" content="default-src \'none\'; '
-        "style-src 'unsafe-inline'; img-src data:\">"
+        "style-src 'unsafe-inline'; img-src data:; font-src data:\">"
         f'<meta name="servodesk-report-id" content="{_e(rep["id"])}">'
         f'<meta name="servodesk-report-sha256" content="{_e(digest)}">'
-        f"<title>{_e(title_of(data, digest))}</title><style>{_CSS}</style></head><body>"
+        f"<title>{_e(title_of(data, digest))}</title><style>{face}{_CSS}</style></head><body>"
         + "".join(body)
         + f'<script type="application/json" id="{DATA_ID}">{embedded}</script>'
         + "</body></html>\n"

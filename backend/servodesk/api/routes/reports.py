@@ -34,8 +34,9 @@ ReportId = Annotated[
     str, Path(pattern=r"^[a-z0-9][a-z0-9_-]{0,63}$", description="the report's id (POST's answer)")
 ]
 
-#: The report's page may not fetch anything nor run anything, wherever it is opened from.
-_CSP = "default-src 'none'; style-src 'unsafe-inline'; img-src data:; sandbox"
+#: The report's page may not fetch anything nor run anything, wherever it is opened from
+#: (its CJK font, where it has one, is inline: services/report_html.py).
+_CSP = "default-src 'none'; style-src 'unsafe-inline'; img-src data:; font-src data:; sandbox"
 
 
 def _info(meta: dict[str, Any]) -> ReportInfo:
