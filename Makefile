@@ -114,6 +114,7 @@ bench: setup
 	$(PY) bench/bench_replay.py --json
 	$(PY) bench/bench_tuning_loop.py --json
 	$(VENV)/bin/servodesk bench scope --json
+	$(PY) bench/bench_gateways.py --json
 
 # The wire contract (docs/architecture.md): the OpenAPI of the code, and the UI's types from it.
 # Both files are committed; `make lint` and `make typecheck` fail when either is stale.
