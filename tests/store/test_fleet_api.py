@@ -279,6 +279,89 @@ async def test_the_scheduled_scan_finds_a_changed_parameter_and_calls_the_webhoo
     assert len(webhook.received) == 1  # type: ignore[attr-defined]
 
 
+async def test_an_approval_is_cleared_with_a_reason_and_audited(gw: Gateway) -> None:
+    generic = await _approved(gw)
+    key, bid = generic["drive_key"], generic["approved"]["backup"]
+    eng = gw.clients["engineer"]
+    clear = {"drive": "L2.Press.X", "reason": "drive rebuilt, new reference to follow"}
+
+    async def delete(role: str, body: dict[str, Any]) -> httpx.Response:
+        return await gw.clients[role].request("DELETE", "/fleet/approved", json=body)
+
+    for role in ("guest", "operator", "service"):
+        r = await delete(role, clear)
+        assert r.status_code == 403 and "write_parameters" in r.json()["message"], (role, r.text)
+    r = await delete("engineer", {"drive": key})
+    assert r.status_code == 422 and "reason" in r.json()["message"], r.text
+    r = await delete("engineer", {**clear, "reason": " "})
+    assert r.status_code == 400 and "needs a reason" in r.json()["message"], r.text
+    r = await delete("engineer", {**clear, "drive": "no-such-drive"})
+    assert r.status_code == 404, r.text
+    assert (await _generic(gw))["approved"] is not None  # Nothing refused changed anything.
+
+    r = await delete("engineer", clear)
+    assert r.status_code == 200, r.text
+    cleared = r.json()
+    assert cleared["approved"] is None and cleared["drive_key"] == key
+    assert cleared["drift"] == {"state": "unknown", "count": None, "time": None}
+    assert (await _generic(gw))["approved"] is None
+    # A drift check has nothing to compare with now; clearing twice says there is nothing.
+    r = await eng.post(f"/sessions/{generic['session']}/drift")
+    assert r.status_code == 409 and "no approved backup" in r.json()["message"]
+    r = await delete("engineer", clear)
+    assert r.status_code == 409 and "no approved backup to clear" in r.json()["message"]
+    # Who cleared which approval, and why, is in the audit log.
+    r = await gw.clients["administrator"].get("/audit", params={"event": "backup.approval_cleared"})
+    (rec,) = r.json()
+    assert rec["user"] == "engineer" and rec["message"] == clear["reason"]
+    assert rec["details"] == {"drive_key": key, "backup": bid}
+    await _approved(gw)  # The other tests' drive, approved again.
+
+
+async def test_stored_tunings_are_listed_read_and_in_the_fleet(gw: Gateway) -> None:
+    generic = await _generic(gw)
+    key, sid = generic["drive_key"], generic["session"]
+    body = {
+        "kind": "gains", "status": "stopped", "error": None, "drive_code": None,
+        "mode": "basic", "job": f"{sid}-t1", "identified": None, "bode": None,
+        "margins": None, "gains": [], "step": None, "axis_time_s": None,
+        "excursion_rev": None, "travel": None, "peak_torque_pct": None,
+        "peak_torque_polled_s": None, "applied": False, "stored": False, "notes": ["n"],
+    }  # fmt: skip
+    for n, (status, ended) in enumerate((("stopped", 1000.0), ("done", 2000.0))):
+        record = {
+            "id": f"tuning-t{n}", "drive_key": key, "session": sid, "kind": "gains",
+            "mode": "basic", "status": status, "started": ended - 60, "ended": ended,
+            "by": "engineer", "client": "tab-1", "applied": status == "done",
+            "result": {**body, "status": status, "applied": status == "done"},
+        }  # fmt: skip
+        await asyncio.to_thread(gw.state.tuning_results.add, record)
+    # Whoever may read tuning information reads them: the guest too.
+    guest = gw.clients["guest"]
+    r = await guest.get(f"/sessions/{sid}/tuning/results")
+    assert r.status_code == 200, r.text
+    rows = r.json()
+    assert [x["id"] for x in rows] == ["tuning-t1", "tuning-t0"]  # Newest first.
+    assert rows[0]["gateway"] == GATEWAY and rows[0]["applied"] is True
+    assert "result" not in rows[0]
+    r = await guest.get("/tuning/results/tuning-t0")
+    assert r.status_code == 200, r.text
+    assert r.json()["result"] == {**body, "status": "stopped"}
+    assert r.json()["started"] == 940.0 and r.json()["by"] == "engineer"
+    r = await guest.get("/tuning/results/tuning-none")
+    assert r.status_code == 404 and "no tuning result" in r.json()["message"]
+    r = await guest.get("/tuning/results/Not%20An%20Id")
+    assert r.status_code == 422 and "rid" in r.json()["field"], r.text
+    r = await guest.get(f"/sessions/{sid}/tuning/results", params={"limit": 0})
+    assert r.status_code == 422
+    # The fleet page's "last tuning" column: the newest one.
+    last = (await _generic(gw))["last_tuning"]
+    assert last == {"id": "tuning-t1", "time": "1970-01-01T00:33:20.000Z", "status": "done",
+                    "mode": "basic"}  # fmt: skip
+    hiwin = (await _drives(gw, q="hiwin"))[0]
+    assert hiwin["last_tuning"] is None
+
+
 async def test_bad_fleet_queries_are_4xx(gw: Gateway) -> None:
     await _approved(gw)  # The drive tagged L2.Press.X, found by a search below.
     guest = gw.clients["guest"]

@@ -14,6 +14,7 @@ import hashlib
 import json
 import shutil
 from pathlib import Path
+from typing import Any
 
 import pytest
 import sqlalchemy as sa
@@ -22,6 +23,7 @@ from servodesk.cli import main
 from servodesk.services import db
 from servodesk.services.audit import AuditLog
 from servodesk.services.store import Store
+from servodesk.services.tuning_store import TuningStore
 from servodesk.services.users import UserStore
 
 LEGACY = Path(__file__).parent / "data" / "legacy"
@@ -59,7 +61,7 @@ def test_an_old_data_directory_migrates_in_place(legacy: Path) -> None:
     assert head.ok and head.records == 7
     store = Store(legacy)
     try:
-        assert db.revision(store.engine) == "0004"
+        assert db.revision(store.engine) == "0005"
         assert len(store.list_backups()) == 3
         # The files' bytes are in the store now: identical content once.
         with store.engine.connect() as conn:
@@ -86,6 +88,7 @@ def test_round_trip_sqlite_postgresql_sqlite(
     legacy: Path, tmp_path: Path, pg_url: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
     first, second, third = (tmp_path / f"export{i}.jsonl" for i in (1, 2, 3))
+    tuning = _add_tuning(legacy)
     assert main(["store", "export", str(first), "--data-dir", str(legacy)]) == 0
     assert main(["store", "import", str(first), "--url", pg_url]) == 0
     out = capsys.readouterr().out
@@ -98,7 +101,7 @@ def test_round_trip_sqlite_postgresql_sqlite(
     # lists the backups as they were made, PostgreSQL by id).
     assert _lines(first) == _lines(second) == _lines(third)
     header = json.loads(first.read_text().splitlines()[0])
-    assert header["revision"] == "0004"
+    assert header["revision"] == "0005"
 
     old, new = Store(legacy), Store(fresh)
     try:
@@ -114,6 +117,12 @@ def test_round_trip_sqlite_postgresql_sqlite(
     finally:
         a.close()
         b.close()
+    # A tuning's result went along with its metadata (revision 0005).
+    engine = db.open_engine(db.store_url(fresh))
+    try:
+        assert TuningStore(engine, "elsewhere").get(tuning["id"]) == tuning
+    finally:
+        engine.dispose()
     users = UserStore(fresh)
     try:
         assert users.verify_password("alice", "correct horse") is not None
@@ -128,6 +137,40 @@ def test_round_trip_sqlite_postgresql_sqlite(
         assert len(pg.list_audit("s1")) == 2
     finally:
         pg.close()
+
+
+def _add_tuning(data_dir: Path) -> dict[str, Any]:
+    """One tuning result in the store of ``data_dir`` (as services/tuning/jobs.py records
+    it); what the store gives back for it."""
+    engine = db.open_engine(db.store_url(data_dir))
+    try:
+        store = TuningStore(engine, "gw-a")
+        result: dict[str, Any] = {
+            "kind": "gains",
+            "status": "done",
+            "mode": "basic",
+            "gains": [],
+            "bode": None,
+        }
+        store.add(
+            {
+                "id": "tuning-20261207t120000z-abc123",
+                "drive_key": "0000029C-03020002-1234",
+                "session": "cia402-generic-1",
+                "kind": "gains",
+                "mode": "basic",
+                "status": "done",
+                "started": 1_796_000_000.25,
+                "ended": 1_796_000_042.5,
+                "by": "alice",
+                "client": "A",
+                "applied": True,
+                "result": result,
+            }
+        )
+        return store.get("tuning-20261207t120000z-abc123")
+    finally:
+        engine.dispose()
 
 
 def _fails(argv: list[str], capsys: pytest.CaptureFixture[str]) -> str:

@@ -73,6 +73,7 @@ ROUTE_RIGHTS: dict[str, Right] = {
     "list_drift": R.READ,
     "set_plant_tag": R.WRITE_PARAMETERS,
     "approve_backup": R.WRITE_PARAMETERS,
+    "clear_approval": R.WRITE_PARAMETERS,  # Undoes an approval: the same decision's right.
     "check_drift": R.BACKUP,  # Reads the drive as a backup does; writes nothing to it.
     # reports.py: a report holds the drive's audit extract (who did what), so it is read
     # with the audit log's right; making one also needs BACKUP (the route asks for it).
@@ -132,6 +133,8 @@ ROUTE_RIGHTS: dict[str, Right] = {
     "tuning_start": R.TUNE,
     "tuning_stop": R.READ,
     "tuning_result": R.READ,
+    "tuning_results": R.READ,  # The store's tunings of the drive (issue 49).
+    "tuning_stored_result": R.READ,
     "tuning_undo": R.TUNE,
     "tuning_store": R.TUNE,
     # viewer.py (what the 3D view shows; moves nothing)

@@ -11,6 +11,11 @@ from servodesk.services.homing import Outcome
 
 Scalar = int | float | bool | str | None
 
+#: The id of a record the store made for a report or a tuning's result (lower-case
+#: ``report-20261207t142600z-a1b2c3``: a safe id of domain/ids.py without dots). One that is
+#: not cannot exist, and the schema says so: a 422 naming the rule, not the lookup's 400.
+STORED_ID = r"^[a-z0-9][a-z0-9_-]{0,63}$"
+
 
 class ErrorOut(BaseModel):
     error: str = Field(description="Error class, e.g. ObjectAccessError")

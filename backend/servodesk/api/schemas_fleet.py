@@ -36,6 +36,13 @@ class DriftStateOut(BaseModel):
     time: str | None = Field(description="when the last check ran (ISO 8601, UTC)")
 
 
+class LastTuningOut(BaseModel):
+    id: str = Field(description="the stored tuning (GET /tuning/results/{id})")
+    time: str = Field(description="when it ended (ISO 8601, UTC)")
+    status: Literal["done", "failed", "stopped"]
+    mode: str
+
+
 class FleetDrive(BaseModel):
     drive_key: str = Field(description="vendor-product-serial (1018h), else profile@bus")
     plant_tag: str | None
@@ -51,6 +58,9 @@ class FleetDrive(BaseModel):
     approved: ApprovedOut | None
     drift: DriftStateOut
     alarms: int | None = Field(description="open alarms when last seen (None: not known)")
+    last_tuning: LastTuningOut | None = Field(
+        description="the newest tuning kept in the store (None: none)"
+    )
 
 
 class FleetPage(BaseModel):
@@ -84,6 +94,19 @@ class ApproveRequest(BaseModel):
     )
     reason: str = Field(
         max_length=2000, pattern=r"^[^\x00]*$", description="why this backup is the reference"
+    )
+
+
+class ClearApprovalRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    drive: str = Field(
+        min_length=1, max_length=200, pattern=PRINTABLE, description="drive_key or plant tag"
+    )
+    reason: str = Field(
+        max_length=2000,
+        pattern=r"^[^\x00]*$",
+        description="why the drive has no reference any more",
     )
 
 

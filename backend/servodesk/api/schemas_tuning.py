@@ -306,3 +306,27 @@ class TuningStored(Reply):
     stored: int = Field(description="dirty entries now saved")
     duration_s: float
     procedure: str
+
+
+class TuningRecord(Reply):
+    """A tuning kept in the store (services/tuning_store.py): which drive, where, how it
+    ended. GET /sessions/{sid}/tuning/results lists them, newest first."""
+
+    id: str = Field(description="the stored result's id (GET /tuning/results/{id})")
+    drive_key: str = Field(description="vendor-product-serial (1018h), else profile@bus")
+    session: str = Field(description="the session it ran in")
+    gateway: str = Field(description="the gateway it ran on")
+    kind: Kind
+    mode: str
+    status: Literal["done", "failed", "stopped"]
+    started: float = Field(description="when the job started [s since the epoch]")
+    ended: float = Field(description="when the job ended [s since the epoch]")
+    by: str = Field(description="the user who started it ('local' in single-user mode)")
+    client: str = Field(description="the client (browser tab, CLI) that started it")
+    applied: bool = Field(description="the tuning's gains were left on the drive when it ended")
+
+
+class StoredTuningResult(TuningRecord):
+    """GET /tuning/results/{id}: a stored tuning with its TuningResult as it ended."""
+
+    result: TuningResult

@@ -52,6 +52,7 @@ from servodesk.services.restore import RestoreService
 from servodesk.services.scope import ScopeService
 from servodesk.services.store import Store
 from servodesk.services.tuning.jobs import TuningService
+from servodesk.services.tuning_store import TuningStore
 from servodesk.services.users import UserStore
 from servodesk.services.viewer import ViewerService
 from servodesk.settings import Settings
@@ -88,6 +89,8 @@ class AppState:
     drift: DriftService
     #: PROFINET DCP on the server's network interfaces (services/dcp.py).
     dcp: DcpService
+    #: The tuning results of every drive, in the store (services/tuning_store.py).
+    tuning_results: TuningStore
     #: Commissioning reports: made of connected drives, kept in the store (services/report.py).
     reports: ReportService
     #: The simulated drives of ``serve --sim`` while the application runs (else None).
@@ -127,8 +130,16 @@ class AppState:
             webhook=settings.drift_webhook,
         )
         tuning = TuningService(manager, motion, hub)
+        # Every tuning that ends is kept in the store (issue 49; services/tuning_store.py).
+        tuning_results = TuningStore(backups.store.engine, drift.gateway)
+        tuning.recorder = tuning_results.add
         reports = ReportService(
-            ReportStore(backups.store.engine), backups, fleet, audit, tuning.result
+            ReportStore(backups.store.engine),
+            backups,
+            fleet,
+            audit,
+            tuning.result,
+            stored_tuning=tuning_results.latest,
         )
         state = cls(
             settings=settings,
@@ -153,6 +164,7 @@ class AppState:
             drift=drift,
             dcp=DcpService(manager, catalog, backups.store, audit),
             reports=reports,
+            tuning_results=tuning_results,
         )
         # Late-bound through the state: a benchmark may put a scope of its own in place.
         state.tuning.recorder_busy = state._recorder_busy

@@ -257,6 +257,29 @@ reports = sa.Table(
     sa.Index("reports_drive", "drive_key", "created"),
 )
 
+#: Every tuning job that ended, done, failed or stopped (revision 0005, services/
+#: tuning_store.py): which drive, where, how, by which user and client, whether its gains
+#: were left applied, and the TuningResult as JSON (docs/tuning.md), so that a restart or
+#: another gateway keeps it.
+tuning_results = sa.Table(
+    "tuning_results",
+    metadata,
+    sa.Column("id", sa.Text, primary_key=True),
+    sa.Column("drive_key", sa.Text, nullable=False),
+    sa.Column("session", sa.Text, nullable=False),
+    sa.Column("gateway", sa.Text, nullable=False),
+    sa.Column("kind", sa.Text, nullable=False),
+    sa.Column("mode", sa.Text, nullable=False),
+    sa.Column("status", sa.Text, nullable=False),
+    sa.Column("started", sa.Float, nullable=False),
+    sa.Column("ended", sa.Float, nullable=False),
+    sa.Column("by", sa.Text, nullable=False),
+    sa.Column("client", sa.Text, nullable=False),
+    sa.Column("applied", sa.Integer, nullable=False),
+    sa.Column("result", sa.Text, nullable=False),
+    sa.Index("tuning_results_drive", "drive_key", "ended"),
+)
+
 #: Every table in the order an export writes and an import reads them.
 TABLES: tuple[sa.Table, ...] = (
     backup_content,
@@ -271,6 +294,7 @@ TABLES: tuple[sa.Table, ...] = (
     fleet_drives,
     drift_results,
     reports,
+    tuning_results,
 )
 
 #: The advisory lock keys of :func:`serialise` (PostgreSQL): any 64-bit numbers, fixed.

@@ -115,6 +115,35 @@ def _like(text: str) -> str:
     return f"%{escaped}%"
 
 
+def _last_tunings(conn: Connection, keys: list[str]) -> dict[str, dict[str, Any]]:
+    """The newest stored tuning of each of ``keys`` (time, status, mode; services/
+    tuning_store.py): one query on the ``tuning_results_drive`` index for a page of drives."""
+    if not keys:
+        return {}
+    t = db.tuning_results
+    newest = (
+        sa.select(t.c.drive_key, sa.func.max(t.c.ended).label("ended"))
+        .where(t.c.drive_key.in_(keys))
+        .group_by(t.c.drive_key)
+        .subquery()
+    )
+    query = (
+        sa.select(t.c.drive_key, t.c.id, t.c.ended, t.c.status, t.c.mode)
+        .join(newest, sa.and_(t.c.drive_key == newest.c.drive_key, t.c.ended == newest.c.ended))
+        .order_by(t.c.id)
+    )
+    out: dict[str, dict[str, Any]] = {}
+    for r in conn.execute(query).mappings():
+        # Two ending at the same instant: the larger id (ids sort by time) is the newer.
+        out[str(r["drive_key"])] = {
+            "id": r["id"],
+            "time": now_iso(r["ended"]),
+            "status": r["status"],
+            "mode": r["mode"],
+        }
+    return out
+
+
 class FleetStore:
     """The fleet's tables on the store's engine (shared with services/store.py)."""
 
@@ -344,17 +373,18 @@ class FleetStore:
             with db.read(self.engine) as conn:
                 total = int(conn.execute(count).scalar_one())
                 rows = conn.execute(page).mappings().all()
+                tunings = _last_tunings(conn, [str(r["drive_key"]) for r in rows])
         except sa.exc.SQLAlchemyError as exc:
             raise db.store_error(exc) from exc
         return {
             "total": total,
             "offset": max(0, offset),
             "limit": limit,
-            "drives": [self._drive(r) for r in rows],
+            "drives": [self._drive(r, tunings.get(str(r["drive_key"]))) for r in rows],
         }
 
     @staticmethod
-    def _drive(r: sa.RowMapping) -> dict[str, Any]:
+    def _drive(r: sa.RowMapping, last_tuning: dict[str, Any] | None = None) -> dict[str, Any]:
         url, session = r.get("gateway_url"), r["session"]
         link = None
         if url:
@@ -386,6 +416,7 @@ class FleetStore:
                 "time": r["drift_time"],
             },
             "alarms": r["alarms"],
+            "last_tuning": last_tuning,
         }
 
     def resolve(self, drive: str) -> str:
@@ -409,12 +440,18 @@ class FleetStore:
     def drive(self, drive: str) -> dict[str, Any]:
         key = self.resolve(drive)
         f, g = db.fleet_drives, db.gateways
-        rows = self._rows(
+        query = (
             sa.select(f, g.c.url.label("gateway_url"))
             .select_from(f.outerjoin(g, f.c.gateway == g.c.name))
             .where(f.c.drive_key == key)
         )
-        return self._drive(rows[0])
+        try:
+            with db.read(self.engine) as conn:
+                row = conn.execute(query).mappings().one()
+                tunings = _last_tunings(conn, [key])
+        except sa.exc.SQLAlchemyError as exc:
+            raise db.store_error(exc) from exc
+        return self._drive(row, tunings.get(key))
 
     # Changes ---------------------------------------------------------------------------------
 
@@ -478,6 +515,33 @@ class FleetStore:
                     drift_count=None,
                     drift_time=None,
                 )
+            )
+        return self.drive(key)
+
+    def clear_approval(self, drive: str) -> dict[str, Any]:
+        """``drive`` has no approved backup any more (the reference was wrong, the drive was
+        rebuilt): its drift state is unknown until a backup is approved again. The caller
+        audits it with the reason. ConflictError when it has none to clear."""
+        key = self.resolve(drive)
+        f = db.fleet_drives
+        with self._tx() as conn:
+            cleared = conn.execute(
+                sa.update(f)
+                .where(f.c.drive_key == key, f.c.approved_backup.is_not(None))
+                .values(
+                    approved_backup=None,
+                    approved_by=None,
+                    approved_at=None,
+                    approved_reason=None,
+                    drift_state="unknown",
+                    drift_count=None,
+                    drift_time=None,
+                )
+            ).rowcount
+        if not cleared:
+            raise ConflictError(
+                f"drive {key} has no approved backup to clear",
+                hint="GET /fleet shows each drive's approved backup",
             )
         return self.drive(key)
 

@@ -221,6 +221,7 @@ class ReportService:
         fleet: FleetStore,
         audit: AuditLog,
         tuning_result: Callable[[str], dict[str, Any]] | None = None,
+        stored_tuning: Callable[[str], dict[str, Any] | None] | None = None,
     ) -> None:
         self.reports = reports
         self.backups = backups
@@ -229,6 +230,9 @@ class ReportService:
         self.audit = audit
         #: ``sid -> TuningResult`` of the last tuning on this server (raises NotFoundError).
         self.tuning_result = tuning_result
+        #: ``drive_key -> `` the drive's newest tuning in the store (services/tuning_store.py
+        #: ``TuningStore.latest``; blocking), for a session with none in memory (a restart).
+        self.stored_tuning = stored_tuning
 
     async def assemble(self, session: Session, *, rid: str, by: str) -> dict[str, Any]:
         """The report data of ``session``'s drive (reads the drive: every parameter)."""
@@ -282,6 +286,18 @@ class ReportService:
         if self.tuning_result is not None:
             with contextlib.suppress(NotFoundError):
                 tuning = _tuning(self.tuning_result(session.id))
+        if tuning is None and self.stored_tuning is not None:
+            stored = await asyncio.to_thread(self.stored_tuning, key)
+            if stored is not None:
+                tuning = _tuning(stored["result"])
+                assert tuning is not None
+                # Which run it is: the report says it is one from the store, and when.
+                tuning["record"] = {
+                    "id": stored["id"],
+                    "ended": now_iso(stored["ended"]),
+                    "gateway": stored["gateway"],
+                    "session": stored["session"],
+                }
         limits = await _section("limits", self._limits(session))
         audit = await asyncio.to_thread(self._audit, session.id, key)
         data: dict[str, Any] = plain(

@@ -417,11 +417,15 @@ def _numbers(values: Any) -> list[float | None]:
 def _tuning(t: dict[str, Any] | None) -> str:
     head = "<h2>Tuning</h2>"
     if t is None:
-        return (
-            head + '<p class="muted">no tuning was run on this drive since the server started</p>'
+        return head + '<p class="muted">no tuning of this drive is recorded</p>'
+    out = [head]
+    record = t.get("record")
+    if isinstance(record, dict):
+        out.append(
+            f'<p class="muted">from the store: tuning {_e(record.get("id"))}, ended '
+            f"{_e(record.get('ended'))} on gateway {_e(record.get('gateway'))}</p>"
         )
-    out = [
-        head,
+    out += [
         _kv(
             [
                 ("Kind", _e(t.get("kind"))),

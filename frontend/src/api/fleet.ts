@@ -31,5 +31,7 @@ export const fleetApi = {
   setTag: (drive: string, tag: string | null) => apiRequest(`Tag ${drive}`, 'PUT', '/fleet/tag', { body: { drive, tag } }),
   approve: (drive: string, backup: string, reason: string) =>
     apiRequest(`Approve ${backup}`, 'PUT', '/fleet/approved', { body: { drive, backup, reason } }),
+  clearApproval: (drive: string, reason: string) =>
+    apiRequest(`Clear the approval of ${drive}`, 'DELETE', '/fleet/approved', { body: { drive, reason } }),
   check: (sid: string) => apiRequest(`Check ${sid} for drift`, 'POST', '/sessions/{sid}/drift', { params: { sid } }),
 };

@@ -488,7 +488,12 @@ export interface paths {
          */
         put: operations["approve_backup"];
         post?: never;
-        delete?: never;
+        /**
+         * Clear Approval
+         * @description The drive has no approved backup any more; the reason is required and audited. Its
+         *     drift state is unknown until a backup is approved again; 409 when it has none.
+         */
+        delete: operations["clear_approval"];
         options?: never;
         head?: never;
         patch?: never;
@@ -1653,6 +1658,27 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/sessions/{sid}/tuning/results": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Tuning Results
+         * @description The tunings of this session's drive kept in the store (from every session and
+         *     gateway), newest first; metadata only.
+         */
+        get: operations["tuning_results"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/sessions/{sid}/tuning/start": {
         parameters: {
             query?: never;
@@ -1727,6 +1753,27 @@ export interface paths {
          * @description Gains back to before the last run or to the defaults (builtin: P11603).
          */
         post: operations["tuning_undo"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/tuning/results/{rid}": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Tuning Stored Result
+         * @description One tuning kept in the store, with its ``TuningResult`` as it ended; 404 when the
+         *     store has none of that id.
+         */
+        get: operations["tuning_stored_result"];
+        put?: never;
+        post?: never;
         delete?: never;
         options?: never;
         head?: never;
@@ -2186,6 +2233,19 @@ export interface components {
         ChannelsIn: {
             /** Channels */
             channels: components["schemas"]["ChannelIn"][];
+        };
+        /** ClearApprovalRequest */
+        ClearApprovalRequest: {
+            /**
+             * Drive
+             * @description drive_key or plant tag
+             */
+            drive: string;
+            /**
+             * Reason
+             * @description why the drive has no reference any more
+             */
+            reason: string;
         };
         /** ClearHistoryRequest */
         ClearHistoryRequest: {
@@ -2894,6 +2954,8 @@ export interface components {
             last_backup: string | null;
             /** Last Backup Time */
             last_backup_time: string | null;
+            /** @description the newest tuning kept in the store (None: none) */
+            last_tuning: components["schemas"]["LastTuningOut"] | null;
             /**
              * Link
              * @description the drive's page on its gateway
@@ -3422,6 +3484,26 @@ export interface components {
              * @description Signed velocity, raw units (e.g. inc/s)
              */
             velocity: number;
+        };
+        /** LastTuningOut */
+        LastTuningOut: {
+            /**
+             * Id
+             * @description the stored tuning (GET /tuning/results/{id})
+             */
+            id: string;
+            /** Mode */
+            mode: string;
+            /**
+             * Status
+             * @enum {string}
+             */
+            status: "done" | "failed" | "stopped";
+            /**
+             * Time
+             * @description when it ended (ISO 8601, UTC)
+             */
+            time: string;
         };
         /** LimitsOut */
         LimitsOut: {
@@ -5635,6 +5717,70 @@ export interface components {
             stored: number;
         };
         /**
+         * StoredTuningResult
+         * @description GET /tuning/results/{id}: a stored tuning with its TuningResult as it ended.
+         */
+        StoredTuningResult: {
+            /**
+             * Applied
+             * @description the tuning's gains were left on the drive when it ended
+             */
+            applied: boolean;
+            /**
+             * By
+             * @description the user who started it ('local' in single-user mode)
+             */
+            by: string;
+            /**
+             * Client
+             * @description the client (browser tab, CLI) that started it
+             */
+            client: string;
+            /**
+             * Drive Key
+             * @description vendor-product-serial (1018h), else profile@bus
+             */
+            drive_key: string;
+            /**
+             * Ended
+             * @description when the job ended [s since the epoch]
+             */
+            ended: number;
+            /**
+             * Gateway
+             * @description the gateway it ran on
+             */
+            gateway: string;
+            /**
+             * Id
+             * @description the stored result's id (GET /tuning/results/{id})
+             */
+            id: string;
+            /**
+             * Kind
+             * @enum {string}
+             */
+            kind: "builtin" | "gains" | "none";
+            /** Mode */
+            mode: string;
+            result: components["schemas"]["TuningResult"];
+            /**
+             * Session
+             * @description the session it ran in
+             */
+            session: string;
+            /**
+             * Started
+             * @description when the job started [s since the epoch]
+             */
+            started: number;
+            /**
+             * Status
+             * @enum {string}
+             */
+            status: "done" | "failed" | "stopped";
+        };
+        /**
          * SubscribeMessage
          * @description Follow a session: its state, EMCY, link, progress, motion, ... messages.
          */
@@ -5980,6 +6126,70 @@ export interface components {
             max: number;
             /** Min */
             min: number;
+        };
+        /**
+         * TuningRecord
+         * @description A tuning kept in the store (services/tuning_store.py): which drive, where, how it
+         *     ended. GET /sessions/{sid}/tuning/results lists them, newest first.
+         */
+        TuningRecord: {
+            /**
+             * Applied
+             * @description the tuning's gains were left on the drive when it ended
+             */
+            applied: boolean;
+            /**
+             * By
+             * @description the user who started it ('local' in single-user mode)
+             */
+            by: string;
+            /**
+             * Client
+             * @description the client (browser tab, CLI) that started it
+             */
+            client: string;
+            /**
+             * Drive Key
+             * @description vendor-product-serial (1018h), else profile@bus
+             */
+            drive_key: string;
+            /**
+             * Ended
+             * @description when the job ended [s since the epoch]
+             */
+            ended: number;
+            /**
+             * Gateway
+             * @description the gateway it ran on
+             */
+            gateway: string;
+            /**
+             * Id
+             * @description the stored result's id (GET /tuning/results/{id})
+             */
+            id: string;
+            /**
+             * Kind
+             * @enum {string}
+             */
+            kind: "builtin" | "gains" | "none";
+            /** Mode */
+            mode: string;
+            /**
+             * Session
+             * @description the session it ran in
+             */
+            session: string;
+            /**
+             * Started
+             * @description when the job started [s since the epoch]
+             */
+            started: number;
+            /**
+             * Status
+             * @enum {string}
+             */
+            status: "done" | "failed" | "stopped";
         };
         /**
          * TuningResult
@@ -9458,6 +9668,120 @@ export interface operations {
         requestBody: {
             content: {
                 "application/json": components["schemas"]["ApproveRequest"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["FleetDrive"];
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    clear_approval: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["ClearApprovalRequest"];
             };
         };
         responses: {
@@ -17696,6 +18020,120 @@ export interface operations {
             };
         };
     };
+    tuning_results: {
+        parameters: {
+            query?: {
+                limit?: number;
+            };
+            header?: never;
+            path: {
+                sid: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["TuningRecord"][];
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
     tuning_start: {
         parameters: {
             query?: never;
@@ -18084,6 +18522,119 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["UndoResult"];
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    tuning_stored_result: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the result's id (its list's) */
+                rid: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["StoredTuningResult"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */

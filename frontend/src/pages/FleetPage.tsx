@@ -2,12 +2,14 @@
  * The fleet (issue 49): every drive the store knows, from every gateway that shares it — its
  * plant tag, the gateway that connected it last (a link to the drive there), family,
  * firmware, last backup, approved ("golden") backup with who approved it and why, drift state
- * (unknown / in step / drifted with how many parameters and when), open alarms when known.
+ * (unknown / in step / drifted with how many parameters and when), the last tuning kept in the
+ * store (when, how it ended, mode), open alarms when known.
  * A text search over tag, key, serial and family, a drift-state filter, and pages of
  * {@link PAGE} drives (the query runs on the server: a plant has 10 000 drives). A drifted
  * drive's row opens the differing parameters of its last check (GET /fleet/drift).
  *
- * Tags and approvals are set through the API (PUT /fleet/tag, PUT /fleet/approved; docs/api.md).
+ * Tags and approvals are set through the API (PUT /fleet/tag, PUT /fleet/approved; docs/api.md);
+ * an approval is cleared here, with a reason (DELETE /fleet/approved).
  */
 import { Fragment, useCallback, useEffect, useState } from 'react';
 import { type DriftResult, type DriftState, type FleetDrive, type FleetFilter, type FleetPage as Page, fleetApi } from '../api/fleet';
@@ -99,7 +101,55 @@ function Differences({ drive }: { drive: FleetDrive }) {
   );
 }
 
-function Row({ d, open, toggle }: { d: FleetDrive; open: boolean; toggle: () => void }) {
+/** Clearing an approval (DELETE /fleet/approved): asked to confirm, with the reason the audit
+ * log keeps; the drive's drift state is unknown afterwards. */
+function ClearApproval({ d, cleared }: { d: FleetDrive; cleared: () => void }) {
+  const [asking, setAsking] = useState(false);
+  const [reason, setReason] = useState('');
+  const [failure, setFailure] = useState<Failure | null>(null);
+  const [busy, setBusy] = useState(false);
+  if (!asking) {
+    return (
+      <button type="button" className="small-btn" onClick={() => setAsking(true)} data-testid="fleet-clear-approval">
+        Clear…
+      </button>
+    );
+  }
+  const submit = async () => {
+    setBusy(true);
+    try {
+      await fleetApi.clearApproval(d.drive_key, reason.trim());
+      setAsking(false);
+      cleared();
+    } catch (e) {
+      setFailure(failureOf(e, 'Clear the approval'));
+    } finally {
+      setBusy(false);
+    }
+  };
+  return (
+    <form
+      className="fleet-clear"
+      onSubmit={(e) => {
+        e.preventDefault();
+        void submit();
+      }}
+    >
+      <div className="small">Clear the approved backup? Drift checks stop until another is approved.</div>
+      <input value={reason} onChange={(e) => setReason(e.target.value)} placeholder="reason (required)" maxLength={2000} aria-label="Reason" data-testid="fleet-clear-reason" />{' '}
+      <button type="submit" className="small-btn" disabled={busy || !reason.trim()} data-testid="fleet-clear-confirm">
+        Clear approval
+      </button>{' '}
+      <button type="button" className="small-btn" onClick={() => setAsking(false)} disabled={busy}>
+        Cancel
+      </button>
+      {failure && <FailureBox f={failure} />}
+    </form>
+  );
+}
+
+function Row({ d, open, toggle, reload }: { d: FleetDrive; open: boolean; toggle: () => void; reload: () => void }) {
+  const t = d.last_tuning;
   return (
     <Fragment>
       <tr data-testid="fleet-row" data-drive={d.drive_key} data-drift={d.drift.state}>
@@ -129,6 +179,7 @@ function Row({ d, open, toggle }: { d: FleetDrive; open: boolean; toggle: () => 
               <div className="muted small">
                 {d.approved.by} · {d.approved.reason}
               </div>
+              <ClearApproval d={d} cleared={reload} />
             </span>
           ) : (
             <span className="muted">none</span>
@@ -143,11 +194,23 @@ function Row({ d, open, toggle }: { d: FleetDrive; open: boolean; toggle: () => 
             <DriftCell d={d} />
           )}
         </td>
+        <td className="small nowrap" data-testid="fleet-last-tuning" title={t ? `stored tuning ${t.id}` : undefined}>
+          {t ? (
+            <>
+              <span className="mono">{when(t.time)}</span>
+              <div className={t.status === 'done' ? 'muted small' : 'bad small'}>
+                {t.status} · {t.mode}
+              </div>
+            </>
+          ) : (
+            <span className="muted">none</span>
+          )}
+        </td>
         <td className={d.alarms ? 'bad num' : 'muted num'}>{d.alarms ?? '—'}</td>
       </tr>
       {open && (
         <tr className="fleet-detail">
-          <td colSpan={9}>
+          <td colSpan={10}>
             <Differences drive={d} />
           </td>
         </tr>
@@ -250,12 +313,13 @@ export function FleetPage() {
                   <th>Last backup</th>
                   <th>Approved backup</th>
                   <th>Drift</th>
+                  <th>Last tuning</th>
                   <th className="num">Alarms</th>
                 </tr>
               </thead>
               <tbody>
                 {page.drives.map((d) => (
-                  <Row key={d.drive_key} d={d} open={open === d.drive_key} toggle={() => setOpen(open === d.drive_key ? null : d.drive_key)} />
+                  <Row key={d.drive_key} d={d} open={open === d.drive_key} toggle={() => setOpen(open === d.drive_key ? null : d.drive_key)} reload={() => void load(filter)} />
                 ))}
               </tbody>
             </table>

@@ -17,6 +17,7 @@ from servodesk.api.schemas import ERROR_RESPONSES
 from servodesk.api.schemas_fleet import (
     PRINTABLE,
     ApproveRequest,
+    ClearApprovalRequest,
     DriftResult,
     DriftStateName,
     FleetDrive,
@@ -24,6 +25,7 @@ from servodesk.api.schemas_fleet import (
     GatewayOut,
     PlantTagRequest,
 )
+from servodesk.errors import ValidationError
 from servodesk.services.fleet import MAX_PAGE
 
 router = APIRouter(tags=["fleet"], responses=ERROR_RESPONSES)
@@ -84,6 +86,31 @@ def approve_backup(body: ApproveRequest, request: Request, state: StateDep) -> F
         drive=drive.session,
         message=body.reason.strip(),
         details={"drive_key": drive.drive_key, "backup": body.backup},
+    )
+    return drive
+
+
+@router.delete("/fleet/approved", operation_id="clear_approval")
+def clear_approval(body: ClearApprovalRequest, state: StateDep) -> FleetDrive:
+    """The drive has no approved backup any more; the reason is required and audited. Its
+    drift state is unknown until a backup is approved again; 409 when it has none."""
+    reason = body.reason.strip()
+    if not reason:
+        raise ValidationError(
+            "clearing an approval needs a reason",
+            field="reason",
+            hint="say why the drive has no reference any more (e.g. 'drive rebuilt')",
+        )
+    old = state.fleet.drive(body.drive)
+    drive = FleetDrive.model_validate(state.fleet.clear_approval(body.drive))
+    state.audit.record(
+        "backup.approval_cleared",
+        drive=drive.session,
+        message=reason,
+        details={
+            "drive_key": drive.drive_key,
+            "backup": (old["approved"] or {}).get("backup"),
+        },
     )
     return drive
 

@@ -20,19 +20,14 @@ from servodesk.api.deps import StateDep
 from servodesk.api.downloads import content_disposition
 from servodesk.api.identity import caller_of
 from servodesk.api.rights import require
-from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.api.schemas import ERROR_RESPONSES, STORED_ID
 from servodesk.api.schemas_report import ReportInfo
 from servodesk.domain.roles import Right
 from servodesk.services.report_pdf import print_pdf
 
 router = APIRouter(tags=["reports"], responses=ERROR_RESPONSES)
 
-#: A report id as services/report.py makes them (``report-20261207t142600z-a1b2c3``: a safe id
-#: of domain/ids.py without dots): one that is not cannot exist, and the schema says so (a 422
-#: naming the rule rather than a lookup).
-ReportId = Annotated[
-    str, Path(pattern=r"^[a-z0-9][a-z0-9_-]{0,63}$", description="the report's id (POST's answer)")
-]
+ReportId = Annotated[str, Path(pattern=STORED_ID, description="the report's id (POST's answer)")]
 
 #: The report's page may not fetch anything nor run anything, wherever it is opened from
 #: (its CJK font, where it has one, is inline: services/report_html.py).

@@ -9,27 +9,33 @@ motion halts the axes and the sessions close).
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Request
+from fastapi import APIRouter, Path, Query, Request
 from pydantic import BaseModel, ConfigDict, Field
 
 from servodesk.api.control_deps import ClientId, MotionControl, WriteControl
-from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.api.deps import StateDep
+from servodesk.api.identity import caller_of
+from servodesk.api.schemas import ERROR_RESPONSES, STORED_ID
 from servodesk.api.schemas_tuning import (
+    StoredTuningResult,
     TuningInfo,
     TuningJob,
+    TuningRecord,
     TuningResult,
     TuningStored,
     UndoResult,
 )
 from servodesk.api.state import state_of
+from servodesk.services.backup import drive_key
 from servodesk.services.tuning.capabilities import (
     MAX_MOVE_TORQUE_PCT,
     MAX_TORQUE_PCT,
     MAX_TRAVEL_REV,
 )
 from servodesk.services.tuning.jobs import TuningService
+from servodesk.services.tuning_store import MAX_HISTORY
 
 
 def tuning_of(app: Any) -> TuningService:
@@ -108,6 +114,7 @@ async def tuning_start(
         travel_window_rev=body.travel_window_rev,
         torque_limit_pct=body.torque_limit_pct,
         move_torque_pct=body.move_torque_pct,
+        user=caller_of(request).user,
     )
     return TuningJob.model_validate(job)
 
@@ -130,6 +137,32 @@ async def tuning_stop(
 async def tuning_result(sid: str, request: Request) -> TuningResult:
     """The last job's ``TuningResult``; 404 when there is none."""
     return TuningResult.model_validate(_svc(request).result(sid))
+
+
+# The store routes are plain functions: FastAPI runs them in its thread pool, so a store on a
+# slow network never holds the event loop.
+@router.get("/sessions/{sid}/tuning/results", operation_id="tuning_results")
+def tuning_results(
+    sid: str, state: StateDep, limit: int = Query(100, ge=1, le=MAX_HISTORY)
+) -> list[TuningRecord]:
+    """The tunings of this session's drive kept in the store (from every session and
+    gateway), newest first; metadata only."""
+    key = drive_key(state.manager.get(sid))
+    return [TuningRecord.model_validate(r) for r in state.tuning_results.history(key, limit)]
+
+
+@router.get(
+    "/tuning/results/{rid}",
+    operation_id="tuning_stored_result",
+    response_model_exclude_unset=True,
+)
+def tuning_stored_result(
+    rid: Annotated[str, Path(pattern=STORED_ID, description="the result's id (its list's)")],
+    state: StateDep,
+) -> StoredTuningResult:
+    """One tuning kept in the store, with its ``TuningResult`` as it ended; 404 when the
+    store has none of that id."""
+    return StoredTuningResult.model_validate(state.tuning_results.get(rid))
 
 
 @router.post("/sessions/{sid}/tuning/undo", operation_id="tuning_undo")

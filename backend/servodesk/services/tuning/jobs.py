@@ -48,6 +48,7 @@ from servodesk.errors import (
     ServodeskError,
     ValidationError,
 )
+from servodesk.services.backup import drive_key, new_id
 from servodesk.services.events import EventHub
 from servodesk.services.manager import SessionManager
 from servodesk.services.motion import Motion, MotionService
@@ -87,6 +88,8 @@ log = logging.getLogger(__name__)
 
 #: How long stop() waits for the job to wind down [s].
 STOP_WAIT_S = 15.0
+#: How long shutdown waits for the last results to reach the store [s].
+STORE_WAIT_S = 10.0
 
 
 class TuningService:
@@ -109,6 +112,11 @@ class TuningService:
         #: Gain values before the last run of servodesk's own tuning (undo "before").
         self._before: dict[str, dict[str, Value]] = {}
         self._ids = itertools.count(1)
+        #: Keeps an ended job in the store (services/tuning_store.py ``TuningStore.add``;
+        #: blocking, run in a thread). None: results live in memory only.
+        self.recorder: Callable[[dict[str, Any]], None] | None = None
+        #: The store writes under way (awaited, briefly, at shutdown).
+        self._writes: set[asyncio.Task[None]] = set()
 
     # Info -------------------------------------------------------------------------------
 
@@ -244,12 +252,14 @@ class TuningService:
         travel_window_rev: float,
         torque_limit_pct: float,
         move_torque_pct: float | None = None,
+        user: str | None = None,
     ) -> dict[str, Any]:
         """Check the preconditions, begin the tuning motion and run the job in the background.
 
         ``move_torque_pct``: the peak torque of the machine's own moves, which servodesk's own
         tuning ranks its gains for (the reference move accelerates at 70 % of it); None: the
-        tuning's torque limit. The drive's built-in tuning has no use for it (400).
+        tuning's torque limit. The drive's built-in tuning has no use for it (400). ``user``:
+        who started it, for the stored result (None: the client's label stands in).
 
         Refused before anything moves: kind ``none`` (400 naming ``kind``), a bad input (400
         naming it), a drive that is not enabled (409), a window beyond the software position
@@ -307,6 +317,7 @@ class TuningService:
             travel_window_rev=travel_window_rev,
             torque_limit_pct=torque_limit_pct,
             move_torque_pct=move_torque_pct,
+            user=user,
         )
         run = Run(session=session, refs=gain_refs(p, kind))
         if kind == "builtin":
@@ -388,6 +399,7 @@ class TuningService:
             result = await self._wind_down(job, run, "failed", message)
             state = "failed"
         self._finish(job, state, message, result)
+        self._record(job, run.session, result)
 
     async def _wind_down(
         self,
@@ -474,6 +486,51 @@ class TuningService:
         self._results[job.sid] = result
         log.info("tuning %s ended: %s (%s)", job.id, state, job.message)
         self._publish(job)
+
+    def _record(self, job: Job, session: Session, result: dict[str, Any]) -> None:
+        """Keep the ended job in the store (issue 49: tuning results live in the store).
+
+        A task of its own, the write in a thread: the job has ended when this returns, so a
+        stop (which waits for the job) never waits for the database, nor does the event loop.
+        A store error is logged and changes nothing of the tuning's end (safety first).
+        """
+        if self.recorder is None:
+            return
+        try:
+            key = drive_key(session)
+        except Exception:  # A closed session's identity: the tuning has ended all the same.
+            log.exception("tuning %s: its drive is unknown, the result is not stored", job.id)
+            return
+        record = {
+            # Lower case: an id that check_id takes (GET /tuning/results/{id}).
+            "id": new_id("tuning-").lower(),
+            "drive_key": key,
+            "session": job.sid,
+            "kind": job.kind,
+            "mode": job.mode,
+            "status": job.state,
+            "started": job.started,
+            "ended": job.ended if job.ended is not None else time.time(),
+            "by": job.user or job.owner,
+            "client": job.owner,
+            "applied": bool(result.get("applied")),
+            # A copy: undo and store change the in-memory result's top-level keys later.
+            "result": dict(result),
+        }
+        task = asyncio.get_running_loop().create_task(
+            self._write(job, record), name=f"tuning {job.id} store"
+        )
+        self._writes.add(task)
+        task.add_done_callback(self._writes.discard)
+
+    async def _write(self, job: Job, record: dict[str, Any]) -> None:
+        recorder = self.recorder
+        if recorder is None:
+            return
+        try:
+            await asyncio.to_thread(recorder, record)
+        except Exception:  # The store's failure is not the tuning's: log it, go on.
+            log.exception("tuning %s: its result could not be kept in the store", job.id)
 
     def progress(self, job: Job, fraction: float, step: str) -> None:
         if job.state != "running":
@@ -640,6 +697,9 @@ class TuningService:
                 tasks.append(job.task)
         if tasks:
             await asyncio.wait(tasks, timeout=STOP_WAIT_S)
+        # The results of the jobs that just ended, before the store closes.
+        if self._writes:
+            await asyncio.wait(set(self._writes), timeout=STORE_WAIT_S)
 
 
 def _uncancel() -> None:

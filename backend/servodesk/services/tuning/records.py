@@ -42,6 +42,8 @@ class Job:
     torque_limit_pct: float
     #: The peak torque of the machine's moves (own tuning only; None: the tuning's limit).
     move_torque_pct: float | None = None
+    #: The user who started it (the stored result's ``by``; the owner is the client).
+    user: str | None = None
     state: str = "running"
     progress: float = 0.0
     step: str = "starting"
