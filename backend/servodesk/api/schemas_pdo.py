@@ -1,13 +1,17 @@
-"""Response models of the PDO mapping and cyclic data routes (api/routes/pdo.py, docs/pdo.md
-"REST"), built from the dicts of services/pdo.py and services/cyclic.py (api/reply.py)."""
+"""Request and response models of the PDO mapping and cyclic data routes (api/routes/pdo.py,
+docs/pdo.md "REST"); the answers are built from the dicts of services/pdo.py and
+services/cyclic.py (api/reply.py)."""
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
-from pydantic import Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from servodesk.api.reply import Reply
+
+#: A request body takes only the fields it declares: a misspelt one is a 422 naming it.
+_BODY = ConfigDict(extra="forbid")
 
 Direction = Literal["rx", "tx"]
 SyncMode = Literal["freerun", "dc"]
@@ -263,3 +267,53 @@ class PdoCyclicStatus(Reply):
     dc_cycle_ns: list[int] | None = Field(
         default=None, description="the SYNC0 cycles the drive takes: [min, max, step] [ns]"
     )
+
+
+class EntryIn(BaseModel):
+    model_config = _BODY
+    index: int = Field(ge=0, le=0xFFFF)
+    subindex: int = Field(ge=0, le=0xFF)
+    bits: int = Field(ge=0, le=64)
+
+
+class PdoIn(BaseModel):
+    model_config = _BODY
+    direction: Literal["rx", "tx"]
+    number: int = Field(ge=1, le=512)
+    entries: list[Annotated[str, Field(max_length=32)] | EntryIn] | None = Field(
+        default=None, max_length=64
+    )
+    cob_id: int | None = Field(default=None, ge=0, le=0x7FF)
+    enabled: bool | None = None
+    rtr_allowed: bool | None = None
+    transmission_type: int | None = Field(default=None, ge=0, le=255)
+    inhibit_time: int | None = Field(default=None, ge=0, le=0xFFFF)
+    event_timer: int | None = Field(default=None, ge=0, le=0xFFFF)
+    sync_start: int | None = Field(default=None, ge=0, le=240)
+
+
+class PdoLayout(BaseModel):
+    model_config = _BODY
+    pdos: list[PdoIn] = Field(default_factory=list, max_length=64)
+    assignment: dict[Literal["rx", "tx"], list[Annotated[int, Field(ge=0, le=0xFFFF)]]] | None = (
+        None
+    )
+    telegram: int | None = Field(default=None, ge=0, le=65535)
+
+
+class ApplyRequest(PdoLayout):
+    dry_run: bool = False
+
+
+class PdoCyclicRequest(BaseModel):
+    model_config = _BODY
+    sync_period_ms: float = Field(default=10.0, ge=1.0, le=1000.0)
+    outputs: bool = False
+    #: "dc": the drive's SYNC0 event from the distributed clocks at the period (EtherCAT
+    #: drives whose profile names the cycles they take); "freerun": its own cycle.
+    sync: Literal["freerun", "dc"] = "freerun"
+
+
+class OutputsRequest(BaseModel):
+    model_config = _BODY
+    values: dict[Annotated[str, Field(max_length=32)], int | float | bool] = Field(max_length=64)

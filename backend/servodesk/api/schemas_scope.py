@@ -1,13 +1,17 @@
-"""Response models of the live scope routes (api/routes/scope.py, docs/scope.md "REST"), built
-from the dicts of services/scope.py and domain/scope_export.py (api/reply.py)."""
+"""Request and response models of the live scope routes (api/routes/scope.py, docs/scope.md
+"REST"); the answers are built from the dicts of services/scope.py and domain/scope_export.py
+(api/reply.py)."""
 
 from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from servodesk.api.reply import Reply
+
+#: A request body takes only the fields it declares: a misspelt one is a 422 naming it.
+_BODY = ConfigDict(extra="forbid")
 
 Source = Literal["auto", "pdo", "sdo", "recorder"]
 AchievedSource = Literal["pdo", "sdo", "recorder"]
@@ -113,3 +117,45 @@ class RecorderInfo(Reply):
     depth: int
     objects: list[str] = Field(description="the objects it can record")
     section: str | None = Field(default=None, description="a present recorder: the manual's")
+
+
+class ChannelIn(BaseModel):
+    model_config = _BODY
+    id: int = Field(ge=0, le=255, description="Channel id 0..7")
+    session: str = Field(min_length=1, max_length=128)
+    address: str = Field(min_length=1, max_length=32, description='e.g. "0x6064:00"')
+    source: Literal["auto", "pdo", "sdo", "recorder"] = "auto"
+    scale: float = Field(default=1.0, allow_inf_nan=False)
+    offset: float = Field(default=0.0, allow_inf_nan=False)
+    visible: bool = True
+    label: str | None = Field(default=None, max_length=64)
+    rate_hz: float = Field(
+        default=0.0,
+        ge=0.0,
+        le=100_000.0,
+        description="SDO: requested poll rate (0: as fast as the link answers); "
+        "recorder: requested sample rate (0: the recorder's fastest)",
+    )
+
+
+class ChannelsIn(BaseModel):
+    model_config = _BODY
+    # The scope's own limit (8) is checked by the service, which names it in the answer.
+    channels: list[ChannelIn] = Field(max_length=64)
+
+
+class TriggerIn(BaseModel):
+    model_config = _BODY
+    mode: Literal["roll", "single", "normal"] = "roll"
+    kind: Literal["level", "edge", "state", "fault"] = "level"
+    channel: int = Field(default=0, ge=0, le=7)
+    level: float = Field(default=0.0, allow_inf_nan=False)
+    slope: Literal["rising", "falling", "either"] = "rising"
+    pre: float = Field(default=0.2, ge=0.0, le=1.0)
+    window_s: float = Field(default=1.0, gt=0.0, le=60.0)
+    holdoff_s: float = Field(default=0.0, ge=0.0, le=3600.0)
+
+
+class RunIn(BaseModel):
+    model_config = _BODY
+    action: Literal["start", "stop", "arm"]

@@ -5,45 +5,22 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from datetime import UTC, datetime
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
 from fastapi import APIRouter, Query
 from fastapi.responses import StreamingResponse
-from pydantic import BaseModel
 from starlette.concurrency import run_in_threadpool
 
 from servodesk.api.deps import StateDep
 from servodesk.api.downloads import content_disposition
 from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.api.schemas_audit import AuditRecord, AuditVerdict
 from servodesk.services.audit import Category
 
 router = APIRouter(tags=["audit"], responses=ERROR_RESPONSES)
 
 #: A time filter: ISO 8601 (``2026-12-07T08:00:00Z``); without a zone it is UTC.
 Instant = Annotated[datetime | None, Query(description="ISO 8601; without a zone: UTC")]
-
-
-class AuditRecord(BaseModel):
-    seq: int
-    time: str  # ISO 8601, UTC ("...Z")
-    user: str
-    address: str
-    category: Category
-    event: str
-    drive: str | None
-    result: Literal["success", "failure"]
-    message: str
-    details: dict[str, Any]
-    prev: str
-    hash: str
-
-
-class AuditVerdict(BaseModel):
-    ok: bool
-    records: int
-    head: str
-    broken: int | None
-    problem: str | None
 
 
 def _utc(t: datetime | None) -> datetime | None:

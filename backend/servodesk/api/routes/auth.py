@@ -14,87 +14,30 @@ from typing import Annotated
 
 from fastapi import APIRouter, Path, Request, Response
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel, ConfigDict, Field
 
 from servodesk.api.auth import Auth, auth_of, cookie_header
 from servodesk.api.identity import caller_of
 from servodesk.api.schemas import ERROR_RESPONSES, ErrorOut
+from servodesk.api.schemas_auth import (
+    LoginRequest,
+    LoginSessionOut,
+    MeOut,
+    TokenCreate,
+    TokenCreated,
+    TokenOut,
+    UserCreate,
+    UserOut,
+    UserPatch,
+)
 from servodesk.api.state import state_of
-from servodesk.domain.roles import Role, rights_of
+from servodesk.domain.roles import rights_of
 from servodesk.errors import ConflictError, LockedOut, Unauthorized
 from servodesk.services.audit import Actor
-from servodesk.services.users import MAX_PASSWORD, MIN_PASSWORD
 
 UserName = Annotated[str, Path(max_length=64)]
 
 # The login sweeper (idle sessions end) is started and stopped by AppState (api/state.py).
 router = APIRouter(prefix="/auth", tags=["auth"], responses=ERROR_RESPONSES)
-
-
-class LoginRequest(BaseModel):
-    user: str = Field(min_length=1, max_length=64)
-    password: str = Field(min_length=1, max_length=1024)
-
-
-class MeOut(BaseModel):
-    user: str
-    role: str
-    rights: list[str] = Field(description="The rights of the role (docs/security.md, Roles)")
-    mode: str = Field(description='"single-user" (loopback, no login) or "login"')
-    session: str | None = Field(description="The login session's id (null: token, single-user)")
-    idle_timeout_s: float = Field(description="A login session unused this long ends")
-
-
-class UserOut(BaseModel):
-    name: str
-    role: str
-    disabled: bool
-    created: float
-
-
-#: services/users.py's rules, in the schema too ("local" is the single-user mode's name).
-NewPassword = Annotated[str, Field(min_length=MIN_PASSWORD, max_length=MAX_PASSWORD)]
-
-
-class UserCreate(BaseModel):
-    model_config = ConfigDict(regex_engine="python-re")  # The look-ahead below.
-
-    name: str = Field(pattern=r"^(?!local$)[A-Za-z0-9][A-Za-z0-9._@-]{0,63}$")
-    role: Role
-    password: NewPassword
-
-
-class UserPatch(BaseModel):
-    role: Role | None = None
-    disabled: bool | None = None
-    password: NewPassword | None = None
-
-
-class LoginSessionOut(BaseModel):
-    id: str
-    user: str
-    address: str
-    created: float
-    last_seen: float
-    websockets: int = Field(description="Open WebSockets of this session (closed when it ends)")
-
-
-class TokenOut(BaseModel):
-    id: str
-    user: str
-    label: str
-    created: float
-    last_used: float | None
-
-
-class TokenCreate(BaseModel):
-    label: str = Field(default="", max_length=100)
-
-
-class TokenCreated(TokenOut):
-    secret: str = Field(
-        description="The token, shown this once: send it as Authorization: Bearer <secret>"
-    )
 
 
 def _audit(

@@ -11,15 +11,18 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
-from pydantic import BaseModel, ConfigDict, Field
 
 from servodesk.api.control_deps import EnergiseControl, WriteControl, require_energise
 from servodesk.api.deps import StateDep
 from servodesk.api.downloads import content_disposition
 from servodesk.api.schemas import ERROR_RESPONSES
 from servodesk.api.schemas_pdo import (
+    ApplyRequest,
+    OutputsRequest,
     PdoApplyReport,
+    PdoCyclicRequest,
     PdoCyclicStatus,
+    PdoLayout,
     PdoMappable,
     PdoPlan,
     PdoTemplateOut,
@@ -31,58 +34,6 @@ from servodesk.services import pdo as pdosvc
 from servodesk.services.control import CONTROL_HEADER
 
 router = APIRouter(tags=["pdo"], responses=ERROR_RESPONSES)
-
-_BODY = ConfigDict(extra="forbid")
-
-
-class EntryIn(BaseModel):
-    model_config = _BODY
-    index: int = Field(ge=0, le=0xFFFF)
-    subindex: int = Field(ge=0, le=0xFF)
-    bits: int = Field(ge=0, le=64)
-
-
-class PdoIn(BaseModel):
-    model_config = _BODY
-    direction: Literal["rx", "tx"]
-    number: int = Field(ge=1, le=512)
-    entries: list[Annotated[str, Field(max_length=32)] | EntryIn] | None = Field(
-        default=None, max_length=64
-    )
-    cob_id: int | None = Field(default=None, ge=0, le=0x7FF)
-    enabled: bool | None = None
-    rtr_allowed: bool | None = None
-    transmission_type: int | None = Field(default=None, ge=0, le=255)
-    inhibit_time: int | None = Field(default=None, ge=0, le=0xFFFF)
-    event_timer: int | None = Field(default=None, ge=0, le=0xFFFF)
-    sync_start: int | None = Field(default=None, ge=0, le=240)
-
-
-class PdoLayout(BaseModel):
-    model_config = _BODY
-    pdos: list[PdoIn] = Field(default_factory=list, max_length=64)
-    assignment: dict[Literal["rx", "tx"], list[Annotated[int, Field(ge=0, le=0xFFFF)]]] | None = (
-        None
-    )
-    telegram: int | None = Field(default=None, ge=0, le=65535)
-
-
-class ApplyRequest(PdoLayout):
-    dry_run: bool = False
-
-
-class PdoCyclicRequest(BaseModel):
-    model_config = _BODY
-    sync_period_ms: float = Field(default=10.0, ge=1.0, le=1000.0)
-    outputs: bool = False
-    #: "dc": the drive's SYNC0 event from the distributed clocks at the period (EtherCAT
-    #: drives whose profile names the cycles they take); "freerun": its own cycle.
-    sync: Literal["freerun", "dc"] = "freerun"
-
-
-class OutputsRequest(BaseModel):
-    model_config = _BODY
-    values: dict[Annotated[str, Field(max_length=32)], int | float | bool] = Field(max_length=64)
 
 
 def _body(layout: PdoLayout) -> dict[str, Any]:

@@ -13,13 +13,19 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import Response
-from pydantic import BaseModel, ConfigDict, Field
 
 from servodesk.api.deps import StateDep
 from servodesk.api.downloads import content_disposition
 from servodesk.api.offload import in_process
 from servodesk.api.schemas import ERROR_RESPONSES
-from servodesk.api.schemas_scope import RecorderInfo, ScopeRecording, ScopeStatus
+from servodesk.api.schemas_scope import (
+    ChannelsIn,
+    RecorderInfo,
+    RunIn,
+    ScopeRecording,
+    ScopeStatus,
+    TriggerIn,
+)
 from servodesk.api.state import state_of
 from servodesk.api.uploads import openapi_file_body, read_file
 from servodesk.domain import scope as core
@@ -33,50 +39,6 @@ def scope_of(app: Any) -> ScopeService:
 
 
 router = APIRouter(tags=["scope"], responses=ERROR_RESPONSES)
-
-_BODY = ConfigDict(extra="forbid")
-
-
-class ChannelIn(BaseModel):
-    model_config = _BODY
-    id: int = Field(ge=0, le=255, description="Channel id 0..7")
-    session: str = Field(min_length=1, max_length=128)
-    address: str = Field(min_length=1, max_length=32, description='e.g. "0x6064:00"')
-    source: Literal["auto", "pdo", "sdo", "recorder"] = "auto"
-    scale: float = Field(default=1.0, allow_inf_nan=False)
-    offset: float = Field(default=0.0, allow_inf_nan=False)
-    visible: bool = True
-    label: str | None = Field(default=None, max_length=64)
-    rate_hz: float = Field(
-        default=0.0,
-        ge=0.0,
-        le=100_000.0,
-        description="SDO: requested poll rate (0: as fast as the link answers); "
-        "recorder: requested sample rate (0: the recorder's fastest)",
-    )
-
-
-class ChannelsIn(BaseModel):
-    model_config = _BODY
-    # The scope's own limit (8) is checked by the service, which names it in the answer.
-    channels: list[ChannelIn] = Field(max_length=64)
-
-
-class TriggerIn(BaseModel):
-    model_config = _BODY
-    mode: Literal["roll", "single", "normal"] = "roll"
-    kind: Literal["level", "edge", "state", "fault"] = "level"
-    channel: int = Field(default=0, ge=0, le=7)
-    level: float = Field(default=0.0, allow_inf_nan=False)
-    slope: Literal["rising", "falling", "either"] = "rising"
-    pre: float = Field(default=0.2, ge=0.0, le=1.0)
-    window_s: float = Field(default=1.0, gt=0.0, le=60.0)
-    holdoff_s: float = Field(default=0.0, ge=0.0, le=3600.0)
-
-
-class RunIn(BaseModel):
-    model_config = _BODY
-    action: Literal["start", "stop", "arm"]
 
 
 @router.get("/scope", operation_id="scope_status")
