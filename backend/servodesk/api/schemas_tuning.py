@@ -11,10 +11,18 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from servodesk.api.reply import Reply
 from servodesk.domain.tuning.design import ResponseLevel
+from servodesk.services.tuning.capabilities import (
+    MAX_MOVE_TORQUE_PCT,
+    MAX_TORQUE_PCT,
+    MAX_TRAVEL_REV,
+)
+
+#: A request body takes only the fields it declares: a misspelt one is a 422 naming it.
+_BODY = ConfigDict(extra="forbid")
 
 Kind = Literal["builtin", "gains", "none"]
 JobState = Literal["running", "done", "failed", "stopped"]
@@ -330,3 +338,40 @@ class StoredTuningResult(TuningRecord):
     """GET /tuning/results/{id}: a stored tuning with its TuningResult as it ended."""
 
     result: TuningResult
+
+
+class StartRequest(BaseModel):
+    model_config = _BODY
+    mode: ResponseLevel = Field(description="response mode")
+    travel_window_rev: float = Field(
+        gt=0,
+        le=MAX_TRAVEL_REV,
+        allow_inf_nan=False,
+        description="total width of the travel window [rev], centred on where the axis stands: "
+        "the axis stays within +- half of it, rounded down to whole position units (the job's "
+        "`bound` says it in revolutions and units)",
+    )
+    torque_limit_pct: float = Field(
+        gt=0,
+        le=MAX_TORQUE_PCT,
+        allow_inf_nan=False,
+        description="torque limit during the run [% of rated], written to 6072h",
+    )
+    move_torque_pct: float | None = Field(
+        default=None,
+        gt=0,
+        le=MAX_MOVE_TORQUE_PCT,
+        allow_inf_nan=False,
+        description="servodesk's own tuning: the peak torque of the machine's own moves "
+        "[% of rated]; the gains are ranked on a 0.5 rev jerk-limited move accelerating at 70 % "
+        "of it. Null: the torque limit of the run",
+    )
+
+
+class UndoRequest(BaseModel):
+    model_config = _BODY
+    to: Literal["before", "defaults"]
+
+
+class EmptyBody(BaseModel):
+    model_config = _BODY

@@ -9,31 +9,28 @@ motion halts the axes and the sessions close).
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Path, Query, Request
-from pydantic import BaseModel, ConfigDict, Field
 
 from servodesk.api.control_deps import ClientId, MotionControl, WriteControl
 from servodesk.api.deps import StateDep
 from servodesk.api.identity import caller_of
 from servodesk.api.schemas import ERROR_RESPONSES, STORED_ID
 from servodesk.api.schemas_tuning import (
+    EmptyBody,
+    StartRequest,
     StoredTuningResult,
     TuningInfo,
     TuningJob,
     TuningRecord,
     TuningResult,
     TuningStored,
+    UndoRequest,
     UndoResult,
 )
 from servodesk.api.state import state_of
 from servodesk.services.backup import drive_key
-from servodesk.services.tuning.capabilities import (
-    MAX_MOVE_TORQUE_PCT,
-    MAX_TORQUE_PCT,
-    MAX_TRAVEL_REV,
-)
 from servodesk.services.tuning.jobs import TuningService
 from servodesk.services.tuning_store import MAX_HISTORY
 
@@ -44,45 +41,6 @@ def tuning_of(app: Any) -> TuningService:
 
 
 router = APIRouter(tags=["tuning"], responses=ERROR_RESPONSES)
-
-_BODY = ConfigDict(extra="forbid")
-
-
-class StartRequest(BaseModel):
-    model_config = _BODY
-    mode: Literal["low", "basic", "high"] = Field(description="response mode")
-    travel_window_rev: float = Field(
-        gt=0,
-        le=MAX_TRAVEL_REV,
-        allow_inf_nan=False,
-        description="total width of the travel window [rev], centred on where the axis stands: "
-        "the axis stays within +- half of it, rounded down to whole position units (the job's "
-        "`bound` says it in revolutions and units)",
-    )
-    torque_limit_pct: float = Field(
-        gt=0,
-        le=MAX_TORQUE_PCT,
-        allow_inf_nan=False,
-        description="torque limit during the run [% of rated], written to 6072h",
-    )
-    move_torque_pct: float | None = Field(
-        default=None,
-        gt=0,
-        le=MAX_MOVE_TORQUE_PCT,
-        allow_inf_nan=False,
-        description="servodesk's own tuning: the peak torque of the machine's own moves "
-        "[% of rated]; the gains are ranked on a 0.5 rev jerk-limited move accelerating at 70 % "
-        "of it. Null: the torque limit of the run",
-    )
-
-
-class UndoRequest(BaseModel):
-    model_config = _BODY
-    to: Literal["before", "defaults"]
-
-
-class EmptyBody(BaseModel):
-    model_config = _BODY
 
 
 def _svc(request: Request) -> TuningService:
