@@ -152,6 +152,8 @@ SERIAL_PATHS = (
     "tests/operation/test_offload.py",
     "tests/ethercat/test_link_loss.py",
     "tests/ethercat/test_deadman_stop.py",
+    "tests/ethercat/test_status.py",
+    "tests/api/test_status_api.py",
     "tests/homing/test_homing_deadman.py",
     "tests/integration/test_canopen_link.py",
     "tests/integration/test_link_udp_multicast.py",

@@ -1,11 +1,13 @@
 /**
  * The app shell, laid out like the LEC-S-NP PROFINET card's web server (LECSN manual §20.7):
- * a header with the drive's name and state, a left navigation of pages, and the page.
+ * a header with the drive's name and state, a left navigation of pages, and the page; the bus
+ * status bar at the foot (issue 48).
  */
 import { useEffect } from 'react';
 import { Header } from './components/Header';
 import { Nav } from './components/Nav';
 import { Notices } from './components/Notices';
+import { StatusBar } from './components/StatusBar';
 import { findPage } from './pages/registry';
 import { useObservable } from './state/observable';
 import { currentSession, navigate, parseHash, routeHref, useRoute } from './state/router';
@@ -57,6 +59,7 @@ export function App() {
           )}
         </main>
       </div>
+      <StatusBar />
       <Notices />
     </div>
   );

@@ -32,6 +32,7 @@ from servodesk.api.routes import (
     reports,
     scope,
     sessions,
+    status,
     stop_all,
     system,
     tuning,
@@ -87,6 +88,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.include_router(system.router, prefix="/api/v1")
     app.include_router(auth.router, prefix="/api/v1")  # Users, login sessions, API tokens.
     app.include_router(sessions.router, prefix="/api/v1")
+    app.include_router(status.router, prefix="/api/v1")  # The status bar's numbers.
     app.include_router(dcp.router, prefix="/api/v1")
     app.include_router(backups.router, prefix="/api/v1")
     app.include_router(audit.router, prefix="/api/v1")

@@ -38,6 +38,8 @@ ROUTE_RIGHTS: dict[str, Right] = {
     # sessions.py
     "scan_bus": R.CONNECT,
     "list_sessions": R.READ,
+    # status.py
+    "get_status": R.READ,
     "open_session": R.CONNECT,
     "get_session": R.READ,
     "get_session_profile": R.READ,

@@ -82,6 +82,18 @@ class LinkEvent:
 EventCallback = Callable[[LinkEvent], None]
 
 
+@dataclass(frozen=True, slots=True)
+class TrafficView:
+    """What a bus carries, as a link counted it (links/can_traffic.py); None: not known."""
+
+    frames_per_s: float
+    load_percent: float | None
+    #: What the numbers count, or why there is no load, in words.
+    load_basis: str
+    error_frames: int | None
+    bus_state: str | None
+
+
 class _Turn:
     """First-come, first-served access to one device, taken without awaiting when it is free.
 
@@ -308,6 +320,11 @@ class DriveLink(ObjectAccess):
 
     def heartbeat_age(self) -> float | None:
         """Seconds since the device's last heartbeat, or None when none was seen."""
+        return None
+
+    def bus_traffic(self) -> TrafficView | None:
+        """What the bus carries, from counts the link keeps anyway (links/can_traffic.py);
+        None where this link counts none (the status bar says "not reported")."""
         return None
 
     async def arm_watchdog(self) -> str | None:

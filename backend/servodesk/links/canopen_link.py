@@ -43,8 +43,10 @@ from servodesk.links.base import (
     DriveIdentity,
     DriveLink,
     LinkParams,
+    TrafficView,
     object_identity,
 )
+from servodesk.links.can_traffic import BusTraffic
 
 log = logging.getLogger(__name__)
 
@@ -67,8 +69,9 @@ _NMT_STATE_NAMES = {
 class _SharedNetwork:
     """A canopen Network with a reference count."""
 
-    def __init__(self, network: canopen.Network) -> None:
+    def __init__(self, network: canopen.Network, traffic: BusTraffic) -> None:
         self.network = network
+        self.traffic = traffic
         self.users = 0
         #: servodesk's own heartbeat (COB-ID 700h + MASTER_NODE_ID) and how many links use it.
         self.heartbeat: Any = None
@@ -110,7 +113,12 @@ class NetworkPool:
                         f"{params.channel!r}: {exc}",
                         hint="check the interface name, channel and that the adapter is present",
                     ) from exc
-                shared = _SharedNetwork(network)
+                # The status bar's counts (links/can_traffic.py): the frames the notifier
+                # already receives, no traffic of its own.
+                traffic = BusTraffic(params.interface, params.bitrate)
+                if network.notifier is not None:
+                    network.notifier.add_listener(traffic)
+                shared = _SharedNetwork(network, traffic)
                 self._nets[key] = shared
             shared.users += 1
             return shared.network
@@ -141,6 +149,14 @@ class NetworkPool:
             if shared.heartbeat_users <= 0:
                 shared.heartbeat.stop()
                 shared.heartbeat, shared.heartbeat_users = None, 0
+
+    def traffic(self, params: LinkParams) -> TrafficView | None:
+        """What the bus of ``params`` carries (None: not open)."""
+        with self._lock:
+            shared = self._nets.get(params.bus_key())
+        if shared is None:
+            return None
+        return shared.traffic.view(shared.network.bus)
 
     def producing(self, params: LinkParams) -> bool:
         with self._lock:
@@ -914,6 +930,9 @@ class CanopenLink(DriveLink):
         if commanded != self.nmt_state:
             self.nmt_state = commanded
             self._emit("nmt", state=commanded)
+
+    def bus_traffic(self) -> TrafficView | None:
+        return pool.traffic(self.params) if not self.closed else None
 
     def _network_state(self) -> str:
         return self.nmt_state

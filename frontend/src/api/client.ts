@@ -64,6 +64,7 @@ export const api = {
   dcpReset: (nic: string, mac: string, mode: 2 | 8) =>
     apiRequest(`Reset ${mac} to factory`, 'POST', '/dcp/reset', { body: { nic, mac, mode } }),
   sessions: () => apiRequest('List the sessions', 'GET', '/sessions'),
+  status: () => apiRequest('Read the buses\' status', 'GET', '/status'),
   openSession: (req: SessionRequest) =>
     apiRequest(`Open node ${req.node_id} on ${req.interface}`, 'POST', '/sessions', { body: req }),
   session: (sid: string) => apiRequest(`Load session ${sid}`, 'GET', '/sessions/{sid}', { params: { sid } }),

@@ -1759,6 +1759,27 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/status": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Get Status
+         * @description Per bus of the open sessions: link state, traffic, errors and cycle time, from counts
+         *     the links keep (no bus traffic is made to answer it).
+         */
+        get: operations["get_status"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/tuning/results/{rid}": {
         parameters: {
             query?: never;
@@ -2184,6 +2205,125 @@ export interface components {
             model_mag_db: number[];
             /** Model Phase Deg */
             model_phase_deg: number[];
+        };
+        /**
+         * BusCycleOut
+         * @description A cyclic process data exchange running on the bus (services/cyclic.py).
+         */
+        BusCycleOut: {
+            /** Configured Ms */
+            configured_ms: number;
+            /** Cycles */
+            cycles: number;
+            /**
+             * Measured Ms
+             * @description average cycle since the exchange started; null before its first cycle
+             */
+            measured_ms: number | null;
+            /** Session */
+            session: string;
+            /**
+             * Sync
+             * @enum {string}
+             */
+            sync: "freerun" | "dc";
+        };
+        /**
+         * BusEthercatOut
+         * @description The EtherCAT line's counters while cyclic data runs (links/ethercat_health.py).
+         */
+        BusEthercatOut: {
+            /** Losses */
+            losses: number;
+            /** Missing Frames */
+            missing_frames: number;
+            /** Wkc Errors */
+            wkc_errors: number;
+        };
+        /** BusSessionOut */
+        BusSessionOut: {
+            /**
+             * Connected
+             * @description the drive answered the session's last polls
+             */
+            connected: boolean;
+            /** Id */
+            id: string;
+            /** Node Id */
+            node_id: number;
+        };
+        /** BusStatusOut */
+        BusStatusOut: {
+            /** Bitrate */
+            bitrate: number | null;
+            /** Channel */
+            channel: string;
+            /** @description null: no cyclic exchange runs */
+            cycle: components["schemas"]["BusCycleOut"] | null;
+            /** @description null: not an EtherCAT line in cycles */
+            ethercat: components["schemas"]["BusEthercatOut"] | null;
+            /**
+             * Failed Requests
+             * @description of those, refused, unanswered or lost (time-out, bus error, abort)
+             */
+            failed_requests: number;
+            /** Interface */
+            interface: string;
+            /**
+             * Link
+             * @description the link: "canopen", "ethercat", "cclink-ie-tsn", "profinet"
+             */
+            link: string;
+            /**
+             * Reason
+             * @description why an EtherCAT line is not up, in words
+             */
+            reason: string | null;
+            /**
+             * Requests
+             * @description requests servodesk made on this bus's sessions
+             */
+            requests: number;
+            /** Sessions */
+            sessions: components["schemas"]["BusSessionOut"][];
+            /**
+             * State
+             * @enum {string}
+             */
+            state: "up" | "degraded" | "down" | "reconnecting";
+            /** @description null: this link counts no traffic */
+            traffic: components["schemas"]["BusTrafficOut"] | null;
+        };
+        /**
+         * BusTrafficOut
+         * @description Counted from the frames the bus delivered (links/can_traffic.py); CAN only.
+         */
+        BusTrafficOut: {
+            /**
+             * Bus State
+             * @description the controller's state ("active", "passive", "error"); null: the interface does not report it
+             */
+            bus_state: string | null;
+            /**
+             * Error Frames
+             * @description error frames received since the bus opened; null: the interface does not deliver them
+             */
+            error_frames: number | null;
+            /**
+             * Frames Per S
+             * @description frames received per second (other nodes' frames)
+             */
+            frames_per_s: number;
+            /**
+             * Load Basis
+             * @description what the numbers count, or why there is no load
+             */
+            load_basis: string;
+            /**
+             * Load Percent
+             * @description their bits (without stuffing) per second over the bitrate [%]; null without a bitrate or on CAN FD
+             */
+            load_percent: number | null;
         };
         /** ChannelIn */
         ChannelIn: {
@@ -5624,6 +5764,11 @@ export interface components {
             name: string;
             /** Set */
             set: boolean;
+        };
+        /** StatusOut */
+        StatusOut: {
+            /** Buses */
+            buses: components["schemas"]["BusStatusOut"][];
         };
         /** StepMetrics */
         StepMetrics: {
@@ -18594,6 +18739,107 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    get_status: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["StatusOut"];
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
                 };
             };
             /** @description Bus failure */

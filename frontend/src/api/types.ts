@@ -60,6 +60,9 @@ export type SessionRequest = S['SessionCreate'];
 
 export type SessionInfo = S['SessionInfo'];
 
+/** GET /status: the status bar's numbers per bus (docs/api.md "Status"). */
+export type BusStatus = S['BusStatusOut'];
+
 export type SessionEncoder = S['EncoderOut'];
 
 export type ObjectScalar = number | string | boolean;

@@ -1,0 +1,91 @@
+"""The status bar's numbers (issue 48): per bus, its link state, traffic, errors and cycle.
+
+Everything here is read from what the sessions, links and cyclic exchanges already keep; no
+request goes to a device to produce it, so the UI may ask once a second whatever the bus.
+A number a link cannot give is None, and the UI says "not reported" (never a made-up 0).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterable
+from dataclasses import asdict
+from typing import Any
+
+from servodesk.services.session import Session
+
+#: The EtherCAT line's states (links/ethercat_health.py) as a bus's state.
+_LINE_STATES = {
+    "ok": "up",
+    "degraded": "degraded",
+    "link lost": "down",
+    "recovering": "reconnecting",
+}
+
+
+def _state(connected: list[bool], line: str | None) -> str:
+    """ "down" when no session on the bus gets answers, "degraded" when some do not; an
+    EtherCAT line's own state (its cycles) wins over the sessions' polls, it is seen first."""
+    if line is not None and line != "up":
+        return line
+    if not any(connected):
+        return "down"
+    return "up" if all(connected) else "degraded"
+
+
+def _cycle(session: Session) -> dict[str, Any] | None:
+    ex = session.cyclic
+    if ex is None or not ex.running:
+        return None
+    syncs = ex.syncs
+    elapsed = time.monotonic() - ex.started_at if ex.started_at else 0.0
+    return {
+        "session": session.id,
+        "sync": ex.sync,
+        "configured_ms": round(ex.period * 1000, 3),
+        # The average since the exchange started: cycles the producer thread counted.
+        "measured_ms": round(elapsed / syncs * 1000, 3) if syncs > 0 and elapsed > 0 else None,
+        "cycles": syncs,
+    }
+
+
+def bus_status(sessions: Iterable[Session]) -> list[dict[str, Any]]:
+    """One entry per bus (interface and channel), in the order its first session opened."""
+    by_bus: dict[tuple[str, str], list[Session]] = {}
+    for s in sessions:
+        by_bus.setdefault(s.link.params.bus_key(), []).append(s)
+    out = []
+    for (interface, channel), members in by_bus.items():
+        first = members[0]
+        traffic = next((t for t in (s.link.bus_traffic() for s in members) if t), None)
+        cycles = [c for c in (_cycle(s) for s in members) if c is not None]
+        health = next((h for h in (s.cyclic.link_health() for s in members if s.cyclic) if h), None)
+        line = _LINE_STATES.get(str(health["state"])) if health else None
+        out.append(
+            {
+                "link": first.link.fieldbus,
+                "interface": interface,
+                "channel": channel,
+                "bitrate": first.link.params.bitrate,
+                "state": _state([s.connected for s in members], line),
+                "reason": health.get("reason") if health else None,
+                "sessions": [
+                    {"id": s.id, "node_id": s.link.params.node_id, "connected": s.connected}
+                    for s in members
+                ],
+                "requests": sum(s.link.requests for s in members),
+                "failed_requests": sum(s.link.failures for s in members),
+                "traffic": asdict(traffic) if traffic else None,
+                "cycle": cycles[0] if cycles else None,
+                "ethercat": (
+                    {
+                        "wkc_errors": health["wkc_errors"],
+                        "missing_frames": health["missing_frames"],
+                        "losses": health["losses"],
+                    }
+                    if health
+                    else None
+                ),
+            }
+        )
+    return out

@@ -1,0 +1,87 @@
+import { describe, expect, it } from 'vitest';
+import type { BusStatus, SessionInfo } from '../api/types';
+import { NOT_REPORTED, cycleText, errorsText, stateChanges, stateText, trafficText, withLiveSessions } from './statusBar';
+
+function virtualBus(over: Partial<BusStatus> = {}): BusStatus {
+  return {
+    link: 'canopen',
+    interface: 'virtual',
+    channel: 'servodesk-sim',
+    bitrate: null,
+    state: 'up',
+    reason: null,
+    sessions: [
+      { id: 'a-1', node_id: 1, connected: true },
+      { id: 'b-2', node_id: 2, connected: true },
+    ],
+    requests: 120,
+    failed_requests: 2,
+    traffic: {
+      frames_per_s: 14,
+      load_percent: null,
+      load_basis: 'no load: the bus was opened without a bitrate',
+      error_frames: null,
+      bus_state: null,
+    },
+    cycle: null,
+    ethercat: null,
+    ...over,
+  };
+}
+
+const live = (connected: Record<string, boolean>) =>
+  Object.entries(connected).map(([id, c]) => ({ id, connected: c }) as SessionInfo);
+
+describe('status bar text', () => {
+  it('says what the virtual bus cannot report instead of showing zeros', () => {
+    const bus = virtualBus();
+    expect(trafficText(bus)).toBe('14 frames/s, load —');
+    expect(errorsText(bus)).toBe(
+      `2 of 120 requests failed, error frames and controller state ${NOT_REPORTED}`,
+    );
+    expect(cycleText(bus)).toBe('cycle —');
+  });
+
+  it('shows the load, the counters and the cycle with their units where measured', () => {
+    const bus = virtualBus({
+      bitrate: 500_000,
+      traffic: { frames_per_s: 812.4, load_percent: 17.96, load_basis: '', error_frames: 3, bus_state: 'passive' },
+      cycle: { session: 'a-1', sync: 'dc', configured_ms: 1, measured_ms: 1.0004, cycles: 1000 },
+    });
+    expect(trafficText(bus)).toBe('812.4 frames/s, load 18 %');
+    expect(errorsText(bus)).toBe('2 of 120 requests failed, 3 error frames, error passive');
+    expect(cycleText(bus)).toBe('cycle DC 1 ms set, 1 ms measured');
+  });
+
+  it('names the EtherCAT line counters and a link without traffic counts', () => {
+    const bus = virtualBus({
+      link: 'ethercat',
+      traffic: null,
+      ethercat: { wkc_errors: 4, missing_frames: 1, losses: 0 },
+      cycle: { session: 'a-1', sync: 'freerun', configured_ms: 2, measured_ms: null, cycles: 0 },
+    });
+    expect(trafficText(bus)).toBe(`load ${NOT_REPORTED}`);
+    expect(errorsText(bus)).toBe('2 of 120 requests failed, 4 WKC errors, 1 missing frames');
+    expect(cycleText(bus)).toBe('cycle 2 ms set, — measured');
+  });
+});
+
+describe('live link state', () => {
+  it('takes a session lost from the WebSocket at once and names the node', () => {
+    const bus = withLiveSessions(virtualBus(), live({ 'a-1': true, 'b-2': false }));
+    expect(bus.state).toBe('degraded');
+    expect(stateText(bus)).toBe('link degraded (node 2 not answering)');
+    expect(withLiveSessions(virtualBus(), live({ 'a-1': false, 'b-2': false })).state).toBe('down');
+  });
+
+  it("keeps an EtherCAT line's own state over the sessions' polls", () => {
+    const line = virtualBus({ state: 'reconnecting', ethercat: { wkc_errors: 0, missing_frames: 9, losses: 1 } });
+    expect(withLiveSessions(line, live({ 'a-1': true, 'b-2': true })).state).toBe('reconnecting');
+  });
+
+  it('announces a change of state only', () => {
+    const up = [virtualBus()];
+    expect(stateChanges(up, [virtualBus({ requests: 999 })])).toBe('');
+    expect(stateChanges(up, [virtualBus({ state: 'down' })])).toBe('CANopen virtual servodesk-sim: link down');
+  });
+});
