@@ -476,6 +476,25 @@ def read(engine: Engine) -> Iterator[Connection]:
         yield conn
 
 
+def rows(engine: Engine, statement: sa.Executable) -> list[sa.RowMapping]:
+    """``statement``'s rows, read in one transaction; a database failure as a StoreError."""
+    try:
+        with read(engine) as conn:
+            return list(conn.execute(statement).mappings().all())
+    except sa.exc.SQLAlchemyError as exc:
+        raise store_error(exc) from exc
+
+
+@contextlib.contextmanager
+def transaction(engine: Engine) -> Iterator[Connection]:
+    """One writing transaction (:func:`write`), a database failure as a StoreError."""
+    try:
+        with write(engine) as conn:
+            yield conn
+    except sa.exc.SQLAlchemyError as exc:
+        raise store_error(exc) from exc
+
+
 def serialise(conn: Connection, key: int) -> None:
     """Hold the lock ``key`` until this transaction ends (PostgreSQL). On SQLite the
     transaction's write lock (BEGIN IMMEDIATE) serialises writers already."""

@@ -165,11 +165,7 @@ class FleetStore:
             raise db.store_error(exc) from exc
 
     def _rows(self, statement: sa.Executable) -> list[sa.RowMapping]:
-        try:
-            with db.read(self.engine) as conn:
-                return list(conn.execute(statement).mappings().all())
-        except sa.exc.SQLAlchemyError as exc:
-            raise db.store_error(exc) from exc
+        return db.rows(self.engine, statement)
 
     # Gateways ------------------------------------------------------------------------------
 

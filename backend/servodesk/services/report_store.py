@@ -34,11 +34,8 @@ class ReportStore:
 
     @contextlib.contextmanager
     def _tx(self) -> Iterator[Connection]:
-        try:
-            with db.write(self.engine) as conn:
-                yield conn
-        except sa.exc.SQLAlchemyError as exc:
-            raise db.store_error(exc) from exc
+        with db.transaction(self.engine) as conn:
+            yield conn
 
     def _one(self, rid: str, *columns: sa.ColumnElement[Any]) -> sa.RowMapping:
         check_id(rid, "report")

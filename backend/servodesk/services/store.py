@@ -204,18 +204,11 @@ class Store:
 
     @contextlib.contextmanager
     def _tx(self) -> Iterator[Connection]:
-        try:
-            with db.write(self._engine) as conn:
-                yield conn
-        except sa.exc.SQLAlchemyError as exc:
-            raise db.store_error(exc) from exc
+        with db.transaction(self._engine) as conn:
+            yield conn
 
     def _query(self, statement: sa.Executable) -> list[RowMapping]:
-        try:
-            with db.read(self._engine) as conn:
-                return list(conn.execute(statement).mappings().all())
-        except sa.exc.SQLAlchemyError as exc:
-            raise db.store_error(exc) from exc
+        return db.rows(self._engine, statement)
 
     # Backups -------------------------------------------------------------------------------
 

@@ -56,18 +56,11 @@ class TuningStore:
             "applied": int(bool(record["applied"])),
             "result": json.dumps(record["result"], allow_nan=False, default=str),
         }
-        try:
-            with db.write(self.engine) as conn:
-                conn.execute(sa.insert(db.tuning_results).values(row))
-        except sa.exc.SQLAlchemyError as exc:
-            raise db.store_error(exc) from exc
+        with db.transaction(self.engine) as conn:
+            conn.execute(sa.insert(db.tuning_results).values(row))
 
     def _rows(self, statement: sa.Executable) -> list[sa.RowMapping]:
-        try:
-            with db.read(self.engine) as conn:
-                return list(conn.execute(statement).mappings().all())
-        except sa.exc.SQLAlchemyError as exc:
-            raise db.store_error(exc) from exc
+        return db.rows(self.engine, statement)
 
     def history(self, drive_key: str, limit: int = 100) -> list[dict[str, Any]]:
         """The drive's stored results, newest first, metadata only."""
