@@ -13,20 +13,16 @@ from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
-import httpx
 import pytest
 import pytest_asyncio
 
-from servodesk.api.app import create_app
-from servodesk.api.state import state_of
 from servodesk.cli import main
 from servodesk.services.report import content_hash
 from servodesk.services.report_html import embedded_data, render
 from servodesk.services.report_pdf import find_in_pdf
-from servodesk.services.users import UserStore
-from servodesk.settings import Settings
 from tests.backup.helpers import change_plain
 from tests.store.conftest import pg_server  # noqa: F401 (the fixture, for the PostgreSQL runs)
+from tests.store.gateway import Gateway, gateway
 
 pytestmark = pytest.mark.asyncio(loop_scope="module")
 _n = itertools.count()
@@ -36,67 +32,26 @@ TAG = "L2.Press.X"
 REASON = "commissioned <script>alert(1)</script> & signed"
 
 
-class Gw:
-    def __init__(
-        self, app: Any, data_dir: Path, url: str, clients: dict[str, httpx.AsyncClient]
-    ) -> None:
-        self.app, self.data_dir, self.url, self.clients = app, data_dir, url, clients
-
-    @property
-    def state(self) -> Any:
-        return state_of(self.app)
-
-
 @pytest_asyncio.fixture(loop_scope="module", scope="module", params=["sqlite", "postgresql"])
 async def gw(
     request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
-) -> AsyncIterator[Gw]:
+) -> AsyncIterator[Gateway]:
     url = "" if request.param == "sqlite" else request.getfixturevalue("pg_server").new_database()
-    data_dir: Path = tmp_path_factory.mktemp("report")
-    users = UserStore(data_dir, url)
-    tokens: dict[str, str] = {}
-    try:
-        for role in ROLES:
-            users.add(role, role, "correct horse battery")
-            tokens[role] = users.create_token(role, "tests")[1]
-    finally:
-        users.close()
-    settings = Settings(
-        sim=True,
+    async with gateway(
+        tmp_path_factory.mktemp("report"),
+        url,
+        ROLES,
+        timeout=120,
         sim_channel=f"report-{os.getpid()}-{next(_n)}",
         sim_profiles="cia402-generic",
-        sim_slmp="",
-        sim_profinet="",
-        data_dir=data_dir,
-        store_url=url,
-        host="0.0.0.0",
-        allowed_hosts="testserver",
-        viewer_port=0,
-        sdo_timeout=0.5,
         gateway_name="line-7",
         gateway_url="https://line7.plant.example:8000",
-    )
-    app = create_app(settings)
-    async with app.router.lifespan_context(app):
-        transport = httpx.ASGITransport(app=app)
-        clients = {
-            role: httpx.AsyncClient(
-                transport=transport,
-                base_url="http://testserver/api/v1",
-                headers={"Authorization": f"Bearer {token}", "X-Servodesk-Client": role},
-                timeout=120,
-            )
-            for role, token in tokens.items()
-        }
-        try:
-            yield Gw(app, data_dir, url, clients)
-        finally:
-            for c in clients.values():
-                await c.aclose()
+    ) as g:
+        yield g
 
 
 @pytest_asyncio.fixture(loop_scope="module", scope="module")
-async def made(gw: Gw) -> dict[str, Any]:
+async def made(gw: Gateway) -> dict[str, Any]:
     """A drive tagged, with an approved backup and one parameter changed since; its report."""
     eng = gw.clients["engineer"]
     (session,) = gw.state.manager.all()
@@ -116,7 +71,7 @@ async def made(gw: Gw) -> dict[str, Any]:
 
 
 async def test_a_report_needs_the_audit_right_and_an_unknown_one_is_404(
-    gw: Gw, made: dict[str, Any]
+    gw: Gateway, made: dict[str, Any]
 ) -> None:
     sid, rid = made["sid"], made["info"]["id"]
     for role in ("service", "guest"):
@@ -133,7 +88,7 @@ async def test_a_report_needs_the_audit_right_and_an_unknown_one_is_404(
 
 
 async def test_the_report_says_what_the_drive_is_and_what_changed(
-    gw: Gw, made: dict[str, Any]
+    gw: Gateway, made: dict[str, Any]
 ) -> None:
     info, key = made["info"], made["key"]
     assert info["drive_key"] == key and info["plant_tag"] == TAG and info["by"] == "engineer"
@@ -170,7 +125,7 @@ async def test_the_report_says_what_the_drive_is_and_what_changed(
     assert r.status_code == 200 and r.json()[0]["details"]["report"] == info["id"]
 
 
-def _verify(gw: Gw, path: Path, capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
+def _verify(gw: Gateway, path: Path, capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
     """``servodesk report verify`` on the gateway's store: its data directory, or the central
     store SERVODESK_STORE_URL names."""
     if gw.url:
@@ -189,7 +144,7 @@ def _one_byte_changed(data: bytes, at: bytes) -> bytes:
 
 
 async def test_verify_the_html(
-    gw: Gw, made: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    gw: Gateway, made: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     info = made["info"]
     html = (await gw.clients["engineer"].get(f"/reports/{info['id']}.html")).content
@@ -228,7 +183,7 @@ async def test_verify_the_html(
 
 
 async def test_the_pdf_names_the_report_and_verifies(
-    gw: Gw, made: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    gw: Gateway, made: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     info, eng = made["info"], gw.clients["engineer"]
     r = await eng.get(f"/reports/{info['id']}.pdf")
@@ -251,7 +206,7 @@ async def test_the_pdf_names_the_report_and_verifies(
 
 
 async def test_no_chromium_is_a_503_that_says_what_to_install(
-    gw: Gw, made: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+    gw: Gateway, made: dict[str, Any], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     eng = gw.clients["engineer"]
     r = await eng.post(f"/sessions/{made['sid']}/report")

@@ -12,20 +12,15 @@ import os
 import threading
 import time
 from collections.abc import AsyncIterator, Iterator
-from dataclasses import dataclass, field
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
-from pathlib import Path
 from typing import Any
 
 import httpx
 import pytest
 import pytest_asyncio
 
-from servodesk.api.app import create_app
-from servodesk.api.state import state_of
-from servodesk.services.users import UserStore
-from servodesk.settings import Settings
 from tests.backup.helpers import change_plain
+from tests.store.gateway import Gateway, gateway
 
 pytestmark = pytest.mark.asyncio(loop_scope="module")
 _n = itertools.count()
@@ -64,16 +59,6 @@ def webhook() -> Iterator[ThreadingHTTPServer]:
         server.server_close()
 
 
-@dataclass
-class Gateway:
-    app: Any
-    clients: dict[str, httpx.AsyncClient] = field(default_factory=dict)
-
-    @property
-    def state(self) -> Any:
-        return state_of(self.app)
-
-
 @pytest_asyncio.fixture(loop_scope="module", scope="module", params=["sqlite", "postgresql"])
 async def gw(
     request: pytest.FixtureRequest,
@@ -81,48 +66,18 @@ async def gw(
     webhook: ThreadingHTTPServer,
 ) -> AsyncIterator[Gateway]:
     url = "" if request.param == "sqlite" else request.getfixturevalue("pg_server").new_database()
-    data_dir: Path = tmp_path_factory.mktemp("gw")
-    users = UserStore(data_dir, url)
-    tokens: dict[str, str] = {}
-    try:
-        for role in ROLES:
-            users.add(role, role, "correct horse battery")
-            tokens[role] = users.create_token(role, "tests")[1]
-    finally:
-        users.close()
-    settings = Settings(
-        sim=True,
+    async with gateway(
+        tmp_path_factory.mktemp("gw"),
+        url,
+        ROLES,
         sim_channel=f"fleet-{os.getpid()}-{next(_n)}",
         sim_profiles="cia402-generic,hiwin-e",
-        sim_slmp="",
-        sim_profinet="",
-        data_dir=data_dir,
-        store_url=url,
-        host="0.0.0.0",
-        allowed_hosts="testserver",
-        viewer_port=0,
-        sdo_timeout=0.5,
         gateway_name=GATEWAY,
         gateway_url="https://line7.plant.example:8000",
         drift_interval_s=1.0,
         drift_webhook=f"http://127.0.0.1:{webhook.server_address[1]}/hook",
-    )
-    app = create_app(settings)
-    async with app.router.lifespan_context(app):
-        g = Gateway(app)
-        transport = httpx.ASGITransport(app=app)
-        for role, token in tokens.items():
-            g.clients[role] = httpx.AsyncClient(
-                transport=transport,
-                base_url="http://testserver/api/v1",
-                headers={"Authorization": f"Bearer {token}", "X-Servodesk-Client": role},
-                timeout=60,
-            )
-        try:
-            yield g
-        finally:
-            for c in g.clients.values():
-                await c.aclose()
+    ) as g:
+        yield g
 
 
 async def _drives(gw: Gateway, **params: Any) -> list[dict[str, Any]]:
