@@ -41,8 +41,10 @@ $(VENV)/.synced: $(UV) pyproject.toml uv.lock
 $(FRONTEND)/node_modules/.package-lock.json: $(FRONTEND)/package.json $(FRONTEND)/package-lock.json
 	cd $(FRONTEND) && npm install --no-save --no-audit --no-fund --loglevel=error
 
+# vite alone: `npm run build` also type-checks, which `make typecheck` does (beside lint, in
+# make test) and `make demo` need not wait for.
 $(WEB_DIST)/index.html: $(FRONTEND)/node_modules/.package-lock.json $(shell find $(FRONTEND)/src $(FRONTEND)/public $(FRONTEND)/index.html $(FRONTEND)/vite.config.ts -type f 2>/dev/null)
-	cd $(FRONTEND) && npm run build
+	cd $(FRONTEND) && npx --no-install vite build
 
 build: $(WEB_DIST)/index.html
 

@@ -154,7 +154,7 @@ async def test_tags_and_approvals_need_the_right_and_say_what_is_wrong(gw: Gatew
     r = await eng.put("/fleet/approved", json={k: v for k, v in approve.items() if k != "reason"})
     assert r.status_code == 422 and "reason" in r.json()["message"], r.text
     r = await eng.put("/fleet/approved", json={**approve, "reason": "  "})
-    assert r.status_code == 400 and "needs a reason" in r.json()["message"], r.text
+    assert r.status_code == 422 and r.json()["field"] == "reason", r.text
     r = await eng.put("/fleet/approved", json={**approve, "backup": "nope"})
     assert r.status_code == 404 and "no backup 'nope'" in r.json()["message"]
     # No approval yet: a drift check has nothing to compare with.
@@ -249,7 +249,7 @@ async def test_an_approval_is_cleared_with_a_reason_and_audited(gw: Gateway) -> 
     r = await delete("engineer", {"drive": key})
     assert r.status_code == 422 and "reason" in r.json()["message"], r.text
     r = await delete("engineer", {**clear, "reason": " "})
-    assert r.status_code == 400 and "needs a reason" in r.json()["message"], r.text
+    assert r.status_code == 422 and r.json()["field"] == "reason", r.text
     r = await delete("engineer", {**clear, "drive": "no-such-drive"})
     assert r.status_code == 404, r.text
     assert (await _generic(gw))["approved"] is not None  # Nothing refused changed anything.

@@ -87,7 +87,7 @@ def test_a_tuning_is_kept_in_the_store_across_a_restart(channel, tmp_path) -> No
         r = client.get("/api/v1/tuning/results/..%2Fx")
         assert r.status_code in (400, 404, 422), r.text
         r = client.get("/api/v1/tuning/results/Bad%20Id")
-        assert r.status_code in (400, 422) and r.json()["field"] == "id", r.text
+        assert r.status_code == 422 and r.json()["field"] == "rid", r.text
 
 
 def test_a_failing_store_does_not_hold_up_the_stop(

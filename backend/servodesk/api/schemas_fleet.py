@@ -11,6 +11,9 @@ DriftStateName = Literal["unknown", "in_step", "drifted"]
 
 #: Names and search text: printable (a NUL cannot even reach PostgreSQL: a clear 422 here).
 PRINTABLE = r"^[^\x00-\x1f\x7f]*$"
+#: A reason: something that is not blank, and no NUL (PostgreSQL refuses it in text). In the
+#: schema rather than only in the service, so a blank one is refused as the schema says.
+REASON = r"^[^\x00]*[^\s\x00][^\x00]*$"
 
 
 class GatewayOut(BaseModel):
@@ -93,7 +96,9 @@ class ApproveRequest(BaseModel):
         min_length=1, max_length=200, pattern=PRINTABLE, description="the backup to approve"
     )
     reason: str = Field(
-        max_length=2000, pattern=r"^[^\x00]*$", description="why this backup is the reference"
+        max_length=2000,
+        pattern=REASON,
+        description="why this backup is the reference (not blank)",
     )
 
 
@@ -105,8 +110,8 @@ class ClearApprovalRequest(BaseModel):
     )
     reason: str = Field(
         max_length=2000,
-        pattern=r"^[^\x00]*$",
-        description="why the drive has no reference any more",
+        pattern=REASON,
+        description="why the drive has no reference any more (not blank)",
     )
 
 

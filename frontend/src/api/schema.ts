@@ -1909,7 +1909,7 @@ export interface components {
             drive: string;
             /**
              * Reason
-             * @description why this backup is the reference
+             * @description why this backup is the reference (not blank)
              */
             reason: string;
         };
@@ -2383,7 +2383,7 @@ export interface components {
             drive: string;
             /**
              * Reason
-             * @description why the drive has no reference any more
+             * @description why the drive has no reference any more (not blank)
              */
             reason: string;
         };
