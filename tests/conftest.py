@@ -157,6 +157,11 @@ SERIAL_PATHS = (
     "tests/homing/test_homing_deadman.py",
     "tests/integration/test_canopen_link.py",
     "tests/integration/test_link_udp_multicast.py",
+    # CAN on UDP multicast: python-can uses one port for every group, so on Linux a socket
+    # receives every group joined on the host, and a master opened by an earlier test in the
+    # same process (the schemathesis runs open sessions on udp_multicast) answered into the
+    # plain master's SDO transfers ("Unexpected response 0x60") when it ran two at a time.
+    "tests/integration/test_plain_canopen.py",
     "tests/scope/test_scope_stream.py",
     "tests/scope/test_scope_service.py",
     "tests/tuning_api/test_tuning_api.py",
@@ -170,7 +175,6 @@ _ONE_WORKER: dict[str, str] = {
     "tests/profinet": "profinet",
     "tests/slmp": "slmp",
     "tests/ethercat": "ethercat",
-    "tests/integration/test_plain_canopen.py": "udp_multicast",
     "tests/api/test_schemathesis.py": "udp_multicast",
     "tests/security/test_rights_schemathesis.py": "udp_multicast",
 }
