@@ -80,6 +80,7 @@ typecheck: $(VENV)/.synced $(FRONTEND)/node_modules/.package-lock.json
 	$(VENV)/bin/mypy
 	@cd $(FRONTEND) && npm run --silent check:api || \
 	  { echo "frontend/src/api/schema.ts is stale against backend/openapi.json: run make openapi"; exit 1; }
+	$(VENV)/bin/python scripts/gen_scope_wire.py --check
 	cd $(FRONTEND) && npm run --silent typecheck
 
 unit: setup
@@ -123,6 +124,7 @@ bench: setup
 openapi: $(VENV)/.synced $(FRONTEND)/node_modules/.package-lock.json
 	$(VENV)/bin/servodesk openapi > backend/openapi.json.tmp && mv backend/openapi.json.tmp backend/openapi.json
 	cd $(FRONTEND) && npm run --silent gen:api
+	$(VENV)/bin/python scripts/gen_scope_wire.py  # The scope stream's binary layout.
 
 clean:
 	rm -rf $(VENV) $(TOOLS) $(FRONTEND)/node_modules $(WEB_DIST)

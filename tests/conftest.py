@@ -6,6 +6,8 @@ import itertools
 import logging
 import os
 import tempfile
+import threading
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -64,6 +66,50 @@ def sim_bus(channel: str) -> Iterator[StartSims]:
     finally:
         for bus in reversed(started):
             bus.stop()
+
+
+#: How long a thread started by a module's tests may take to end after its last test: the
+#: slowest clean shutdown in the suite is python-can's cyclic sender, which notices its stop
+#: at the next period (servodesk's heartbeat: 1 s, the twins': up to 1 s).
+THREAD_GRACE_S = 3.0
+
+
+def _thread_text(t: threading.Thread) -> str:
+    target = getattr(t, "_target", None)
+    where = getattr(target, "__qualname__", None) or type(t).__qualname__
+    module = getattr(target, "__module__", None) or type(t).__module__
+    return f"{t.name!r} ({module}.{where}, daemon={t.daemon})"
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _no_leaked_threads(request: pytest.FixtureRequest) -> Iterator[None]:
+    """Every thread a module's tests started has ended once its fixtures are torn down.
+
+    A thread that outlives its app or bus is a stop that did not happen: a heartbeat still
+    on the bus after the link closed, a worker process's feeder still waiting (issue 51,
+    item 6). Checked per module, not per test: module-scoped fixtures (an app, a twin's
+    bus) rightly outlive one test, and are torn down before this fixture's check runs."""
+    before = {t.ident for t in threading.enumerate()}
+    yield
+    deadline = time.monotonic() + THREAD_GRACE_S
+    while True:
+        leaked = [t for t in threading.enumerate() if t.ident not in before and t.is_alive()]
+        if not leaked or time.monotonic() >= deadline:
+            break
+        time.sleep(0.05)
+    if leaked:
+        names = "; ".join(_thread_text(t) for t in leaked)
+        report = os.environ.get("SERVODESK_THREAD_REPORT")
+        if report:
+            with open(report, "a", encoding="utf-8") as out:
+                out.write(f"{request.node.nodeid}\t{names}\n")
+            return
+        pytest.fail(
+            f"{len(leaked)} thread(s) started by {request.node.nodeid} still run "
+            f"{THREAD_GRACE_S:g} s after its last test: {names}. Stop what started them "
+            "in the fixture or the app's shutdown that owns them.",
+            pytrace=False,
+        )
 
 
 class _Refused(logging.Handler):

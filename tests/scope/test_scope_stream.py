@@ -23,6 +23,7 @@ import pytest
 import pytest_asyncio
 import websockets
 
+from servodesk.api.schemas_scope import ScopeStatusFrame
 from servodesk.domain import scope_wire as wire
 from servodesk.services.scope import FRAME_PERIOD_S
 from tests.scope.test_scope_service import (
@@ -72,6 +73,8 @@ class Tally:
             self.flagged += 1
         if f.kind == wire.KIND_STATUS:
             assert f.status is not None
+            # The body is what openapi.json says it is (the UI's type is generated from it).
+            ScopeStatusFrame.model_validate(f.status)
             self.statuses.append(f.status)
         elif f.kind == wire.KIND_SAMPLES:
             for b in f.blocks:

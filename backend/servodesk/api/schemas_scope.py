@@ -76,6 +76,14 @@ class ScopeStatus(Reply):
     recorders: list[RecorderSourceStatus]
 
 
+class ScopeStatusFrame(ScopeStatus):
+    """The JSON body of the scope stream's status frame (kind 3, domain/scope_wire.py): the
+    scope's state as GET /scope answers it, tagged. Its TypeScript type is generated with the
+    REST models (frontend/src/scope/wire.ts reads it)."""
+
+    type: Literal["status"]
+
+
 class RecordingChannel(Reply):
     """One channel of a recording; the display settings only in a capture's."""
 

@@ -32,6 +32,7 @@ from servodesk.api.schemas import (
     SessionInfo,
 )
 from servodesk.api.schemas_pdo import PdoLinkHealth, PdoLiveValue
+from servodesk.api.schemas_scope import ScopeStatusFrame
 from servodesk.api.schemas_tuning import TuningJob
 
 log = logging.getLogger(__name__)
@@ -348,7 +349,8 @@ def _without_defaults(schema: dict[str, Any]) -> dict[str, Any]:
 
 
 def add_to_openapi(schema: dict[str, Any]) -> dict[str, Any]:
-    """Put ``ServerMessage``, ``ClientMessage`` and their models into ``schema``'s components.
+    """Put ``ServerMessage``, ``ClientMessage``, the scope stream's ``ScopeStatusFrame`` and
+    their models into ``schema``'s components.
 
     The WebSocket has no operation in OpenAPI; its messages travel with the REST models so that
     one generator (openapi-typescript) types both. A model that shares a name with a REST
@@ -359,6 +361,8 @@ def add_to_openapi(schema: dict[str, Any]) -> dict[str, Any]:
     unions: tuple[tuple[str, TypeAdapter[Any], JsonSchemaMode], ...] = (
         ("ServerMessage", _SERVER, "serialization"),
         ("ClientMessage", _CLIENT, "validation"),
+        # The scope stream's one JSON body (its binary layout: scripts/gen_scope_wire.py).
+        ("ScopeStatusFrame", TypeAdapter(ScopeStatusFrame), "serialization"),
     )
     for name, adapter, mode in unions:
         union = adapter.json_schema(ref_template=ref, mode=mode)

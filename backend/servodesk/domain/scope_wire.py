@@ -1,7 +1,12 @@
 """The scope's binary WebSocket frame format: the one source of truth (docs/scope.md "Wire format").
 
-``frontend/src/scope/wire.ts`` mirrors this module; tests/scope/test_scope_wire.py holds the golden
-bytes and writes the fixture the TypeScript test decodes (tests/data/scope/).
+The layout is data (:data:`HEADER_FIELDS`, :data:`BLOCK_FIELDS` and the codes below): the
+structs here are built from it, and scripts/gen_scope_wire.py writes it out as
+``frontend/src/scope/layout.gen.ts``, which the browser's decoder (``frontend/src/scope/wire.ts``)
+reads its offsets and codes from; ``make typecheck`` fails when that file is stale. A status
+frame's JSON body is ``ScopeStatusFrame`` in openapi.json (api/schemas_scope.py), so its type in
+the UI is generated too. tests/scope/test_scope_wire.py holds the golden bytes and writes the
+fixture the TypeScript test decodes (tests/data/scope/).
 
 Layout, little-endian::
 
@@ -65,10 +70,81 @@ SOURCE_RECORDER = 3
 SOURCE_CODES = {"pdo": SOURCE_PDO, "sdo": SOURCE_SDO, "recorder": SOURCE_RECORDER}
 SOURCE_NAMES = {code: name for name, code in SOURCE_CODES.items()}
 
-HEADER = struct.Struct("<4sBBHIIHHId")
-BLOCK = struct.Struct("<BBHIdd")
+
+@dataclass(frozen=True)
+class WireField:
+    """One fixed field of the header or of a channel block: its name, its type (``struct``
+    code, little-endian) and what it holds."""
+
+    name: str
+    code: str
+    doc: str
+
+
+#: The frame header, in order (32 bytes; the module's docstring draws it).
+HEADER_FIELDS: tuple[WireField, ...] = (
+    WireField("magic", "4s", 'b"SDSC"'),
+    WireField("version", "B", "format version (1)"),
+    WireField("kind", "B", "1 samples, 2 capture, 3 status (UTF-8 JSON body)"),
+    WireField("flags", "H", "bit 0: frames were skipped for this client before this one"),
+    WireField("seq", "I", "per client, +1 per frame sent"),
+    WireField("skipped", "I", "frames skipped for this client so far"),
+    WireField("nchan", "H", "channel blocks that follow"),
+    WireField("reserved", "H", "0"),
+    WireField("pad", "I", "0: puts t_ref and every array on an 8-byte boundary"),
+    WireField("t_ref", "d", "reference time (s, backend clock); channel times are offsets"),
+)
+#: A channel block's fixed part, in order (24 bytes; ``times`` and ``values`` follow it).
+BLOCK_FIELDS: tuple[WireField, ...] = (
+    WireField("id", "B", "channel id"),
+    WireField("source", "B", "1 pdo, 2 sdo, 3 recorder"),
+    WireField("reserved", "H", "0"),
+    WireField("n", "I", "samples"),
+    WireField("dt", "d", "sample period (s) when equidistant, else 0 and the times follow"),
+    WireField("t0", "d", "offset of the first sample from t_ref (s)"),
+)
+
+
+def _struct(fields: Sequence[WireField]) -> struct.Struct:
+    return struct.Struct("<" + "".join(f.code for f in fields))
+
+
+def offsets(fields: Sequence[WireField]) -> dict[str, int]:
+    """Each field's byte offset (no implicit padding: ``<`` packs as written)."""
+    at, out = 0, {}
+    for f in fields:
+        out[f.name] = at
+        at += struct.calcsize("<" + f.code)
+    return out
+
+
+HEADER = _struct(HEADER_FIELDS)
+BLOCK = _struct(BLOCK_FIELDS)
 HEADER_SIZE = HEADER.size  # 32
 BLOCK_SIZE = BLOCK.size  # 24
+
+
+def layout() -> dict[str, Any]:
+    """The whole format as data: what scripts/gen_scope_wire.py writes for the browser."""
+
+    def fields(table: Sequence[WireField]) -> list[dict[str, Any]]:
+        at = offsets(table)
+        return [{"name": f.name, "code": f.code, "offset": at[f.name], "doc": f.doc} for f in table]
+
+    return {
+        "magic": MAGIC.decode("ascii"),
+        "version": VERSION,
+        "subprotocol": SUBPROTOCOL,
+        "header_size": HEADER_SIZE,
+        "block_size": BLOCK_SIZE,
+        "header": fields(HEADER_FIELDS),
+        "block": fields(BLOCK_FIELDS),
+        "kinds": {"samples": KIND_SAMPLES, "capture": KIND_CAPTURE, "status": KIND_STATUS},
+        "flags": {"skipped": FLAG_SKIPPED},
+        "sources": dict(SOURCE_CODES),
+    }
+
+
 _F8 = np.dtype("<f8")
 _U32 = 0xFFFFFFFF
 

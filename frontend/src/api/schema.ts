@@ -5508,6 +5508,40 @@ export interface components {
             state: "idle" | "rolling" | "armed" | "triggered" | "done";
             trigger: components["schemas"]["ScopeTrigger"];
         };
+        /**
+         * ScopeStatusFrame
+         * @description The JSON body of the scope stream's status frame (kind 3, domain/scope_wire.py): the
+         *     scope's state as GET /scope answers it, tagged. Its TypeScript type is generated with the
+         *     REST models (frontend/src/scope/wire.ts reads it).
+         */
+        ScopeStatusFrame: {
+            /** Buffer S */
+            buffer_s: number;
+            /** Channels */
+            channels: components["schemas"]["ScopeChannelStatus"][];
+            /**
+             * Clients
+             * @description stream clients connected
+             */
+            clients: number;
+            /** Frame Period Ms */
+            frame_period_ms: number;
+            /** Recorders */
+            recorders: components["schemas"]["RecorderSourceStatus"][];
+            /** Running */
+            running: boolean;
+            /**
+             * State
+             * @enum {string}
+             */
+            state: "idle" | "rolling" | "armed" | "triggered" | "done";
+            trigger: components["schemas"]["ScopeTrigger"];
+            /**
+             * Type
+             * @constant
+             */
+            type: "status";
+        };
         /** ScopeTrigger */
         ScopeTrigger: {
             /** Channel */

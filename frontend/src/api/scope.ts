@@ -48,6 +48,9 @@ export type ScopeState = S['ScopeStatus']['state'];
 
 export type ScopeStatus = S['ScopeStatus'];
 
+/** The JSON body of the stream's status frame (kind 3): ScopeStatus, tagged. */
+export type ScopeStatusFrame = S['ScopeStatusFrame'];
+
 /** One channel of a recording (a capture, or an imported file). */
 export type RecordingChannel = S['RecordingChannel'];
 

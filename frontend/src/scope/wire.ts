@@ -1,34 +1,45 @@
 /**
  * Decoder of the scope's binary WebSocket frames (subprotocol `servodesk.scope.v1`).
  *
- * Mirrors backend/servodesk/domain/scope_wire.py, the one source of truth for the layout
- * (docs/scope.md "Wire format"); wire.test.ts decodes frames that the Python encoder wrote
- * (tests/data/scope/). Little-endian:
- *
- *   header (32 bytes): magic "SDSC", version u8, kind u8, flags u16, seq u32, skipped u32,
- *                      nchan u16, reserved u16, pad u32, t_ref f64 (at byte 24)
- *   per channel:       id u8, source u8, reserved u16, n u32, dt f64, t0 f64,
- *                      times f64[n] (only when dt == 0), values f64[n]
- *   kind 3 (status):   header, then a UTF-8 JSON object.
+ * The layout (every offset, type and code) comes from layout.gen.ts, which
+ * scripts/gen_scope_wire.py writes from backend/servodesk/domain/scope_wire.py, the one source
+ * of the format (docs/scope.md "Wire format"); a status frame's JSON body is ScopeStatusFrame
+ * in openapi.json. wire.test.ts decodes frames that the Python encoder wrote (tests/data/scope/).
  *
  * Every f64 array starts on an 8-byte boundary of the frame, so on a little-endian machine (all
  * browsers in practice) the arrays are Float64Array views on the received buffer, without a copy.
  */
 
-export const MAGIC = 'SDSC';
-export const VERSION = 1;
-export const SUBPROTOCOL = 'servodesk.scope.v1';
-export const HEADER_SIZE = 32;
-export const BLOCK_SIZE = 24;
+import {
+  BLOCK,
+  BLOCK_SIZE,
+  FLAG_SKIPPED,
+  HEADER,
+  HEADER_SIZE,
+  KIND_CAPTURE,
+  KIND_SAMPLES,
+  KIND_STATUS,
+  MAGIC,
+  SOURCE_NAMES as SOURCES,
+  VERSION,
+  type WireType,
+} from './layout.gen';
 
-export const KIND_SAMPLES = 1;
-export const KIND_CAPTURE = 2;
-export const KIND_STATUS = 3;
-export const FLAG_SKIPPED = 0x0001;
+export {
+  BLOCK_SIZE,
+  FLAG_SKIPPED,
+  HEADER_SIZE,
+  KIND_CAPTURE,
+  KIND_SAMPLES,
+  KIND_STATUS,
+  MAGIC,
+  SUBPROTOCOL,
+  VERSION,
+} from './layout.gen';
 
 export type FrameKind = typeof KIND_SAMPLES | typeof KIND_CAPTURE | typeof KIND_STATUS;
 export type SampleSource = 'pdo' | 'sdo' | 'recorder';
-export const SOURCE_NAMES: Record<number, SampleSource> = { 1: 'pdo', 2: 'sdo', 3: 'recorder' };
+export const SOURCE_NAMES: Readonly<Record<number, SampleSource>> = SOURCES;
 
 export interface ScopeBlock {
   id: number;
@@ -69,6 +80,29 @@ export class ScopeWireError extends Error {
   }
 }
 
+/** One fixed field of the layout (layout.gen.ts). */
+interface WireField {
+  readonly offset: number;
+  readonly type: WireType;
+}
+
+/** A numeric field at ``base`` (the frame's or the block's start), little-endian. */
+function field(view: DataView, base: number, f: WireField): number {
+  const at = base + f.offset;
+  switch (f.type) {
+    case 'u8':
+      return view.getUint8(at);
+    case 'u16':
+      return view.getUint16(at, true);
+    case 'u32':
+      return view.getUint32(at, true);
+    case 'f64':
+      return view.getFloat64(at, true);
+    case 'bytes4':
+      throw new ScopeWireError('a byte string is not a number');
+  }
+}
+
 const LITTLE_ENDIAN = new Uint8Array(new Float64Array([1]).buffer)[7] === 0x3f;
 
 function f64Array(bytes: Uint8Array, offset: number, n: number): Float64Array {
@@ -88,27 +122,28 @@ export function decodeFrame(data: ArrayBuffer | Uint8Array): ScopeFrame {
     throw new ScopeWireError(`scope frame truncated: ${size} bytes, the header alone needs ${HEADER_SIZE}`);
   }
   const view = new DataView(bytes.buffer, bytes.byteOffset, size);
-  const magic = String.fromCharCode(bytes[0]!, bytes[1]!, bytes[2]!, bytes[3]!);
-  if (magic !== MAGIC) throw new ScopeWireError(`not a scope frame: magic is ${JSON.stringify(magic)}, expected "SDSC"`);
-  const version = view.getUint8(4);
+  const m = HEADER.magic.offset;
+  const magic = String.fromCharCode(bytes[m]!, bytes[m + 1]!, bytes[m + 2]!, bytes[m + 3]!);
+  if (magic !== MAGIC) throw new ScopeWireError(`not a scope frame: magic is ${JSON.stringify(magic)}, expected "${MAGIC}"`);
+  const version = field(view, 0, HEADER.version);
   if (version !== VERSION) {
     throw new ScopeWireError(
       `scope frame version ${version} is not supported (this page speaks ${VERSION}); reload the page after an upgrade`,
     );
   }
-  const kind = view.getUint8(5);
+  const kind = field(view, 0, HEADER.kind);
   if (kind !== KIND_SAMPLES && kind !== KIND_CAPTURE && kind !== KIND_STATUS) {
     throw new ScopeWireError(`scope frame kind ${kind} is unknown (1 samples, 2 capture, 3 status)`);
   }
-  const flags = view.getUint16(6, true);
+  const flags = field(view, 0, HEADER.flags);
   const frame: ScopeFrame = {
     version,
     kind,
     flags,
-    seq: view.getUint32(8, true),
-    skipped: view.getUint32(12, true),
+    seq: field(view, 0, HEADER.seq),
+    skipped: field(view, 0, HEADER.skipped),
     skippedBefore: (flags & FLAG_SKIPPED) !== 0,
-    tRef: view.getFloat64(24, true),
+    tRef: field(view, 0, HEADER.t_ref),
     blocks: [],
     status: null,
   };
@@ -125,7 +160,7 @@ export function decodeFrame(data: ArrayBuffer | Uint8Array): ScopeFrame {
     frame.status = body as Record<string, unknown>;
     return frame;
   }
-  const nchan = view.getUint16(16, true);
+  const nchan = field(view, 0, HEADER.nchan);
   let off = HEADER_SIZE;
   for (let i = 0; i < nchan; i++) {
     if (size < off + BLOCK_SIZE) {
@@ -133,11 +168,11 @@ export function decodeFrame(data: ArrayBuffer | Uint8Array): ScopeFrame {
         `scope frame truncated in channel block ${i + 1} of ${nchan}: ${size} bytes, its header ends at byte ${off + BLOCK_SIZE}`,
       );
     }
-    const id = view.getUint8(off);
-    const source = view.getUint8(off + 1);
-    const n = view.getUint32(off + 4, true);
-    const dt = view.getFloat64(off + 8, true);
-    const t0 = view.getFloat64(off + 16, true);
+    const id = field(view, off, BLOCK.id);
+    const source = field(view, off, BLOCK.source);
+    const n = field(view, off, BLOCK.n);
+    const dt = field(view, off, BLOCK.dt);
+    const t0 = field(view, off, BLOCK.t0);
     off += BLOCK_SIZE;
     if (!(Number.isFinite(dt) && dt >= 0)) throw new ScopeWireError(`scope frame channel ${id}: sample period ${dt} is invalid`);
     const need = n * 8 * (dt > 0 ? 1 : 2);

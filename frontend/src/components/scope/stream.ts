@@ -6,7 +6,7 @@
  * The socket carries no client id: the server ties control and the dead-man to that id, and
  * the scope closing must not look like the control owner leaving.
  */
-import { type ScopeStatus, scopeSocketUrl } from '../../api/scope';
+import { type ScopeStatus, type ScopeStatusFrame, scopeSocketUrl } from '../../api/scope';
 import { backoffDelay } from '../../ws/socket';
 import type { ScopeModel } from './model';
 import { KIND_CAPTURE, KIND_STATUS, SUBPROTOCOL, decodeFrame } from '../../scope/wire';
@@ -20,14 +20,13 @@ export interface StreamEvents {
   error: (message: string) => void;
 }
 
-/** Parse a status frame's JSON body ({"type": "status", ...ScopeStatus}). */
-export function statusOf(body: unknown): ScopeStatus | null {
+/** A status frame's JSON body (ScopeStatusFrame in openapi.json), or null when it is not one:
+ * the socket's bytes are checked for the fields the page reads before they are trusted. */
+export function statusOf(body: unknown): ScopeStatusFrame | null {
   if (!body || typeof body !== 'object') return null;
   const o = body as Record<string, unknown>;
-  if (o.type !== undefined && o.type !== 'status') return null;
-  const s = (o.status && typeof o.status === 'object' ? o.status : o) as Record<string, unknown>;
-  if (typeof s.state !== 'string' || !Array.isArray(s.channels)) return null;
-  return s as unknown as ScopeStatus;
+  if (o.type !== 'status' || typeof o.state !== 'string' || !Array.isArray(o.channels)) return null;
+  return o as unknown as ScopeStatusFrame;
 }
 
 export function openScopeStream(model: ScopeModel, on: StreamEvents, url: () => string = scopeSocketUrl): () => void {
