@@ -16,14 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from servodesk.devdesc._common import collecting, slug
-from servodesk.devdesc.eds import (
-    DcfContents,
-    export_dcf,
-    export_eds,
-    import_dcf,
-    import_eds,
-    read_dcf,
-)
+from servodesk.devdesc.eds import DcfContents, import_dcf, import_eds, read_dcf
+from servodesk.devdesc.eds_export import export_dcf, export_eds
 from servodesk.devdesc.esi import EsiDevice, esi_devices, export_esi, import_esi
 from servodesk.devdesc.xdd import import_xdd
 from servodesk.domain.profile import DeviceProfile

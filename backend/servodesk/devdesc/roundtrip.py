@@ -9,7 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from servodesk.devdesc.eds import export_eds, import_eds
+from servodesk.devdesc.eds import import_eds
+from servodesk.devdesc.eds_export import export_eds
 from servodesk.devdesc.esi import export_esi, import_esi
 from servodesk.domain.profile import DeviceProfile
 

@@ -24,7 +24,7 @@ from servodesk.devdesc._common import (
     slug,
     warn,
 )
-from servodesk.devdesc.eds import _var_fields
+from servodesk.devdesc.eds import var_fields
 from servodesk.domain.profile import DeviceProfile, ObjectType, PdoMapping
 from servodesk.errors import ProfileError
 
@@ -176,7 +176,7 @@ def _var(
             f"{where}: no name and no uniqueIDRef to a labelled parameter",
             hint="give the object a name= attribute",
         )
-    fields = _var_fields(_keys(el, name, where, params), index, where, where=where)
+    fields = var_fields(_keys(el, name, where, params), index, where, where=where)
     direction = _PDO.get(el.get("PDOmapping", "").strip().lower())
     if direction is not None:
         fields["pdo_mapping"] = direction

@@ -103,7 +103,7 @@ def _export_csv(profile: DeviceProfile, config: PdoConfig, node_id: int) -> str:
 
 def _export_dcf(profile: DeviceProfile, config: PdoConfig, node_id: int) -> str:
     # Imported here: devdesc builds on the domain, not the other way round.
-    from servodesk.devdesc.eds import _section_text, _spec_section, _value_keys
+    from servodesk.devdesc.eds_export import section_text, spec_section, value_keys
 
     if not 1 <= node_id <= 127:
         raise ValidationError(
@@ -115,7 +115,7 @@ def _export_dcf(profile: DeviceProfile, config: PdoConfig, node_id: int) -> str:
     parts = [
         "; PDO configuration of "
         f"{profile.name} (node {node_id}), CiA 306 DCF sections with ParameterValue\n",
-        _section_text("DeviceComissioning", {"NodeID": f"0x{node_id:02X}"}),
+        section_text("DeviceComissioning", {"NodeID": f"0x{node_id:02X}"}),
     ]
     indexes = sorted({a.index for a in values})
     for idx in indexes:
@@ -123,7 +123,7 @@ def _export_dcf(profile: DeviceProfile, config: PdoConfig, node_id: int) -> str:
         if entry is not None and entry.subs:
             subs = [a for a in profile.variables if a.index == idx]
             parts.append(
-                _section_text(
+                section_text(
                     f"{idx:04X}",
                     {
                         "ParameterName": entry.name,
@@ -136,15 +136,15 @@ def _export_dcf(profile: DeviceProfile, config: PdoConfig, node_id: int) -> str:
             spec = profile.spec(addr)
             if spec is None:
                 continue
-            keys = _spec_section(spec)
+            keys = spec_section(spec)
             keys = {k: v for k, v in keys.items() if not k.startswith("servodesk_")}
-            keys.update(_value_keys(spec, values[addr]))
+            keys.update(value_keys(spec, values[addr]))
             name = (
                 f"{idx:04X}"
                 if entry is not None and not entry.subs
                 else f"{idx:04X}sub{addr.subindex:X}"
             )
-            parts.append(_section_text(name, keys))
+            parts.append(section_text(name, keys))
     return "\n".join(parts)
 
 
