@@ -4,24 +4,78 @@ A profile is authored as ``profiles/<id>/profile.yaml`` and validated on load by
 pydantic models (unknown keys are refused). Objects are authored per index (VAR, ARRAY or
 RECORD) and flattened into one :class:`ObjectSpec` per (index, subindex), which is what
 every other layer uses.
+
+The sections of a profile that have a life of their own are models in their own modules
+(profile_pdo.py: ``pdo:``, profile_tuning.py: ``tuning:``, profile_network.py: ``network:``,
+their shared configuration in profile_base.py); this module is the model's one entry point
+and names them too, so ``from servodesk.domain.profile import PdoRules`` is the import.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import enum
 import re
 from collections.abc import Iterator
 from functools import cached_property
-from typing import Any, ClassVar, Literal
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from servodesk.domain import quirks
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, Value, coerce_int
-from servodesk.domain.tuning.gains import ServoGains
-from servodesk.errors import ServodeskError
+from servodesk.domain.profile_base import STRICT, parse_data_type
+from servodesk.domain.profile_network import (
+    NetworkLed as NetworkLed,
+)
+from servodesk.domain.profile_network import (
+    NetworkObject as NetworkObject,
+)
+from servodesk.domain.profile_network import (
+    NetworkRule as NetworkRule,
+)
+from servodesk.domain.profile_network import (
+    NetworkSpec as NetworkSpec,
+)
+from servodesk.domain.profile_pdo import (
+    DcOpMode as DcOpMode,
+)
+from servodesk.domain.profile_pdo import (
+    PdoRules as PdoRules,
+)
+from servodesk.domain.profile_pdo import (
+    PdoTelegram as PdoTelegram,
+)
+from servodesk.domain.profile_pdo import (
+    PdoTemplate as PdoTemplate,
+)
+from servodesk.domain.profile_pdo import (
+    PdoTemplatePdo as PdoTemplatePdo,
+)
+from servodesk.domain.profile_pdo import (
+    PdoWord as PdoWord,
+)
+from servodesk.domain.profile_pdo import (
+    SyncManagerSpec as SyncManagerSpec,
+)
+from servodesk.domain.profile_pdo import (
+    parse_type_ranges as parse_type_ranges,
+)
+from servodesk.domain.profile_tuning import (
+    REQUIRED_GAINS as REQUIRED_GAINS,
+)
+from servodesk.domain.profile_tuning import (
+    SERVO_GAIN_NAMES as SERVO_GAIN_NAMES,
+)
+from servodesk.domain.profile_tuning import (
+    GainObject as GainObject,
+)
+from servodesk.domain.profile_tuning import (
+    RecorderSpec as RecorderSpec,
+)
+from servodesk.domain.profile_tuning import (
+    TuningSpec as TuningSpec,
+)
 
 Scalar = int | float | str | None
 
@@ -68,22 +122,10 @@ class ObjectType(enum.StrEnum):
     RECORD = "record"
 
 
-_STRICT = ConfigDict(extra="forbid", frozen=True, use_enum_values=False)
-
-
-def _parse_data_type(v: Any) -> Any:
-    if isinstance(v, str):
-        try:
-            return DataType.from_name(v)
-        except ServodeskError as exc:  # pydantic reports ValueErrors with their place.
-            raise ValueError(f"{exc.message} ({exc.hint})") from None
-    return v
-
-
 class ObjectSpec(BaseModel):
     """One variable of the object dictionary: what it is, its limits, its units."""
 
-    model_config = _STRICT
+    model_config = STRICT
 
     index: int = Field(ge=0, le=0xFFFF)
     subindex: int = Field(ge=0, le=0xFF)
@@ -120,7 +162,7 @@ class ObjectSpec(BaseModel):
     #: Only the simulated twin has it; servodesk never expects it on a real drive.
     sim_only: bool = False
 
-    _dt = field_validator("data_type", mode="before")(_parse_data_type)
+    _dt = field_validator("data_type", mode="before")(parse_data_type)
 
     @property
     def address(self) -> ObjectAddress:
@@ -147,7 +189,7 @@ class ObjectSpec(BaseModel):
 class SubSpec(BaseModel):
     """A subindex as authored inside an ARRAY or RECORD entry (fields inherit)."""
 
-    model_config = _STRICT
+    model_config = STRICT
 
     sub: int = Field(ge=0, le=0xFF)
     #: Generate this many consecutive subindices; ``{n}`` in the name counts from 1.
@@ -173,13 +215,13 @@ class SubSpec(BaseModel):
     symbol: str | None = None
     writable_in: tuple[str, ...] | None = None
 
-    _dt = field_validator("data_type", mode="before")(_parse_data_type)
+    _dt = field_validator("data_type", mode="before")(parse_data_type)
 
 
 class ObjectEntry(BaseModel):
     """One index as authored in profile.yaml."""
 
-    model_config = _STRICT
+    model_config = STRICT
 
     index: int = Field(ge=0, le=0xFFFF)
     name: str
@@ -211,7 +253,7 @@ class ObjectEntry(BaseModel):
     @field_validator("data_type", mode="before")
     @classmethod
     def _dt(cls, v: Any) -> Any:
-        return _parse_data_type(v)
+        return parse_data_type(v)
 
     @model_validator(mode="after")
     def _shape(self) -> ObjectEntry:
@@ -294,7 +336,7 @@ def _common(e: ObjectEntry) -> dict[str, Any]:
 class ErrorEntry(BaseModel):
     """One code of an error table: 603Fh error codes, EMCY codes, alarms, abort codes."""
 
-    model_config = _STRICT
+    model_config = STRICT
 
     #: Which table: "error_code" (603Fh), "emcy", "alarm", "sdo_abort", "profidrive",
     #: "slmp", "tuning", ... Codes are unique per table.
@@ -317,7 +359,7 @@ class ErrorEntry(BaseModel):
 class Quirk(BaseModel):
     """A documented deviation from the standard, as a flag shared code interprets."""
 
-    model_config = _STRICT
+    model_config = STRICT
 
     id: str
     value: Any = True
@@ -328,7 +370,7 @@ class Quirk(BaseModel):
 class Contradiction(BaseModel):
     """Two passages (or manual versions) that disagree, and which value the profile uses."""
 
-    model_config = _STRICT
+    model_config = STRICT
 
     topic: str
     chosen: str
@@ -341,7 +383,7 @@ class Contradiction(BaseModel):
 class FamilyIdentity(BaseModel):
     """How a session recognises the family from 1018h (or the fieldbus's identity)."""
 
-    model_config = _STRICT
+    model_config = STRICT
 
     vendor_id: int | None = None
     product_codes: tuple[int, ...] = ()
@@ -379,7 +421,7 @@ class FamilyIdentity(BaseModel):
 
 
 class Manual(BaseModel):
-    model_config = _STRICT
+    model_config = STRICT
 
     id: str
     title: str
@@ -390,7 +432,7 @@ class Manual(BaseModel):
 class Group(BaseModel):
     """A parameter group as shown on the Parameters page (ordered)."""
 
-    model_config = _STRICT
+    model_config = STRICT
 
     id: str
     name: str
@@ -398,193 +440,10 @@ class Group(BaseModel):
     description: str | None = None
 
 
-def parse_type_ranges(text: str) -> frozenset[int]:
-    """``"0-240,254-255"`` -> the set of numbers (transmission types of a PDO rule)."""
-    out: set[int] = set()
-    for part in text.replace(" ", "").split(","):
-        if not part:
-            continue
-        lo, _, hi = part.partition("-")
-        a, b = int(lo, 0), int(hi or lo, 0)
-        if not 0 <= a <= b <= 255:
-            raise ValueError(f"{part!r} is not a range inside 0..255")
-        out.update(range(a, b + 1))
-    return frozenset(out)
-
-
-def _check_ranges(v: str) -> str:
-    parse_type_ranges(v)
-    return v
-
-
-class PdoWord(BaseModel):
-    """One entry of a telegram layout or template: an object address, or a word that is no
-    object (telegram 1's STW1), or Reserved padding (``reserved:8``)."""
-
-    model_config = _STRICT
-
-    #: ``"0x6040:00"``, ``"reserved:16"``; None for a word that is no object.
-    address: str | None = None
-    #: Length in bits when it is not the object's own (words that are no object, BOOLEAN).
-    bits: int | None = Field(default=None, ge=0, le=64)
-    name: str | None = None
-    data_type: DataType | None = None
-    note: str | None = None
-
-    _dt = field_validator("data_type", mode="before")(_parse_data_type)
-
-    @model_validator(mode="before")
-    @classmethod
-    def _from_text(cls, v: Any) -> Any:
-        return {"address": v} if isinstance(v, str) else v
-
-
-class PdoTelegram(BaseModel):
-    """A PROFIdrive telegram of the family (004 §20.3): its size and its layouts."""
-
-    model_config = _STRICT
-
-    number: int = Field(ge=1, le=65535)
-    name: str
-    #: Size of each direction's IO data in bytes; a variable mapping must total exactly this.
-    bytes: int = Field(ge=0, le=1440)
-    max_entries: int = Field(ge=0, le=255)
-    #: False: the layout is fixed and cannot be changed (telegrams 1 and 100).
-    variable: bool = False
-    #: The layout (fixed telegrams) or the default mapping (variable ones), per direction.
-    rx: tuple[PdoWord, ...] = ()
-    tx: tuple[PdoWord, ...] = ()
-    section: str | None = None
-    description: str | None = None
-
-
-class PdoTemplatePdo(BaseModel):
-    """One PDO of a template; fields left out keep the current value."""
-
-    model_config = _STRICT
-
-    direction: Literal["rx", "tx"]
-    number: int = Field(ge=1, le=512)
-    #: Entries as addresses (``"0x6040:00"``, ``"reserved:8"``); None keeps the current ones.
-    entries: tuple[PdoWord, ...] | None = None
-    enabled: bool | None = None
-    #: An 11-bit CAN id; text may be ``$NODEID+0x180``.
-    cob_id: int | str | None = None
-    rtr_allowed: bool | None = None
-    transmission_type: int | None = Field(default=None, ge=0, le=255)
-    inhibit_time: int | None = Field(default=None, ge=0, le=0xFFFF)
-    event_timer: int | None = Field(default=None, ge=0, le=0xFFFF)
-    sync_start: int | None = Field(default=None, ge=0, le=0xFF)
-
-
-class PdoTemplate(BaseModel):
-    """A ready-made PDO configuration of the family (a documented default or a useful set)."""
-
-    model_config = _STRICT
-
-    id: str = Field(pattern=r"^[a-z0-9][a-z0-9-]*$")
-    name: str
-    description: str
-    section: str | None = None
-    pdos: tuple[PdoTemplatePdo, ...] = ()
-    #: EtherCAT: the mapping objects assigned to the sync managers (1C12h/1C13h).
-    assignment: dict[Literal["rx", "tx"], tuple[int, ...]] | None = None
-    #: PROFINET: the telegram (P922).
-    telegram: int | None = None
-
-
-class SyncManagerSpec(BaseModel):
-    """One EtherCAT sync manager as the ESI describes it (ETG.2000 DeviceType/Sm)."""
-
-    model_config = _STRICT
-
-    #: SM number (the order of the ``Sm`` elements: 0 = first).
-    number: int = Field(ge=0, le=15)
-    #: What it carries: MBoxOut, MBoxIn, Outputs, Inputs (the Sm element's text).
-    kind: str
-    start_address: int | None = Field(default=None, ge=0, le=0xFFFF)
-    default_size: int | None = Field(default=None, ge=0, le=0xFFFF)
-    control_byte: int | None = Field(default=None, ge=0, le=0xFF)
-    enabled: bool = True
-
-
-class DcOpMode(BaseModel):
-    """One distributed-clock operation mode of an EtherCAT slave (ETG.2000 Dc/OpMode)."""
-
-    model_config = _STRICT
-
-    name: str
-    description: str | None = None
-    #: Value of the AssignActivate register 0x0980 (0x0300: SYNC0 active, 0: free run).
-    assign_activate: int = Field(ge=0, le=0xFFFF)
-    #: CycleTimeSync0/ShiftTimeSync0/CycleTimeSync1 as the file states them (ns; the cycle
-    #: factor of the file is kept in ``cycle_factor_sync0``).
-    cycle_time_sync0: int | None = None
-    cycle_factor_sync0: int | None = None
-    shift_time_sync0: int | None = None
-    cycle_time_sync1: int | None = None
-    cycle_factor_sync1: int | None = None
-
-
-class PdoRules(BaseModel):
-    """Process-data limits and procedure of the family (see docs/pdo.md)."""
-
-    model_config = _STRICT
-
-    #: Which procedure maps process data: "canopen" (CiA 301 §7.5.2.35/36), "ethercat"
-    #: (mapping objects + 1C12h/1C13h assignment), "fixed" (never written), "telegram"
-    #: (PROFIdrive telegram chosen by P922, variable mapping of telegrams 102/103).
-    kind: Literal["canopen", "ethercat", "fixed", "telegram"] = "canopen"
-    #: Byte order of the process data on the wire.
-    byte_order: Literal["little", "big"] = "little"
-    rpdo_count: int = 4
-    tpdo_count: int = 4
-    max_entries: int = 8
-    max_bits: int = 64
-    #: Most bytes of process data per direction (all active PDOs together); None: no limit
-    #: beyond max_bits per PDO.
-    max_bytes: int | None = None
-    #: False: an object may be mapped only once per direction (e.g. HIWIN 000 §3.1).
-    allow_duplicates: bool = True
-    #: Transmission types the drive accepts (CiA 301 §7.5.2.35 table 72 by default).
-    rx_transmission_types: str = "0-240,254-255"
-    tx_transmission_types: str = "0-240,252-255"
-    #: Transmission types for which the event timer applies; with any other type it must
-    #: be 0 (CiA 301 §7.5.2.35: TPDO event timer only for the event-driven types 254/255).
-    rx_timer_types: str = "0-255"
-    tx_timer_types: str = "254-255"
-    #: Where the telegram number is selected (PROFIdrive P922), e.g. "0x039A:00".
-    telegram_object: str | None = None
-    #: When mapping may be changed: "preop" (NMT/ESM pre-operational), "safeop", "any", or
-    #: "fixed" (the mapping cannot be changed at all).
-    mapping_state: str = "preop"
-    section: str | None = None
-    telegrams: tuple[PdoTelegram, ...] = ()
-    templates: tuple[PdoTemplate, ...] = ()
-    #: EtherCAT: the sync managers and distributed-clock modes from the ESI (empty: unknown).
-    sync_managers: tuple[SyncManagerSpec, ...] = ()
-    dc_modes: tuple[DcOpMode, ...] = ()
-
-    _ranges = field_validator(
-        "rx_transmission_types", "tx_transmission_types", "rx_timer_types", "tx_timer_types"
-    )(_check_ranges)
-
-    def transmission_types(self, direction: str) -> frozenset[int]:
-        return parse_type_ranges(
-            self.rx_transmission_types if direction == "rx" else self.tx_transmission_types
-        )
-
-    def timer_types(self, direction: str) -> frozenset[int]:
-        return parse_type_ranges(self.rx_timer_types if direction == "rx" else self.tx_timer_types)
-
-    def telegram(self, number: int) -> PdoTelegram | None:
-        return next((t for t in self.telegrams if t.number == number), None)
-
-
 class SimSettings(BaseModel):
     """How the simulated twin behaves beyond what the objects say."""
 
-    model_config = _STRICT
+    model_config = STRICT
 
     #: Encoder counts per motor revolution (6064h units) in the simulation.
     counts_per_rev: int = 1 << 17
@@ -638,200 +497,6 @@ class SimSettings(BaseModel):
         if v % 1000:
             raise ValueError(f"{v} Hz: the loop rate must be a multiple of 1000 Hz")
         return v
-
-
-#: The canonical servo gains (docs/tuning.md, "Canonical gains"): the fields of
-#: :class:`~servodesk.domain.tuning.gains.ServoGains`, in order.
-SERVO_GAIN_NAMES: tuple[str, ...] = tuple(f.name for f in dataclasses.fields(ServoGains))
-
-#: Gains a ``tuning.kind: gains`` profile must map: the cascade cannot run without them.
-REQUIRED_GAINS: tuple[str, ...] = ("kp_pos", "kp_vel", "ti_vel")
-
-
-def _check_address(v: str) -> str:
-    """An object address as authored (``"0x2101:00"``, ``"P922"``); kept as written."""
-    try:
-        ObjectAddress.parse(v)
-    except ServodeskError as exc:  # pydantic reports ValueErrors with their place.
-        raise ValueError(exc.message) from exc
-    return v
-
-
-class GainObject(BaseModel):
-    """Where one canonical gain lives: SI value = raw object value * ``scale``."""
-
-    model_config = _STRICT
-
-    #: The object's address, e.g. ``"0x2101:00"``.
-    object: str
-    scale: float = Field(default=1.0, gt=0)
-    #: The SI unit of the canonical gain (docs/tuning.md), e.g. ``"N m s/rad"``.
-    unit: str
-
-    _address = field_validator("object")(_check_address)
-
-    @property
-    def address(self) -> ObjectAddress:
-        return ObjectAddress.parse(self.object)
-
-
-class TuningSpec(BaseModel):
-    """How a family is tuned (docs/tuning.md): the drive's own built-in tuning, servodesk's
-    tuning through a gain map, or nothing to tune."""
-
-    model_config = _STRICT
-
-    #: Sub-indexes of the test signal generator objects at ``signal_index``.
-    SIGNAL_SUBS: ClassVar[int] = 8
-
-    kind: Literal["gains", "builtin", "none"]
-    #: Canonical gain name -> object and scale (kind ``gains``).
-    gains: dict[str, GainObject] = Field(default_factory=dict)
-    #: The read-only object reporting the servo loop rate [Hz], e.g. ``"0x2108:00"``.
-    loop_rate_object: str | None = None
-    #: The read-only object reporting the current loop bandwidth [Hz] (the tuning's model).
-    current_loop_object: str | None = None
-    #: Index of the test signal generator (subs 1-8, docs/tuning.md); simulated twins only.
-    signal_index: int | None = Field(default=None, ge=0x2000, le=0x5FFF)
-    section: str | None = None
-    note: str | None = None
-
-    @model_validator(mode="after")
-    def _check(self) -> TuningSpec:
-        unknown = sorted(set(self.gains) - set(SERVO_GAIN_NAMES))
-        if unknown:
-            raise ValueError(
-                f"unknown gain {', '.join(unknown)}: the gains are {', '.join(SERVO_GAIN_NAMES)}"
-            )
-        if self.kind == "gains":
-            missing = [g for g in REQUIRED_GAINS if g not in self.gains]
-            if missing:
-                raise ValueError(f"kind gains needs the gains {', '.join(missing)} mapped")
-        for key in ("loop_rate_object", "current_loop_object"):
-            text = getattr(self, key)
-            if text is not None:
-                try:
-                    ObjectAddress.parse(text)
-                except ServodeskError as exc:
-                    raise ValueError(f"{key}: {exc.message}") from exc
-        return self
-
-    @property
-    def loop_rate_address(self) -> ObjectAddress | None:
-        if self.loop_rate_object is None:
-            return None
-        return ObjectAddress.parse(self.loop_rate_object)
-
-    @property
-    def current_loop_address(self) -> ObjectAddress | None:
-        if self.current_loop_object is None:
-            return None
-        return ObjectAddress.parse(self.current_loop_object)
-
-
-class RecorderSpec(BaseModel):
-    """A drive-side recorder (trace function): objects sampled inside the drive at a fixed
-    rate, with a trigger and pre-trigger, uploaded afterwards by SDO (docs/scope.md).
-
-    Its objects sit at consecutive indexes from ``index`` (the offsets below). None of the
-    families documents a trace function reachable over the fieldbus, so the shipped profiles
-    give their simulated twin one (``sim_only``) in an index range the family leaves free.
-    """
-
-    model_config = _STRICT
-
-    #: Offsets from ``index``: channels (ARRAY, sub n = ``index << 16 | sub << 8 | bits``),
-    #: divider, depth, trigger, level, pre-trigger, control/status, data (DOMAIN), recorded
-    #: count, trigger sample index.
-    CHANNELS: ClassVar[int] = 0
-    DIVIDER: ClassVar[int] = 1
-    DEPTH: ClassVar[int] = 2
-    TRIGGER: ClassVar[int] = 3
-    LEVEL: ClassVar[int] = 4
-    PRE_TRIGGER: ClassVar[int] = 5
-    CONTROL: ClassVar[int] = 6
-    DATA: ClassVar[int] = 7
-    COUNT: ClassVar[int] = 8
-    TRIGGER_INDEX: ClassVar[int] = 9
-
-    #: First index of the recorder objects (manufacturer area).
-    index: int = Field(ge=0x2000, le=0x5FFF - 9)
-    max_channels: int = Field(default=8, ge=1, le=8)
-    #: Most samples per channel (the depth object is UNSIGNED16).
-    max_depth: int = Field(default=8192, ge=1, le=65535)
-    #: Samples per second at divider 1: the simulated plant, ``simulation.loop_rate_hz``
-    #: (a twin built from a plant file samples at that file's loop rate).
-    rate_hz: float = Field(default=4000.0, gt=0)
-    #: Only the simulated twin has it; a session on a real drive reports no recorder.
-    sim_only: bool = True
-    section: str | None = None
-    note: str | None = None
-
-    def object_index(self, offset: int) -> int:
-        """The index of one recorder object, e.g. ``object_index(RecorderSpec.DATA)``."""
-        return self.index + offset
-
-    @staticmethod
-    def recordable(spec: ObjectSpec) -> bool:
-        """Whether the recorder can sample ``spec``: readable, and an integer of at most 32
-        bits or a REAL32 (a sample is one INTEGER32 word)."""
-        dt = spec.data_type
-        return spec.access.readable and (
-            (dt.is_integer and 0 < dt.bits <= 32) or dt is DataType.REAL32
-        )
-
-
-class NetworkObject(BaseModel):
-    """An object that configures or reports the fieldbus connection (the Network page reads it)."""
-
-    model_config = _STRICT
-
-    #: The object's address, e.g. ``"0x1017:00"``; it must be an object of the profile.
-    object: str
-    #: What it tells the engineer about the network, in the manual's terms.
-    note: str = Field(min_length=1)
-    section: str = Field(min_length=1)
-
-    _address = field_validator("object")(_check_address)
-
-    @property
-    def address(self) -> ObjectAddress:
-        return ObjectAddress.parse(self.object)
-
-
-class NetworkRule(BaseModel):
-    """An addressing rule the engineer must know (switches, defaults, DHCP, ...)."""
-
-    model_config = _STRICT
-
-    text: str = Field(min_length=1)
-    section: str = Field(min_length=1)
-
-
-class NetworkLed(BaseModel):
-    """One documented state of an LED: its colour or pattern and what it means."""
-
-    model_config = _STRICT
-
-    led: str = Field(min_length=1)
-    state: str = Field(min_length=1)
-    meaning: str = Field(min_length=1)
-    section: str = Field(min_length=1)
-
-
-class NetworkSpec(BaseModel):
-    """How the family is addressed on its fieldbus, as its manual says (the Network
-    configuration page; docs/profiles.md). Every entry cites its section."""
-
-    model_config = _STRICT
-
-    #: One or two sentences: how the family is found and addressed on its fieldbus.
-    summary: str = Field(min_length=1)
-    section: str = Field(min_length=1)
-    #: The objects that configure or report the network, in the order the page lists them.
-    objects: tuple[NetworkObject, ...] = ()
-    addressing: tuple[NetworkRule, ...] = ()
-    leds: tuple[NetworkLed, ...] = ()
 
 
 class DeviceProfile(BaseModel):
