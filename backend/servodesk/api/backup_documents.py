@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from servodesk.api.schemas import BackupFile, Comparison, PreflightOut
+from servodesk.api.schemas_backups import BackupFile, Comparison, PreflightOut
 from servodesk.domain import paramset
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.paramset import DriveFacts, ParameterSet

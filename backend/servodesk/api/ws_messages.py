@@ -23,16 +23,11 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError
 from pydantic.json_schema import JsonSchemaMode
 
-from servodesk.api.schemas import (
-    DriveStateOut,
-    EmcyLogEntry,
-    HomingStatus,
-    MotionStatusOut,
-    ProtectionOut,
-    SessionInfo,
-)
+from servodesk.api.schemas_homing import EmcyLogEntry, HomingStatus
+from servodesk.api.schemas_motion import MotionStatusOut, ProtectionOut
 from servodesk.api.schemas_pdo import PdoLinkHealth, PdoLiveValue
 from servodesk.api.schemas_scope import ScopeStatusFrame
+from servodesk.api.schemas_sessions import DriveStateOut, SessionInfo
 from servodesk.api.schemas_tuning import TuningJob
 
 log = logging.getLogger(__name__)

@@ -2,7 +2,8 @@
 
 - EDS / DCF (CiA 306): :func:`export_eds`, :func:`export_dcf`, :func:`import_eds`,
   :func:`import_dcf` (module :mod:`servodesk.devdesc.eds`)
-- ESI XML (ETG.2000, EtherCAT): :func:`export_esi`, :func:`import_esi` (module ``esi``)
+- ESI XML (ETG.2000, EtherCAT): :func:`export_esi`, :func:`import_esi` (modules ``esi_export``
+  and ``esi``)
 - XDD / XDC (CiA 311, CANopen XML; CANopenEditor's .xpd project): :func:`import_xdd`
 
 :func:`import_file` picks the reader by the file's suffix; :func:`read_file` also returns the
@@ -18,7 +19,8 @@ from pathlib import Path
 from servodesk.devdesc._common import collecting, slug
 from servodesk.devdesc.eds import DcfContents, import_dcf, import_eds, read_dcf
 from servodesk.devdesc.eds_export import export_dcf, export_eds
-from servodesk.devdesc.esi import EsiDevice, esi_devices, export_esi, import_esi
+from servodesk.devdesc.esi import EsiDevice, esi_devices, import_esi
+from servodesk.devdesc.esi_export import export_esi
 from servodesk.devdesc.xdd import import_xdd
 from servodesk.domain.profile import DeviceProfile
 from servodesk.errors import NotFoundError, ProfileError, ValidationError

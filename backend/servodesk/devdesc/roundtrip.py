@@ -11,7 +11,8 @@ from typing import Any
 
 from servodesk.devdesc.eds import import_eds
 from servodesk.devdesc.eds_export import export_eds
-from servodesk.devdesc.esi import export_esi, import_esi
+from servodesk.devdesc.esi import import_esi
+from servodesk.devdesc.esi_export import export_esi
 from servodesk.domain.profile import DeviceProfile
 
 __all__ = ["export_again", "first_difference", "roundtrip_difference"]

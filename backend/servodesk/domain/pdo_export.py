@@ -151,7 +151,7 @@ def _export_dcf(profile: DeviceProfile, config: PdoConfig, node_id: int) -> str:
 def _export_esi(profile: DeviceProfile, config: PdoConfig) -> str:
     import xml.etree.ElementTree as ET
 
-    from servodesk.devdesc.esi import _type_of
+    from servodesk.devdesc.esi_common import type_of
 
     chunks: list[str] = []
     for d, tag, sm in ((Direction.RX, "RxPdo", "2"), (Direction.TX, "TxPdo", "3")):
@@ -173,7 +173,7 @@ def _export_esi(profile: DeviceProfile, config: PdoConfig) -> str:
                     ET.SubElement(ent, "Name").text = s.name
                     if s.data_type is not None:
                         spec = profile.spec(s.address)
-                        tn = _type_of(s.data_type, spec.default if spec else None)[0]
+                        tn = type_of(s.data_type, spec.default if spec else None)[0]
                         ET.SubElement(ent, "DataType").text = "BOOL" if s.bits == 1 else tn
             ET.indent(el, space="  ")
             chunks.append(ET.tostring(el, encoding="unicode"))

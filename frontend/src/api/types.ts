@@ -180,7 +180,7 @@ export type AuditEntry = S['AuditEntry'];
 // ---------------------------------------------------------------------------------------------
 // Operation and alarms (issue 4) — docs/api.md "Operation: control, motion, dead-man, homing,
 // alarms". Appended by the Operation / Alarms / 3D view pages; shapes follow the backend
-// (api/schemas.py), which adds a few fields to the contract (marked "backend addition").
+// (api/schemas_motion.py, schemas_homing.py), which adds a few fields to the contract (marked "backend addition").
 // ---------------------------------------------------------------------------------------------
 
 export type ControlAction = S['ControlRequest']['action'];

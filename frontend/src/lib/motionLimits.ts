@@ -8,7 +8,7 @@
  * only save a refused request): |velocity| <= 607Fh, acceleration <= 60C5h (and <= 60C6h for a
  * jog, whose acceleration is also its deceleration), torque <= 6072h, a target inside the
  * software position limits 607Dh (relative: from the actual position), cyclic peak
- * velocity / acceleration from the waveform, and the request ranges of api/schemas.py.
+ * velocity / acceleration from the waveform, and the request ranges of api/schemas_motion.py.
  */
 import type { CyclicRequest, HomingRequest, JogRequest, Limits, MoveRequest, TorqueRequest, UnitInfo, VelocityRequest } from '../api/types';
 

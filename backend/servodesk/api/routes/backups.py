@@ -13,8 +13,8 @@ from servodesk.api.deps import AppState, StateDep
 from servodesk.api.downloads import content_disposition
 from servodesk.api.identity import caller_of
 from servodesk.api.offload import file_answer, in_process, in_worker, json_response
-from servodesk.api.schemas import (
-    ERROR_RESPONSES,
+from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.api.schemas_backups import (
     AuditEntry,
     BackupCreate,
     BackupFile,

@@ -13,8 +13,8 @@ from fastapi import APIRouter
 
 from servodesk.api.control_deps import ClientHeader
 from servodesk.api.deps import StateDep
-from servodesk.api.schemas import (
-    ERROR_RESPONSES,
+from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.api.schemas_dcp import (
     DcpDeviceOut,
     DcpDeviceRequest,
     DcpDone,

@@ -19,8 +19,8 @@ from servodesk.api.control_deps import (
 )
 from servodesk.api.identity import caller_of
 from servodesk.api.rights import demand
-from servodesk.api.schemas import (
-    ERROR_RESPONSES,
+from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.api.schemas_motion import (
     ControlOut,
     ControlRequest,
     CyclicMotionRequest,

@@ -12,8 +12,8 @@ from fastapi import APIRouter, Query
 
 from servodesk.api.control_deps import MotionControl, OperationDep, WriteControl
 from servodesk.api.deps import StateDep
-from servodesk.api.schemas import (
-    ERROR_RESPONSES,
+from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.api.schemas_homing import (
     AlarmsOut,
     ClearHistoryRequest,
     HomingMethodOut,

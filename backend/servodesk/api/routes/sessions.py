@@ -9,24 +9,24 @@ from fastapi import APIRouter, Response
 from servodesk.api.control_deps import CloseControl, StateControl, WriteControl
 from servodesk.api.deps import StateDep
 from servodesk.api.routes.system import profile_detail
-from servodesk.api.schemas import (
-    ERROR_RESPONSES,
-    DriveStateOut,
-    ErrorOut,
-    MessageOut,
+from servodesk.api.schemas import ERROR_RESPONSES, ErrorOut, MessageOut
+from servodesk.api.schemas_objects import (
     ObjectValueOut,
-    ProfileDetail,
     ReadFailure,
     ReadRequest,
     ReadResults,
     RestoreDefaultsRequest,
+    StoreResult,
+    WriteRequest,
+)
+from servodesk.api.schemas_profiles import ProfileDetail
+from servodesk.api.schemas_sessions import (
+    DriveStateOut,
     ScanOut,
     ScanRequest,
     SessionCreate,
     SessionInfo,
     StateCommand,
-    StoreResult,
-    WriteRequest,
 )
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.values import ObjectValue

@@ -25,7 +25,8 @@ from pydantic import BaseModel, Field
 
 from servodesk.api.control_deps import ClientId, OperationDep
 from servodesk.api.identity import caller_of
-from servodesk.api.schemas import ERROR_RESPONSES, MotionStatusOut
+from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.api.schemas_motion import MotionStatusOut
 from servodesk.errors import ServodeskError
 
 log = logging.getLogger(__name__)

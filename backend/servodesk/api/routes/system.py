@@ -9,11 +9,10 @@ from fastapi import APIRouter, Query, Request, Response
 from servodesk import __version__
 from servodesk.api.deps import StateDep
 from servodesk.api.downloads import content_disposition
-from servodesk.api.schemas import (
-    ERROR_RESPONSES,
+from servodesk.api.schemas import ERROR_RESPONSES, HealthOut
+from servodesk.api.schemas_profiles import (
     ErrorInfo,
     GroupInfo,
-    HealthOut,
     ImportedProfile,
     NetworkInfo,
     NetworkLedInfo,

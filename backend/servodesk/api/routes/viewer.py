@@ -11,7 +11,8 @@ from typing import Any
 
 from fastapi import APIRouter, Request
 
-from servodesk.api.schemas import ERROR_RESPONSES, ViewerAxisOut, ViewerAxisRequest, ViewerOut
+from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.api.schemas_viewer import ViewerAxisOut, ViewerAxisRequest, ViewerOut
 from servodesk.api.state import state_of
 from servodesk.services.viewer import ViewerService
 
