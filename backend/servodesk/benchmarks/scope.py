@@ -25,6 +25,10 @@ gives the ratios, and every phase the CAN bus load its frames would put on a 1 M
 (``can_bus``, docs/scope.md "Block upload").
 
 Children: ``python -m servodesk.benchmarks.scope --child sim|server ...`` (internal).
+
+Over 700 lines: one benchmark run (three processes, their start and teardown, the clients, the
+tallies and the JSON report) read top to bottom; it is a script that ships with ``servodesk
+bench``, not a library.
 """
 
 from __future__ import annotations

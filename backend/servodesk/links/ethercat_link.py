@@ -34,6 +34,10 @@ same process while it waits cannot answer those calls: the simulated line theref
 ESCs in a process of their own (:class:`~servodesk.sim.ethercat_slave.EthercatSlaveProcess`,
 what ``SimulatedBus`` uses); with the thread front-end (``EthercatSlaveSim``, tests) the
 state reads "unknown" and a state request times out.
+
+Over 700 lines: the SOEM master shared by the links of one interface (:class:`_Master`, its
+thread and its turns) and the link over it; the process-data exchange is already its own module
+(links/ethercat_cyclic.py).
 """
 
 from __future__ import annotations

@@ -32,6 +32,10 @@ and a fragmented answer is put together again.
 A request without an answer is sent once more with the same sequence number, which a
 device answers from its last response without carrying the call out twice. An AR the device
 no longer knows (it was restarted) is set up again once.
+
+Over 700 lines: one link, the contract's hooks for PNIO-CM (the AR's Connect and Release, record
+read and write) and the PROFIdrive parameter requests over them, which share the AR and what it
+learnt per parameter.
 """
 
 from __future__ import annotations

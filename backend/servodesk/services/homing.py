@@ -16,6 +16,9 @@ ends the run and is published as the last ``homing`` message, so that the panel 
 "running" after the axis stopped. The statusword cannot tell that on every family: after a
 cancelled run the CTMM04x clears bits 13, 12 and 10 alike (003 §4-4-7, "ホーミングモード
 キャンセル"), which CiA 402-2 §6.8.1 reads as "in progress".
+
+Over 700 lines: the plan, the run and its tracker are one state machine of CiA 402-2 §6.8
+(statusword bits 13/12/10 against the motion's end); the tables are already in domain/homing.py.
 """
 
 from __future__ import annotations

@@ -3,6 +3,10 @@
 The API sees sessions only. A session validates every access against its profile before it
 reaches the link, polls the drive's CiA 402 state for live updates, and turns link events
 (EMCY, NMT, link loss) into messages for the WebSocket hub.
+
+Over 700 lines: :class:`Session` is the one gate every object access passes (profile checks,
+protection, the state poll, link events); its parts read and write the same per-drive state
+under one lock.
 """
 
 from __future__ import annotations

@@ -18,6 +18,10 @@ master, written by the PDI). An :class:`EscLine` passes each datagram of a frame
 slaves and answers frames from a raw socket, in a thread or in a process of its own
 (:func:`child_main`). Nothing here imports the drive simulation, so that process starts
 light.
+
+Over 700 lines: the ESC's register map, SII, AL state machine, mailbox and FMMU process data are
+one memory that SOEM reads and writes by address; :class:`EscLine` is the datagram router over
+it.
 """
 
 from __future__ import annotations

@@ -41,6 +41,10 @@ activity (the ARBlockReq's CMInitiatorActivityTimeoutFactor x 100 ms, restarted 
 record read and write) until the AR exchanges IO data, which a supervisor AR with device access
 never does (IEC 61158-6-10 CMSM; so p-net's ``pf_cmsm.c``). A client that died without a
 Release thus stops blocking DCP name and address changes once that time has passed.
+
+Over 700 lines: one PNIO-CM context manager (Connect, Read, Write, Release, the AR and its
+session key, PROFIdrive parameter requests), every handler checking the same AR state as the
+spec's state machine does.
 """
 
 from __future__ import annotations

@@ -12,6 +12,10 @@ Three estimators (anchors-tuning.md §2.2-2.4):
 
 :func:`plant_from_identification` turns the results into a :class:`~.model.PlantModel` for
 ``design.design_gains``.
+
+Over 700 lines: three estimators (least squares, FRF, resonances) and the plant built from their
+results share the signal conditioning (differentiator, windows, bands) and the checks on a
+record; each estimator alone is 150-300 lines.
 """
 
 from __future__ import annotations

@@ -22,6 +22,10 @@ following error RMS.
 The reference move is the benchmark's (anchors-tuning.md §3.2): half a revolution, jerk-limited
 (2 ms ramps), acceleration 0.7 x torque limit / total inertia, at most 50 rev/s, then 0.5 s at
 rest.
+
+Over 700 lines: the candidate grid, its margin filter on every model of the robustness set and
+the ranking by a simulated move are one search; split, each part would carry the others' arrays
+and tolerances through its signature.
 """
 
 from __future__ import annotations

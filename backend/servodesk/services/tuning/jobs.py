@@ -23,6 +23,10 @@ inside it and sets the drive's software limits 607Dh there (services/tuning/trav
 units per revolution come from 6064h's unit (``deg``: 360 / scale) or else the profile's
 simulation setting (``counts_per_rev``, 608Fh's once the session read it), which the info names
 as the source: on a real drive the electronic gear decides.
+
+About 700 lines: the job lifecycle (start, progress, stop, undo, store, shutdown) of every
+tuning kind, one state machine under the dead-man; the kinds' own work is in builtin.py and
+own/.
 """
 
 from __future__ import annotations
