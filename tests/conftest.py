@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import itertools
 import logging
 import os
@@ -83,20 +84,44 @@ def _thread_text(t: threading.Thread) -> str:
 
 @pytest.fixture(scope="module", autouse=True)
 def _no_leaked_threads(request: pytest.FixtureRequest) -> Iterator[None]:
-    """Every thread a module's tests started has ended once its fixtures are torn down.
+    """Every thread a module's tests started has ended once its fixtures are torn down, and
+    no asyncio task was left pending when its event loop closed.
 
     A thread that outlives its app or bus is a stop that did not happen: a heartbeat still
     on the bus after the link closed, a worker process's feeder still waiting (issue 51,
     item 6). Checked per module, not per test: module-scoped fixtures (an app, a twin's
     bus) rightly outlive one test, and are torn down before this fixture's check runs."""
     before = {t.ident for t in threading.enumerate()}
-    yield
+    tasks = _ErrorLog()
+    asyncio_log = logging.getLogger("asyncio")
+    asyncio_log.addHandler(tasks)
+    try:
+        yield
+        # A task still pending when its loop closed is destroyed with the loop's last reference
+        # and asyncio logs it then: collect now, so it is logged for this module.
+        gc.collect()
+    finally:
+        asyncio_log.removeHandler(tasks)
+    lost = [m for m in tasks.messages if "Task was destroyed but it is pending" in m]
     deadline = time.monotonic() + THREAD_GRACE_S
     while True:
         leaked = [t for t in threading.enumerate() if t.ident not in before and t.is_alive()]
         if not leaked or time.monotonic() >= deadline:
             break
         time.sleep(0.05)
+    if lost:
+        tasks_text = " | ".join(m.splitlines()[0][:300] for m in lost[:5])
+        report = os.environ.get("SERVODESK_THREAD_REPORT")
+        if report:
+            with open(report, "a", encoding="utf-8") as out:
+                out.write(f"{request.node.nodeid}\ttasks: {tasks_text}\n")
+        else:
+            pytest.fail(
+                f"{len(lost)} asyncio task(s) of {request.node.nodeid} were still pending when "
+                f"their event loop closed: {tasks_text}. Cancel and await them where they are "
+                "started (a fixture, the app's shutdown).",
+                pytrace=False,
+            )
     if leaked:
         names = "; ".join(_thread_text(t) for t in leaked)
         report = os.environ.get("SERVODESK_THREAD_REPORT")
@@ -112,8 +137,8 @@ def _no_leaked_threads(request: pytest.FixtureRequest) -> Iterator[None]:
         )
 
 
-class _Refused(logging.Handler):
-    """The WebSocket messages api/ws.py did not send because they are not ServerMessages."""
+class _ErrorLog(logging.Handler):
+    """The ERROR records a logger wrote while it was attached (messages only)."""
 
     def __init__(self) -> None:
         super().__init__(logging.ERROR)
@@ -129,7 +154,7 @@ def _websocket_messages_in_contract(request: pytest.FixtureRequest) -> Iterator[
     (api/ws_messages.py): the UI's types are generated from it, and api/ws.py logs and drops
     any other, so a publisher that sends a field or type the union lacks fails the test that
     makes it send one, whatever that test is about."""
-    handler = _Refused()
+    handler = _ErrorLog()
     logger = logging.getLogger("servodesk.api.ws")
     logger.addHandler(handler)
     try:

@@ -7,6 +7,8 @@ service's stop is wrapped to record when it runs (and what the axis does at that
 from __future__ import annotations
 
 import asyncio
+import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -150,3 +152,45 @@ async def test_a_failing_stop_does_not_leave_the_rest_running(channel, tmp_path)
     assert calls[-5:] == ["sessions", "store", "audit", "users", "sim"]
     assert state.manager.all() == []
     assert state.sim is None
+
+
+async def test_nothing_the_app_started_outlives_its_shutdown(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """Every task and thread the application started (session polls, the dead-man's watch,
+    the bus's notifier, servodesk's heartbeat on the bus, the scope, the fleet's timer, the
+    twins' threads) has ended once its shutdown returned: a task left pending would act on a
+    closed session, a heartbeat thread would tell a drive the master still lives."""
+    tasks_before = asyncio.all_tasks()
+    threads_before = {t.ident for t in threading.enumerate()}
+    app = _app(channel, tmp_path)
+    async with app.router.lifespan_context(app):
+        await _jog(app)
+        transport = httpx.ASGITransport(app=app)
+        async with httpx.AsyncClient(transport=transport, base_url="http://t") as c:
+            # The scope samples the drive too (its own thread and tasks).
+            r = await c.put(
+                "/api/v1/scope/channels",
+                json={"channels": [{"id": 0, "session": SID, "address": "0x6064:00"}]},
+                headers=headers("A"),
+            )
+            assert r.status_code == 200, r.text
+            r = await c.post("/api/v1/scope/run", json={"action": "start"}, headers=headers("A"))
+            assert r.status_code == 200, r.text
+            await asyncio.sleep(0.2)
+    pending = [t for t in asyncio.all_tasks() - tasks_before if not t.done()]
+    pending = [t for t in pending if t is not asyncio.current_task()]
+    assert pending == [], [t.get_name() + " " + repr(t.get_coro()) for t in pending]
+    deadline = time.monotonic() + 3.0  # python-can's cyclic sender ends at its next period.
+    while True:
+        # The event loop's own worker threads (its default executor, AnyIO's pool for
+        # Starlette's sync calls) belong to this test's loop and end with it, not the app.
+        alive = [
+            t
+            for t in threading.enumerate()
+            if t.ident not in threads_before
+            and not t.name.startswith("asyncio_")
+            and t.name != "AnyIO worker thread"
+        ]
+        if not alive or time.monotonic() > deadline:
+            break
+        await asyncio.sleep(0.05)
+    assert alive == [], [t.name for t in alive]
