@@ -44,8 +44,10 @@ class Rig:
 
 
 async def make_rig(
-    data_dir: Path, families: list[str], *, second: bool, timeout: float = 0.3
+    data_dir: Path, families: list[str], *, second: bool, timeout: float = 0.3, url: str = ""
 ) -> Rig:
+    """The drives of ``families`` and their sessions; the store in ``data_dir`` (``url``:
+    on that store instead, a PostgreSQL of tests/store/conftest.py)."""
     channel = f"backup-{os.getpid()}-{next(_n)}"
     drives = [(pid, i + 1) for i, pid in enumerate(families)]
     serials: list[int | None] = [1001 + i for i in range(len(families))]
@@ -57,7 +59,7 @@ async def make_rig(
     bus = SimulatedBus.start(drives, channel=channel, serials=serials, catalog=cat)
     hub = EventHub()
     manager = SessionManager(cat, hub, sdo_timeout=timeout, poll_hz=1.0)
-    backups = BackupService(Store(data_dir), cat)
+    backups = BackupService(Store(data_dir, url), cat)
     backups.attach(hub)
     rig = Rig(bus, manager, backups, RestoreService(backups), data_dir, channel)
     for pid, node in drives:

@@ -497,6 +497,9 @@ class Discard:
     ) -> None:
         category_of(event)  # Still a programming error to use an unknown id.
 
+    def flush(self, timeout: float = 5.0) -> bool:
+        return True  # Nothing is ever queued.
+
 
 class Recorder(Protocol):
     """What a service needs of the audit log: :meth:`AuditLog.record`."""
@@ -511,6 +514,11 @@ class Recorder(Protocol):
         message: str = "",
         details: dict[str, Any] | None = None,
     ) -> None: ...
+
+    def flush(self, timeout: float = 5.0) -> bool:
+        """Block until what was recorded so far is written (a restore's intent must be in the
+        chain before its writes go out: services/restore.py). Call it off the event loop."""
+        ...
 
 
 DISCARD = Discard()

@@ -332,10 +332,17 @@ class Session:
         value: Value | None = None,
         raw_hex: str | None = None,
         client: str | None = None,
+        *,
+        audited: bool = True,
     ) -> ObjectValue:
+        """Write one object and read it back (the answer is the drive's value).
+
+        ``audited`` False: the caller records the write in the audit log itself, with the old
+        value it already holds (a restore: from the backup it took before writing,
+        services/restore.py), so this write costs no audit read of its own."""
         spec = self.profile.spec(address)
         data = encode_write(address, spec, value, raw_hex)
-        audit = self.hub.audit
+        audit = self.hub.audit if audited else None
         old: bytes | None = None
         setting = spec is None or (spec.persist and not spec.process)
         # The mode of operation is the motion's command, read back in 6061h (CiA 402-2

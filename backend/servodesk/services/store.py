@@ -5,7 +5,8 @@ The default is one SQLite database (``<data_dir>/servodesk.db``) in WAL mode wit
 ``synchronous=FULL``; ``SERVODESK_STORE_URL=postgresql://...`` puts the same schema on a
 central PostgreSQL that several gateways share. Every change is one transaction, so a crash
 at any moment leaves either the old or the new state, and a committed restore item survives
-a power loss.
+a power loss. A restore commits its items a batch at a time (:meth:`Store.journal`, the group
+commit of services/restore.py), in a thread.
 
 A backup's bytes are in the store (``backup_content``, keyed by SHA-256: identical content
 is stored once), so every machine on the store can open every backup. The data directory's
@@ -26,7 +27,7 @@ import logging
 import os
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -390,19 +391,50 @@ class Store:
 
     def set_item(self, rid: str, seq: int, **fields: Any) -> None:
         """Record one item's new status (committed before the next write goes out)."""
-        allowed = {"status", "old_raw_hex", "code", "meaning", "message"}
-        values = {k: v for k, v in fields.items() if k in allowed}
+        values = {k: v for k, v in fields.items() if k in _ITEM_FIELDS}
         if not values:
             return
         ri = db.restore_items
         with self._tx() as conn:
             conn.execute(sa.update(ri).where(ri.c.restore == rid, ri.c.seq == seq).values(values))
 
+    def journal(
+        self,
+        rid: str,
+        items: dict[int, dict[str, Any]],
+        audit: Sequence[dict[str, Any]] = (),
+        restore: dict[str, Any] | None = None,
+    ) -> None:
+        """A restore's group commit (services/restore.py): items' new fields (by seq), the
+        audit table's records of the writes and the restore's own fields, in ONE
+        transaction. Blocking (a commit is an fsync): call it in a thread."""
+        ri = db.restore_items
+        # executemany needs one set of columns per statement: items grouped by theirs.
+        by_columns: dict[tuple[str, ...], list[dict[str, Any]]] = {}
+        for seq, fields in items.items():
+            values = {k: v for k, v in fields.items() if k in _ITEM_FIELDS}
+            if values:
+                by_columns.setdefault(tuple(sorted(values)), []).append(
+                    {**{f"v_{k}": v for k, v in values.items()}, "b_seq": seq}
+                )
+        restore_values = _restore_values(restore or {})
+        with self._tx() as conn:
+            for columns, params in by_columns.items():
+                conn.execute(
+                    sa.update(ri)
+                    .where(ri.c.restore == rid, ri.c.seq == sa.bindparam("b_seq"))
+                    .values({c: sa.bindparam(f"v_{c}") for c in columns}),
+                    params,
+                )
+            if audit:
+                conn.execute(sa.insert(db.audit), [_audit_row(rec) for rec in audit])
+            if restore_values:
+                conn.execute(
+                    sa.update(db.restores).where(db.restores.c.id == rid).values(restore_values)
+                )
+
     def set_restore(self, rid: str, **fields: Any) -> None:
-        allowed = {"finished", "stored", "interrupted", "message", "session", "pre_backup"}
-        values = {
-            k: int(v) if isinstance(v, bool) else v for k, v in fields.items() if k in allowed
-        }
+        values = _restore_values(fields)
         if not values:
             return
         with self._tx() as conn:
@@ -450,20 +482,7 @@ class Store:
 
     def add_audit(self, rec: dict[str, Any]) -> None:
         with self._tx() as conn:
-            conn.execute(
-                sa.insert(db.audit).values(
-                    time=rec["time"],
-                    client=rec["client"],
-                    session=rec["session"],
-                    drive_key=rec["drive_key"],
-                    address=rec["address"],
-                    name=rec.get("name"),
-                    old_raw_hex=rec.get("old_raw_hex"),
-                    new_raw_hex=rec["new_raw_hex"],
-                    old_value=json.dumps(rec.get("old_value")),
-                    new_value=json.dumps(rec.get("new_value")),
-                )
-            )
+            conn.execute(sa.insert(db.audit).values(_audit_row(rec)))
 
     def list_audit(self, session: str | None = None, limit: int = 100) -> list[dict[str, Any]]:
         a = db.audit
@@ -486,6 +505,36 @@ class Store:
             }
             for r in self._query(query)
         ]
+
+
+#: The fields of a restore item that change as the restore goes.
+_ITEM_FIELDS = frozenset({"status", "old_raw_hex", "code", "meaning", "message"})
+#: The fields of a restore that change as it goes.
+_RESTORE_FIELDS = frozenset(
+    {"finished", "stored", "interrupted", "message", "session", "pre_backup"}
+)
+
+
+def _restore_values(fields: dict[str, Any]) -> dict[str, Any]:
+    return {
+        k: int(v) if isinstance(v, bool) else v for k, v in fields.items() if k in _RESTORE_FIELDS
+    }
+
+
+def _audit_row(rec: dict[str, Any]) -> dict[str, Any]:
+    """The ``audit`` table's row of a write record (BackupService.write_record)."""
+    return {
+        "time": rec["time"],
+        "client": rec["client"],
+        "session": rec["session"],
+        "drive_key": rec["drive_key"],
+        "address": rec["address"],
+        "name": rec.get("name"),
+        "old_raw_hex": rec.get("old_raw_hex"),
+        "new_raw_hex": rec["new_raw_hex"],
+        "old_value": json.dumps(rec.get("old_value")),
+        "new_value": json.dumps(rec.get("new_value")),
+    }
 
 
 def _content_row(data: bytes) -> dict[str, Any]:
