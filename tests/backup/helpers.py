@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from servodesk.domain import paramset
+from servodesk.domain import restore_plan
 from servodesk.domain.address import ObjectAddress as A
 from servodesk.domain.datatypes import codec
 from servodesk.domain.paramset import ParameterSet
@@ -20,7 +20,7 @@ async def change_plain(session: Session, ps: ParameterSet, count: int) -> list[A
             spec is None
             or not spec.data_type.is_integer
             or spec.writable_in
-            or paramset.is_pdo_object(e.address.index)
+            or restore_plan.is_pdo_object(e.address.index)
             or spec.values
         ):
             continue

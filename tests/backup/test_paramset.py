@@ -8,10 +8,11 @@ from dataclasses import replace
 
 import pytest
 
-from servodesk.domain import paramset
+from servodesk.domain import paramset, paramset_compare, restore_plan
 from servodesk.domain.address import ObjectAddress as A
 from servodesk.domain.datatypes import DataType
-from servodesk.domain.paramset import DriveFacts, Entry, ParameterSet
+from servodesk.domain.paramset import Entry, ParameterSet
+from servodesk.domain.restore_plan import DriveFacts
 from servodesk.errors import ValidationError
 from tests.backup.conftest import catalog
 
@@ -111,7 +112,7 @@ def test_configurable_leaves_out_commands_and_process_values() -> None:
 
 def test_write_order_puts_unit_factors_and_limits_first() -> None:
     smartris = CAT.get("smartris")
-    order = paramset.write_order(
+    order = restore_plan.write_order(
         smartris, [A(0x6081), A(0x6084), A(0x6083), A(0x607F), A(0x6097, 2), A(0x6096, 1)]
     )
     # Quirk unit_change_sequence (001 §11-1) order first, then the limit 607Fh, then the rest.
@@ -134,7 +135,7 @@ def test_pdo_restore_follows_the_cia301_procedure() -> None:
     targets[A(0x1400, 2)] = b"\x01"
     targets[A(0x1600, 1)] = u32(0x607A0020)
     to_write = {a: targets[a] for a in (A(0x1400, 2), A(0x1600, 1))}
-    steps = paramset.plan_writes(GENERIC, to_write, targets, cur)
+    steps = restore_plan.plan_writes(GENERIC, to_write, targets, cur)
     got = [(s.address, s.raw.hex(), s.entry) for s in steps]
     assert got == [
         (A(0x1400, 1), u32(0x80000201).hex(), None),  # PDO invalid (bit 31)
@@ -149,7 +150,7 @@ def test_pdo_restore_follows_the_cia301_procedure() -> None:
 def test_plain_parameters_come_before_pdos() -> None:
     cur = {A(0x1400, 1): u32(0x80000201), A(0x6081): u32(1)}
     targets = {A(0x1400, 1): u32(0x201), A(0x6081): u32(2)}
-    steps = paramset.plan_writes(GENERIC, targets, targets, cur)
+    steps = restore_plan.plan_writes(GENERIC, targets, targets, cur)
     assert [s.address for s in steps] == [A(0x6081), A(0x1400, 1)]
     assert steps[-1].entry == A(0x1400, 1)
 
@@ -178,7 +179,7 @@ def test_preflight_lists_every_problem_at_once() -> None:
             Entry(A(0x7777), "Nothing", DataType.UNSIGNED8, b"\x00"),
         ),
     )
-    pf = paramset.preflight(bad, facts(state="operation_enabled"))
+    pf = restore_plan.preflight(bad, facts(state="operation_enabled"))
     assert not pf.ok
     msgs = [p.message for p in pf.problems]
     assert any("drive not enabled" in m for m in msgs)
@@ -190,7 +191,7 @@ def test_preflight_lists_every_problem_at_once() -> None:
 def test_preflight_counts_and_replacement_drive() -> None:
     ps = sample()
     cur = {ps.entries[0].address: ps.entries[0].raw, ps.entries[1].address: u32(0)}
-    pf = paramset.preflight(ps, facts(current=cur))
+    pf = restore_plan.preflight(ps, facts(current=cur))
     assert pf.ok, pf.problems
     c = pf.counts()
     assert c["unchanged"] == 1 and c["to_write"] == 1 and c["read_only_skipped"] == 1
@@ -200,26 +201,26 @@ def test_preflight_counts_and_replacement_drive() -> None:
 def test_preflight_refuses_another_family_unless_mapped_by_name() -> None:
     smartris = CAT.get("smartris")
     ps = sample()
-    pf = paramset.preflight(ps, facts(profile=smartris))
+    pf = restore_plan.preflight(ps, facts(profile=smartris))
     assert not pf.ok
     assert "another drive family" in pf.problems[0].message
-    pf = paramset.preflight(ps, facts(profile=smartris), map_names=True)
+    pf = restore_plan.preflight(ps, facts(profile=smartris), map_names=True)
     rows = {str(m.address): m for m in pf.mapping or []}
     assert rows["0x6081:00"].target == A(0x6081)
     assert rows["0x1008:00"].target is not None or rows["0x1008:00"].reason
 
 
 def test_writable_in_is_checked_against_the_state() -> None:
-    assert paramset.state_allows(("preop",), "switch_on_disabled", "operational") is False
-    assert paramset.state_allows(("preop",), "switch_on_disabled", "preop") is True
-    assert paramset.state_allows(("preop",), None, "unknown") is None
-    assert paramset.state_allows(("switch_on_disabled",), "operation_enabled", "preop") is False
+    assert restore_plan.state_allows(("preop",), "switch_on_disabled", "operational") is False
+    assert restore_plan.state_allows(("preop",), "switch_on_disabled", "preop") is True
+    assert restore_plan.state_allows(("preop",), None, "unknown") is None
+    assert restore_plan.state_allows(("switch_on_disabled",), "operation_enabled", "preop") is False
 
 
 def test_compare_groups_differences() -> None:
     a = sample()
     b = replace(a, entries=(a.entries[0], replace(a.entries[1], raw=u32(7))))
-    diffs, same = paramset.compare(a.entries, b.entries, GENERIC)
+    diffs, same = paramset_compare.compare(a.entries, b.entries, GENERIC)
     assert same == 1
     kinds = {d["address"]: d["kind"] for d in diffs}
     assert kinds == {"0x607C:00": "changed", "0x1008:00": "only_a"}

@@ -27,10 +27,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from servodesk.api.schemas_backups import BackupFile, Comparison, PreflightOut
-from servodesk.domain import paramset
+from servodesk.domain import paramset, restore_plan
 from servodesk.domain.address import ObjectAddress
-from servodesk.domain.paramset import DriveFacts, ParameterSet
+from servodesk.domain.paramset import ParameterSet
 from servodesk.domain.profile import DeviceProfile
+from servodesk.domain.restore_plan import DriveFacts
 from servodesk.services.backup_files import (
     StoredFile,
     comparison,
@@ -98,5 +99,5 @@ def targets(f: StoredFile, drive_profile: DeviceProfile, map_names: bool) -> Pla
 
 def preflight_json(f: StoredFile, facts: DriveFacts, map_names: bool, out: str) -> None:
     """The preflight's answer from the set and what the server read from the drive."""
-    pf = paramset.preflight(load(f), facts, map_names=map_names)
+    pf = restore_plan.preflight(load(f), facts, map_names=map_names)
     _write(out, PreflightOut.model_validate(pf.to_dict()).model_dump_json().encode("utf-8"))

@@ -13,7 +13,7 @@ import hashlib
 from dataclasses import dataclass, replace
 from typing import Any
 
-from servodesk.domain import paramset
+from servodesk.domain import paramset, paramset_compare
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.encoder_units import rescaled
 from servodesk.domain.paramset import ParameterSet
@@ -65,7 +65,7 @@ def restore_targets(
     """The drive objects a restore of ``ps`` into a drive of ``profile`` touches: by name
     where asked and the profiles differ, else the set's own addresses."""
     if ps.profile_id != profile.id and map_names:
-        rows = paramset.map_by_name(ps.entries, profile)
+        rows = paramset_compare.map_by_name(ps.entries, profile)
         return [r.target for r in rows if r.target is not None]
     return [e.address for e in ps.entries]
 
@@ -90,7 +90,9 @@ def comparison(
     include_same: bool = False,
 ) -> dict[str, Any]:
     """A Comparison (docs/api.md) of two labelled sets, in ``profile``'s units."""
-    diffs, same = paramset.compare(a[1].entries, b[1].entries, profile, include_same=include_same)
+    diffs, same = paramset_compare.compare(
+        a[1].entries, b[1].entries, profile, include_same=include_same
+    )
     equal = all(d["kind"] == "same" for d in diffs)
     # What a side lacks because the drive refused it is not compared: say so, or "N equal"
     # reads as the whole drive (issue 48).

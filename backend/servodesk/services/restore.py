@@ -4,7 +4,7 @@ A restore never writes before its preflight passed (identity, profile, state, ev
 type and range, writability now). It first reads the drive's present parameters (the
 automatic backup, saved once the preflight passed; the preflight's values are taken from it
 rather than read again), records the restore and all its items in the store, then writes in
-the order :func:`~servodesk.domain.paramset.plan_writes` gives and reads every value back.
+the order :func:`~servodesk.domain.restore_plan.plan_writes` gives and reads every value back.
 
 **Group commit with a write-ahead intent.** The writes go in batches (:data:`BATCH_STEPS`,
 :data:`BATCH_SECONDS`). Before a batch, one transaction of the journal marks its items as
@@ -31,15 +31,10 @@ from collections.abc import Awaitable, Mapping
 from dataclasses import replace
 from typing import Any
 
-from servodesk.domain import cia402, paramset
+from servodesk.domain import cia402, paramset, restore_plan
 from servodesk.domain.address import ObjectAddress
-from servodesk.domain.paramset import (
-    DriveFacts,
-    ParameterSet,
-    Preflight,
-    RestoreProblem,
-    RestoreStep,
-)
+from servodesk.domain.paramset import ParameterSet
+from servodesk.domain.restore_plan import DriveFacts, Preflight, RestoreProblem, RestoreStep
 from servodesk.errors import (
     ConflictError,
     DriveStateError,
@@ -202,7 +197,7 @@ class RestoreService:
         known: Mapping[ObjectAddress, bytes | None] | None = None,
     ) -> tuple[Preflight, DriveFacts]:
         facts = await self.facts(session, self._targets(session, ps, map_names), known)
-        return paramset.preflight(ps, facts, map_names=map_names), facts
+        return restore_plan.preflight(ps, facts, map_names=map_names), facts
 
     # Restore --------------------------------------------------------------------------------
 
@@ -301,12 +296,12 @@ class RestoreService:
 
     def _plan(
         self, session: Session, pf: Preflight, facts: DriveFacts
-    ) -> tuple[list[RestoreStep], list[paramset.PlanItem]]:
+    ) -> tuple[list[RestoreStep], list[restore_plan.PlanItem]]:
         to_write = {it.address: it.new_raw for it in pf.items if it.status == "would_write"}
         targets = {
             it.address: it.new_raw for it in pf.items if it.status in ("would_write", "unchanged")
         }
-        steps = paramset.plan_writes(
+        steps = restore_plan.plan_writes(
             session.profile,
             {a: r for a, r in to_write.items() if r is not None},
             {a: r for a, r in targets.items() if r is not None},
@@ -574,7 +569,7 @@ class RestoreService:
                 else:
                     missing.add(ObjectAddress.parse(r["source"]))
             subset = replace(ps, entries=tuple(e for e in ps.entries if e.address in missing))
-            pf = paramset.preflight(subset, facts, map_names=bool(options.get("map_by_name")))
+            pf = restore_plan.preflight(subset, facts, map_names=bool(options.get("map_by_name")))
             if not pf.ok:
                 raise refusal(pf)
             targets = {
@@ -583,7 +578,7 @@ class RestoreService:
                 if r["status"] != "skipped_read_only"
             }
             to_write = {it.address: it.new_raw for it in pf.items if it.status == "would_write"}
-            steps = paramset.plan_writes(
+            steps = restore_plan.plan_writes(
                 session.profile,
                 {a: r for a, r in to_write.items() if r is not None},
                 targets,
@@ -781,7 +776,7 @@ def _step_dict(s: RestoreStep) -> dict[str, Any]:
     }
 
 
-def _item_dict(it: paramset.PlanItem, pending: bool = False) -> dict[str, Any]:
+def _item_dict(it: restore_plan.PlanItem, pending: bool = False) -> dict[str, Any]:
     status = "pending" if pending and it.status == "would_write" else it.status
     return {
         "address": str(it.address),
