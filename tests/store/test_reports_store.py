@@ -31,7 +31,7 @@ def _meta(rid: str) -> dict[str, str | None]:
 def test_reports_are_recorded_and_found_again(engine_url: str, tmp_path: Path) -> None:
     store = Store(tmp_path, engine_url)
     try:
-        assert db.revision(store.engine) == "0005"
+        assert db.revision(store.engine) == "0006"
         reports = ReportStore(store.engine)
         html = b"<!DOCTYPE html><title>report</title>"
         meta = reports.add(_meta("report-1"), html)

@@ -61,7 +61,7 @@ def test_an_old_data_directory_migrates_in_place(legacy: Path) -> None:
     assert head.ok and head.records == 7
     store = Store(legacy)
     try:
-        assert db.revision(store.engine) == "0005"
+        assert db.revision(store.engine) == "0006"
         assert len(store.list_backups()) == 3
         # The files' bytes are in the store now: identical content once.
         with store.engine.connect() as conn:
@@ -101,7 +101,7 @@ def test_round_trip_sqlite_postgresql_sqlite(
     # lists the backups as they were made, PostgreSQL by id).
     assert _lines(first) == _lines(second) == _lines(third)
     header = json.loads(first.read_text().splitlines()[0])
-    assert header["revision"] == "0005"
+    assert header["revision"] == "0006"
 
     old, new = Store(legacy), Store(fresh)
     try:

@@ -130,6 +130,14 @@ ROUTE_RIGHTS: dict[str, Right] = {
     "scope_export": R.READ,
     "scope_import": R.TUNE,
     "scope_recorder": R.READ,
+    # Kept scope captures (issue 49): the store's, with the backups' rights; deleting one
+    # is a backup's change too (with a reason, audited).
+    "keep_scope_capture": R.BACKUP,
+    "list_scope_captures": R.READ,
+    "get_scope_capture": R.READ,
+    "export_scope_capture": R.READ,
+    "attach_scope_capture": R.BACKUP,
+    "delete_scope_capture": R.BACKUP,
     # tuning.py
     "tuning_info": R.READ,
     "tuning_start": R.TUNE,

@@ -167,3 +167,79 @@ class TriggerIn(BaseModel):
 class RunIn(BaseModel):
     model_config = _BODY
     action: Literal["start", "stop", "arm"]
+
+
+# Kept captures (issue 49; services/capture_store.py, docs/scope.md "Kept captures") ---------
+
+#: A title or reason: not blank, no NUL (PostgreSQL refuses it in text); in the schema so that
+#: a blank one is a 422 naming the field.
+NOT_BLANK = r"^[^\x00]*[^\s\x00][^\x00]*$"
+NO_NUL = r"^[^\x00]*$"
+
+
+class CaptureKeep(BaseModel):
+    """POST /sessions/{sid}/scope/captures: keep the scope's capture in the store."""
+
+    model_config = _BODY
+    title: str = Field(max_length=200, pattern=NOT_BLANK, description="not blank")
+    note: str = Field(default="", max_length=4000, pattern=NO_NUL)
+    window: Literal["capture", "buffer"] = Field(
+        default="capture",
+        description="capture: the last triggered window (GET /scope/capture); buffer: "
+        "everything the scope holds (GET /scope/export?window=buffer)",
+    )
+    attach: bool = Field(default=False, description="show it in the drive's commissioning reports")
+
+
+class CapturePatch(BaseModel):
+    model_config = _BODY
+    attached: bool = Field(description="show it in the drive's commissioning reports")
+
+
+class CaptureDelete(BaseModel):
+    model_config = _BODY
+    reason: str = Field(
+        max_length=2000, pattern=NOT_BLANK, description="why it goes (not blank; audited)"
+    )
+
+
+class CaptureChannelInfo(Reply):
+    """One channel of a kept capture, without its samples."""
+
+    id: int
+    name: str
+    unit: str = Field(description="engineering unit (profile)")
+    raw_unit: str = Field(description="unit of the raw value in the drive (profile)")
+    scale: float = Field(description="engineering = raw x scale (profile)")
+    address: str
+    session: str
+    source: str
+    samples: int
+    period_s: float | None = Field(description="median sample spacing [s]; null: < 2 samples")
+
+
+class CaptureInfo(Reply):
+    """A scope capture kept in the store (its metadata)."""
+
+    id: str = Field(description="GET /scope/captures/{id}")
+    drive_key: str = Field(description="vendor-product-serial (1018h), else profile@bus")
+    session: str = Field(description="the session it was kept from")
+    gateway: str = Field(description="the gateway it was kept on")
+    title: str
+    note: str
+    time: str = Field(description="when it was kept (ISO 8601, UTC)")
+    created: float = Field(description="when it was kept [s since the epoch]")
+    by: str = Field(description="the user who kept it ('local' in single-user mode)")
+    client: str = Field(description="the client (browser tab, script) that kept it")
+    window: Literal["capture", "buffer"]
+    samples: int = Field(description="samples of all channels together")
+    channels: list[CaptureChannelInfo]
+    attached: bool = Field(description="the drive's commissioning reports show it")
+    sha256: str = Field(description="SHA-256 of the stored recording and trigger (JSON)")
+
+
+class StoredCapture(CaptureInfo):
+    """GET /scope/captures/{id}: a kept capture with its samples, as the scope had them."""
+
+    trigger: ScopeTrigger | None = Field(description="the trigger as set (null: the buffer)")
+    recording: ScopeRecording

@@ -38,6 +38,7 @@ from servodesk.domain.profile_loader import ProfileCatalog, default_profile_dirs
 from servodesk.errors import ServodeskError
 from servodesk.services.audit import Actor, AuditLog
 from servodesk.services.backup import BackupService
+from servodesk.services.capture_store import CaptureStore
 from servodesk.services.control import ControlService
 from servodesk.services.dcp import DcpService
 from servodesk.services.drift import DriftService, gateway_url
@@ -91,6 +92,8 @@ class AppState:
     dcp: DcpService
     #: The tuning results of every drive, in the store (services/tuning_store.py).
     tuning_results: TuningStore
+    #: The scope captures users kept, of every drive, in the store (services/capture_store.py).
+    captures: CaptureStore
     #: Commissioning reports: made of connected drives, kept in the store (services/report.py).
     reports: ReportService
     #: The simulated drives of ``serve --sim`` while the application runs (else None).
@@ -133,6 +136,7 @@ class AppState:
         # Every tuning that ends is kept in the store (issue 49; services/tuning_store.py).
         tuning_results = TuningStore(backups.store.engine, drift.gateway)
         tuning.recorder = tuning_results.add
+        captures = CaptureStore(backups.store.engine, drift.gateway)
         reports = ReportService(
             ReportStore(backups.store.engine),
             backups,
@@ -140,6 +144,7 @@ class AppState:
             audit,
             tuning.result,
             stored_tuning=tuning_results.latest,
+            captures=captures.attached,
         )
         state = cls(
             settings=settings,
@@ -165,6 +170,7 @@ class AppState:
             dcp=DcpService(manager, catalog, backups.store, audit),
             reports=reports,
             tuning_results=tuning_results,
+            captures=captures,
         )
         # Late-bound through the state: a benchmark may put a scope of its own in place.
         state.tuning.recorder_busy = state._recorder_busy

@@ -280,6 +280,32 @@ tuning_results = sa.Table(
     sa.Index("tuning_results_drive", "drive_key", "ended"),
 )
 
+#: Scope captures the user kept (revision 0006, services/capture_store.py): the drive, where
+#: and by whom, the user's title and note, the channels' summary (names, units, periods) for
+#: the list, whether the drive's commissioning reports show it, and the recording (every
+#: sample, raw, with each channel's raw-to-engineering scale) and trigger as JSON.
+scope_captures = sa.Table(
+    "scope_captures",
+    metadata,
+    sa.Column("id", sa.Text, primary_key=True),
+    sa.Column("drive_key", sa.Text, nullable=False),
+    sa.Column("session", sa.Text, nullable=False),
+    sa.Column("gateway", sa.Text, nullable=False),
+    sa.Column("title", sa.Text, nullable=False),
+    sa.Column("note", sa.Text, nullable=False, server_default=""),
+    sa.Column("time", sa.Text, nullable=False),
+    sa.Column("created", sa.Float, nullable=False),
+    sa.Column("by", sa.Text, nullable=False),
+    sa.Column("client", sa.Text, nullable=False),
+    sa.Column("window", sa.Text, nullable=False),
+    sa.Column("samples", sa.Integer, nullable=False),
+    sa.Column("channels", sa.Text, nullable=False),
+    sa.Column("attached", sa.Integer, nullable=False, server_default="0"),
+    sa.Column("sha256", sa.Text, nullable=False),
+    sa.Column("data", sa.Text, nullable=False),
+    sa.Index("scope_captures_drive", "drive_key", "created"),
+)
+
 #: Every table in the order an export writes and an import reads them.
 TABLES: tuple[sa.Table, ...] = (
     backup_content,
@@ -295,6 +321,7 @@ TABLES: tuple[sa.Table, ...] = (
     drift_results,
     reports,
     tuning_results,
+    scope_captures,
 )
 
 #: The advisory lock keys of :func:`serialise` (PostgreSQL): any 64-bit numbers, fixed.

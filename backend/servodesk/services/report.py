@@ -5,8 +5,10 @@ report's *data*): its identity and firmware, plant tag and approval (services/fl
 parameters that differ from the profile's defaults and from the approved backup (the compare
 of services/backup.py, as a drift check does), the PDO layout (services/pdo.py), the limits
 (services/motion/limits.py), the homing settings (CiA 402-2 §6.8: 6098h, 6099h, 609Ah,
-607Ch), the last tuning result of this server, the alarms (services/alarms.py) and the audit
-extract of the drive. Nothing here knows a device: every object comes from the profile.
+607Ch), the last tuning result of this server, the scope captures the user attached
+(services/capture_store.py: every sample, so the content hash covers them), the alarms
+(services/alarms.py) and the audit extract of the drive. Nothing here knows a device: every
+object comes from the profile.
 
 :func:`content_hash` is the SHA-256 of the data's canonical JSON (keys sorted, no spaces,
 UTF-8, non-finite numbers as null): it is printed in the report with the report's id and
@@ -200,6 +202,26 @@ def _tuning(result: dict[str, Any] | None) -> dict[str, Any] | None:
     return out
 
 
+def _capture(c: dict[str, Any]) -> dict[str, Any]:
+    """A kept scope capture as the report holds it: who kept it, when and why, its trigger,
+    and each channel with its units, scale, period and every sample (raw, as the scope had
+    them; engineering = raw x scale)."""
+    rec = c["recording"]
+    periods = {ch["id"]: ch.get("period_s") for ch in c.get("channels") or []}
+    keep = ("id", "name", "unit", "raw_unit", "scale", "address", "session", "source", "t", "v")
+    return {
+        **{k: c.get(k) for k in ("id", "title", "note", "time", "by", "gateway", "window")},
+        "sha256": c.get("sha256"),
+        "trigger": c.get("trigger"),
+        "t_ref": rec.get("t_ref"),
+        "trigger_time": rec.get("trigger_time"),
+        "channels": [
+            {k: ch.get(k) for k in keep} | {"period_s": periods.get(ch.get("id"))}
+            for ch in rec.get("channels") or []
+        ],
+    }
+
+
 async def _section(what: str, job: Awaitable[dict[str, Any]]) -> dict[str, Any]:
     """One section of the report; a drive that refuses a part of it leaves that part's error
     in the report instead of failing the whole report (a lost link still fails it)."""
@@ -222,6 +244,7 @@ class ReportService:
         audit: AuditLog,
         tuning_result: Callable[[str], dict[str, Any]] | None = None,
         stored_tuning: Callable[[str], dict[str, Any] | None] | None = None,
+        captures: Callable[[str], list[dict[str, Any]]] | None = None,
     ) -> None:
         self.reports = reports
         self.backups = backups
@@ -233,6 +256,9 @@ class ReportService:
         #: ``drive_key -> `` the drive's newest tuning in the store (services/tuning_store.py
         #: ``TuningStore.latest``; blocking), for a session with none in memory (a restart).
         self.stored_tuning = stored_tuning
+        #: ``drive_key -> `` the kept scope captures attached to the drive's reports
+        #: (services/capture_store.py ``CaptureStore.attached``; blocking).
+        self.captures = captures
 
     async def assemble(self, session: Session, *, rid: str, by: str) -> dict[str, Any]:
         """The report data of ``session``'s drive (reads the drive: every parameter)."""
@@ -300,6 +326,9 @@ class ReportService:
                 }
         limits = await _section("limits", self._limits(session))
         audit = await asyncio.to_thread(self._audit, session.id, key)
+        captures: list[dict[str, Any]] = []
+        if self.captures is not None:
+            captures = [_capture(c) for c in await asyncio.to_thread(self.captures, key)]
         data: dict[str, Any] = plain(
             {
                 "format": FORMAT,
@@ -315,6 +344,7 @@ class ReportService:
                 "limits": limits,
                 "homing": await _section("homing", _homing(session)),
                 "tuning": tuning,
+                "captures": captures,
                 "alarms": await _section("alarms", alarms.alarms(session)),
                 "audit": audit,
             }

@@ -529,6 +529,105 @@ def _tuning(t: dict[str, Any] | None) -> str:
     return "".join(out)
 
 
+#: The most points a capture's plot draws per channel: the minimum and maximum of each of
+#: half as many buckets (a peak survives, as on the Scope page's per-pixel decimation); the
+#: report's data keeps every sample.
+PLOT_POINTS = 1200
+
+
+def decimate(
+    t: Sequence[float | None], y: Sequence[float | None], points: int = PLOT_POINTS
+) -> tuple[list[float | None], list[float | None]]:
+    """``(t, y)`` cut to at most ``points`` samples: each bucket's minimum and maximum, in
+    time order; gaps (None) are dropped."""
+    pairs = [(a, b) for a, b in zip(t, y, strict=False) if a is not None and b is not None]
+    if len(pairs) <= points:
+        return [a for a, _ in pairs], [b for _, b in pairs]
+    buckets = max(1, points // 2)
+    size = len(pairs) / buckets
+    ts: list[float | None] = []
+    ys: list[float | None] = []
+    for i in range(buckets):
+        chunk = pairs[int(i * size) : int((i + 1) * size)]
+        if not chunk:
+            continue
+        lo = min(chunk, key=lambda p: p[1])
+        hi = max(chunk, key=lambda p: p[1])
+        for p in sorted({lo, hi}):
+            ts.append(p[0])
+            ys.append(p[1])
+    return ts, ys
+
+
+def _period(p: Any) -> str:
+    if not isinstance(p, int | float) or isinstance(p, bool) or p <= 0:
+        return "-"
+    return f"{_num(p * 1000.0)} ms ({_num(1.0 / p)} Hz)"
+
+
+def _captures(captures: Any) -> str:
+    """The kept scope captures the user attached: one plot per channel, in engineering units
+    (raw x the profile's scale) against seconds from the trigger (or the buffer's start)."""
+    if not isinstance(captures, list) or not captures:
+        return ""
+    out = ["<h2>Scope captures</h2>"]
+    for c in captures:
+        if not isinstance(c, dict):
+            continue
+        trig = c.get("trigger") if isinstance(c.get("trigger"), dict) else None
+        trig_text = (
+            f"{_e(trig.get('mode'))} {_e(trig.get('kind'))} on channel {_e(trig.get('channel'))}"
+            f", level {_e(trig.get('level'))}, {_e(trig.get('slope'))}, "
+            f"window {_e(trig.get('window_s'))} s, {_e(trig.get('pre'))} before"
+            if trig
+            else "none (the scope's buffer)"
+        )
+        out.append(f"<h3>{_e(c.get('title'))}</h3>")
+        out.append(
+            _kv(
+                [
+                    ("Capture", f"<code>{_e(c.get('id'))}</code>"),
+                    ("Kept", f"{_e(c.get('time'))} by {_e(c.get('by'))} on {_e(c.get('gateway'))}"),
+                    ("Trigger", trig_text),
+                    ("Note", _e(c.get("note")) or '<span class="muted">-</span>'),
+                ]
+            )
+        )
+        chans = [ch for ch in c.get("channels") or [] if isinstance(ch, dict)]
+        out.append(
+            _table(
+                ["Channel", "Object", "Source", "Unit (raw)", "Scale", "Period", "Samples"],
+                (
+                    [
+                        _e(ch.get("name")),
+                        f"<code>{_e(ch.get('address'))}</code> {_e(ch.get('session'))}",
+                        _e(ch.get("source")),
+                        f"{_e(ch.get('unit'))} ({_e(ch.get('raw_unit'))})",
+                        _e(ch.get("scale")),
+                        _period(ch.get("period_s")),
+                        _e(len(ch.get("t") or [])),
+                    ]
+                    for ch in chans
+                ),
+            )
+        )
+        for ch in chans:
+            scale = ch.get("scale")
+            k = float(scale) if isinstance(scale, int | float) else 1.0
+            eng = [None if v is None else v * k for v in _numbers(ch.get("v"))]
+            t, y = decimate(_numbers(ch.get("t")), eng)
+            unit = str(ch.get("unit") or ch.get("raw_unit") or "")
+            out.append(
+                _svg_lines(
+                    [(str(ch.get("name") or ""), t, y)],
+                    title=f"{c.get('title')}: {ch.get('name')}",
+                    x_label="s",
+                    y_label=unit,
+                )
+            )
+    return "".join(out)
+
+
 def _alarms(a: Any) -> str:
     head = "<h2>Alarms</h2>"
     err = _error(a)
@@ -631,6 +730,7 @@ def render(data: dict[str, Any], digest: str, cjk_font: Path = CJK_FONT) -> str:
         _limits(data.get("limits") or {}),
         _homing(data.get("homing") or {}),
         _tuning(data.get("tuning")),
+        _captures(data.get("captures")),
         _alarms(data.get("alarms") or {}),
         _audit(data.get("audit") or []),
         f'<footer>Report <span class="mono" id="report-id">{_e(rep["id"])}</span> - '

@@ -1042,6 +1042,32 @@ class ScopeService:
             out["window"] = [self.capture_window[0] - t_ref, self.capture_window[1] - t_ref]
         return out
 
+    def kept(self, window: str) -> tuple[Callable[[], dict[str, Any]], dict[str, Any] | None]:
+        """What a kept capture stores (services/capture_store.py), taken now: a function that
+        makes the JSON of the captured window (``window="capture"``, as :meth:`capture`) or
+        of the buffer, with each channel's display settings, and the trigger as set (None for
+        the buffer). The function may run in a worker thread (a full buffer's JSON held the
+        loop, as the export's did)."""
+        rec = self._capture_recording() if window == "capture" else self.buffer_recording()
+        configs = {ch.id: ch.config for ch in self.channels}
+        bounds = self.capture_window if window == "capture" else None
+        trigger = asdict(self.trigger) if window == "capture" else None
+
+        def make() -> dict[str, Any]:
+            out = rec.to_json()
+            for c in out["channels"]:
+                c["eng_scale"] = c["scale"]
+                cfg = configs.get(c["id"])
+                if cfg is not None:
+                    c["label"] = cfg.label
+                    c["display_scale"] = cfg.scale
+                    c["offset"] = cfg.offset
+            if bounds is not None:
+                out["window"] = [bounds[0] - out["t_ref"], bounds[1] - out["t_ref"]]
+            return out
+
+        return make, trigger
+
     def _capture_recording(self) -> export.Recording:
         if self._capture is None:
             raise NotFoundError(

@@ -801,6 +801,57 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/scope/captures/{cid}": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Get Scope Capture
+         * @description One kept capture with every sample (raw, and each channel's scale to engineering
+         *     units) and the trigger; 404 when the store has none of that id.
+         */
+        get: operations["get_scope_capture"];
+        put?: never;
+        post?: never;
+        /**
+         * Delete Scope Capture
+         * @description Delete a kept capture, with the reason (the audit log keeps who, when, why and the
+         *     capture's hash); the deleted capture's metadata.
+         */
+        delete: operations["delete_scope_capture"];
+        options?: never;
+        head?: never;
+        /**
+         * Attach Scope Capture
+         * @description Attach the capture to its drive's commissioning reports (every report made while it
+         *     is attached shows it), or detach it.
+         */
+        patch: operations["attach_scope_capture"];
+        trace?: never;
+    };
+    "/api/v1/scope/captures/{cid}.csv": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * Export Scope Capture
+         * @description The kept capture as the scope's CSV (docs/scope.md "CSV"): opens again in the scope.
+         */
+        get: operations["export_scope_capture"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/scope/channels": {
         parameters: {
             query?: never;
@@ -1583,6 +1634,32 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/sessions/{sid}/scope/captures": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /**
+         * List Scope Captures
+         * @description The captures of this session's drive kept in the store (from every session and
+         *     gateway), newest first; without their samples.
+         */
+        get: operations["list_scope_captures"];
+        put?: never;
+        /**
+         * Keep Scope Capture
+         * @description Keep the scope's last captured window (or its whole buffer) in the store as a capture
+         *     of this session's drive, with a title and note; 404 when the scope has none.
+         */
+        post: operations["keep_scope_capture"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/sessions/{sid}/state": {
         parameters: {
             query?: never;
@@ -2324,6 +2401,161 @@ export interface components {
              * @description their bits (without stuffing) per second over the bitrate [%]; null without a bitrate or on CAN FD
              */
             load_percent: number | null;
+        };
+        /**
+         * CaptureChannelInfo
+         * @description One channel of a kept capture, without its samples.
+         */
+        CaptureChannelInfo: {
+            /** Address */
+            address: string;
+            /** Id */
+            id: number;
+            /** Name */
+            name: string;
+            /**
+             * Period S
+             * @description median sample spacing [s]; null: < 2 samples
+             */
+            period_s: number | null;
+            /**
+             * Raw Unit
+             * @description unit of the raw value in the drive (profile)
+             */
+            raw_unit: string;
+            /** Samples */
+            samples: number;
+            /**
+             * Scale
+             * @description engineering = raw x scale (profile)
+             */
+            scale: number;
+            /** Session */
+            session: string;
+            /** Source */
+            source: string;
+            /**
+             * Unit
+             * @description engineering unit (profile)
+             */
+            unit: string;
+        };
+        /** CaptureDelete */
+        CaptureDelete: {
+            /**
+             * Reason
+             * @description why it goes (not blank; audited)
+             */
+            reason: string;
+        };
+        /**
+         * CaptureInfo
+         * @description A scope capture kept in the store (its metadata).
+         */
+        CaptureInfo: {
+            /**
+             * Attached
+             * @description the drive's commissioning reports show it
+             */
+            attached: boolean;
+            /**
+             * By
+             * @description the user who kept it ('local' in single-user mode)
+             */
+            by: string;
+            /** Channels */
+            channels: components["schemas"]["CaptureChannelInfo"][];
+            /**
+             * Client
+             * @description the client (browser tab, script) that kept it
+             */
+            client: string;
+            /**
+             * Created
+             * @description when it was kept [s since the epoch]
+             */
+            created: number;
+            /**
+             * Drive Key
+             * @description vendor-product-serial (1018h), else profile@bus
+             */
+            drive_key: string;
+            /**
+             * Gateway
+             * @description the gateway it was kept on
+             */
+            gateway: string;
+            /**
+             * Id
+             * @description GET /scope/captures/{id}
+             */
+            id: string;
+            /** Note */
+            note: string;
+            /**
+             * Samples
+             * @description samples of all channels together
+             */
+            samples: number;
+            /**
+             * Session
+             * @description the session it was kept from
+             */
+            session: string;
+            /**
+             * Sha256
+             * @description SHA-256 of the stored recording and trigger (JSON)
+             */
+            sha256: string;
+            /**
+             * Time
+             * @description when it was kept (ISO 8601, UTC)
+             */
+            time: string;
+            /** Title */
+            title: string;
+            /**
+             * Window
+             * @enum {string}
+             */
+            window: "capture" | "buffer";
+        };
+        /**
+         * CaptureKeep
+         * @description POST /sessions/{sid}/scope/captures: keep the scope's capture in the store.
+         */
+        CaptureKeep: {
+            /**
+             * Attach
+             * @description show it in the drive's commissioning reports
+             * @default false
+             */
+            attach: boolean;
+            /**
+             * Note
+             * @default
+             */
+            note: string;
+            /**
+             * Title
+             * @description not blank
+             */
+            title: string;
+            /**
+             * Window
+             * @description capture: the last triggered window (GET /scope/capture); buffer: everything the scope holds (GET /scope/export?window=buffer)
+             * @default capture
+             * @enum {string}
+             */
+            window: "capture" | "buffer";
+        };
+        /** CapturePatch */
+        CapturePatch: {
+            /**
+             * Attached
+             * @description show it in the drive's commissioning reports
+             */
+            attached: boolean;
         };
         /** ChannelIn */
         ChannelIn: {
@@ -5894,6 +6126,81 @@ export interface components {
              * @description Dirty entries now saved
              */
             stored: number;
+        };
+        /**
+         * StoredCapture
+         * @description GET /scope/captures/{id}: a kept capture with its samples, as the scope had them.
+         */
+        StoredCapture: {
+            /**
+             * Attached
+             * @description the drive's commissioning reports show it
+             */
+            attached: boolean;
+            /**
+             * By
+             * @description the user who kept it ('local' in single-user mode)
+             */
+            by: string;
+            /** Channels */
+            channels: components["schemas"]["CaptureChannelInfo"][];
+            /**
+             * Client
+             * @description the client (browser tab, script) that kept it
+             */
+            client: string;
+            /**
+             * Created
+             * @description when it was kept [s since the epoch]
+             */
+            created: number;
+            /**
+             * Drive Key
+             * @description vendor-product-serial (1018h), else profile@bus
+             */
+            drive_key: string;
+            /**
+             * Gateway
+             * @description the gateway it was kept on
+             */
+            gateway: string;
+            /**
+             * Id
+             * @description GET /scope/captures/{id}
+             */
+            id: string;
+            /** Note */
+            note: string;
+            recording: components["schemas"]["ScopeRecording"];
+            /**
+             * Samples
+             * @description samples of all channels together
+             */
+            samples: number;
+            /**
+             * Session
+             * @description the session it was kept from
+             */
+            session: string;
+            /**
+             * Sha256
+             * @description SHA-256 of the stored recording and trigger (JSON)
+             */
+            sha256: string;
+            /**
+             * Time
+             * @description when it was kept (ISO 8601, UTC)
+             */
+            time: string;
+            /** Title */
+            title: string;
+            /** @description the trigger as set (null: the buffer) */
+            trigger: components["schemas"]["ScopeTrigger"] | null;
+            /**
+             * Window
+             * @enum {string}
+             */
+            window: "capture" | "buffer";
         };
         /**
          * StoredTuningResult
@@ -11831,6 +12138,466 @@ export interface operations {
             };
         };
     };
+    get_scope_capture: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the capture's id (its list's) */
+                cid: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["StoredCapture"];
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    delete_scope_capture: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the capture's id (its list's) */
+                cid: string;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["CaptureDelete"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["CaptureInfo"];
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    attach_scope_capture: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the capture's id (its list's) */
+                cid: string;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["CapturePatch"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["CaptureInfo"];
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    export_scope_capture: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the capture's id (its list's) */
+                cid: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "text/csv": unknown;
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
     scope_set_channels: {
         parameters: {
             query?: never;
@@ -17531,6 +18298,239 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["PreflightOut"];
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    list_scope_captures: {
+        parameters: {
+            query?: {
+                limit?: number;
+            };
+            header?: never;
+            path: {
+                sid: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["CaptureInfo"][];
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    keep_scope_capture: {
+        parameters: {
+            query?: never;
+            header?: {
+                /** @description Id of the client (browser tab or script) making the request */
+                "x-servodesk-client"?: string | null;
+            };
+            path: {
+                sid: string;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["CaptureKeep"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            201: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["CaptureInfo"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */

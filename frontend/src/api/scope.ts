@@ -60,6 +60,13 @@ export type ScopeRecording = S['ScopeRecording'];
 /** GET /sessions/{sid}/recorder: the drive-side recorder. */
 export type RecorderInfo = S['RecorderInfo'];
 
+/** A scope capture kept in the store (issue 49, docs/scope.md "Kept captures"): metadata. */
+export type CaptureInfo = S['CaptureInfo'];
+export type CaptureChannelInfo = S['CaptureChannelInfo'];
+/** GET /scope/captures/{id}: with every sample and the trigger. */
+export type StoredCapture = S['StoredCapture'];
+export type CaptureKeep = S['CaptureKeep'];
+
 export type ScopeExportFormat = 'csv' | 'mdf4';
 export type ScopeExportWindow = 'capture' | 'buffer';
 
@@ -90,4 +97,16 @@ export const scopeApi = {
     // multipart/form-data (field `file`, docs/security.md); the browser sets the type.
     apiRequest(`Import ${filename}`, 'POST', '/scope/import', { query: { filename }, body: fileForm(filename, bytes) }),
   recorder: (sid: string) => apiRequest('Read the drive-side recorder', 'GET', '/sessions/{sid}/recorder', { params: { sid } }),
+  // Kept captures: the store's, per drive (from every session and gateway).
+  keep: (sid: string, body: CaptureKeep) => apiRequest('Keep the capture', 'POST', '/sessions/{sid}/scope/captures', { params: { sid }, body }),
+  kept: (sid: string) => apiRequest('List the kept captures', 'GET', '/sessions/{sid}/scope/captures', { params: { sid } }),
+  keptOne: (cid: string) => apiRequest('Open the kept capture', 'GET', '/scope/captures/{cid}', { params: { cid } }),
+  keptCsv: (cid: string) => apiDownload('Export the kept capture as CSV', '/scope/captures/{cid}.csv', { params: { cid } }),
+  attach: (cid: string, attached: boolean) =>
+    apiRequest(attached ? 'Attach the capture to the report' : 'Detach the capture from the report', 'PATCH', '/scope/captures/{cid}', {
+      params: { cid },
+      body: { attached },
+    }),
+  forget: (cid: string, reason: string) =>
+    apiRequest('Delete the kept capture', 'DELETE', '/scope/captures/{cid}', { params: { cid }, body: { reason } }),
 };

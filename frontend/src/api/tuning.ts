@@ -47,6 +47,10 @@ export type StartRequest = S['StartRequest'];
 
 export type UndoResult = S['UndoResult'];
 
+/** A tuning kept in the store (issue 49): metadata; StoredTuningResult adds its result. */
+export type TuningRecord = S['TuningRecord'];
+export type StoredTuningResult = S['StoredTuningResult'];
+
 export const tuningApi = {
   info: (sid: string) => apiRequest('Read the tuning', 'GET', '/sessions/{sid}/tuning', { params: { sid } }),
   start: (sid: string, body: StartRequest) =>
@@ -59,4 +63,8 @@ export const tuningApi = {
       body: { to },
     }),
   store: (sid: string) => apiRequest('Store to EEPROM', 'POST', '/sessions/{sid}/tuning/store', { params: { sid }, body: {} }),
+  /** The drive's tunings kept in the store, newest first (from every session and gateway). */
+  history: (sid: string, limit = 50) =>
+    apiRequest('Read the tuning history', 'GET', '/sessions/{sid}/tuning/results', { params: { sid }, query: { limit } }),
+  stored: (rid: string) => apiRequest('Open the stored tuning', 'GET', '/tuning/results/{rid}', { params: { rid } }),
 };

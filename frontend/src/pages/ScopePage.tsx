@@ -3,7 +3,9 @@
  * common time base, streamed over the binary WebSocket and drawn with uPlot; triggers (roll,
  * single, normal on a level, an edge, a state change or a fault) with pre-trigger; zoom, pan,
  * two cursors, per-trace measurements of the visible range, math channels; export as CSV,
- * MDF4 and PNG, and import of a recording back into the view.
+ * MDF4 and PNG, and import of a recording back into the view; captures kept in the store with
+ * a title and note, listed per drive, opened, exported and attached to the drive's report
+ * (issue 49, components/scope/KeptCaptures.tsx).
  *
  * The scope belongs to the application: this page shows and edits the one scope of the server
  * (another browser sees the same channels), opened from a drive's page so a new channel starts
@@ -14,6 +16,7 @@ import {
   type ScopeChannelConfig,
   type ScopeChannelStatus,
   type ScopeExportFormat,
+  type ScopeRecording,
   type ScopeStatus,
   type ScopeTrigger,
   scopeApi,
@@ -21,6 +24,7 @@ import {
 import type { ObjectInfo, ProfileDetail } from '../api/types';
 import { FailureBox } from '../components/FailureBox';
 import { saveBlob } from '../components/pdo/download';
+import { KeptCaptures } from '../components/scope/KeptCaptures';
 import { ChannelTable, type ChannelRowInfo, MAX_CHANNELS, MOTION_SET } from '../components/scope/ChannelTable';
 import { EMPTY_SUMMARY, LiveMeasurements, type ScopeSummary, SkippedBadge, ViewLine } from '../components/scope/live';
 import { MathPanel } from '../components/scope/MathPanel';
@@ -613,6 +617,18 @@ export function ScopePage({ sid }: PageProps) {
     }
   }
 
+  /** A kept capture (the store's) opened in the plot as a recording, like an imported file. */
+  const openKept = useCallback(
+    (rec: ScopeRecording, name: string) => {
+      const n = normaliseRecording(rec, name);
+      model.openRecording(n.open, 'recording');
+      setRecMeta(n.meta);
+      setRecName(name);
+      setHidden(new Set());
+    },
+    [model],
+  );
+
   const placeCursor = useCallback(
     (x: number) => {
       setPlacing((which) => {
@@ -786,6 +802,13 @@ export function ScopePage({ sid }: PageProps) {
           {view === 'capture' && ' · the red dotted line is the trigger sample'}
         </div>
       </section>
+
+      <KeptCaptures
+        sid={sid}
+        keepWindow={view === 'capture' ? 'capture' : 'buffer'}
+        canKeep={channels.some((c) => c.session === sid) ? null : 'the scope has no channel of this drive: add one and record first'}
+        onOpen={openKept}
+      />
 
       <section className="card">
         <h2>Measurements of the visible range</h2>

@@ -25,6 +25,7 @@ import { ControlNote, useWriteGate } from '../components/ControlNote';
 import { beginHeartbeat, heartbeatRunning, loadControl, me, operationLive, startAnswered, startOperationStore, stopHeartbeat } from '../components/operation/operationStore';
 import '../components/operation/operation.css';
 import { GainTable } from '../components/tuning/GainTable';
+import { TuningHistory } from '../components/tuning/TuningHistory';
 import { BodePlot, StepPlot } from '../components/tuning/TuningPlots';
 import { type Inputs, boundText, checkInputs, confirmationText, fmtNumber, gainLines, isRunning, jobLabel, kindTitle, modeText, presentLines, refitLines, windowInUnits, withUnit } from '../components/tuning/tuningModel';
 import '../components/tuning/tuning.css';
@@ -636,6 +637,8 @@ export function TuningPage({ sid }: PageProps) {
           </Step>
         </>
       )}
+
+      <TuningHistory sid={sid} refresh={result?.job ?? ''} />
 
       {confirm && (
         <ConfirmDialog

@@ -1,5 +1,11 @@
 """Live scope routes (issue 7): thin wrappers over services/scope.py; shapes: docs/scope.md.
 
+Kept captures (issue 49, docs/scope.md "Kept captures") are the store's
+(services/capture_store.py): kept from a drive's session, listed per drive (from every session
+and gateway, as the stored tuning results are), read as JSON or CSV, attached to the drive's
+commissioning reports, and deleted only with a reason that the audit log keeps. Their rights
+are the backups' (api/rights.py).
+
 The scope belongs to the application (its channels may come from several sessions), so its
 routes sit under ``/scope``; only the drive-side recorder's description is per session. The
 scope reads the drives and never changes the axis (a recorder's configuration objects are
@@ -9,27 +15,37 @@ api/scope_ws.py. AppState (api/state.py) stops the acquisition before the sessio
 
 from __future__ import annotations
 
+import asyncio
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Query, Request
+from fastapi import APIRouter, Path, Query, Request
 from fastapi.responses import Response
 
+from servodesk.api.control_deps import ClientId
 from servodesk.api.deps import StateDep
 from servodesk.api.downloads import content_disposition
+from servodesk.api.identity import caller_of
 from servodesk.api.offload import in_process
-from servodesk.api.schemas import ERROR_RESPONSES
+from servodesk.api.schemas import ERROR_RESPONSES, STORED_ID
 from servodesk.api.schemas_scope import (
+    CaptureDelete,
+    CaptureInfo,
+    CaptureKeep,
+    CapturePatch,
     ChannelsIn,
     RecorderInfo,
     RunIn,
     ScopeRecording,
     ScopeStatus,
+    StoredCapture,
     TriggerIn,
 )
 from servodesk.api.state import state_of
 from servodesk.api.uploads import openapi_file_body, read_file
 from servodesk.domain import scope as core
 from servodesk.services import scope as scopesvc
+from servodesk.services.backup import drive_key
+from servodesk.services.capture_store import MAX_LIST
 from servodesk.services.scope import ScopeService
 
 
@@ -114,3 +130,116 @@ async def scope_import(
 )
 async def scope_recorder(sid: str, state: StateDep) -> RecorderInfo:
     return RecorderInfo.model_validate(scopesvc.recorder_info(state.manager.get(sid)))
+
+
+# Kept captures ------------------------------------------------------------------------------
+
+CaptureId = Annotated[str, Path(pattern=STORED_ID, description="the capture's id (its list's)")]
+
+
+@router.post("/sessions/{sid}/scope/captures", status_code=201, operation_id="keep_scope_capture")
+async def keep_scope_capture(
+    sid: str, body: CaptureKeep, request: Request, state: StateDep, client: ClientId
+) -> CaptureInfo:
+    """Keep the scope's last captured window (or its whole buffer) in the store as a capture
+    of this session's drive, with a title and note; 404 when the scope has none."""
+    session = state.manager.get(sid)
+    # Taken on the loop (the scope's buffers change there); made JSON and stored in a thread.
+    make, trigger = scope_of(request.app).kept(body.window)
+    who = caller_of(request)
+
+    def keep() -> dict[str, Any]:
+        return state.captures.add(
+            drive_key=drive_key(session),
+            session=sid,
+            title=body.title.strip(),
+            note=body.note,
+            by=who.user,
+            client=client or "",
+            window=body.window,
+            recording=make(),
+            trigger=trigger,
+            attached=body.attach,
+        )
+
+    meta = await asyncio.to_thread(keep)
+    state.audit.record(
+        "backup.capture_kept",
+        drive=sid,
+        message=f"scope capture {meta['id']}: {meta['title']}",
+        details={"capture": meta["id"], "drive_key": meta["drive_key"], "sha256": meta["sha256"]},
+    )
+    return CaptureInfo.model_validate(meta)
+
+
+# The store routes below are plain functions: FastAPI runs them in its thread pool, so a store
+# on a slow network never holds the event loop.
+@router.get("/sessions/{sid}/scope/captures", operation_id="list_scope_captures")
+def list_scope_captures(
+    sid: str, state: StateDep, limit: int = Query(100, ge=1, le=MAX_LIST)
+) -> list[CaptureInfo]:
+    """The captures of this session's drive kept in the store (from every session and
+    gateway), newest first; without their samples."""
+    key = drive_key(state.manager.get(sid))
+    return [CaptureInfo.model_validate(c) for c in state.captures.of_drive(key, limit)]
+
+
+# Before /scope/captures/{cid}: an id has no ".", so "x.csv" is never one.
+@router.get(
+    "/scope/captures/{cid}.csv",
+    operation_id="export_scope_capture",
+    response_class=Response,
+    responses={200: {"content": {"text/csv": {}}}},
+)
+def export_scope_capture(cid: CaptureId, state: StateDep) -> Response:
+    """The kept capture as the scope's CSV (docs/scope.md "CSV"): opens again in the scope."""
+    data, filename = state.captures.csv(cid)
+    return Response(
+        data,
+        media_type="text/csv; charset=utf-8",
+        headers={"Content-Disposition": content_disposition(filename)},
+    )
+
+
+@router.get(
+    "/scope/captures/{cid}",
+    operation_id="get_scope_capture",
+    response_model_exclude_unset=True,
+)
+def get_scope_capture(cid: CaptureId, state: StateDep) -> StoredCapture:
+    """One kept capture with every sample (raw, and each channel's scale to engineering
+    units) and the trigger; 404 when the store has none of that id."""
+    return StoredCapture.model_validate(state.captures.get(cid))
+
+
+@router.patch("/scope/captures/{cid}", operation_id="attach_scope_capture")
+def attach_scope_capture(cid: CaptureId, body: CapturePatch, state: StateDep) -> CaptureInfo:
+    """Attach the capture to its drive's commissioning reports (every report made while it
+    is attached shows it), or detach it."""
+    meta = state.captures.set_attached(cid, body.attached)
+    state.audit.record(
+        "backup.capture_attached" if body.attached else "backup.capture_detached",
+        drive=meta["session"],
+        message=f"scope capture {cid}: {meta['title']}",
+        details={"capture": cid, "drive_key": meta["drive_key"]},
+    )
+    return CaptureInfo.model_validate(meta)
+
+
+@router.delete("/scope/captures/{cid}", operation_id="delete_scope_capture")
+def delete_scope_capture(cid: CaptureId, body: CaptureDelete, state: StateDep) -> CaptureInfo:
+    """Delete a kept capture, with the reason (the audit log keeps who, when, why and the
+    capture's hash); the deleted capture's metadata."""
+    meta = state.captures.delete(cid)
+    state.audit.record(
+        "backup.capture_deleted",
+        drive=meta["session"],
+        message=body.reason,
+        details={
+            "capture": cid,
+            "drive_key": meta["drive_key"],
+            "title": meta["title"],
+            "sha256": meta["sha256"],
+        },
+    )
+    return CaptureInfo.model_validate(meta)
