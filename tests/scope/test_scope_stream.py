@@ -25,7 +25,7 @@ import websockets
 
 from servodesk.api.schemas_scope import ScopeStatusFrame
 from servodesk.domain import scope_wire as wire
-from servodesk.services.scope import FRAME_PERIOD_S
+from servodesk.services.scope_channels import FRAME_PERIOD_S
 from tests.scope.test_scope_service import (
     GENERIC,
     Rig,

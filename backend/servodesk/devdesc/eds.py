@@ -5,6 +5,10 @@ comment, option names are matched without regard to case) and turns every proble
 user's file into a :class:`~servodesk.errors.ProfileError` that names the section and key.
 The ``servodesk_<field>`` keys the export writes (devdesc/eds_export.py) bring back what EDS
 has no key for, so an exported profile imports unchanged.
+
+About 700 lines: the CiA 306 reader, one object's sections (VAR, ARRAY, RECORD, compact sub-
+objects) and a DCF's ParameterValue parsing share the reader's error places; the export is
+devdesc/eds_export.py.
 """
 
 from __future__ import annotations

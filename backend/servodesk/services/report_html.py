@@ -11,6 +11,10 @@ CJK font inline (issue 48: a server or a reader without a CJK font would print e
 
 The footer prints the report's id and the SHA-256 of its data (services/report.py); the
 title carries both too, so that a PDF printed from the page has them in its metadata.
+
+Over 700 lines: one self-contained page, a small function per section (identity, parameters,
+PDO, limits, homing, tuning, captures, alarms, audit) over the same escaping and number helpers;
+the CSS and the data embedding belong to the page as a whole.
 """
 
 from __future__ import annotations

@@ -20,6 +20,10 @@ verified; a crash mid-batch leaves that batch's items pending under their intent
 a pending batch), records in the audit log the intended writes it finds done, and writes
 what is still missing. Parameters are stored to non-volatile memory only when every item
 verified (or when forced).
+
+Over 700 lines: the restore, its batches' write-ahead journal (:class:`_Journal`) and resume
+read and write the same journal rows and audit chain; the pure preflight and write plan are
+domain/restore_plan.py.
 """
 
 from __future__ import annotations

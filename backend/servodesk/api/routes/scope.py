@@ -47,6 +47,8 @@ from servodesk.services import scope as scopesvc
 from servodesk.services.backup import drive_key
 from servodesk.services.capture_store import MAX_LIST
 from servodesk.services.scope import ScopeService
+from servodesk.services.scope_channels import parse_channel
+from servodesk.services.scope_recorder import recorder_info
 
 
 def scope_of(app: Any) -> ScopeService:
@@ -68,7 +70,7 @@ async def scope_set_channels(body: ChannelsIn, request: Request, state: StateDep
     # whatever else is wrong with the request.
     for c in body.channels:
         state.manager.get(c.session)
-    configs = [scopesvc.parse_channel(c.model_dump()) for c in body.channels]
+    configs = [parse_channel(c.model_dump()) for c in body.channels]
     return ScopeStatus.model_validate(await scope_of(request.app).set_channels(configs))
 
 
@@ -129,7 +131,7 @@ async def scope_import(
     "/sessions/{sid}/recorder", operation_id="scope_recorder", response_model_exclude_unset=True
 )
 async def scope_recorder(sid: str, state: StateDep) -> RecorderInfo:
-    return RecorderInfo.model_validate(scopesvc.recorder_info(state.manager.get(sid)))
+    return RecorderInfo.model_validate(recorder_info(state.manager.get(sid)))
 
 
 # Kept captures ------------------------------------------------------------------------------

@@ -369,7 +369,7 @@ async def restore_profile(job: Job, run: Run) -> None:
 
 async def _step_response(svc: TuningService, job: Job, run: Run) -> dict[str, Any]:
     """A relative move of ``run.step`` from the start position, recorded; then back."""
-    from servodesk.services.scope import recorder_of
+    from servodesk.services.scope_recorder import recorder_of
     from servodesk.services.tuning.io import DriveRecorder, SessionIO
 
     s = run.session

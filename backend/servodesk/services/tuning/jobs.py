@@ -237,7 +237,7 @@ class TuningService:
         return None
 
     def _step_source(self, session: Session) -> str:
-        from servodesk.services.scope import recorder_of
+        from servodesk.services.scope_recorder import recorder_of
 
         if recorder_of(session) is None:
             return "sdo"
