@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+from servodesk.devdesc import pdo_export
 from servodesk.domain import pdo
 from servodesk.domain.address import ObjectAddress as A
 from servodesk.domain.pdo import Direction, MapEntry
@@ -487,7 +488,7 @@ def test_mappable_by_direction() -> None:
 def test_export_csv_one_row_per_slot() -> None:
     p = prof("smartris")
     cfg = pdo.default_config(p, 2)
-    rows = list(csv.DictReader(io.StringIO(pdo.export(p, cfg, "csv", 2))))
+    rows = list(csv.DictReader(io.StringIO(pdo_export.export(p, cfg, "csv", 2))))
     assert list(rows[0]) == [
         "pdo", "cob_id", "byte_offset", "bit_offset", "bits", "address", "name", "type", "unit"
     ]  # fmt: skip
@@ -504,20 +505,20 @@ def test_export_csv_one_row_per_slot() -> None:
 def test_export_dcf_parameter_values() -> None:
     p = prof("cia402-generic")
     cfg = pdo.apply_template(p, pdo.default_config(p, 4), "pv-velocity")
-    text = pdo.export(p, cfg, "dcf", 4)
+    text = pdo_export.export(p, cfg, "dcf", 4)
     assert "[DeviceComissioning]\nNodeID=0x04" in text
     sect = text.split("[1600sub3]\n", 1)[1].split("\n\n", 1)[0]
     assert "ParameterValue=0x60FF0020" in sect
     assert "ParameterValue=0x00000204" in text.split("[1400sub1]\n", 1)[1].split("\n\n", 1)[0]
     assert "[1A00sub0]" in text and "[1800sub2]" in text
     with pytest.raises(ValidationError):
-        pdo.export(p, cfg, "dcf", 0)
+        pdo_export.export(p, cfg, "dcf", 0)
 
 
 def test_export_esi_fragment() -> None:
     p = prof("hiwin-e")
     cfg = pdo.default_config(p, 1)
-    root = ET.fromstring(f"<Device>{pdo.export(p, cfg, 'esi', 1)}</Device>")
+    root = ET.fromstring(f"<Device>{pdo_export.export(p, cfg, 'esi', 1)}</Device>")
     rx = root.findall("RxPdo")
     assert len(rx) == 4 and len(root.findall("TxPdo")) == 4
     assigned = [x for x in rx if x.get("Sm") == "2"]
@@ -532,7 +533,7 @@ def test_export_esi_fragment() -> None:
 def test_export_json_has_layout() -> None:
     p = prof("lecsn-t")
     cfg = pdo.apply_template(p, pdo.default_config(p, 1), "telegram-102")
-    body = json.loads(pdo.export(p, cfg, "json", 1))
+    body = json.loads(pdo_export.export(p, cfg, "json", 1))
     assert body["telegram"] == 102
     assert pdo.config_from_json(p, {k: body[k] for k in ("pdos", "telegram")}) == cfg
     tx = next(x for x in body["layout"] if x["direction"] == "tx")

@@ -78,14 +78,14 @@ def _print_view(view: dict[str, Any]) -> None:
 
 
 def run_show(args: argparse.Namespace) -> int:
-    from servodesk.domain import pdo as pdomod
+    from servodesk.devdesc import pdo_export
     from servodesk.services import pdo as pdosvc
 
     async def body(ctx: _Context) -> Any:
         session = await ctx.session()
         if args.export:
             config = await pdosvc.read_config(session)
-            return pdomod.export(session.profile, config, args.export, args.node_id)
+            return pdo_export.export(session.profile, config, args.export, args.node_id)
         return await pdosvc.view(session)
 
     out = _run(args, body)

@@ -16,13 +16,13 @@ Nothing here does I/O: the session service reads :func:`config_addresses`, hands
 This module is the public API (docs/pdo.md "Domain API"); the code lives in sibling modules:
 ``pdo_model`` (the dataclasses), ``pdo_objects`` (object dictionary: addresses, reading,
 defaults, mappable objects), ``pdo_validate``, ``pdo_plan``, ``pdo_codec`` (layout, pack,
-unpack), ``pdo_json`` (JSON and templates) and ``pdo_export`` (JSON, CSV, DCF, ESI).
+unpack), ``pdo_json`` (JSON and templates). Exporting a configuration (JSON, CSV, DCF, ESI) writes
+device-description formats: devdesc/pdo_export.py.
 """
 
 from __future__ import annotations
 
 from servodesk.domain.pdo_codec import FD_LENGTHS, bus_cob_id, frame_length, layout, pack, unpack
-from servodesk.domain.pdo_export import export
 from servodesk.domain.pdo_json import apply_template, config_from_json, config_to_json, templates
 from servodesk.domain.pdo_model import COB_EXTENDED as COB_EXTENDED
 from servodesk.domain.pdo_model import COB_INVALID as COB_INVALID
@@ -70,7 +70,6 @@ __all__ = [
     "config_values",
     "default_config",
     "default_values",
-    "export",
     "frame_length",
     "full_plan",
     "layout",

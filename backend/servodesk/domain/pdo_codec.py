@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, Value, codec, coerce_int
 from servodesk.domain.pdo_model import Direction, Pdo, Slot
-from servodesk.domain.pdo_objects import _rules, _telegram_entries
+from servodesk.domain.pdo_objects import _telegram_entries, rules_of
 from servodesk.domain.profile import DeviceProfile, PdoWord
 from servodesk.errors import ServodeskError, ValidationError
 
@@ -27,7 +27,7 @@ def _telegram_words(profile: DeviceProfile, pdo: Pdo) -> tuple[PdoWord, ...] | N
     STW1/NSOLL_A are no objects, so only the telegram can name them)."""
     if pdo.kind != "telegram":
         return None
-    for tg in _rules(profile).telegrams:
+    for tg in rules_of(profile).telegrams:
         if tg.variable:
             continue
         words = tg.rx if pdo.direction is Direction.RX else tg.tx
@@ -79,7 +79,7 @@ def layout(profile: DeviceProfile, pdo: Pdo) -> list[Slot]:
 def frame_length(profile: DeviceProfile, pdo: Pdo) -> int:
     """Bytes on the bus: the mapped bytes, padded to a CAN FD length except classic PDOs."""
     n = pdo.bytes
-    if _rules(profile).kind == "canopen":
+    if rules_of(profile).kind == "canopen":
         return n
     for length in FD_LENGTHS:
         if length >= n:
@@ -130,7 +130,7 @@ def pack(profile: DeviceProfile, pdo: Pdo, values: Mapping[ObjectAddress, Value]
     slots = layout(profile, pdo)
     total = sum(s.bits for s in slots)
     nbytes = (total + 7) // 8
-    big = _rules(profile).byte_order == "big"
+    big = rules_of(profile).byte_order == "big"
     acc = 0
     for s in slots:
         if s.address is None or s.address not in values:
@@ -157,7 +157,7 @@ def unpack(profile: DeviceProfile, pdo: Pdo, data: bytes) -> dict[ObjectAddress,
             f"{pdo.name}: {len(data)} bytes received, the mapping needs {nbytes}",
             hint="the drive's mapping differs from the one read; read the PDO configuration again",
         )
-    big = _rules(profile).byte_order == "big"
+    big = rules_of(profile).byte_order == "big"
     acc = int.from_bytes(data[:nbytes], "big" if big else "little")
     out: dict[ObjectAddress, Value] = {}
     for s in slots:

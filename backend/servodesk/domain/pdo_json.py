@@ -21,25 +21,25 @@ from servodesk.domain.pdo_objects import (
     _directions,
     _map_index,
     _resolve,
-    _rules,
     _telegram_entries,
+    rules_of,
 )
 from servodesk.domain.profile import DeviceProfile, PdoTelegram, PdoTemplate, resolve_value
 from servodesk.errors import NotFoundError, ValidationError
 
 
 def templates(profile: DeviceProfile) -> list[Template]:
-    return list(_rules(profile).templates)
+    return list(rules_of(profile).templates)
 
 
 def apply_template(profile: DeviceProfile, current: PdoConfig, template_id: str) -> PdoConfig:
     """``current`` with the template's PDOs (the others unchanged); not validated."""
-    for t in _rules(profile).templates:
+    for t in rules_of(profile).templates:
         if t.id == template_id:
             return config_from_json(profile, _template_json(t), current=current)
     raise NotFoundError(
         f"no PDO template {template_id!r} for {profile.name}",
-        hint="templates: " + ", ".join(t.id for t in _rules(profile).templates),
+        hint="templates: " + ", ".join(t.id for t in rules_of(profile).templates),
     )
 
 
@@ -176,7 +176,7 @@ def config_from_json(
             field=sorted(unknown)[0],
             hint="a PDO layout has pdos, assignment and telegram",
         )
-    rules = _rules(profile)
+    rules = rules_of(profile)
     kind = rules.kind
     node_id = _node_id_of(current)
     telegram = current.telegram if current is not None else None

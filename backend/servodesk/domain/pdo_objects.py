@@ -42,12 +42,12 @@ _ASSIGN = {"rx": 0x1C12, "tx": 0x1C13}  # ETG.1000.6: sync manager 2 / 3 PDO ass
 # Where the configuration lives
 
 
-def _rules(profile: DeviceProfile) -> PdoRules:
+def rules_of(profile: DeviceProfile) -> PdoRules:
     return profile.pdo
 
 
 def _count(profile: DeviceProfile, d: Direction) -> int:
-    r = _rules(profile)
+    r = rules_of(profile)
     return r.rpdo_count if d is Direction.RX else r.tpdo_count
 
 
@@ -74,7 +74,7 @@ def _entry_subs(profile: DeviceProfile, index: int) -> int:
 
 
 def _telegram_address(profile: DeviceProfile) -> ObjectAddress | None:
-    t = _rules(profile).telegram_object
+    t = rules_of(profile).telegram_object
     return ObjectAddress.parse(t) if t else None
 
 
@@ -84,7 +84,7 @@ def _directions(profile: DeviceProfile) -> list[tuple[Direction, int]]:
 
 def config_addresses(profile: DeviceProfile) -> list[ObjectAddress]:
     """Every object to read for :func:`parse_config` (objects the profile has, in order)."""
-    kind = _rules(profile).kind
+    kind = rules_of(profile).kind
     out: list[ObjectAddress] = []
     if kind == "telegram":
         t = _telegram_address(profile)
@@ -164,7 +164,7 @@ def _telegram_entries(
 
 def parse_config(profile: DeviceProfile, values: Mapping[ObjectAddress, int]) -> PdoConfig:
     """The configuration the object values describe (values as read from the drive)."""
-    rules = _rules(profile)
+    rules = rules_of(profile)
     kind = rules.kind
     pdos: list[Pdo] = []
     assignment: dict[Direction, tuple[int, ...]] | None = None
@@ -248,7 +248,7 @@ def default_config(profile: DeviceProfile, node_id: int) -> PdoConfig:
 
 def config_values(profile: DeviceProfile, config: PdoConfig) -> dict[ObjectAddress, int]:
     """The object values that hold ``config`` (the inverse of :func:`parse_config`)."""
-    kind = _rules(profile).kind
+    kind = rules_of(profile).kind
     out: dict[ObjectAddress, int] = {}
     t = _telegram_address(profile)
     if kind == "telegram" and t is not None and config.telegram is not None:

@@ -18,8 +18,8 @@ from servodesk.domain.pdo_objects import (
     _ASSIGN,
     _comm_fields,
     _has,
-    _rules,
     _telegram_address,
+    rules_of,
 )
 from servodesk.domain.pdo_validate import (
     _CIA_COMM,
@@ -161,7 +161,7 @@ def _canopen_steps(
 def _body(
     profile: DeviceProfile, current: PdoConfig | None, desired: PdoConfig
 ) -> tuple[list[PdoStep], list[str]]:
-    rules = _rules(profile)
+    rules = rules_of(profile)
     kind = rules.kind
     section = rules.section
     steps: list[PdoStep] = []
@@ -306,7 +306,7 @@ def _same(profile: DeviceProfile, a: PdoConfig, b: PdoConfig) -> bool:
 def plan(profile: DeviceProfile, current: PdoConfig, desired: PdoConfig, *, nmt_state: str) -> Plan:
     """The ordered writes that turn ``current`` into ``desired``; only changed PDOs are
     touched. Raises :class:`PdoRefused` when ``desired`` breaks the family's rules."""
-    rules = _rules(profile)
+    rules = rules_of(profile)
     if rules.kind == "fixed" or rules.mapping_state == "fixed":
         if not _same(profile, current, desired):
             changed: list[str | None] = [p.name for p in desired.pdos if p not in current.pdos]
@@ -325,7 +325,7 @@ def full_plan(profile: DeviceProfile, desired: PdoConfig, *, nmt_state: str) -> 
     """Rewrite every PDO to ``desired`` whatever the drive holds (used for rollback).
 
     Not validated: it puts back a configuration the drive had before."""
-    rules = _rules(profile)
+    rules = rules_of(profile)
     if rules.kind == "fixed" or rules.mapping_state == "fixed":
         return Plan((), ())
     body, touched = _body(profile, None, desired)

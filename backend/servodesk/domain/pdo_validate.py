@@ -20,10 +20,10 @@ from servodesk.domain.pdo_objects import (
     _entry_subs,
     _has,
     _map_index,
-    _rules,
     _subs,
     _telegram_entries,
     default_config,
+    rules_of,
 )
 from servodesk.domain.profile import DeviceProfile
 from servodesk.errors import NotFoundError
@@ -72,7 +72,7 @@ def _spec_name(profile: DeviceProfile, e: MapEntry) -> str:
 def _check_entries(
     profile: DeviceProfile, pdo: Pdo, max_entries: int, section: str | None
 ) -> list[PdoProblem]:
-    rules = _rules(profile)
+    rules = rules_of(profile)
     kind = rules.kind
     out: list[PdoProblem] = []
     name = pdo.name
@@ -177,7 +177,7 @@ def _check_entries(
 
 def validate(profile: DeviceProfile, config: PdoConfig) -> list[PdoProblem]:
     """Every reason the configuration breaks the family's rules; [] when it is valid."""
-    rules = _rules(profile)
+    rules = rules_of(profile)
     kind = rules.kind
     section = rules.section
     out: list[PdoProblem] = []
@@ -244,7 +244,7 @@ def validate(profile: DeviceProfile, config: PdoConfig) -> list[PdoProblem]:
 
 
 def _validate_comm(profile: DeviceProfile, config: PdoConfig) -> list[PdoProblem]:
-    rules = _rules(profile)
+    rules = rules_of(profile)
     out: list[PdoProblem] = []
     ids: dict[int, str] = {}
     for p in config.pdos:
@@ -357,7 +357,7 @@ def _types_hint(allowed: frozenset[int], d: Direction) -> str:
 
 
 def _validate_assignment(profile: DeviceProfile, config: PdoConfig) -> list[PdoProblem]:
-    rules = _rules(profile)
+    rules = rules_of(profile)
     out: list[PdoProblem] = []
     for d in Direction:
         idx = _ASSIGN[d.value]
@@ -410,7 +410,7 @@ def _validate_fixed(profile: DeviceProfile, config: PdoConfig) -> list[PdoProble
 
 
 def _fixed_problem(profile: DeviceProfile, name: str | None) -> PdoProblem:
-    sect = _rules(profile).section
+    sect = rules_of(profile).section
     return PdoProblem(
         f"the PDO mapping of {profile.name} is pre-assigned and cannot be changed ({sect}); "
         "keep the fixed mapping and use the objects it carries",
@@ -421,7 +421,7 @@ def _fixed_problem(profile: DeviceProfile, name: str | None) -> PdoProblem:
 
 
 def _validate_telegram(profile: DeviceProfile, config: PdoConfig) -> list[PdoProblem]:
-    rules = _rules(profile)
+    rules = rules_of(profile)
     tg = rules.telegram(config.telegram) if config.telegram is not None else None
     if tg is None:
         known = ", ".join(str(t.number) for t in rules.telegrams)

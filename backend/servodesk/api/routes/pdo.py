@@ -29,7 +29,7 @@ from servodesk.api.schemas_pdo import (
     PdoValidation,
     PdoView,
 )
-from servodesk.domain import pdo as pdomod
+from servodesk.devdesc.pdo_export import export as export_pdo
 from servodesk.services import pdo as pdosvc
 from servodesk.services.control import CONTROL_HEADER
 
@@ -122,7 +122,7 @@ async def pdo_export(
 ) -> Response:
     session = state.manager.get(sid)
     config = await pdosvc.read_config(session)
-    text = pdomod.export(session.profile, config, format, session.link.params.node_id)
+    text = export_pdo(session.profile, config, format, session.link.params.node_id)
     ext = {"esi": "xml"}.get(format, format)
     return Response(
         text,

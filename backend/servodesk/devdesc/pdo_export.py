@@ -12,11 +12,13 @@ import io
 import json
 from typing import Any, Literal
 
+from servodesk.devdesc.eds_export import section_text, spec_section, value_keys
+from servodesk.devdesc.esi_common import type_of
 from servodesk.domain.datatypes import DataType
 from servodesk.domain.pdo_codec import layout
 from servodesk.domain.pdo_json import config_to_json
 from servodesk.domain.pdo_model import Direction, PdoConfig
-from servodesk.domain.pdo_objects import _rules, config_values
+from servodesk.domain.pdo_objects import config_values, rules_of
 from servodesk.domain.profile import DeviceProfile
 from servodesk.errors import ValidationError
 
@@ -102,8 +104,6 @@ def _export_csv(profile: DeviceProfile, config: PdoConfig, node_id: int) -> str:
 
 
 def _export_dcf(profile: DeviceProfile, config: PdoConfig, node_id: int) -> str:
-    # Imported here: devdesc builds on the domain, not the other way round.
-    from servodesk.devdesc.eds_export import section_text, spec_section, value_keys
 
     if not 1 <= node_id <= 127:
         raise ValidationError(
@@ -151,13 +151,11 @@ def _export_dcf(profile: DeviceProfile, config: PdoConfig, node_id: int) -> str:
 def _export_esi(profile: DeviceProfile, config: PdoConfig) -> str:
     import xml.etree.ElementTree as ET
 
-    from servodesk.devdesc.esi_common import type_of
-
     chunks: list[str] = []
     for d, tag, sm in ((Direction.RX, "RxPdo", "2"), (Direction.TX, "TxPdo", "3")):
         active = {p.mapping_index for p in config.active(d)}
         for p in config.of(d):
-            attrs = {"Fixed": "1" if _rules(profile).kind == "fixed" else "0"}
+            attrs = {"Fixed": "1" if rules_of(profile).kind == "fixed" else "0"}
             if p.mapping_index in active:
                 attrs["Sm"] = sm
             el = ET.Element(tag, attrs)
