@@ -119,6 +119,12 @@ def _connects_and_moves(viewer_page: Page, server_url: str) -> None:
     wait_for(lambda: api(server_url, "GET", "/viewer")["clients"] >= 1, 20, "the client")
     # The client bundle (800 kB) and its WebGL start-up on a loaded 2-core machine: like a shot.
     page.locator("canvas").first.wait_for(state="visible", timeout=60_000)
+    # The panel says what the colours mean; viser's developer controls stay folded away.
+    legend = page.get_by_text("servodesk 3D view")
+    legend.wait_for(state="visible", timeout=30_000)
+    assert page.get_by_text("blue ghost: the target").is_visible()
+    assert not page.get_by_text("Dev Settings").is_visible()
+    assert not page.get_by_text("Save Canvas").is_visible()
     api(server_url, "PUT", f"/sessions/{SID}/objects/0x60FF", {"value": 0})
     api(server_url, "POST", f"/sessions/{SID}/state", {"command": "disable"})
     # The scene arrives, the client settles its render resolution; then the picture of a

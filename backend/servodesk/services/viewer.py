@@ -831,6 +831,25 @@ def _make_server(host: str, port: int) -> Any:
     # axes of a machine must not leave its network from a click. The control panel is small
     # and docked to the right (the user can fold it), so that it does not float over the row
     # of stages on a laptop screen.
-    server.gui.configure_theme(control_width="small", show_share_button=False)
+    server.gui.configure_theme(
+        control_width="small", show_share_button=False, show_logo=False, brand_color=GHOST
+    )
     server.gui.main_panel.dock_right()
+    # The panel shows what the colours mean. A panel with content of the server's own is also
+    # what keeps viser's developer controls ("Dev Settings", "Save Canvas") folded behind its
+    # settings button: with none, viser shows them as the panel's content (issue 48).
+    server.gui.add_markdown(LEGEND)
     return server
+
+
+#: The control panel's text: what the scene's colours and marks mean (state_colour).
+LEGEND = """**servodesk 3D view**: one stage per open drive, moving with its actual
+position (6064h).
+
+- grey: not enabled (switch on disabled, ready, switched on)
+- green: operation enabled
+- amber: quick stop active
+- red: fault; red marks: the software position limits (607Dh)
+- dark: no link to the drive
+- blue ghost: the target (the move's set-point, else 607Ah)
+"""
