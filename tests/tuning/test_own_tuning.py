@@ -1,4 +1,4 @@
-"""servodesk's own tuning (services/tuning/own.py) on simulated drives built from plant files.
+"""servodesk's own tuning (services/tuning/own/) on simulated drives built from plant files.
 
 The procedure talks to the twin through typed object access on simulated time (the benchmark's
 SimIO), so these run as fast as the computer allows; the API test runs the same procedure on
@@ -47,14 +47,10 @@ from servodesk.domain.tuning.search import reference_move
 from servodesk.errors import DriveStateError, ValidationError
 from servodesk.model.plantfile import PlantSpec
 from servodesk.services.tuning import worker as tuning_worker
-from servodesk.services.tuning.own import (
-    TRY_WATCH_MAX_S,
-    VERIFY_SETTLE_S,
-    OwnTuning,
-    OwnTuningRequest,
-    TuningFailed,
-    refuse_if_worse,
-)
+from servodesk.services.tuning.own import OwnTuning, OwnTuningRequest, TuningFailed
+from servodesk.services.tuning.own.base import VERIFY_SETTLE_S
+from servodesk.services.tuning.own.report import refuse_if_worse
+from servodesk.services.tuning.own.tries import TRY_WATCH_MAX_S
 
 GAINS = [(0x2100, 0), (0x2101, 0), (0x2102, 0), (0x2104, 0), (0x2106, 1)]
 
@@ -666,7 +662,7 @@ def test_a_compliance_too_low_to_measure_is_refused_and_everything_put_back() ->
     The moves do not fit a rigid body, and that stops the tuning with a plain reason before any
     new gain reaches the drive; its gains, limits and mode are as they were. In a 0.5 rev window
     (+-0.25 rev) the factory gains overshoot so far on this axis that moves keeping inside it
-    would be 0.028 rev, too short to tell (services/tuning/own.py MIN_IDENT_SHARE): the tuning
+    would be 0.028 rev, too short to tell (services/tuning/own/ MIN_IDENT_SHARE): the tuning
     stops there, before them; with room for the 0.2 rev moves (a 2 rev window) the moves'
     rigid-body check does."""
     spec = PlantSpec(inertia_ratio=100.0, resonance_hz=30.0, damping=0.01)

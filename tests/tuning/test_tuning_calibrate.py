@@ -32,7 +32,8 @@ from servodesk.services.tuning.calibrate import (
     output_error,
     recorded_move,
 )
-from servodesk.services.tuning.own import SIG_TORQUE, OwnTuning, OwnTuningRequest
+from servodesk.services.tuning.own import OwnTuning, OwnTuningRequest
+from servodesk.services.tuning.own.base import SIG_TORQUE
 
 # A load as heavy as the motor behind a 200 Hz shaft, without torque noise.
 SPEC = replace(dict(default_plants())["R1-200Hz"], noise_torque=0.0)

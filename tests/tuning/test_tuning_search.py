@@ -457,7 +457,7 @@ def _identified_moves(
     plant: PlantModel, coulomb: float, gravity: float
 ) -> Callable[..., ModelMoves]:
     """The reference move on an identified axis, its inertia scaled by ``scale`` and its
-    Coulomb friction by ``f`` (as services/tuning/own.py builds its ranking and confirmation)."""
+    Coulomb friction by ``f`` (as services/tuning/own/ builds its ranking and confirmation)."""
 
     def moves(scale: float = 1.0, f: float = 1.0) -> ModelMoves:
         axis = replace(
@@ -627,7 +627,7 @@ def test_the_oracles_structures_join_the_ranking_within_the_same_margins() -> No
 
 
 def test_a_rigid_axis_is_ranked_on_its_worst_inertia_with_feed_forwards_near_it() -> None:
-    # services/tuning/own.py ranks a rigid axis whose inertia the position demand instrumented
+    # services/tuning/own/ ranks a rigid axis whose inertia the position demand instrumented
     # so: the identified inertia and 0.5 % either way, and feed-forwards up to the inertia.
     plant = PlantModel(4 * JM, 0.0, None, 0.03, 0.0, 2000.0)
 

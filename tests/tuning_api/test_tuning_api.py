@@ -369,7 +369,7 @@ def test_the_deadman_stops_a_tuning_motion(channel, tmp_path) -> None:  # type: 
 
 
 def test_own_tuning_runs_on_the_generic_twin(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
-    """servodesk's own tuning (services/tuning/own.py) through the API on the generic twin:
+    """servodesk's own tuning (services/tuning/own/) through the API on the generic twin:
     the job ends done, the result carries the identified inertia, a Bode plot, margins that
     meet PM >= 45 deg / GM >= 8 dB, new gains on the drive, and an "after" move that settles
     where the untuned axis did not."""

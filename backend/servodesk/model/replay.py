@@ -181,7 +181,7 @@ class WorstOf:
     """Candidate gains run on several simulated axes; each candidate's metrics are those of
     the axis it settles worst on (:meth:`MoveMetrics.key`), None if it diverges on any.
 
-    The own tuning (services/tuning/own.py) ranks a rigid axis on the identified axis and on
+    The own tuning (services/tuning/own/) ranks a rigid axis on the identified axis and on
     it a little lighter and heavier: with an inertia feed-forward near the inertia, settling
     to +-10 counts is a knife edge (the oracle's gains settle 7-33 x slower with their
     feed-forward 2 % off, docs/tuning.md), and gains that are fast only on the nominal axis

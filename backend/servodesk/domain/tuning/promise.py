@@ -8,7 +8,7 @@ start-up on a 2-core machine).
 from __future__ import annotations
 
 #: How far an identified resonance may be off, for the ``basic`` and ``low`` levels and where
-#: the record fit placed it (services/tuning/own.py: its peak and the frequency response's
+#: the record fit placed it (services/tuning/own/: its peak and the frequency response's
 #: differed by more than 3 %, or the anti-resonance lies below the band; stress-soft60Hz came
 #: out 2.6 % off there). 2 % lifts the reachable gain on 400-800 Hz axes by up to 40 % over 6 %.
 #: Alone it let the tuner choose narrow notches whose gains hunted in a friction limit cycle on

@@ -132,7 +132,7 @@ class SearchResult:
         )
 
 
-#: How many runners-up the tuner tries on the drive (services/tuning/own.py).
+#: How many runners-up the tuner tries on the drive (services/tuning/own/).
 ALTERNATIVES = 2
 #: A runner-up is tried on the drive only if the model expects it to settle to +-10 counts
 #: within this factor of the winner's time (:func:`worth_trying`). The tries measure one move
@@ -407,7 +407,7 @@ class Variations:
 #: The variations of every design.
 VARIATIONS = Variations()
 #: A rigid axis whose model is the axis to within its friction, tuned for the machine's own
-#: move (services/tuning/own.py: the inertia instrumented by the position demand, ranked on
+#: move (services/tuning/own/: the inertia instrumented by the position demand, ranked on
 #: it +-0.5 %, the move torque given): longer integral times, higher position gains and
 #: feed-forwards up to the inertia (0.96-1.0 J), the structure of the oracle's rigid-axis
 #: gains. Offline on seed 1's identified models, the pick on the

@@ -1,4 +1,4 @@
-"""Tuning motions (services/tuning/, services/tuning/own.py): a motion of kind ``tuning``
+"""Tuning motions (services/tuning/, services/tuning/own/): a motion of kind ``tuning``
 under the client's dead-man, the profile-position moves it makes, and its end.
 """
 
