@@ -189,7 +189,7 @@ QUIRKS: Mapping[str, QuirkSpec] = {
     "touch_probe_exclusive": Q(BOOL, ()),
     "tpdo_event_source": Q(STR, ("sim.pdo",)),
     "tuning_gains": Q(MAP, ("services.tuning.capabilities",)),
-    "unit_change_sequence": Q(LIST, ("domain.paramset",)),
+    "unit_change_sequence": Q(LIST, ("domain.restore_plan",)),
     "user_units_factor_group": Q(MAP, ("services.tuning.capabilities",)),
     "warning_ack_bit": Q(INT, ()),
 }
