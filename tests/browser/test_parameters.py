@@ -40,6 +40,8 @@ def test_write_marks_dirty_and_save_clears_it(page: Page) -> None:
 
     row.get_by_test_id(f"edit-{ADDR}").click()
     editor = page.get_by_test_id(f"param-edit-{ADDR}")
+    # Raw entry (inc/s); engineering entry is test_engineering_entry.py's.
+    editor.get_by_test_id("entry-raw").click()
     value = editor.get_by_test_id("value-input")
     value.fill("-5")
     editor.get_by_test_id("value-write").click()
@@ -76,6 +78,7 @@ def test_restore_defaults_asks_first(page: Page) -> None:
     row = page.get_by_test_id(f"param-row-{ADDR}")
     row.get_by_test_id(f"edit-{ADDR}").click()
     editor = page.get_by_test_id(f"param-edit-{ADDR}")
+    editor.get_by_test_id("entry-raw").click()
     editor.get_by_test_id("value-input").fill("300000")
     editor.get_by_test_id("value-write").click()
     expect(row.get_by_test_id("param-value")).to_have_text("300000")

@@ -51,6 +51,7 @@ def test_a_raw_value_is_previewed_in_the_axis_own_degrees(plant_page: Page) -> N
     expect(row.get_by_test_id("param-value")).not_to_have_text("…")
     row.get_by_test_id(f"edit-{ADDR}").click()
     editor = page.get_by_test_id(f"param-edit-{ADDR}")
+    editor.get_by_test_id("entry-raw").click()  # A raw value, previewed in degrees.
     editor.get_by_test_id("value-input").fill("1048576")
     expect(editor.get_by_test_id("value-preview")).to_contain_text("= 360 deg")
     editor.get_by_test_id("value-write").click()
@@ -64,3 +65,21 @@ def test_the_overview_says_which_encoder_the_units_are_for(plant_page: Page) -> 
     expect(enc).to_contain_text("1048576 counts/rev")
     expect(enc).to_contain_text("(608Fh)")
     expect(enc).to_contain_text("not the profile’s encoder")
+
+
+def test_degrees_typed_are_the_axis_own_increments(plant_page: Page) -> None:
+    """Engineering entry uses the session's scale (the axis's 2^20 counts per revolution),
+    not the profile's: 90 deg is a quarter of 1048576."""
+    page = plant_page
+    page.goto(f"/#/parameters/{SID}/position")
+    expect(page.get_by_test_id("params-groups")).to_be_visible(timeout=15_000)
+    take_control(page, SID)
+    row = page.get_by_test_id(f"param-row-{ADDR}")
+    expect(row.get_by_test_id("param-value")).not_to_have_text("…")
+    row.get_by_test_id(f"edit-{ADDR}").click()
+    editor = page.get_by_test_id(f"param-edit-{ADDR}")
+    expect(editor.get_by_test_id("entry-eng")).to_have_attribute("aria-pressed", "true")
+    editor.get_by_test_id("value-input").fill("90")
+    expect(editor.get_by_test_id("value-preview")).to_contain_text("90 deg = 262144 raw")
+    editor.get_by_test_id("value-write").click()
+    expect(editor.get_by_test_id("readback-value")).to_have_text("262144")

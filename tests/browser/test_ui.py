@@ -86,6 +86,8 @@ def test_write_6081_and_read_it_back(page: Page) -> None:
     value = page.get_by_test_id("object-value")
 
     address.fill("0x6081")
+    # Raw entry (inc/s): 6081h offers rpm too once the session's profile is known.
+    page.get_by_test_id("object-entry-raw").click()
     value.fill("1500")
     page.get_by_test_id("object-write").click()
     expect(page.get_by_test_id("object-value-dec")).to_contain_text("1500")

@@ -4,12 +4,19 @@
  * bytes on the bus, the engineering value with its unit and the enumeration text. A failure
  * shows what failed, why (the message, the protocol's abort code in hex and its meaning) and
  * what to do. The last accesses stay in a history list.
+ *
+ * An object of the session's profile whose engineering unit differs from its raw one is
+ * entered in either ("Enter in rpm | raw (inc/s)", the browser's choice as on Parameters;
+ * lib/units.ts): an engineering value is converted to raw, rounded and range-checked in
+ * both units before the raw value is sent.
  */
-import { type FormEvent, useRef, useState } from 'react';
-import type { ObjectValue, ObjectWrite } from '../api';
+import { type FormEvent, useMemo, useRef, useState } from 'react';
+import type { ObjectInfo, ObjectValue, ObjectWrite } from '../api';
 import { ApiError, api } from '../api/client';
 import { ControlNote, useWriteGate } from '../components/ControlNote';
+import { useEntryUnit } from '../components/ValueEditor';
 import { formatAddress, parseAddress } from '../lib/address';
+import { canonicalAddress } from '../lib/dictionary';
 import {
   type NumberMode,
   formatEngineering,
@@ -21,7 +28,10 @@ import {
   toHex,
   valueToInput,
 } from '../lib/format';
+import { type EntryUnit, engineeringToRaw, offersEngineeringEntry, parseEngineering, rawToEngText, toRaw } from '../lib/units';
 import { protocolName } from '../state/notify';
+import { useSessionInfo, useSessionProfile } from '../state/profileCache';
+import './dataPages.css';
 import type { PageProps } from './registry';
 
 interface Failure {
@@ -191,6 +201,23 @@ export function ObjectAccessPage({ sid }: PageProps) {
   const nextId = useRef(1);
   /** Data types learnt from reads, so hex input and range checks know the type before a write. */
   const types = useRef(new Map<string, string>());
+  const { info } = useSessionInfo(sid);
+  const { profile } = useSessionProfile(info);
+  /** The session's objects by address: their units and scales (the session's own). */
+  const objects = useMemo(() => new Map((profile?.object_list ?? []).map((o) => [canonicalAddress(o.address), o])), [profile]);
+  const [entryPref, setEntryPref] = useEntryUnit();
+
+  function objectAt(addr: string): ObjectInfo | null {
+    const p = parseAddress(addr);
+    return p.ok ? (objects.get(formatAddress(p.address)) ?? null) : null;
+  }
+  /** Engineering entry for this object in this base: decimal only (hex is raw). */
+  function entryFor(o: ObjectInfo | null, m: NumberMode, pref: EntryUnit = entryPref): EntryUnit {
+    return o && offersEngineeringEntry(o) && m === 'dec' && pref === 'eng' ? 'eng' : 'raw';
+  }
+  const obj = objectAt(address);
+  const entry = entryFor(obj, mode);
+  const engCheck = entry === 'eng' && obj && valueText.trim() !== '' ? engineeringToRaw(obj, valueText) : null;
 
   function record(e: Omit<HistoryEntry, 'id' | 'time'>) {
     const entry: HistoryEntry = { ...e, id: nextId.current++, time: new Date() };
@@ -211,7 +238,8 @@ export function ObjectAccessPage({ sid }: PageProps) {
     setResult(v);
     setFailure(null);
     if (v.data_type) types.current.set(v.address, v.data_type);
-    setValueText(valueToInput(v.value, m, v.data_type));
+    const o = objectAt(v.address);
+    setValueText(o && entryFor(o, m) === 'eng' && typeof v.value === 'number' ? rawToEngText(v.value, o) : valueToInput(v.value, m, v.data_type));
   }
 
   async function read(addrOverride?: string) {
@@ -236,6 +264,7 @@ export function ObjectAccessPage({ sid }: PageProps) {
     const addr = parsedAddress();
     if (!addr) return;
     setBusy('write');
+    let written = valueText;
     try {
       let dataType = types.current.get(addr) ?? null;
       if (!dataType) {
@@ -250,7 +279,16 @@ export function ObjectAccessPage({ sid }: PageProps) {
         }
       }
       let body: ObjectWrite;
-      if (isStringType(dataType)) {
+      const o = objectAt(addr);
+      if (o && entryFor(o, mode) === 'eng') {
+        // Typed in engineering units: converted and checked here, the raw value is sent.
+        const conv = engineeringToRaw(o, valueText);
+        if (!conv.ok) {
+          throw new ApiError(`Write ${addr}`, 400, { error: 'ValidationError', message: conv.message, hint: conv.hint ?? undefined });
+        }
+        body = { value: conv.raw };
+        written = `${valueText.trim()} ${o.unit ?? ''}`.trim();
+      } else if (isStringType(dataType)) {
         body = { value: valueText };
       } else if (isBytesType(dataType)) {
         const hex = valueText.replace(/[\s_]|0x/gi, '');
@@ -275,24 +313,40 @@ export function ObjectAccessPage({ sid }: PageProps) {
       }
       const v = await api.writeObject(sid, addr, body);
       show(v);
-      record({ op: 'W', address: v.address, result: v, failure: null, written: valueText });
+      record({ op: 'W', address: v.address, result: v, failure: null, written });
     } catch (e) {
       const f = failureOf(e, `Write ${addr}`);
       setResult(null);
       setFailure(f);
-      record({ op: 'W', address: addr, result: null, failure: f, written: valueText });
+      record({ op: 'W', address: addr, result: null, failure: f, written });
     } finally {
       setBusy(null);
     }
   }
 
-  function switchMode(m: NumberMode) {
-    if (m === mode) return;
+  /** Change the base or the entry units, keeping the typed value (converted). */
+  function switchTo(m: NumberMode, pref: EntryUnit) {
+    const from = entry;
+    const to = entryFor(obj, m, pref);
+    if (m !== mode) setMode(m);
+    if (pref !== entryPref) setEntryPref(pref);
+    if (m === mode && from === to) return;
     const addr = parseAddress(address);
-    const dt = addr.ok ? (types.current.get(formatAddress(addr.address)) ?? null) : null;
-    const parsed = parseNumberInput(valueText, mode, dt);
-    if (parsed.ok) setValueText(valueToInput(parsed.value, m, dt));
-    setMode(m);
+    const dt = obj?.data_type ?? (addr.ok ? (types.current.get(formatAddress(addr.address)) ?? null) : null);
+    let raw: number | null = null;
+    if (from === 'eng' && obj) {
+      const p = parseEngineering(valueText);
+      raw = p.ok ? toRaw(obj, p.value).raw : null;
+    } else {
+      const p = parseNumberInput(valueText, mode, dt);
+      raw = p.ok ? p.value : null;
+    }
+    if (raw === null) return;
+    setValueText(to === 'eng' && obj ? rawToEngText(raw, obj) : valueToInput(raw, m, dt));
+  }
+
+  function switchMode(m: NumberMode) {
+    if (m !== mode) switchTo(m, entryPref);
   }
 
   function onRead(e: FormEvent) {
@@ -346,17 +400,38 @@ export function ObjectAccessPage({ sid }: PageProps) {
           </div>
           <form className="access-row" onSubmit={onWrite}>
             <label>
-              Value
+              <span className="access-value-label" data-testid="object-value-label">
+                Value
+                {entry === 'eng' && obj ? (
+                  <> ({obj.unit})</>
+                ) : obj && offersEngineeringEntry(obj) ? (
+                  <> (raw{obj.raw_unit ? `, ${obj.raw_unit}` : ''})</>
+                ) : null}
+              </span>
               <input
                 data-testid="object-value"
                 className="mono"
                 value={valueText}
                 onChange={(e) => setValueText(e.target.value)}
-                placeholder={mode === 'hex' ? 'hex, e.g. 3E8' : 'decimal, e.g. 1000'}
+                placeholder={entry === 'eng' ? `${obj?.unit ?? ''}, e.g. 1500` : mode === 'hex' ? 'hex, e.g. 3E8' : 'decimal, e.g. 1000'}
+                aria-invalid={engCheck !== null && !engCheck.ok}
                 spellCheck={false}
                 autoComplete="off"
               />
             </label>
+            {obj && offersEngineeringEntry(obj) && (
+              <div className="access-entry">
+                <span id="object-entry-label">Enter in</span>
+                <div className="segmented" role="group" aria-labelledby="object-entry-label">
+                  <button type="button" className={entry === 'eng' ? 'on' : ''} aria-pressed={entry === 'eng'} data-testid="object-entry-eng" onClick={() => switchTo('dec', 'eng')}>
+                    {obj.unit}
+                  </button>
+                  <button type="button" className={entry === 'raw' ? 'on' : ''} aria-pressed={entry === 'raw'} data-testid="object-entry-raw" onClick={() => switchTo(mode, 'raw')}>
+                    raw{obj.raw_unit ? ` (${obj.raw_unit})` : ''}
+                  </button>
+                </div>
+              </div>
+            )}
             <div className="segmented" role="group" aria-label="Number base">
               <button
                 type="button"
@@ -381,6 +456,18 @@ export function ObjectAccessPage({ sid }: PageProps) {
               {busy === 'write' ? 'Writing…' : 'Write'}
             </button>
           </form>
+          {engCheck &&
+            (engCheck.ok ? (
+              <div className="small ve-preview" data-testid="object-entry-preview">
+                {engCheck.preview}
+                {engCheck.note ? <span className="warn-text"> · {engCheck.note}</span> : null}
+              </div>
+            ) : (
+              <div className="inline-error" role="alert" data-testid="object-entry-error">
+                {engCheck.message}
+                {engCheck.hint ? <span className="ve-hint"> — {engCheck.hint}</span> : null}
+              </div>
+            ))}
           <ControlNote sid={sid} what="Write is disabled; Read works" rights={{ write: 'write_parameters' }} />
           <div className="muted small">
             Writes are checked against the profile (type, range, access) before they go to the drive, and read back after.
