@@ -17,6 +17,7 @@ can render one clear message without parsing strings::
      +-- NotFoundError              no such session, profile or object
      +-- ConflictError              another client holds control of the drive
      +-- WorkerFailed               a worker process ended before its answer (503)
+     +-- Unavailable                a service the request needs cannot be reached now (503)
  +-- Forbidden                  the caller's role lacks the right the request needs (403)
      +-- RequestRefused             an HTTP request refused before any route sees it
           +-- Unauthorized          no valid login session or API token where needed (401)
@@ -205,6 +206,11 @@ class Forbidden(ServodeskError):
 class WorkerFailed(ServodeskError):
     """A worker process (documents, tuning: api/offload.py) ended before it answered, e.g.
     killed for memory by a huge file; the next request starts a new one."""
+
+
+class Unavailable(ServodeskError):
+    """A service the request needs cannot be reached now (the central store: services/db.py
+    StoreUnavailable); the next try may work (HTTP 503)."""
 
 
 class ToolMissing(ServodeskError):

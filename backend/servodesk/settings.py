@@ -61,6 +61,9 @@ class Settings(BaseSettings):
     #: PostgreSQL several gateways share; ``?sslmode=verify-full`` for TLS). Checked when the
     #: store opens (services/db.py, docs/deployment.md).
     store_url: str = ""
+    #: While a central store is unreachable, try it (and sync the local queue) this often,
+    #: s (services/outbox.py, docs/deployment.md).
+    store_retry_s: float = Field(default=5.0, gt=0, le=3600)
     #: This gateway's name in the fleet (services/drift.py); empty: the machine's host name.
     gateway_name: str = Field(default="", max_length=64, pattern=r"^[A-Za-z0-9._-]*$")
     #: The URL other machines reach this gateway's UI at (the fleet page's links to its

@@ -29,9 +29,9 @@ from urllib.parse import unquote_to_bytes
 from starlette.requests import HTTPConnection
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from servodesk.api.errors import refuse_websocket, send_error
+from servodesk.api.errors import close_code, refuse_websocket, send_error
 from servodesk.api.identity import KEY, Caller
-from servodesk.errors import Unauthorized
+from servodesk.errors import ServodeskError, Unauthorized
 from servodesk.services.logins import CLOSE_CODE, LoginService
 from servodesk.services.users import UserStore
 from servodesk.settings import Settings
@@ -175,7 +175,16 @@ class AuthMiddleware:
         in_url = any(
             k in (b"token", b"access_token") for k, _ in _query(scope.get("query_string", b""))
         )
-        who = None if in_url else self._identify(scope)
+        try:
+            who = None if in_url else self._identify(scope)
+        except ServodeskError as exc:
+            # The accounts' store cannot be read (a central store that is away: 503 naming
+            # it), answered as the error it is rather than a bare 500.
+            if scope["type"] == "websocket":
+                await refuse_websocket(scope, receive, send, close_code(exc), exc.message)
+            else:
+                await send_error(send, exc)
+            return
         if who is None:
             if in_url:
                 refused = Unauthorized(

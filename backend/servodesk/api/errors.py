@@ -29,6 +29,7 @@ from servodesk.errors import (
     ServodeskError,
     ToolMissing,
     Unauthorized,
+    Unavailable,
     UnsupportedMediaType,
     ValidationError,
     WorkerFailed,
@@ -49,7 +50,7 @@ def status_for(exc: ServodeskError) -> int:
         return 409
     if isinstance(exc, Forbidden):
         return 403
-    if isinstance(exc, WorkerFailed | ToolMissing):
+    if isinstance(exc, WorkerFailed | ToolMissing | Unavailable):
         return 503  # RFC 9110 §15.6.4: the server cannot now; the next try may work.
     if isinstance(exc, ObjectAccessError):
         if exc.protocol == "profidrive":

@@ -73,6 +73,11 @@ class BackupInfo(BaseModel):
     complete: bool = Field(
         default=True, description="false when the backup lacks unreadable objects"
     )
+    queued: bool = Field(
+        default=False,
+        description="true when the central store was unreachable: the backup waits in this "
+        "gateway's local queue and is synced when the store answers (docs/deployment.md)",
+    )
 
 
 class BackupEntryOut(BaseModel):

@@ -74,5 +74,25 @@ class BusStatusOut(Reply):
     ethercat: BusEthercatOut | None = Field(description="null: not an EtherCAT line in cycles")
 
 
+class StoreStatusOut(Reply):
+    engine: Literal["sqlite", "postgresql"]
+    url: str = Field(description="the store's URL without its password")
+    reachable: bool = Field(
+        description="the central store answered its last write or sync (always true on "
+        "SQLite: the store is the local file)"
+    )
+    since: float | None = Field(description="unreachable since (epoch s); null while it answers")
+    queued: dict[str, int] = Field(
+        description="records waiting in the local queue by kind (backups, tuning_results, "
+        "audit_log); empty on SQLite"
+    )
+    last_sync: float | None = Field(description="when the queue last synced records (epoch s)")
+    last_error: str | None = Field(description="why the store was last found unreachable")
+    synced: int = Field(description="records synced from the queue since the server started")
+
+
 class StatusOut(Reply):
     buses: list[BusStatusOut]
+    store: StoreStatusOut = Field(
+        description="the store: reachability and the local queue (docs/deployment.md)"
+    )

@@ -15,7 +15,9 @@ The order of :meth:`AppState.aclose` is safety-relevant (docs/architecture.md, D
 4. the login sweeper stops, then the fleet's jobs (heartbeat, scheduled drift scan: it reads
    drives);
 5. the sessions close (their links, the buses);
-6. the store, the audit log and the accounts close, then the worker pools;
+6. the sync of the local queue stops (services/outbox.py: what it has not synced stays on
+   disk for the next start), then the store, the audit log and the accounts close, then the
+   worker pools;
 7. the simulated drives (``serve --sim``) stop last: they are the devices the sessions talked to.
 
 Each service is built once, with the application, and reused if the lifespan runs again (a
@@ -47,6 +49,7 @@ from servodesk.services.fleet import FleetStore
 from servodesk.services.logins import LoginService, LoginSession
 from servodesk.services.manager import SessionManager
 from servodesk.services.motion import PP, MotionService
+from servodesk.services.outbox import StoreSync
 from servodesk.services.report import ReportService
 from servodesk.services.report_store import ReportStore
 from servodesk.services.restore import RestoreService
@@ -98,6 +101,9 @@ class AppState:
     reports: ReportService
     #: The simulated drives of ``serve --sim`` while the application runs (else None).
     sim: SimulatedBus | None = None
+    #: The sync of the local queue while the central store is away (PostgreSQL stores only,
+    #: services/outbox.py); None on a SQLite store.
+    store_sync: StoreSync | None = None
     _sweeper: asyncio.Task[None] | None = field(default=None, repr=False)
 
     @classmethod
@@ -114,6 +120,10 @@ class AppState:
         # Beside the store, in the same database (docs/security.md, Audit log).
         audit = AuditLog(backups.store.url)
         backups.audit = audit
+        # A central store that cannot be reached: backups, tuning results and audit records
+        # wait in the gateway's local queue (services/outbox.py) until it answers.
+        outbox = backups.store.outbox
+        audit.outbox = outbox
         auth = Auth(
             settings,
             UserStore(settings.data_dir, settings.store_url),
@@ -134,7 +144,7 @@ class AppState:
         )
         tuning = TuningService(manager, motion, hub)
         # Every tuning that ends is kept in the store (issue 49; services/tuning_store.py).
-        tuning_results = TuningStore(backups.store.engine, drift.gateway)
+        tuning_results = TuningStore(backups.store.engine, drift.gateway, outbox)
         tuning.recorder = tuning_results.add
         captures = CaptureStore(backups.store.engine, drift.gateway)
         reports = ReportService(
@@ -171,6 +181,11 @@ class AppState:
             reports=reports,
             tuning_results=tuning_results,
             captures=captures,
+            store_sync=(
+                StoreSync(outbox, audit.sync_queued, audit.record, settings.store_retry_s)
+                if outbox is not None
+                else None
+            ),
         )
         # Late-bound through the state: a benchmark may put a scope of its own in place.
         state.tuning.recorder_busy = state._recorder_busy
@@ -247,6 +262,8 @@ class AppState:
         )
         await self.viewer.start()
         await self.drift.start()
+        if self.store_sync is not None:
+            self.store_sync.start()  # A queue left by a crash is synced at the first period.
 
     async def aclose(self) -> None:
         """Stop everything, in the order of the module's docstring.
@@ -272,6 +289,7 @@ class AppState:
         await step("logins", self._stop_sweeper)
         await step("fleet", self.drift.stop)
         await step("sessions", self.manager.close_all)
+        await step("store sync", self._stop_store_sync)
         await step("store", self.backups.store.close)
         await step("audit", self.audit.close)
         await step("users", self.auth.users.close)
@@ -286,6 +304,10 @@ class AppState:
             sweeper.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await sweeper
+
+    async def _stop_store_sync(self) -> None:
+        if self.store_sync is not None:
+            await self.store_sync.stop()
 
     def _stop_sim(self) -> None:
         sim, self.sim = self.sim, None

@@ -21,9 +21,14 @@ last hash first, serialised with every other writer of the store, so the chain n
 on SQLite by ``BEGIN IMMEDIATE`` (a second process, the CLI, waits for SQLite's write lock),
 on PostgreSQL by a transaction-scoped advisory lock that every gateway's writer takes before
 it reads the head (:func:`servodesk.services.db.serialise`). The dead-man's stop therefore
-never waits on the database (docs/security.md); a record that cannot be written is logged
-and dropped. Readers (:meth:`query`, :meth:`verify`, :meth:`export`) first wait for the
-queue to drain, so a request sees the records of everything done before it.
+never waits on the database (docs/security.md). On a central PostgreSQL store, a batch the
+store cannot take because it is unreachable goes to the gateway's local queue
+(:attr:`AuditLog.outbox`, services/outbox.py), and so does every batch after it until
+:meth:`AuditLog.sync_queued` has chained the queue onto the central log, oldest first, with
+the records' own times (their position on the chain is the time of the sync). Any other
+record that cannot be written is logged and dropped. Readers (:meth:`query`, :meth:`verify`,
+:meth:`export`) first wait for the queue to drain, so a request sees the records of
+everything done before it (records in the local queue are not on the central log yet).
 
 Who did it: the ``who`` argument, else the identity of the request being served (set by the
 API's middleware through :func:`acting`), else :data:`SYSTEM` (the dead-man's thread, the
@@ -45,12 +50,15 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any, Literal, Protocol
+from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 import sqlalchemy as sa
 from sqlalchemy.engine import RowMapping
 
 from servodesk.services import db
+
+if TYPE_CHECKING:
+    from servodesk.services.outbox import Outbox
 
 log = logging.getLogger(__name__)
 
@@ -221,6 +229,12 @@ class AuditLog:
         self._done = 0
         self._closed = False
         self._thread: threading.Thread | None = None
+        #: The local queue while the central store is unreachable (PostgreSQL stores only;
+        #: set by api/state.py). None: a record that cannot be written is dropped.
+        self.outbox: Outbox | None = None
+        # The writer's append and the sync of the queue: one at a time, so the queue's
+        # records reach the chain before any later record.
+        self._chain = threading.Lock()
 
     # Recording --------------------------------------------------------------------------
 
@@ -314,7 +328,7 @@ class AuditLog:
                     return
                 batch, self._queue = self._queue, []
             try:
-                self._append(batch)
+                self._deliver(batch)
             except Exception:
                 log.exception("audit log: %d records could not be written", len(batch))
                 for p in batch:
@@ -323,9 +337,27 @@ class AuditLog:
                 self._done += len(batch)
                 self._cond.notify_all()
 
-    def _append(self, batch: list[_Pending]) -> None:
+    def _deliver(self, batch: list[_Pending]) -> None:
+        """The batch onto the central chain; into the local queue when the store is
+        unreachable or the queue already holds older records (their order is kept)."""
+        outbox = self.outbox
+        with self._chain:
+            if outbox is not None and outbox.has_audit():
+                outbox.add_audit([_queued(p) for p in batch])
+                return
+            try:
+                self._append(batch)
+            except Exception as exc:
+                if outbox is None or not db.is_unreachable(exc):
+                    raise
+                outbox.lost(exc)
+                outbox.add_audit([_queued(p) for p in batch])
+                log.warning("audit log: %d records queued locally", len(batch))
+
+    def _append(self, batch: list[_Pending], before_commit: Any = None) -> str:
         """One transaction: take the chain's lock, read the last record, chain the batch
-        onto it. Another process's writer waits for the lock, then reads this batch's head."""
+        onto it; the new head's hash. Another process's writer waits for the lock, then
+        reads this batch's head. ``before_commit(head)`` runs just before the commit."""
         t = db.audit_log
         with db.write(self._engine) as conn:
             db.serialise(conn, db.LOCK_AUDIT_CHAIN)
@@ -352,6 +384,42 @@ class AuditLog:
                 rows.append({**dict(zip(_COLUMNS, row, strict=True)), "prev": prev, "hash": digest})
                 prev = digest
             conn.execute(sa.insert(t), rows)
+            if before_commit is not None:
+                before_commit(prev)
+        return prev
+
+    def sync_queued(self) -> int:
+        """Chain the locally queued records onto the central log, oldest first; the number
+        appended. Raises what the central store raises (it is still away).
+
+        Exactly once: just before the central commit the queue notes the hash its last record
+        gets there; a sync cut off after that commit finds the hash on the chain and only
+        deletes the queue, one cut off before it appends again."""
+        outbox = self.outbox
+        if outbox is None:
+            return 0
+        with self._chain:
+            queue = outbox.audit_queue()
+            marked = [r for r in queue if r["synced_hash"] is not None]
+            if marked:
+                t = db.audit_log
+                mark = marked[-1]
+                with db.read(self._engine) as conn:
+                    on_chain = conn.execute(
+                        sa.select(t.c.seq).where(t.c.hash == mark["synced_hash"]).limit(1)
+                    ).first()
+                if on_chain is not None:
+                    outbox.drop_audit(int(mark["id"]))
+                    queue = [r for r in queue if r["id"] > mark["id"]]
+                else:
+                    outbox.unmark_audit()
+            if not queue:
+                return 0
+            last_id = int(queue[-1]["id"])
+            batch = [_Pending(**{k: r[k] for k in _Pending.__dataclass_fields__}) for r in queue]
+            self._append(batch, before_commit=lambda head: outbox.mark_audit(last_id, head))
+            outbox.drop_audit(last_id)
+            return len(batch)
 
     # Reading ----------------------------------------------------------------------------
 
@@ -386,21 +454,17 @@ class AuditLog:
         if before is not None:
             query = query.where(t.c.seq < before)
         query = query.order_by(t.c.seq.desc()).limit(limit)
-        with db.read(self._engine) as conn:
-            rows = conn.execute(query).mappings().all()
-        return [_public(r) for r in rows]
+        return [_public(r) for r in db.rows(self._engine, query)]
 
     def _rows(self, since: datetime | None = None) -> Iterator[RowMapping]:
         """Every record in order, read in pages (no transaction is held between pages)."""
         t = db.audit_log
         after = 0
         while True:
-            with db.read(self._engine) as conn:
-                page = (
-                    conn.execute(sa.select(t).where(t.c.seq > after).order_by(t.c.seq).limit(1000))
-                    .mappings()
-                    .all()
-                )
+            # A store that cannot be read is a StoreError (503 when it is unreachable).
+            page = db.rows(
+                self._engine, sa.select(t).where(t.c.seq > after).order_by(t.c.seq).limit(1000)
+            )
             if not page:
                 return
             for r in page:
@@ -458,6 +522,10 @@ class AuditLog:
                 buf = io.StringIO()
                 csv.writer(buf, lineterminator="\n").writerow([_csv_cell(r[f]) for f in fields])
                 yield buf.getvalue()
+
+
+def _queued(p: _Pending) -> dict[str, Any]:
+    return {k: getattr(p, k) for k in _Pending.__dataclass_fields__}
 
 
 def _clean(text: str) -> str:

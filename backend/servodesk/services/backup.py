@@ -260,7 +260,9 @@ class BackupService:
         }
         # The file is complete before the record exists: a crash in between leaves an
         # unlisted but intact file, never a record without its file.
-        self.store.add_backup(info, source)
+        # Queued: the central store was unreachable; the backup waits in the gateway's local
+        # queue and is synced when the store answers (services/outbox.py).
+        info["queued"] = self.store.add_backup(info, source)
         info["source"] = source
         info["complete"] = not ps.unreadable
         return info

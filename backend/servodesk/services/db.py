@@ -32,11 +32,23 @@ from sqlalchemy import event
 from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.engine.url import URL, make_url
 
-from servodesk.errors import ServodeskError
+from servodesk.errors import ServodeskError, Unavailable
 
 
 class StoreError(ServodeskError):
     """The store or a backup file cannot be written or read."""
+
+
+class StoreUnavailable(StoreError, Unavailable):
+    """The central store (PostgreSQL) cannot be reached: a connection-level failure
+    (:func:`is_unreachable`). HTTP 503: the next try may work."""
+
+
+#: What a user is told the gateway does while the central store is away (services/outbox.py).
+QUEUE_HINT = (
+    "this gateway keeps its backups, tuning results and audit records in a local queue and "
+    "syncs them when the store answers again; what needs the central store waits for it"
+)
 
 
 #: The file of the default store inside the data directory.
@@ -509,7 +521,7 @@ def rows(engine: Engine, statement: sa.Executable) -> list[sa.RowMapping]:
         with read(engine) as conn:
             return list(conn.execute(statement).mappings().all())
     except sa.exc.SQLAlchemyError as exc:
-        raise store_error(exc) from exc
+        raise store_error(exc, engine) from exc
 
 
 @contextlib.contextmanager
@@ -519,7 +531,7 @@ def transaction(engine: Engine) -> Iterator[Connection]:
         with write(engine) as conn:
             yield conn
     except sa.exc.SQLAlchemyError as exc:
-        raise store_error(exc) from exc
+        raise store_error(exc, engine) from exc
 
 
 def serialise(conn: Connection, key: int) -> None:
@@ -540,6 +552,51 @@ def insert_ignore(conn: Connection, table: sa.Table) -> Any:
     return sqlite_insert(table).on_conflict_do_nothing()
 
 
-def store_error(exc: sa.exc.SQLAlchemyError) -> StoreError:
-    """A database failure as the error the user sees."""
+# SQLSTATE classes and codes that say the database is not there rather than that the request
+# was wrong (PostgreSQL manual, Appendix A "PostgreSQL Error Codes"): class 08 connection
+# exception; 57P01-57P03 admin/crash shutdown, cannot connect now; 53300 too many connections;
+# 3D000 the database does not exist (dropped or renamed under the gateway).
+_LOST_CODES = frozenset({"57P01", "57P02", "57P03", "53300", "3D000"})
+
+
+def is_unreachable(exc: BaseException) -> bool:
+    """Whether ``exc`` says the central PostgreSQL store cannot be reached (a connection-
+    level failure), as opposed to a refused statement (integrity, programming error, a
+    serialisation failure or deadlock: those are the request's, and retrying them from a
+    queue would not help).
+
+    A server that is down, unreachable, restarting or gone gives a psycopg
+    OperationalError without SQLSTATE (the connection attempt failed), one of class 08, or
+    an InterfaceError / an invalidated connection (the socket broke mid-statement); the
+    pool's time-out counts too. SQLite errors never count: a SQLite store is the local file.
+    """
+    if isinstance(exc, StoreUnavailable):
+        return True
+    if isinstance(exc, sa.exc.TimeoutError):  # The pool's: every connection hangs.
+        return True
+    if not isinstance(exc, sa.exc.DBAPIError):
+        return False
+    try:
+        import psycopg
+    except ImportError:  # pragma: no cover - psycopg is a dependency
+        return False
+    orig = exc.orig
+    if not isinstance(orig, psycopg.Error):
+        return False  # SQLite (or another driver): not a remote store.
+    if exc.connection_invalidated or isinstance(orig, psycopg.InterfaceError):
+        return True
+    if not isinstance(orig, psycopg.OperationalError):
+        return False
+    code = orig.sqlstate
+    return code is None or code.startswith("08") or code in _LOST_CODES
+
+
+def store_error(exc: sa.exc.SQLAlchemyError, engine: Engine | None = None) -> StoreError:
+    """A database failure as the error the user sees: :class:`StoreUnavailable` (503,
+    naming the store) when the central store cannot be reached."""
+    if is_unreachable(exc):
+        where = f" {describe(engine)}" if engine is not None else ""
+        return StoreUnavailable(
+            f"the central store{where} cannot be reached: {_reason(exc)}", hint=QUEUE_HINT
+        )
     return StoreError(f"store error: {_reason(exc)}", hint="see the server log")

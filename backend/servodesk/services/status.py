@@ -1,4 +1,5 @@
-"""The status bar's numbers (issue 48): per bus, its link state, traffic, errors and cycle.
+"""The status bar's numbers (issue 48): per bus, its link state, traffic, errors and cycle;
+and the store's reachability and local queue (issue 49, :func:`store_status`).
 
 Everything here is read from what the sessions, links and cyclic exchanges already keep; no
 request goes to a device to produce it, so the UI may ask once a second whatever the bus.
@@ -12,7 +13,9 @@ from collections.abc import Iterable
 from dataclasses import asdict
 from typing import Any
 
+from servodesk.services import db
 from servodesk.services.session import Session
+from servodesk.services.store import Store
 
 #: The EtherCAT line's states (links/ethercat_health.py) as a bus's state.
 _LINE_STATES = {
@@ -88,4 +91,24 @@ def bus_status(sessions: Iterable[Session]) -> list[dict[str, Any]]:
                 ),
             }
         )
+    return out
+
+
+def store_status(store: Store) -> dict[str, Any]:
+    """The store the gateway writes to (issue 49): its engine and URL (no password), and on
+    a central PostgreSQL whether it answers, since when it does not, what waits in the local
+    queue (services/outbox.py) and the last sync. Read from what the queue keeps: no request
+    goes to the database to answer it (a store that hangs must not hang the status bar)."""
+    out: dict[str, Any] = {
+        "engine": store.engine.dialect.name,
+        "url": db.describe(store.engine),
+        "reachable": True,
+        "since": None,
+        "queued": {},
+        "last_sync": None,
+        "last_error": None,
+        "synced": 0,
+    }
+    if store.outbox is not None:
+        out |= store.outbox.status()
     return out

@@ -16,6 +16,10 @@ name exists), so a file is never half-written under its name and never replaced.
 another gateway made is copied there from the store when it is first opened here
 (:meth:`Store.backup_file_row`); the files of a data directory made before the content was
 in the store are copied into it when the store opens.
+
+On a central PostgreSQL store that cannot be reached, a new backup's record and content wait
+in the gateway's local queue (:attr:`Store.outbox`, services/outbox.py), and a backup is
+looked for there too when the store lacks it or is away.
 """
 
 from __future__ import annotations
@@ -37,7 +41,8 @@ from sqlalchemy.engine import Connection, RowMapping
 from servodesk.errors import ConflictError, NotFoundError, ServodeskError
 from servodesk.files import inside, remove_stale_temp_files
 from servodesk.services import db
-from servodesk.services.db import StoreError
+from servodesk.services.db import StoreError, StoreUnavailable
+from servodesk.services.outbox import Outbox
 
 __all__ = ["Store", "StoreError", "write_new_file"]
 
@@ -139,12 +144,17 @@ class Store:
         self.url = db.store_url(self.data_dir, url)
         self._engine = db.open_engine(self.url)
         self._postgres = db.is_postgres(self._engine)
+        #: The local queue while a central (PostgreSQL) store is unreachable; None on a
+        #: SQLite store, which is the local file itself (services/outbox.py).
+        self.outbox: Outbox | None = None
         try:
             self._repair_columns()
             self._migrate_files()
         except sa.exc.SQLAlchemyError as exc:
             self._engine.dispose()
-            raise db.store_error(exc) from exc
+            raise db.store_error(exc, self._engine) from exc
+        if self._postgres:
+            self.outbox = Outbox(self.data_dir, self._engine)
 
     @property
     def engine(self) -> sa.Engine:
@@ -197,6 +207,8 @@ class Store:
 
     def close(self) -> None:
         self._engine.dispose()
+        if self.outbox is not None:
+            self.outbox.close()
 
     def backup_file(self, name: str) -> Path:
         """The path of backup file ``name``, confirmed inside the backups directory (a name
@@ -213,9 +225,10 @@ class Store:
 
     # Backups -------------------------------------------------------------------------------
 
-    def add_backup(self, info: dict[str, Any], source: str = "drive") -> None:
+    def add_backup(self, info: dict[str, Any], source: str = "drive") -> bool:
         """The record of a backup whose file the caller has written (``info["file"]``), and
-        the file's bytes, in one transaction.
+        the file's bytes, in one transaction; True when the central store was unreachable and
+        both went to the local queue instead (:attr:`outbox`).
 
         A file that cannot be read here or no longer matches ``info["sha256"]`` leaves the
         record without content, as the record of a lost file was before: opening the
@@ -233,29 +246,40 @@ class Store:
                 "backup %s: its file differs from its SHA-256; recorded without it", info["id"]
             )
             data = None
-        with self._tx() as conn:
-            if data is not None:
-                conn.execute(db.insert_ignore(conn, db.backup_content), _content_row(data))
-            conn.execute(
-                sa.insert(db.backups).values(
-                    id=info["id"],
-                    time=info["time"],
-                    created=time.time(),
-                    label=info["label"],
-                    note=info["note"],
-                    profile_id=info["profile_id"],
-                    profile_version=info["profile_version"],
-                    drive_key=info["drive_key"],
-                    identity=json.dumps(info["identity"]),
-                    firmware=info["firmware"],
-                    bus=json.dumps(info["bus"]),
-                    entries=info["entries"],
-                    file=info["file"],
-                    sha256=info["sha256"],
-                    source=source,
-                    unreadable=json.dumps(info.get("unreadable", [])),
-                )
-            )
+        row = {
+            "id": info["id"],
+            "time": info["time"],
+            "created": time.time(),
+            "label": info["label"],
+            "note": info["note"],
+            "profile_id": info["profile_id"],
+            "profile_version": info["profile_version"],
+            "drive_key": info["drive_key"],
+            "identity": json.dumps(info["identity"]),
+            "firmware": info["firmware"],
+            "bus": json.dumps(info["bus"]),
+            "entries": info["entries"],
+            "file": info["file"],
+            "sha256": info["sha256"],
+            "source": source,
+            "unreadable": json.dumps(info.get("unreadable", [])),
+        }
+        content = _content_row(data) if data is not None else None
+        try:
+            with self._tx() as conn:
+                if content is not None:
+                    conn.execute(db.insert_ignore(conn, db.backup_content), content)
+                conn.execute(sa.insert(db.backups).values(row))
+        except StoreUnavailable as exc:
+            if self.outbox is None:
+                raise
+            # The central store is away: the backup waits in the local queue
+            # (services/outbox.py) and opens from there by its id until the sync.
+            self.outbox.lost(exc)
+            self.outbox.add(db.backups, row, content)
+            log.warning("backup %s queued locally: %s", info["id"], exc.message)
+            return True
+        return False
 
     @staticmethod
     def _backup_row(r: RowMapping) -> dict[str, Any]:
@@ -280,8 +304,24 @@ class Store:
             "complete": not unreadable,
         }
 
+    def _query_or_queued(self, statement: sa.Executable) -> list[RowMapping]:
+        """A read of one backup's rows: from the central store, else (not there yet, or the
+        store unreachable) from the local queue, where a backup made offline waits."""
+        try:
+            rows = self._query(statement)
+        except StoreUnavailable:
+            if self.outbox is None:
+                raise
+            queued = self.outbox.rows(statement)
+            if queued:
+                return queued
+            raise
+        if not rows and self.outbox is not None:
+            return self.outbox.rows(statement)
+        return rows
+
     def get_backup(self, bid: str) -> dict[str, Any]:
-        rows = self._query(sa.select(db.backups).where(db.backups.c.id == bid))
+        rows = self._query_or_queued(sa.select(db.backups).where(db.backups.c.id == bid))
         if not rows:
             raise NotFoundError(f"no backup {bid!r}", hint="list the backups with GET /backups")
         return self._backup_row(rows[0])
@@ -295,7 +335,7 @@ class Store:
         same store) is copied here from the store first, so that the path is there to read.
         """
         b = db.backups
-        rows = self._query(
+        rows = self._query_or_queued(
             sa.select(b.c.file, b.c.sha256, b.c.profile_id, b.c.label, b.c.note).where(
                 b.c.id == bid
             )
@@ -319,7 +359,7 @@ class Store:
     def content(self, sha256: str) -> bytes | None:
         """The backup content of this SHA-256, or None when the store lacks it."""
         c = db.backup_content
-        rows = self._query(sa.select(c.c.data).where(c.c.sha256 == sha256))
+        rows = self._query_or_queued(sa.select(c.c.data).where(c.c.sha256 == sha256))
         return bytes(rows[0]["data"]) if rows else None
 
     def list_backups(

@@ -22,6 +22,7 @@ from sqlalchemy.engine import Engine
 from servodesk.domain.ids import check_id
 from servodesk.errors import NotFoundError
 from servodesk.services import db
+from servodesk.services.outbox import Outbox
 
 #: The metadata of a stored result (the row less its TuningResult).
 _META = (
@@ -42,10 +43,12 @@ def _meta(row: sa.RowMapping) -> dict[str, Any]:
 class TuningStore:
     """The ``tuning_results`` table on the store's engine (shared with services/store.py)."""
 
-    def __init__(self, engine: Engine, gateway: str) -> None:
+    def __init__(self, engine: Engine, gateway: str, outbox: Outbox | None = None) -> None:
         self.engine = engine
         #: This gateway's name (the fleet's, services/drift.py): where a tuning ran.
         self.gateway = gateway
+        #: Where a result waits while the central store is unreachable (services/outbox.py).
+        self.outbox = outbox
 
     def add(self, record: dict[str, Any]) -> None:
         """Record one ended job (``record``: the metadata of :data:`_META` less ``gateway``,
@@ -56,8 +59,15 @@ class TuningStore:
             "applied": int(bool(record["applied"])),
             "result": json.dumps(record["result"], allow_nan=False, default=str),
         }
-        with db.transaction(self.engine) as conn:
-            conn.execute(sa.insert(db.tuning_results).values(row))
+        try:
+            with db.transaction(self.engine) as conn:
+                conn.execute(sa.insert(db.tuning_results).values(row))
+        except db.StoreUnavailable as exc:
+            if self.outbox is None:
+                raise
+            # Queued locally and synced when the store answers (services/outbox.py).
+            self.outbox.lost(exc)
+            self.outbox.add(db.tuning_results, row)
 
     def _rows(self, statement: sa.Executable) -> list[sa.RowMapping]:
         return db.rows(self.engine, statement)

@@ -18,6 +18,7 @@ end with it (a gateway's logins are its own; the accounts are the store's, share
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import hmac
 import re
@@ -33,7 +34,13 @@ from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError
 
 from servodesk.domain.roles import Role, parse_role
-from servodesk.errors import ConflictError, NotFoundError, ServodeskError, ValidationError
+from servodesk.errors import (
+    ConflictError,
+    NotFoundError,
+    ServodeskError,
+    Unavailable,
+    ValidationError,
+)
 from servodesk.services import db
 
 NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._@-]{0,63}$")
@@ -53,6 +60,10 @@ _DUMMY = _hasher.hash(secrets.token_urlsafe(16))
 
 class UsersError(ServodeskError):
     """The account store cannot be opened or written."""
+
+
+class UsersUnavailable(UsersError, Unavailable):
+    """The accounts are in a central store that cannot be reached now (HTTP 503)."""
 
 
 @dataclass(frozen=True)
@@ -129,7 +140,9 @@ class UserStore:
         self.url = db.store_url(Path(data_dir), url)
         self._lock = threading.RLock()
         self._engine: sa.Engine | None = None
+        self._has_accounts = True  # has_accounts' last answer
         _ = self._db  # Opened now: a store that cannot be opened is refused at start-up.
+        self.has_accounts()
 
     @property
     def _db(self) -> sa.Engine:
@@ -172,7 +185,12 @@ class UserStore:
     # Accounts ---------------------------------------------------------------------------
 
     def has_accounts(self) -> bool:
-        return bool(self._rows(sa.select(sa.literal(1)).select_from(_U).limit(1)))
+        """Whether any account exists (the auth middleware asks on every request). While a
+        central store is unreachable, the last answer (the first is read when the store opens),
+        so that a loopback gateway keeps working on its local queue (services/outbox.py)."""
+        with contextlib.suppress(UsersUnavailable):
+            self._has_accounts = bool(self._rows(sa.select(sa.literal(1)).select_from(_U).limit(1)))
+        return self._has_accounts
 
     def get(self, name: str) -> User | None:
         rows = self._rows(sa.select(_U).where(_U.c.name == name))
@@ -319,7 +337,8 @@ _U, _T = db.users, db.api_tokens
 
 def _error(exc: sa.exc.SQLAlchemyError) -> UsersError:
     err = db.store_error(exc)
-    return UsersError(err.message, hint=err.hint)
+    kind = UsersUnavailable if isinstance(err, db.StoreUnavailable) else UsersError
+    return kind(err.message, hint=err.hint)
 
 
 def _user(r: sa.RowMapping) -> User:

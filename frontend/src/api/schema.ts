@@ -1846,7 +1846,8 @@ export interface paths {
         /**
          * Get Status
          * @description Per bus of the open sessions: link state, traffic, errors and cycle time, from counts
-         *     the links keep (no bus traffic is made to answer it).
+         *     the links keep (no bus traffic is made to answer it); and the store: reachable or not,
+         *     and what waits in the gateway's local queue (no request to the database either).
          */
         get: operations["get_status"];
         put?: never;
@@ -2196,6 +2197,12 @@ export interface components {
             profile_id: string;
             /** Profile Version */
             profile_version: string;
+            /**
+             * Queued
+             * @description true when the central store was unreachable: the backup waits in this gateway's local queue and is synced when the store answers (docs/deployment.md)
+             * @default false
+             */
+            queued: boolean;
             /** Sha256 */
             sha256: string;
             /**
@@ -6035,6 +6042,8 @@ export interface components {
         StatusOut: {
             /** Buses */
             buses: components["schemas"]["BusStatusOut"][];
+            /** @description the store: reachability and the local queue (docs/deployment.md) */
+            store: components["schemas"]["StoreStatusOut"];
         };
         /** StepMetrics */
         StepMetrics: {
@@ -6126,6 +6135,51 @@ export interface components {
              * @description Dirty entries now saved
              */
             stored: number;
+        };
+        /** StoreStatusOut */
+        StoreStatusOut: {
+            /**
+             * Engine
+             * @enum {string}
+             */
+            engine: "sqlite" | "postgresql";
+            /**
+             * Last Error
+             * @description why the store was last found unreachable
+             */
+            last_error: string | null;
+            /**
+             * Last Sync
+             * @description when the queue last synced records (epoch s)
+             */
+            last_sync: number | null;
+            /**
+             * Queued
+             * @description records waiting in the local queue by kind (backups, tuning_results, audit_log); empty on SQLite
+             */
+            queued: {
+                [key: string]: number;
+            };
+            /**
+             * Reachable
+             * @description the central store answered its last write or sync (always true on SQLite: the store is the local file)
+             */
+            reachable: boolean;
+            /**
+             * Since
+             * @description unreachable since (epoch s); null while it answers
+             */
+            since: number | null;
+            /**
+             * Synced
+             * @description records synced from the queue since the server started
+             */
+            synced: number;
+            /**
+             * Url
+             * @description the store's URL without its password
+             */
+            url: string;
         };
         /**
          * StoredCapture

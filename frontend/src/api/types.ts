@@ -62,6 +62,7 @@ export type SessionInfo = S['SessionInfo'];
 
 /** GET /status: the status bar's numbers per bus (docs/api.md "Status"). */
 export type BusStatus = S['BusStatusOut'];
+export type StoreStatus = S['StoreStatusOut'];
 
 export type SessionEncoder = S['EncoderOut'];
 

@@ -5,17 +5,22 @@
  * The numbers come from GET /status once a second (counts the links keep: asking makes no bus
  * traffic); a session's link lost or restored comes from the WebSocket's `sessions` message
  * at once. Only a change of a bus's state is announced (a polite live region of its own):
- * the counters change every second and would drown a screen reader.
+ * the counters change every second and would drown a screen reader. Last, the store: "store:
+ * PostgreSQL ok", or unreachable since when with the records the gateway keeps in its local
+ * queue meanwhile (issue 49, docs/deployment.md); its change of state is announced too.
  */
 import { useEffect, useRef, useState } from 'react';
 import { api } from '../api/client';
-import type { BusStatus } from '../api/types';
+import type { BusStatus, StoreStatus } from '../api/types';
 import {
   busTitle,
   cycleText,
   errorsText,
   stateChanges,
   stateText,
+  storeState,
+  storeText,
+  storeTitle,
   trafficText,
   withLiveSessions,
 } from '../lib/statusBar';
@@ -28,10 +33,12 @@ export const STATUS_POLL_MS = 1000;
 
 export function StatusBar() {
   const [polled, setPolled] = useState<BusStatus[] | null>(null);
+  const [store, setStore] = useState<StoreStatus | null>(null);
   const [failed, setFailed] = useState<string | null>(null);
   const [announce, setAnnounce] = useState('');
   const live = useObservable(sessions);
   const shown = useRef<BusStatus[]>([]);
+  const shownStore = useRef<boolean | null>(null);
 
   useEffect(() => {
     let stop = false;
@@ -41,6 +48,7 @@ export function StatusBar() {
         const answer = await api.status();
         if (stop) return;
         setPolled(answer.buses);
+        setStore(answer.store);
         setFailed(null);
       } catch (e) {
         // Not a notice: the header's connection indicator already says the server is away.
@@ -58,8 +66,14 @@ export function StatusBar() {
   const buses = (polled ?? []).map((b) => withLiveSessions(b, live));
 
   useEffect(() => {
-    const change = stateChanges(shown.current, buses);
+    const changes = [stateChanges(shown.current, buses)];
     shown.current = buses;
+    // The store's reachability, announced when it changes (not its counts: they tick).
+    if (store !== null) {
+      if (shownStore.current !== null && store.reachable !== shownStore.current) changes.push(storeText(store));
+      shownStore.current = store.reachable;
+    }
+    const change = changes.filter(Boolean).join('. ');
     if (change) setAnnounce(change);
   });
 
@@ -97,6 +111,19 @@ export function StatusBar() {
           </span>
         </div>
       ))}
+      {store && (
+        <div
+          className="status-bus status-store"
+          data-testid="status-store"
+          data-state={storeState(store)}
+          title={storeTitle(store)}
+        >
+          <span className={`status-dot status-dot-${storeState(store)}`} aria-hidden="true" />
+          <span className="status-bus-state" data-testid="status-store-text">
+            {storeText(store)}
+          </span>
+        </div>
+      )}
     </footer>
   );
 }

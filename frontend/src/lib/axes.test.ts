@@ -21,6 +21,7 @@ function backup(id: string, time: string, over: Partial<BackupInfo> = {}): Backu
     file: `${id}.json`,
     sha256: '',
     unreadable: [],
+    queued: false,
     complete: true,
     source: 'drive',
     ...over,

@@ -28,6 +28,7 @@ function backup(p: Partial<BackupInfo>): BackupInfo {
     file: 'f',
     sha256: '',
     unreadable: [],
+    queued: false,
     complete: true,
     source: 'drive',
     ...p,

@@ -1,6 +1,18 @@
 import { describe, expect, it } from 'vitest';
-import type { BusStatus, SessionInfo } from '../api/types';
-import { NOT_REPORTED, cycleText, errorsText, stateChanges, stateText, trafficText, withLiveSessions } from './statusBar';
+import type { BusStatus, SessionInfo, StoreStatus } from '../api/types';
+import {
+  NOT_REPORTED,
+  cycleText,
+  errorsText,
+  queuedCount,
+  stateChanges,
+  stateText,
+  storeState,
+  storeText,
+  storeTitle,
+  trafficText,
+  withLiveSessions,
+} from './statusBar';
 
 function virtualBus(over: Partial<BusStatus> = {}): BusStatus {
   return {
@@ -83,5 +95,51 @@ describe('live link state', () => {
     const up = [virtualBus()];
     expect(stateChanges(up, [virtualBus({ requests: 999 })])).toBe('');
     expect(stateChanges(up, [virtualBus({ state: 'down' })])).toBe('CANopen virtual servodesk-sim: link down');
+  });
+});
+
+describe('the store in the status bar (issue 49)', () => {
+  function store(over: Partial<StoreStatus> = {}): StoreStatus {
+    return {
+      engine: 'postgresql',
+      url: 'postgresql+psycopg://servodesk:***@db.plant:5432/servodesk',
+      reachable: true,
+      since: null,
+      queued: { backups: 0, tuning_results: 0, audit_log: 0 },
+      last_sync: null,
+      last_error: null,
+      synced: 0,
+      ...over,
+    };
+  }
+
+  it('says a central store is ok, and a SQLite store is the local file', () => {
+    expect(storeText(store())).toBe('store: PostgreSQL ok');
+    expect(storeState(store())).toBe('up');
+    expect(storeText(store({ engine: 'sqlite', url: 'sqlite:////data/servodesk.db', queued: {} }))).toBe(
+      'store: SQLite (local file)',
+    );
+  });
+
+  it('says since when the store is unreachable and how much the gateway keeps meanwhile', () => {
+    const since = new Date(2026, 11, 7, 12, 3, 40).getTime() / 1000;
+    const lost = store({
+      reachable: false,
+      since,
+      queued: { backups: 2, tuning_results: 1, audit_log: 11 },
+      last_error: 'connection refused',
+    });
+    expect(storeText(lost)).toBe('store: unreachable since 12:03, 14 records queued locally');
+    expect(storeState(lost)).toBe('down');
+    expect(queuedCount(lost)).toBe(14);
+    expect(storeTitle(lost)).toContain('last error: connection refused');
+    expect(storeTitle(lost)).toContain('2 backups, 1 tuning results, 11 audit log');
+  });
+
+  it('shows the queue draining once the store answers again', () => {
+    const draining = store({ queued: { backups: 1, tuning_results: 0, audit_log: 0 }, last_sync: 1, synced: 3 });
+    expect(storeText(draining)).toBe('store: PostgreSQL ok, syncing 1 record');
+    expect(storeState(draining)).toBe('degraded');
+    expect(storeTitle(draining)).toContain('3 records since start');
   });
 });

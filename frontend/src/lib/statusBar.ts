@@ -2,8 +2,10 @@
  * The status bar's words and numbers (issue 48): one entry per bus from GET /status, with the
  * sessions' link state from the WebSocket laid over it (a lost link shows at once, not at the
  * next poll). A number the link cannot give is said to be not reported, never shown as 0.
+ * And the store (issue 49): whether the central store answers, and what waits in the
+ * gateway's local queue while it does not (docs/deployment.md).
  */
-import type { BusStatus, SessionInfo } from '../api/types';
+import type { BusStatus, SessionInfo, StoreStatus } from '../api/types';
 
 export type BusState = BusStatus['state'];
 
@@ -100,4 +102,49 @@ export function stateChanges(before: readonly BusStatus[], after: readonly BusSt
     .filter((b) => old.has(busTitle(b)) && old.get(busTitle(b)) !== b.state)
     .map((b) => `${busTitle(b)}: ${stateText(b)}`)
     .join('. ');
+}
+
+/** Records waiting in the gateway's local queue, all kinds together. */
+export function queuedCount(store: StoreStatus): number {
+  return Object.values(store.queued).reduce((sum, n) => sum + n, 0);
+}
+
+/** The store's dot: down while unreachable, degraded while its queue drains, else up. */
+export function storeState(store: StoreStatus): BusState {
+  if (!store.reachable) return 'down';
+  return queuedCount(store) > 0 ? 'degraded' : 'up';
+}
+
+function records(n: number): string {
+  return `${n} record${n === 1 ? '' : 's'}`;
+}
+
+/** Local wall-clock time of an epoch in seconds, as the operator's clock shows it (12:03). */
+export function clockText(epochS: number): string {
+  const d = new Date(epochS * 1000);
+  return `${String(d.getHours()).padStart(2, '0')}:${String(d.getMinutes()).padStart(2, '0')}`;
+}
+
+/**
+ * One line: "store: PostgreSQL ok", "store: unreachable since 12:03, 14 records queued
+ * locally", "store: PostgreSQL ok, syncing 3 records"; a SQLite store is the local file.
+ */
+export function storeText(store: StoreStatus): string {
+  if (store.engine === 'sqlite') return 'store: SQLite (local file)';
+  const n = queuedCount(store);
+  if (!store.reachable) {
+    const since = store.since === null ? '' : ` since ${clockText(store.since)}`;
+    return `store: unreachable${since}, ${records(n)} queued locally`;
+  }
+  return n > 0 ? `store: PostgreSQL ok, syncing ${records(n)}` : 'store: PostgreSQL ok';
+}
+
+/** The store's tooltip: where it is, the last error and the last sync. */
+export function storeTitle(store: StoreStatus): string {
+  const lines = [store.url];
+  if (store.last_error) lines.push(`last error: ${store.last_error}`);
+  if (store.last_sync !== null) lines.push(`last sync: ${clockText(store.last_sync)} (${records(store.synced)} since start)`);
+  const kinds = Object.entries(store.queued).filter(([, v]) => v > 0);
+  if (kinds.length) lines.push(`queued: ${kinds.map(([k, v]) => `${v} ${k.replace('_', ' ')}`).join(', ')}`);
+  return lines.join('\n');
 }
