@@ -181,6 +181,8 @@ def test_position_broadcast_and_configured_addressing(line: EthercatSlaveSim) ->
 def test_al_state_machine_refuses_what_it_does_not_support(line: EthercatSlaveSim) -> None:
     slave = line.slaves[1]
     fp = 0x1002
+    # Its own address, whichever test of the module's shared line ran before.
+    _one(line, Datagram.physical(Cmd.APWR, 0, 0xFFFF, ec.Reg.STATION_ADDRESS, H("0210")))
     assert slave.station_address == fp
 
     def control(value: int) -> None:
@@ -221,6 +223,9 @@ def test_process_data_through_the_fmmus(line: EthercatSlaveSim) -> None:
     # What SOEM's config_map programs for a slave with 2 output and 2 input bytes: SM2 at
     # 1100h, SM3 at 1400h, FMMU0 logical 10000h -> 1100h (write), FMMU1 10002h -> 1400h (read).
     slave = line.slaves[0]
+    # The second slave gets an address of its own (the module's line is shared: without it,
+    # both slaves answer station address 0 when this test runs first, and both get FMMUs).
+    _one(line, Datagram.physical(Cmd.APWR, 0, 0xFFFF, ec.Reg.STATION_ADDRESS, H("0210")))
     fp = slave.station_address
     seen: list[bytes | None] = []
     before = slave.on_cycle

@@ -145,20 +145,29 @@ audit = sa.Table(
     sqlite_autoincrement=True,
 )
 
+
+def audit_record_columns() -> list[sa.Column[Any]]:
+    """The columns of one audit record, as services/audit.py hashes them: the chained log's
+    and the local queue's (services/outbox.py) hold the same record."""
+    return [
+        sa.Column("time", sa.Text, nullable=False),
+        sa.Column("user", sa.Text, nullable=False),
+        sa.Column("address", sa.Text, nullable=False),
+        sa.Column("category", sa.Text, nullable=False),
+        sa.Column("event", sa.Text, nullable=False),
+        sa.Column("drive", sa.Text),
+        sa.Column("result", sa.Text, nullable=False),
+        sa.Column("message", sa.Text, nullable=False),
+        sa.Column("details", sa.Text, nullable=False),
+    ]
+
+
 #: The hash-chained audit log (services/audit.py); append-only by triggers.
 audit_log = sa.Table(
     "audit_log",
     metadata,
     sa.Column("seq", sa.Integer, primary_key=True, autoincrement=False),
-    sa.Column("time", sa.Text, nullable=False),
-    sa.Column("user", sa.Text, nullable=False),
-    sa.Column("address", sa.Text, nullable=False),
-    sa.Column("category", sa.Text, nullable=False),
-    sa.Column("event", sa.Text, nullable=False),
-    sa.Column("drive", sa.Text),
-    sa.Column("result", sa.Text, nullable=False),
-    sa.Column("message", sa.Text, nullable=False),
-    sa.Column("details", sa.Text, nullable=False),
+    *audit_record_columns(),
     sa.Column("prev", sa.Text, nullable=False),
     sa.Column("hash", sa.Text, nullable=False),
     sa.Index("audit_log_time", "time"),

@@ -29,6 +29,7 @@ from typing import Any
 
 from servodesk import __version__
 from servodesk.errors import ConflictError, ServodeskError
+from servodesk.services import db
 from servodesk.services.backup import BackupService, drive_key, firmware
 from servodesk.services.fleet import HEARTBEAT_S, FleetStore, SeenDrive, now_iso, serial_of
 from servodesk.services.manager import SessionManager
@@ -183,6 +184,10 @@ class DriftService:
             await asyncio.sleep(period)
             try:
                 await job()
+            except db.StoreUnavailable as exc:
+                # The central store is away: the status bar says so (services/outbox.py); one
+                # line a period, not a traceback.
+                log.warning("fleet: periodic job skipped: %s", exc.message)
             except Exception:  # A store or bus problem: logged, tried again next period.
                 log.exception("fleet: periodic job failed")
 

@@ -62,15 +62,7 @@ outbox_audit = sa.Table(
     "outbox_audit",
     _queue_metadata,
     sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
-    sa.Column("time", sa.Text, nullable=False),
-    sa.Column("user", sa.Text, nullable=False),
-    sa.Column("address", sa.Text, nullable=False),
-    sa.Column("category", sa.Text, nullable=False),
-    sa.Column("event", sa.Text, nullable=False),
-    sa.Column("drive", sa.Text),
-    sa.Column("result", sa.Text, nullable=False),
-    sa.Column("message", sa.Text, nullable=False),
-    sa.Column("details", sa.Text, nullable=False),
+    *db.audit_record_columns(),
     # Set on the last record of a sync just before the central commit: the hash that record
     # gets on the chain. A sync cut off after that commit finds the hash there and only
     # deletes; one cut off before finds nothing and appends again (never twice).
