@@ -107,7 +107,13 @@ def test_keep_a_capture_and_find_it_in_the_drives_list(kept_page: Page) -> None:
     # Attached to the drive's report.
     row.get_by_test_id("scope-kept-attach").check()
     expect(row.get_by_test_id("scope-kept-attach")).to_be_checked()
-    listed = _call(page, "GET", f"/sessions/{SID}/scope/captures")
+    # The box shows the choice at once; the server has it when its PATCH has been answered.
+    deadline = time.monotonic() + 10.0
+    while True:
+        listed = _call(page, "GET", f"/sessions/{SID}/scope/captures")
+        if [c["attached"] for c in listed] == [True] or time.monotonic() > deadline:
+            break
+        time.sleep(0.1)
     assert [c["attached"] for c in listed] == [True]
     # Another tab, later: the list comes from the store.
     page.reload()
