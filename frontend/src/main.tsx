@@ -9,6 +9,7 @@ import './styles.css';
 import { captureTokenFromUrl, endSession, me, refreshMe } from './api/auth';
 import { App } from './App';
 import { LoginPage } from './components/auth/LoginPage';
+import { loadCjkFont } from './lib/cjkFont';
 import { startIdleLock } from './lib/idleLock';
 import { startTheme } from './lib/theme';
 import { useObservable } from './state/observable';
@@ -28,7 +29,8 @@ function Root() {
 
 const root = document.getElementById('root');
 if (!root) throw new Error('index.html has no #root element');
-void refreshMe().then((who) => {
+// The CJK subset before anything is drawn (lib/cjkFont.ts: on demand it drew boxes).
+void Promise.all([refreshMe(), loadCjkFont()]).then(([who]) => {
   if (who !== null) {
     startStore();
     startControlStore();
