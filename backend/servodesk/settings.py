@@ -8,6 +8,8 @@ from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from servodesk import hosts
+from servodesk.domain.address import ObjectAddress
+from servodesk.errors import ServodeskError
 
 
 class Settings(BaseSettings):
@@ -52,6 +54,11 @@ class Settings(BaseSettings):
     #: Connect page's DCP search finds it on the other end (named in the session's note) and
     #: can set its station name and IP address. Needs root or CAP_NET_ADMIN / CAP_NET_RAW.
     sim_dcp: bool = False
+    #: Objects the twins hold no value for: comma-separated ``profile=address`` (for example
+    #: ``smartris=0x607F:00``); their reads answer 0800 0024h "no data available", as a drive
+    #: whose firmware lacks the value does. Every object of the manual has a value in the
+    #: twins (issue 47): this is how the UI's handling of a refusal is shown and tested.
+    sim_withhold: str = ""
     #: Extra profile directories, searched before the shipped profiles (os.pathsep list).
     profile_dirs: str = ""
     #: Where backups, the audit log and the store live.
@@ -117,6 +124,12 @@ class Settings(BaseSettings):
             raise ValueError(f"{v!r} is not an http:// or https:// URL")
         return v.rstrip("/")
 
+    @field_validator("sim_withhold")
+    @classmethod
+    def _withhold(cls, v: str) -> str:
+        withheld(v)  # A bad entry is refused at start-up, not ignored.
+        return v
+
     @field_validator("allowed_hosts")
     @classmethod
     def _hosts(cls, v: str) -> str:
@@ -132,3 +145,19 @@ class Settings(BaseSettings):
     def is_loopback(self) -> bool:
         """Only this machine can reach the server (no token needed): hosts.is_loopback."""
         return hosts.is_loopback(self.host)
+
+
+def withheld(text: str) -> list[tuple[str, ObjectAddress]]:
+    """``SERVODESK_SIM_WITHHOLD``: the (profile id, object) pairs, in order."""
+    out: list[tuple[str, ObjectAddress]] = []
+    for item in (p.strip() for p in text.split(",")):
+        if not item:
+            continue
+        pid, sep, addr = item.partition("=")
+        if not sep or not pid.strip():
+            raise ValueError(f"{item!r}: write profile=address, e.g. smartris=0x607F:00")
+        try:
+            out.append((pid.strip(), ObjectAddress.parse(addr.strip())))
+        except ServodeskError as exc:
+            raise ValueError(f"{item!r}: {exc.message}") from None
+    return out

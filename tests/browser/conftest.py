@@ -36,6 +36,10 @@ def pytest_runtest_makereport(
     return report
 
 
+#: The objects the shared server's twins hold no value for (SERVODESK_SIM_WITHHOLD).
+WITHHELD = "hiwin-e=0x10F1:02,smartris=0x607F:00"
+
+
 @pytest.fixture(scope="package")
 def server_url() -> Iterator[str]:
     try:
@@ -43,7 +47,11 @@ def server_url() -> Iterator[str]:
         # a 2-core machine running Chromium beside the server and a tuning's computation the
         # page's 50 ms heartbeat has lapsed past 250 ms (the own tuning then ended before its
         # first step). The dead-man's latency itself is tests/operation/test_deadman.py's.
-        with running_server(env={"SERVODESK_DEADMAN_MS": "1000"}) as base:
+        # Every object of the manual has a value in the twins (issue 47); two are withheld
+        # here, as a drive whose firmware lacks them answers, so that the pages' handling of
+        # a refusal is seen (test_network.py, test_backup_incomplete.py).
+        env = {"SERVODESK_DEADMAN_MS": "1000", "SERVODESK_SIM_WITHHOLD": WITHHELD}
+        with running_server(env=env) as base:
             yield base
     except HarnessError as e:
         pytest.fail(str(e), pytrace=False)

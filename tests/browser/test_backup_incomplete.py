@@ -1,7 +1,8 @@
 """Nothing hidden on the Backup & restore page (issue 48).
 
-The smartris twin refuses 607Fh (Max profile velocity, abort 0800 0024h), as the drive does:
-its backup lacks that object. The engineer sees so wherever the backup is shown: the result
+The smartris twin of the shared server holds no value for 607Fh (Max profile velocity; it
+answers abort 0800 0024h, as a drive whose firmware lacks the value does: conftest.WITHHELD),
+so its backup lacks that object. The engineer sees so wherever the backup is shown: the result
 of taking it, the history, the comparison, the restore preflight and report, each with the
 object and the drive's error. A restore with nothing to write is not offered.
 """

@@ -109,8 +109,9 @@ def test_ctmm04x_is_reached_by_slmp_on_axis_x(page: Page) -> None:
 
 
 def test_a_refused_object_says_so_in_its_row(page: Page) -> None:
-    # The HIWIN twin has no data for 10F1h:02 (the sync error counter limit: 000 §3.1 gives
-    # no default): its row carries the drive's refusal, the others their value, among them
+    # The HIWIN twin holds no value for 10F1h:02 here (the sync error counter limit; the
+    # shared server withholds it, conftest.WITHHELD, as a drive whose firmware lacks it
+    # answers): its row carries the drive's refusal, the others their value, among them
     # the synchronisation type, FreeRun until a master sets up SYNC0 (000 §2.5).
     page.set_viewport_size({"width": 1280, "height": 800})
     page.goto("/#/network/hiwin-e-2")

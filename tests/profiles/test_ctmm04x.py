@@ -164,7 +164,8 @@ def test_modes_are_pp_pv_hm_and_match_6502(p: DeviceProfile) -> None:
     assert supported == 0x25
     bit_of_mode = {1: 0, 3: 2, 6: 5}
     assert {m for m, b in bit_of_mode.items() if supported >> b & 1} == set(p.modes)
-    assert set(spec(p, 0x6060).values or {}) == {1, 3, 6}
+    # 0: no mode, any other value makes the axis perform no control (the twin starts there).
+    assert set(spec(p, 0x6060).values or {}) == {0, 1, 3, 6}
 
 
 def test_homing_methods_match_60e3_and_6098(p: DeviceProfile) -> None:
@@ -188,7 +189,9 @@ def test_option_codes_use_minus_one_and_minus_two(p: DeviceProfile) -> None:
         assert s.default_value() == -1 and (s.min, s.max) == (-2, -1)
         assert set(s.values or {}) == {-2, -1}
     halt = spec(p, 0x605D)
-    assert halt.data_type is DataType.INTEGER16 and halt.default is None
+    assert halt.data_type is DataType.INTEGER16 and not halt.values
+    # Undocumented: the twin holds the CiA 402 value it acts on, 1 (notes.md, issue 47).
+    assert halt.default_value() == 1 and "not documented" in (halt.description or "")
 
 
 def test_no_quick_stop_objects(p: DeviceProfile) -> None:
@@ -272,7 +275,9 @@ def test_manufacturer_settings_defaults(p: DeviceProfile) -> None:
     assert spec(p, 0x2004).default_value() == 0
     assert spec(p, 0x2005).default_value() == 0x0003
     assert spec(p, 0x2006).default_value() == 0
-    assert spec(p, 0x2002).default is None
+    # 2002h: not printed; the twin's 0 (linear ramps, pulse counter) is notes.md's (issue 47).
+    assert spec(p, 0x2002).default_value() == 0
+    assert "initial value is not printed" in (spec(p, 0x2002).description or "")
     for index in range(0x2002, 0x2007):
         assert spec(p, index).data_type is DataType.UNSIGNED16
 

@@ -297,3 +297,21 @@ def test_following_error_window_off_with_ffffffff() -> None:
     new_setpoint(d)
     d.step(0.5)
     assert d.state is State.OPERATION_ENABLED
+
+
+def test_smartris_max_profile_velocity_is_in_rpm() -> None:
+    # 001 §6-4: 607Fh is printed in rpm (the example: 4500 rpm), whatever the factor group,
+    # while 60FFh is in inc/s (16384 inc/rev). Read as inc/s, the 4500 of its default once
+    # limited profile velocity to 16 rpm.
+    d = new_drive(_CATALOG.get("smartris"))
+    d.write(0x6060, 0, 3)
+    for word in (0x06, 0x07, 0x0F):
+        cw(d, word)
+        d.step(0.05)  # 001 §5-4: controlword commands at least 40 ms apart.
+    assert d.state is State.OPERATION_ENABLED
+    d.write(0x60FF, 0, 3000 * 16384 // 60)  # 3000 rpm
+    d.step(4.0)  # 6083h: 1000 rpm/s.
+    assert d.velocity == pytest.approx(3000 * 16384 / 60, rel=0.01)  # below 4500 rpm
+    d.write(0x607F, 0, 1000)
+    d.step(4.0)
+    assert d.velocity == pytest.approx(1000 * 16384 / 60, rel=0.01)

@@ -115,6 +115,9 @@ def typed_value(dt: DataType, raw: bytes) -> int | float | bool | str | None:
 def command_addresses(profile: DeviceProfile) -> set[ObjectAddress]:
     """Objects that are commands (store, restore, activate, reset), never parameters."""
     out = {a for a in profile.variables if a.index in _COMMAND_INDICES}
+    # Commands the family's own objects take (a clear, a save, a gantry start): a backup that
+    # held their idle value would write it back on restore, and a write is an order.
+    out.update(quirk_addresses(profile, "command_objects"))
     for qid in _COMMAND_QUIRKS:
         q = profile.quirk(qid)
         if isinstance(q, dict) and "index" in q:

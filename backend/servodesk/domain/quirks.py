@@ -15,7 +15,7 @@ safety-relevant quirk off without a word. Now:
   code reads is here and every reader named here still reads it.
 
 ``read_by`` empty means the quirk is device knowledge for the engineer (shown on the profile
-page with its manual section) that no code acts on yet: 39 of the 105 ids are read by code.
+page with its manual section) that no code acts on yet: 40 of the 106 ids are read by code.
 """
 
 from __future__ import annotations
@@ -88,6 +88,7 @@ QUIRKS: Mapping[str, QuirkSpec] = {
     "bootup_emcy": Q(LIST, ()),
     "byte_order": Q(STR, ("services.pdo", "sim.pdo")),
     "clear_alarm_history": Q(MAP, ("services.alarms", "sim.faults", "domain.paramset")),
+    "command_objects": Q(LIST, ("domain.paramset",)),
     "controlword_interpolation_bits": Q(MAP, ()),
     "controlword_min_interval_ms": Q(INT, ("services.session", "sim.engine")),
     "controlword_requires_mastership": Q(MAP, ()),

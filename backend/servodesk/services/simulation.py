@@ -9,7 +9,8 @@ EtherCAT one (the HIWIN E) is a slave of a simulated line behind a veth pair, op
 EtherCAT link (pysoem); where the pair cannot be made (no root) it stays a CANopen node, and
 the log and its session's note say why (docs/ethercat.md). With ``SERVODESK_SIM_DCP=1`` the
 PROFINET twin also answers DCP behind a veth pair, whose other end its session's note names
-(docs/profinet.md, "DCP").
+(docs/profinet.md, "DCP"). ``SERVODESK_SIM_WITHHOLD`` names objects the twins then hold no
+value for (a refusal to show; settings.py).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from servodesk.domain.profile_loader import ProfileCatalog
 from servodesk.errors import ServodeskError
 from servodesk.links.base import LinkParams
 from servodesk.services.manager import GENERIC_ETHERCAT, SessionManager
-from servodesk.settings import Settings
+from servodesk.settings import Settings, withheld
 
 log = logging.getLogger(__name__)
 
@@ -53,6 +54,7 @@ async def start_simulation(
 ) -> Any:
     from servodesk.model.plantfile import load_plant_file
     from servodesk.sim.bus import SimulatedBus
+    from servodesk.sim.engine_base import SimAbort
 
     drives = simulated_drives(catalog, settings.sim_profiles)
     plant = load_plant_file(settings.sim_plant) if settings.sim_plant is not None else None
@@ -86,6 +88,14 @@ async def start_simulation(
         ethercat=veth,
         dcp=dcp_pair,
     )
+    for pid, address in withheld(settings.sim_withhold):
+        for drive in sim.drives:
+            if drive.profile.id != pid:
+                continue
+            try:
+                drive.withhold(address.index, address.subindex)
+            except SimAbort:
+                log.warning("SERVODESK_SIM_WITHHOLD: %s has no object %s", pid, address)
     for drive in sim.drives:
         pid, node = drive.profile.id, drive.node_id
         fieldbus, interface, channel, node_id = sim.link_of(drive)

@@ -318,6 +318,13 @@ class DriveBase:
         for k, fallback in FALLBACK.items():
             v = values.get(k)
             c[k] = v if isinstance(v, int) else fallback
+        spec = self._specs.get(K_MAX_PROFILE_VEL)
+        if spec is not None and spec.raw_unit in ("rpm", "r/min") and c[K_MAX_PROFILE_VEL] > 0:
+            # 607Fh in whole r/min (smartris 001 §6-4), not in position units per second:
+            # the control cycle limits in counts/s.
+            c[K_MAX_PROFILE_VEL] = round(
+                c[K_MAX_PROFILE_VEL] / 60.0 * self.plant_params.counts_per_rev
+            )
         for k in (K_PROFILE_ACC, K_PROFILE_DEC, K_QS_DEC):
             # 0 is "no ramp" (not valid in CiA 402, but so in some families).
             c[k] = max(1, round(self._acceleration(k, c[k]))) if c[k] > 0 else NO_RAMP

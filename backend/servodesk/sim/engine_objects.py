@@ -127,6 +127,16 @@ class ObjectAccess(StateMachine):
             self._values[key(spec.index, spec.subindex)] = value
             self._refresh()
 
+    def withhold(self, index: int, subindex: int = 0) -> None:
+        """Hold no value for an object from now on: reads answer 0800 0024h "no data
+        available" (CiA 301 §7.2.4.3.17), as a drive whose firmware lacks the value does.
+        Every object of the manual has a value in the twins (issue 47); this is how a test
+        meets a drive that refuses one. A write gives it a value again."""
+        with self._lock:
+            spec = self._lookup(index, subindex)
+            self._values[key(spec.index, spec.subindex)] = None
+            self._refresh()
+
     def read(self, index: int, subindex: int = 0) -> Value:
         """The typed value of an object, as an SDO upload would return it."""
         with self._lock:
