@@ -1,6 +1,7 @@
 """Screenshots of every page on every twin at 1440x900 and 1024x768, with contact sheets.
 
-Run: ``.venv/bin/python -m tests.browser.shoot_all /tmp/servodesk-shots-all``. Not a test: it is
+Run: ``.venv/bin/python -m tests.browser.shoot_all /tmp/servodesk-shots-all [page ...]`` (no page:
+all of them). Not a test: it is
 the set a person looks through before a UI change lands (issue 48's "screenshots of every page
 at 1440x900 and 1024x768 on every twin, checked by eye"). It starts ``servodesk serve --sim``
 (the five twins), visits every page of the registry for each open session and the global pages
@@ -14,6 +15,7 @@ from __future__ import annotations
 import json
 import sys
 import urllib.request
+from collections.abc import Sequence
 from pathlib import Path
 
 from PIL import Image, ImageDraw
@@ -75,7 +77,7 @@ def _sheet(shots: list[tuple[str, list[Path]]], out: Path) -> None:
     sheet.save(out)
 
 
-def main(out: Path) -> None:
+def main(out: Path, only: Sequence[str] = ()) -> None:
     out.mkdir(parents=True, exist_ok=True)
     (out / "sheets").mkdir(exist_ok=True)
     with running_server() as base, sync_playwright() as p:
@@ -87,6 +89,8 @@ def main(out: Path) -> None:
             (page, [(sid, label) for sid, label in sessions]) for page in SESSION_PAGES
         ]
         targets += [(page, [("", "global")]) for page in GLOBAL_PAGES]
+        if only:
+            targets = [t for t in targets if t[0] in only]
         for page_id, drives in targets:
             (out / page_id).mkdir(exist_ok=True)
             shots: list[tuple[str, list[Path]]] = []
@@ -111,4 +115,4 @@ def main(out: Path) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1] if len(sys.argv) > 1 else "/tmp/servodesk-shots-all"))
+    main(Path(sys.argv[1] if len(sys.argv) > 1 else "/tmp/servodesk-shots-all"), sys.argv[2:])

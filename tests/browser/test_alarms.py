@@ -66,6 +66,7 @@ def test_following_error_shown_and_reset(operator: Page) -> None:
     put(page, WINDOW, 10)
     page.get_by_test_id("tab-move").click()
     page.get_by_test_id("move-mode-relative").click()
+    page.get_by_test_id("units-raw").click()  # Increments: engineering is the default.
     page.get_by_test_id("move-target").fill("500000")
     page.get_by_test_id("move-velocity").fill("900000")
     page.get_by_test_id("move-acceleration").fill("10000000")
@@ -134,6 +135,7 @@ def test_hiwin_fault_lands_in_its_diagnosis_history(page: Page) -> None:
         assert r.ok, r.text()
         page.get_by_test_id("tab-move").click()
         page.get_by_test_id("move-mode-relative").click()
+        page.get_by_test_id("units-raw").click()  # Increments: engineering is the default.
         page.get_by_test_id("move-target").fill("500000")
         page.get_by_test_id("move-velocity").fill("900000")
         page.get_by_test_id("move-acceleration").fill("10000000")

@@ -171,6 +171,7 @@ def test_a_fault_shows_its_alarm_on_the_drive_and_goes_with_the_reset(page: Page
         put(page, WINDOW, 10)
         page.get_by_test_id("tab-move").click()
         page.get_by_test_id("move-mode-relative").click()
+        page.get_by_test_id("units-raw").click()  # Increments: engineering is the default.
         page.get_by_test_id("move-target").fill("500000")
         page.get_by_test_id("move-velocity").fill("900000")
         page.get_by_test_id("move-acceleration").fill("10000000")

@@ -131,3 +131,65 @@ def test_object_access_takes_rpm_too(page: Page) -> None:
     page.get_by_test_id("object-write").click()
     expect(page.get_by_test_id("object-error-message")).to_contain_text("is not a number")
     assert drive_value(page) == raw
+
+
+def profile_object(page: Page, address: str) -> dict[str, object]:
+    r = page.request.get(f"/api/v1/sessions/{SID}/profile")
+    assert r.ok, r.text()
+    obj: dict[str, object] = next(o for o in r.json()["object_list"] if o["address"] == address)
+    return obj
+
+
+def test_a_new_address_keeps_the_typed_unit(page: Page) -> None:
+    # 3000 typed in rpm for 6081h, then the address changed: an object in rpm keeps 3000 rpm
+    # (its raw value worked out with that object's scale); one in degrees or raw never reads
+    # the number as 3000 deg or 3000 raw, nor converts it with its own scale: it is held,
+    # with a note, and not sent.
+    max_velocity = profile_object(page, "0x607F:00")
+    target = profile_object(page, "0x607A:00")
+    assert (max_velocity["unit"], target["unit"], target["raw_unit"]) == ("rpm", "deg", "inc")
+    page.goto(f"/#/objects/{SID}")
+    take_control(page, SID)
+    address = page.get_by_test_id("object-address")
+    value = page.get_by_test_id("object-value")
+    preview = page.get_by_test_id("object-entry-preview")
+    held = page.get_by_test_id("object-entry-held")
+
+    address.fill("0x6081")
+    value.fill("3000")
+    expect(preview).to_have_text(f"3000 rpm = {round(3000 / session_scale(page))} raw (inc/s)")
+
+    address.fill("0x607F")
+    expect(preview).to_have_text(
+        f"3000 rpm = {round(3000 / float(str(max_velocity['scale'])))} raw (inc/s)"
+    )
+    expect(held).to_have_count(0)
+
+    address.fill("0x607A")
+    expect(page.get_by_test_id("object-value-label")).to_have_text("Value (deg)")
+    expect(held).to_have_text(
+        "“3000” is in rpm (for 0x6081:00); 0x607A:00 is entered in deg: type the value in deg."
+    )
+    expect(preview).to_have_count(0)
+    expect(value).to_have_value("3000")
+    before = page.request.get(f"/api/v1/sessions/{SID}/objects/0x607A:00").json()["value"]
+    page.get_by_test_id("object-write").click()
+    expect(page.get_by_test_id("object-error-message")).to_contain_text("“3000” is in rpm")
+    after = page.request.get(f"/api/v1/sessions/{SID}/objects/0x607A:00").json()["value"]
+    assert after == before
+    # Switching to raw does not convert it with 607Ah's scale either.
+    page.get_by_test_id("object-entry-raw").click()
+    expect(value).to_have_value("3000")
+    expect(held).to_contain_text("0x607A:00 takes raw values")
+    page.get_by_test_id("object-entry-eng").click()
+
+    address.fill("0x6041")
+    expect(held).to_contain_text("0x6041:00 takes raw values: type the raw value.")
+
+    # Back at an object in rpm the number is usable again; typed anew, it is in the new unit.
+    address.fill("0x6081")
+    expect(held).to_have_count(0)
+    expect(preview).to_have_text(f"3000 rpm = {round(3000 / session_scale(page))} raw (inc/s)")
+    address.fill("0x607A")
+    value.fill("90")
+    expect(preview).to_have_text(f"90 deg = {round(90 / float(str(target['scale'])))} raw (inc)")

@@ -111,6 +111,8 @@ def test_quick_stop_from_the_page(operator: Page) -> None:
     page = operator
     take_control_and_enable(page)
     page.get_by_test_id("tab-velocity").click()
+    # In the drive's units (inc/s): the page enters engineering units by default.
+    page.get_by_test_id("units-raw").click()
     page.get_by_test_id("pv-velocity").fill("200000")
     page.get_by_test_id("pv-start").click()
     expect(page.get_by_test_id("motion-status")).to_have_attribute("data-active", "true")
@@ -183,6 +185,8 @@ def test_lecsn_jog_starts_from_a_usable_ramp_and_a_readable_number(page: Page) -
     # that hardly moved. And its long velocity unit squeezed the number to a few digits.
     page.set_viewport_size({"width": 1280, "height": 800})
     page.goto("/#/operation/lecsn-t-1")
+    # The drive's own units, the ones its manual gives the ramp and the speed in.
+    page.get_by_test_id("units-raw").click()
     acc = page.get_by_test_id("jog-acceleration")
     expect(acc).to_have_value("200")
     vel = page.get_by_test_id("jog-velocity")
@@ -191,3 +195,28 @@ def test_lecsn_jog_starts_from_a_usable_ramp_and_a_readable_number(page: Page) -
     assert fits, f"the jog velocity {vel.input_value()} does not fit its field"
     unit = page.get_by_test_id("panel-jog").locator(".op-unit").first
     expect(unit).to_have_attribute("title", "0.01 r/min (0.01 mm/s linear)")
+
+
+def test_entry_units_default_to_engineering_and_are_kept(page: Page) -> None:
+    # A commissioning engineer reads rpm, not inc/s: the motion panels take engineering units
+    # until the person chooses drive units, and the browser keeps that choice, the same one
+    # the object editors use (Parameters' "Enter in").
+    open_operation(page)
+    eng, raw = page.get_by_test_id("units-eng"), page.get_by_test_id("units-raw")
+    expect(eng).to_have_attribute("aria-pressed", "true")
+    expect(raw).to_have_attribute("aria-pressed", "false")
+    unit = page.get_by_test_id("panel-jog").locator(".op-unit-text").first
+    expect(unit).to_have_text("rpm")
+
+    raw.click()
+    expect(raw).to_have_attribute("aria-pressed", "true")
+    expect(eng).to_have_attribute("aria-pressed", "false")
+    expect(unit).to_have_text("inc/s")
+
+    page.reload()
+    expect(page.get_by_test_id("operation-page")).to_be_visible()
+    expect(page.get_by_test_id("units-raw")).to_have_attribute("aria-pressed", "true")
+    page.goto(f"/#/parameters/{SID}/position")
+    expect(page.get_by_test_id("params-groups")).to_be_visible(timeout=15_000)
+    page.get_by_test_id("edit-0x6081:00").click()
+    expect(page.get_by_test_id("entry-raw")).to_have_attribute("aria-pressed", "true")

@@ -103,3 +103,23 @@ def test_restore_defaults_asks_first(page: Page) -> None:
     expect(row.get_by_test_id("param-value")).to_have_text("200000", timeout=10_000)
     expect(row.get_by_test_id("differs-marker")).to_have_count(0)
     expect(row).to_have_attribute("data-dirty", "0")
+
+
+def test_every_column_in_view_at_1024_px(page: Page) -> None:
+    """At 1024 px the group list beside the table pushed its Default, Range and Edit columns
+    out of the card (a scrollbar inside it, issue 48's screenshot set): below 1200 px the
+    groups are chips above the table."""
+    page.set_viewport_size({"width": 1024, "height": 768})
+    try:
+        page.goto("/#/parameters/lecsn-t-1")
+        table = page.get_by_test_id("params-table")
+        expect(table).to_be_visible(timeout=15_000)
+        card = page.locator(".params-table-card")
+        widths = card.evaluate("(el) => [el.scrollWidth, el.clientWidth]")
+        assert widths[0] <= widths[1], widths
+        edit = table.get_by_role("button", name="Edit").first
+        box = edit.bounding_box()
+        assert box is not None and box["x"] + box["width"] <= 1024, box
+        assert page.evaluate("() => document.documentElement.scrollWidth") <= 1024
+    finally:
+        page.set_viewport_size({"width": 1440, "height": 960})

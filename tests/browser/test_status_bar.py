@@ -6,6 +6,7 @@ what an interface cannot report is said, not shown as 0. With ``SERVODESK_SIM_ET
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Iterator
 
 import pytest
@@ -59,6 +60,14 @@ def test_the_bar_is_at_the_foot_of_every_page_with_the_twins_links_up(page: Page
         assert abs(box["y"] + box["height"] - 768) <= 1, (pid, box)
         assert box["x"] >= 0 and box["x"] + box["width"] <= 1024, (pid, box)
         assert page.evaluate("() => document.documentElement.scrollWidth") <= 1024, pid
+        # One line a bus: the CANopen bus's error counters wrapped it onto two at 1024 px
+        # and the bar took 85 of the window's 768 px; they end in an ellipsis now.
+        for bus in BUSES:
+            line = page.get_by_test_id(f"status-bus-{bus}").bounding_box()
+            assert line is not None and line["height"] <= 24, (pid, bus, line)
+        expect(page.get_by_test_id("status-bus-virtual")).to_have_attribute(
+            "title", re.compile("requests failed")
+        )
 
 
 def test_the_virtual_bus_says_what_it_cannot_report(page: Page) -> None:

@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 from PIL import Image
 from playwright.sync_api import Browser, Page
+from scipy import ndimage  # type: ignore[import-untyped]
 from websockets.sync.client import connect
 
 pytestmark = pytest.mark.browser
@@ -175,3 +176,58 @@ def _connects_and_moves(viewer_page: Page, server_url: str) -> None:
         f"{[changed_pixels(a, b) for a, b in itertools.pairwise(shots)]} pixels changed"
     )
     assert changed_pixels(still_b, shots[-1]) > MOVED, "the picture is back where it stood"
+
+
+def label_boxes(shot: np.ndarray) -> list[tuple[int, int, int, int]]:
+    """The stage labels in a picture of the canvas, as (left, top, right, bottom) pixels.
+
+    viser draws the labels in WebGL, not as HTML: they are found in the picture. Their text
+    is the only neutral dark grey there (the housings are blue-grey, the discs light), and the
+    letters of one label are a few pixels apart, the labels far more (their gaps are the
+    point): dark pixels within 3 px of each other are one label; specks are left out.
+    """
+    r, g, b = shot[..., 0], shot[..., 1], shot[..., 2]
+    ink = (shot.sum(axis=2) < 3 * 110) & (np.abs(b - r) <= 2) & (np.abs(g - r) <= 2)
+    near, _ = ndimage.label(ndimage.binary_dilation(ink, structure=np.ones((7, 7), bool)))
+    boxes = []
+    for i, (rows, cols) in enumerate(ndimage.find_objects(near), start=1):
+        if int((ink & (near == i)).sum()) >= 100:
+            boxes.append((cols.start, rows.start, cols.stop, rows.stop))
+    return sorted(boxes)
+
+
+def test_the_stage_labels_stay_apart_at_640_px(viewer_page: Page, server_url: str) -> None:
+    # A 640 px browser: the docked panel leaves the row about 380 px, some 70 px a stage,
+    # while a label keeps its size on screen (about 95 px). Side by side they overlapped
+    # into one band of text; now each label is whole on the canvas and clear of the others.
+    page = viewer_page
+    stages = len(api(server_url, "GET", "/viewer")["axes"])
+    assert stages >= 5, stages
+    canvas = page.locator("canvas").first
+    canvas.wait_for(state="visible", timeout=60_000)
+    # Only the canvas: the panel and the software-WebGL notice are HTML above it.
+    page.add_style_tag(
+        content="body * { visibility: hidden !important } canvas { visibility: visible !important }"
+    )
+    box = canvas.bounding_box()
+    assert box is not None and box["width"] < 640, box
+    left, top = int(box["x"]), int(box["y"])
+    width, height = int(box["width"]), int(box["height"])
+    # Each label is whole once its drive's state has arrived (five lines, about 55 px high).
+    end = time.monotonic() + 60.0
+    while True:
+        shot = picture(page)[top : top + height, left : left + width]
+        boxes = label_boxes(shot)
+        if len(boxes) == stages and all(b[3] - b[1] > 45 for b in boxes):
+            break
+        if time.monotonic() > end:
+            raise AssertionError(
+                f"{len(boxes)} separate labels for {stages} stages (overlapping labels merge): "
+                f"{boxes}"
+            )
+        time.sleep(1.0)
+    for a, b in itertools.combinations(boxes, 2):
+        apart = a[2] <= b[0] or b[2] <= a[0] or a[3] <= b[1] or b[3] <= a[1]
+        assert apart, f"labels {a} and {b} overlap"
+    # Whole: no label runs off the canvas's sides (at 640 px the first one did).
+    assert all(b[0] > 0 and b[2] < width for b in boxes), (width, boxes)

@@ -42,3 +42,22 @@ def test_a_wide_canvas_keeps_the_laptop_framing() -> None:
     # Never closer than the initial camera (framed so five labels do not overlap at 1280 px).
     assert viewer_mod.row_camera(5, 1020 / 720, math.radians(75.0)) == viewer_mod.row_camera(5)
     assert viewer_mod.row_camera(5, 3.0, math.radians(75.0)) == viewer_mod.row_camera(5)
+
+
+@pytest.mark.parametrize(("width", "height"), [(380, 420), (520, 260), (1020, 720)])
+def test_the_end_stages_labels_are_whole_on_the_canvas(width: int, height: int) -> None:
+    # A label keeps its size on screen (about 100 px): the outer stages' centres stay half a
+    # label inside the canvas's edges, or the first and last labels are cut (at 640 px the
+    # first axis's name was).
+    fov = math.radians(75.0)
+    look_at, position = viewer_mod.row_camera(5, width / height, fov, float(width))
+    eye, target = np.array(position), np.array(look_at)
+    forward = (target - eye) / np.linalg.norm(target - eye)
+    right = np.cross(forward, (0.0, 0.0, 1.0))
+    right /= np.linalg.norm(right)
+    half_width = math.tan(fov / 2.0) * width / height
+    for x in (0.0, 4 * viewer_mod.SPACING):
+        v = np.array((x, 0.0, 0.0)) - eye
+        px = (float(v @ right) / float(v @ forward) / half_width + 1.0) * width / 2.0
+        half = viewer_mod.LABEL_HALF_WIDTH_PX - 1e-6  # At the narrow canvas it is the bound.
+        assert half <= px <= width - half, px

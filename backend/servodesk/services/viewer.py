@@ -56,8 +56,16 @@ INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
 
 #: Distance between two stages along x, in scene units (metres in the viewer).
 SPACING = 2.0
-#: The longest profile name a stage's label shows whole; longer ones end in an ellipsis.
-LABEL_NAME_CHARS = 20
+#: The longest profile name a stage's label shows whole; longer ones end in an ellipsis. No
+#: longer than the state's line ("Switch on disabled"): the label's width is the row's budget.
+LABEL_NAME_CHARS = 16
+#: Where a stage's label hangs, along y from the stage's centre (scene units): below the
+#: stage (in front, nearer the camera) for the even slots, above it (behind) for the odd ones.
+LABEL_OFFSET = 0.72
+#: Half a label's width on screen (px), with its padding and a margin: at font_screen_scale
+#: 0.8 "Switch on disabled" is about 90 px wide and "Not ready to switch on", the longest
+#: line, about 105 px (measured in Chromium at 640 px).
+LABEL_HALF_WIDTH_PX = 62.0
 #: Radius of a rotary stage's disc and length of a linear stage's rail window.
 DISC_RADIUS = 0.5
 RAIL_LENGTH = 1.2
@@ -497,7 +505,9 @@ class ViewerService:
             if camera.image_height <= 0 or camera.image_width <= 0:
                 return  # A hidden frame (a folded panel, a tab in the background): no canvas.
             aspect = camera.image_width / camera.image_height
-            look_at, position = row_camera(max(self._framed, 0), aspect, camera.fov)
+            look_at, position = row_camera(
+                max(self._framed, 0), aspect, camera.fov, float(camera.image_width)
+            )
             if np.allclose(position, placed, atol=1e-3):
                 return
             placed = np.asarray(position, dtype=float)
@@ -625,11 +635,18 @@ class ViewerService:
                             position=(pos[0], 0.0, 0.08),
                         )
                     )
+        # The labels keep their size on screen (screen-space font) while the row shrinks with
+        # the canvas: side by side, five of them overlapped on a 640 px browser (about 70 px
+        # between stages, a label was about 110 px wide). So they alternate: an even slot's
+        # label hangs down from in front of its stage, an odd slot's stands up from behind it.
+        # Either row grows away from the other, whatever the zoom, and a label's neighbours
+        # in its row are two stages away (about 130 px at 640 px).
+        below = slot % 2 == 0
         stage.label = scene.add_label(
             f"{base}/label",
             "",
-            position=(0.0, -0.72, 0.0),
-            anchor="top-center",
+            position=(0.0, -LABEL_OFFSET if below else LABEL_OFFSET, 0.0),
+            anchor="top-center" if below else "bottom-center",
             font_screen_scale=0.8,
         )
         nodes.append(stage.label)
@@ -784,7 +801,7 @@ def _node_name(sid: str) -> str:
 
 
 def row_camera(
-    n: int, aspect: float | None = None, fov: float | None = None
+    n: int, aspect: float | None = None, fov: float | None = None, width_px: float | None = None
 ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """The camera's (look_at, position) that shows a row of ``n`` stages from the front, above.
 
@@ -792,7 +809,8 @@ def row_camera(
     the framing for a laptop screen, where a row of five fills the view (at 0.62 x the row's
     width the five twins' labels overlapped on a 1280 px screen, about 100 px between stages).
     With them, the camera steps back further when that canvas is too narrow to show the
-    whole row, never closer.
+    whole row, never closer. With the canvas's width in pixels too (``width_px``), far enough
+    that the outer stages' labels, whose size is fixed on screen, are whole on it.
     """
     span = max(n - 1, 0) * SPACING
     width = span + 2.0 * DISC_RADIUS + 0.6
@@ -804,6 +822,12 @@ def row_camera(
         # is within the horizontal half angle, tan = aspect * tan(fov / 2).
         half_angle = aspect * math.tan(fov / 2.0)
         d = max(d, 1.1 * (width / 2.0) / (half_angle * math.sqrt(1.64)))
+        if width_px is not None and width_px > 4.0 * LABEL_HALF_WIDTH_PX:
+            # An outer stage's centre lands at x / (distance * half_angle) of the half canvas;
+            # half a label must fit beside it. (A canvas narrower than two labels cannot
+            # show the end labels whole at any distance: the row's framing stands.)
+            inner = 1.0 - 2.0 * LABEL_HALF_WIDTH_PX / width_px
+            d = max(d, (span / 2.0) / (half_angle * math.sqrt(1.64) * inner))
     return (cx, 0.0, 0.0), (cx, -d, 0.8 * d)
 
 

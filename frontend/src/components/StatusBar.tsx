@@ -97,7 +97,7 @@ export function StatusBar() {
           className="status-bus"
           data-testid={`status-bus-${b.interface}`}
           data-state={b.state}
-          title={[busTitle(b), b.reason, b.traffic?.load_basis].filter(Boolean).join('\n')}
+          title={[busTitle(b), b.reason, errorsText(b), b.traffic?.load_basis].filter(Boolean).join('\n')}
         >
           <span className={`status-dot status-dot-${b.state}`} aria-hidden="true" />
           <span className="status-bus-name">{busTitle(b)}</span>

@@ -4,6 +4,7 @@ import {
   type UnitSpec,
   bothRangesText,
   engineeringToRaw,
+  heldValueNote,
   loadEntryUnit,
   offersEngineeringEntry,
   parseEngineering,
@@ -151,5 +152,27 @@ describe('the browser remembers the choice', () => {
     expect(m.get(ENTRY_UNIT_KEY)).toBe('raw');
     expect(loadEntryUnit(store)).toBe('raw');
     expect(loadEntryUnit(null)).toBe('eng');
+  });
+});
+
+describe('heldValueNote', () => {
+  const rpm = { unit: 'rpm', address: '0x6081:00' };
+  const raw = { unit: null, address: '0x6041:00' };
+
+  it('keeps a number in the unit the new address takes, and empty input', () => {
+    expect(heldValueNote('3000', rpm, 'rpm', '0x607F:00', 'inc/s')).toBeNull();
+    expect(heldValueNote('1', raw, null, '0x6040:00', null)).toBeNull();
+    expect(heldValueNote('  ', rpm, 'deg', '0x607A:00', 'inc')).toBeNull();
+  });
+
+  it('holds a number typed in another unit, naming both', () => {
+    expect(heldValueNote('3000', rpm, 'deg', '0x607A:00', 'inc')).toBe(
+      '“3000” is in rpm (for 0x6081:00); 0x607A:00 is entered in deg: type the value in deg.',
+    );
+    expect(heldValueNote('3000', rpm, null, '0x6041:00', null)).toBe('“3000” is in rpm (for 0x6081:00); 0x6041:00 takes raw values: type the raw value.');
+    expect(heldValueNote('1000', raw, 'rpm', '0x6081:00', 'inc/s')).toBe(
+      '“1000” is a raw value (for 0x6041:00); 0x6081:00 is entered in rpm: type it in rpm, or choose raw (inc/s).',
+    );
+    expect(heldValueNote('3000', rpm, null, '', null)).toContain('this address takes raw values');
   });
 });

@@ -212,3 +212,27 @@ export function engineeringToRaw(spec: UnitSpec, text: string): EngEntry {
     note: rounded ? `rounded to ${raw} raw = ${engValueText(engineering, unit)} (${why})` : null,
   };
 }
+
+/** The unit a value in an entry box was typed (or read) in, and for which address. */
+export interface TypedIn {
+  /** The engineering unit, or null: raw. */
+  unit: string | null;
+  address: string;
+}
+
+/**
+ * Why a typed value cannot be used for the address now in the box (Object access), or null:
+ * its number is in another unit than the one this address is entered in (`unitNow`, null:
+ * raw). A number in the same unit stays valid whatever the new object's scale: 3000 rpm is
+ * 3000 rpm for 6081h and 607Fh alike, its raw value is worked out with the new scale. One in
+ * another unit means nothing there (3000 rpm is no 3000 deg, nor 3000 raw): it is held with
+ * this note rather than read again in the new unit or converted with the new scale.
+ */
+export function heldValueNote(text: string, typed: TypedIn, unitNow: string | null, addressNow: string, rawUnitNow: string | null): string | null {
+  if (text.trim() === '' || typed.unit === unitNow) return null;
+  const value = `“${text.trim()}” ${typed.unit !== null ? `is in ${typed.unit}` : 'is a raw value'} (for ${typed.address})`;
+  const here = addressNow || 'this address';
+  if (unitNow === null) return `${value}; ${here} takes raw values: type the raw value.`;
+  if (typed.unit === null) return `${value}; ${here} is entered in ${unitNow}: type it in ${unitNow}, or choose raw${rawUnitNow ? ` (${rawUnitNow})` : ''}.`;
+  return `${value}; ${here} is entered in ${unitNow}: type the value in ${unitNow}.`;
+}

@@ -9,6 +9,12 @@
  * entered in either ("Enter in rpm | raw (inc/s)", the browser's choice as on Parameters;
  * lib/units.ts): an engineering value is converted to raw, rounded and range-checked in
  * both units before the raw value is sent.
+ *
+ * The typed value keeps the unit it was typed in. A new address whose object takes the same
+ * unit keeps the number and previews it with that object's scale (3000 rpm stays 3000 rpm,
+ * its inc/s are worked out again); one in another unit, or raw, does not re-read the number
+ * in its own unit (3000 rpm is no 3000 deg, nor 3000 raw): the value is held, not previewed
+ * and not sent, with a note to type it again, until the address is one of its unit again.
  */
 import { type FormEvent, useMemo, useRef, useState } from 'react';
 import type { ObjectInfo, ObjectValue, ObjectWrite } from '../api';
@@ -28,7 +34,7 @@ import {
   toHex,
   valueToInput,
 } from '../lib/format';
-import { type EntryUnit, engineeringToRaw, offersEngineeringEntry, parseEngineering, rawToEngText, toRaw } from '../lib/units';
+import { type EntryUnit, type TypedIn, engineeringToRaw, heldValueNote, offersEngineeringEntry, parseEngineering, rawToEngText, toRaw } from '../lib/units';
 import { protocolName } from '../state/notify';
 import { useSessionInfo, useSessionProfile } from '../state/profileCache';
 import './dataPages.css';
@@ -217,7 +223,13 @@ export function ObjectAccessPage({ sid }: PageProps) {
   }
   const obj = objectAt(address);
   const entry = entryFor(obj, mode);
-  const engCheck = entry === 'eng' && obj && valueText.trim() !== '' ? engineeringToRaw(obj, valueText) : null;
+  /** The unit this address is entered in now (null: raw). */
+  const unitNow = entry === 'eng' && obj ? (obj.unit ?? '') : null;
+  const addressNow = parsedForGate.ok ? formatAddress(parsedForGate.address) : address.trim();
+  const [typedIn, setTypedIn] = useState<TypedIn>({ unit: null, address: addressNow });
+  // A number typed for an object in another unit is held, never previewed or sent in this one.
+  const held = heldValueNote(valueText, typedIn, unitNow, addressNow, obj?.raw_unit ?? null);
+  const engCheck = entry === 'eng' && obj && valueText.trim() !== '' && held === null ? engineeringToRaw(obj, valueText) : null;
 
   function record(e: Omit<HistoryEntry, 'id' | 'time'>) {
     const entry: HistoryEntry = { ...e, id: nextId.current++, time: new Date() };
@@ -239,7 +251,13 @@ export function ObjectAccessPage({ sid }: PageProps) {
     setFailure(null);
     if (v.data_type) types.current.set(v.address, v.data_type);
     const o = objectAt(v.address);
-    setValueText(o && entryFor(o, m) === 'eng' && typeof v.value === 'number' ? rawToEngText(v.value, o) : valueToInput(v.value, m, v.data_type));
+    if (o && entryFor(o, m) === 'eng' && typeof v.value === 'number') {
+      setValueText(rawToEngText(v.value, o));
+      setTypedIn({ unit: o.unit ?? '', address: v.address });
+    } else {
+      setValueText(valueToInput(v.value, m, v.data_type));
+      setTypedIn({ unit: null, address: v.address });
+    }
   }
 
   async function read(addrOverride?: string) {
@@ -266,6 +284,8 @@ export function ObjectAccessPage({ sid }: PageProps) {
     setBusy('write');
     let written = valueText;
     try {
+      // Refused before anything is sent, as a value that does not convert is.
+      if (held !== null) throw new ApiError(`Write ${addr}`, 400, { error: 'ValidationError', message: held });
       let dataType = types.current.get(addr) ?? null;
       if (!dataType) {
         // Learn the type first so hex input and range checks are right; a write-only object
@@ -331,6 +351,10 @@ export function ObjectAccessPage({ sid }: PageProps) {
     if (m !== mode) setMode(m);
     if (pref !== entryPref) setEntryPref(pref);
     if (m === mode && from === to) return;
+    // A held value is in another unit than this object's: converting it with this object's
+    // scale would give a number it never meant. It stays as typed (and is usable again once
+    // the entry is its unit).
+    if (held !== null) return;
     const addr = parseAddress(address);
     const dt = obj?.data_type ?? (addr.ok ? (types.current.get(formatAddress(addr.address)) ?? null) : null);
     let raw: number | null = null;
@@ -343,6 +367,7 @@ export function ObjectAccessPage({ sid }: PageProps) {
     }
     if (raw === null) return;
     setValueText(to === 'eng' && obj ? rawToEngText(raw, obj) : valueToInput(raw, m, dt));
+    setTypedIn({ unit: to === 'eng' && obj ? (obj.unit ?? '') : null, address: addressNow });
   }
 
   function switchMode(m: NumberMode) {
@@ -412,9 +437,12 @@ export function ObjectAccessPage({ sid }: PageProps) {
                 data-testid="object-value"
                 className="mono"
                 value={valueText}
-                onChange={(e) => setValueText(e.target.value)}
+                onChange={(e) => {
+                  setValueText(e.target.value);
+                  setTypedIn({ unit: unitNow, address: addressNow });
+                }}
                 placeholder={entry === 'eng' ? `${obj?.unit ?? ''}, e.g. 1500` : mode === 'hex' ? 'hex, e.g. 3E8' : 'decimal, e.g. 1000'}
-                aria-invalid={engCheck !== null && !engCheck.ok}
+                aria-invalid={held !== null || (engCheck !== null && !engCheck.ok)}
                 spellCheck={false}
                 autoComplete="off"
               />
@@ -456,6 +484,11 @@ export function ObjectAccessPage({ sid }: PageProps) {
               {busy === 'write' ? 'Writing…' : 'Write'}
             </button>
           </form>
+          {held !== null && (
+            <div className="small warn-text" role="status" data-testid="object-entry-held">
+              {held}
+            </div>
+          )}
           {engCheck &&
             (engCheck.ok ? (
               <div className="small ve-preview" data-testid="object-entry-preview">

@@ -15,6 +15,7 @@ import { CyclicPanel } from '../components/operation/CyclicPanel';
 import { ControlCard } from '../components/operation/ControlCard';
 import { useWriteGate } from '../components/ControlNote';
 import { HomingPanel } from '../components/operation/HomingPanel';
+import { useEntryUnit } from '../components/ValueEditor';
 import { JogPanel } from '../components/operation/JogPanel';
 import { MovePanel } from '../components/operation/MovePanel';
 import { StopBar } from '../components/operation/StopBar';
@@ -28,7 +29,7 @@ import { FailureBox } from '../components/FailureBox';
 import { LivePlot } from '../components/LivePlot';
 import { type Failure, failureOf } from '../lib/codes';
 import { formatEngineering } from '../lib/format';
-import { type EntryUnits, formatQuantity } from '../lib/motionLimits';
+import { formatQuantity } from '../lib/motionLimits';
 import { notifyError } from '../state/notify';
 import { useObservable } from '../state/observable';
 import { applyState, liveSession, sessions, socket, socketStatus } from '../state/store';
@@ -120,7 +121,10 @@ export function OperationPage({ sid }: PageProps) {
   const [limitsFailure, setLimitsFailure] = useState<Failure | null>(null);
   const [limitsSettled, setLimitsSettled] = useState(false);
   const [profile, setProfile] = useState<ProfileSummary | null>(null);
-  const [entry, setEntry] = useState<EntryUnits>('raw');
+  // Engineering units by default and the browser's choice after, the one the object editors
+  // use (lib/units.ts, localStorage servodesk.entryUnit): a person who reads rpm and mm types
+  // them on every page.
+  const [entry, setEntry] = useEntryUnit();
   const [panel, setPanel] = useState<PanelId>('jog');
   const [showViewer, setShowViewer] = useState(() => readViewerChoice());
 
@@ -274,10 +278,10 @@ export function OperationPage({ sid }: PageProps) {
               <span className="h2-side">
                 <span className="muted">Enter values in </span>
                 <span className="segmented" role="group" aria-label="Entry units">
-                  <button type="button" className={entry === 'raw' ? 'on' : ''} onClick={() => setEntry('raw')} data-testid="units-raw">
+                  <button type="button" className={entry === 'raw' ? 'on' : ''} aria-pressed={entry === 'raw'} onClick={() => setEntry('raw')} data-testid="units-raw">
                     drive units
                   </button>
-                  <button type="button" className={entry === 'eng' ? 'on' : ''} onClick={() => setEntry('eng')} data-testid="units-eng">
+                  <button type="button" className={entry === 'eng' ? 'on' : ''} aria-pressed={entry === 'eng'} onClick={() => setEntry('eng')} data-testid="units-eng">
                     engineering
                   </button>
                 </span>
