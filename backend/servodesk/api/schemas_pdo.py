@@ -222,7 +222,9 @@ class SlaveHealth(Reply):
 
 
 class PdoLinkHealth(Reply):
-    """What the cycles say about an EtherCAT line (links/ethercat_health.py)."""
+    """What the cycles say about an EtherCAT line (links/ethercat_health.py) or a PROFINET
+    IO AR (links/profinet_io.py: ``ar``, ``data_status_errors``, ``cycle_ms``,
+    ``watchdog_ms``; ``missing_frames`` are the input frames lost)."""
 
     state: Literal["ok", "degraded", "link lost", "recovering"]
     reason: str | None
@@ -236,6 +238,14 @@ class PdoLinkHealth(Reply):
     losses: int
     since_good_s: float | None
     slaves: list[SlaveHealth]
+    ar: str | None = Field(default=None, description="PROFINET: the AR cyclic data runs in")
+    data_status_errors: int | None = Field(
+        default=None, description="PROFINET: input frames whose DataStatus or IOPS was not good"
+    )
+    cycle_ms: float | None = Field(default=None, description="PROFINET: the IOCR's cycle")
+    watchdog_ms: float | None = Field(
+        default=None, description="PROFINET: inputs missing this long make the link lost"
+    )
 
 
 class PdoCyclicStatus(Reply):

@@ -134,6 +134,11 @@ class SessionInfo(BaseModel):
     profile_name: str
     fieldbus: str
     link: str
+    ar: str | None = Field(
+        default=None,
+        description="PROFINET: the application relations the session holds with the drive "
+        "(the supervisor AR of parameter access; the IO controller AR while cyclic data runs)",
+    )
     simulated: bool
     note: str | None
     identity: IdentityOut

@@ -74,6 +74,9 @@ def no_cyclic_reason(link: object) -> str | None:
 
     if isinstance(link, CanopenLink) or getattr(link, "fieldbus", None) == "ethercat":
         return None
+    if getattr(link, "fieldbus", None) == "profinet":
+        # servodesk as the drive's IO controller, where a NIC carries RT frames to it.
+        return getattr(link, "no_cyclic", None)
     reason: str | None = getattr(link, "no_cyclic", None)
     return reason or f"the {getattr(link, 'fieldbus', '?')} link has no cyclic process data"
 
@@ -93,6 +96,11 @@ def transport_for(link: object) -> CyclicTransport:
 
         assert isinstance(link, EthercatLink)
         return EthercatCyclic(link)
+    if getattr(link, "fieldbus", None) == "profinet" and no_cyclic_reason(link) is None:
+        from servodesk.links.profinet_link import ProfinetLink
+
+        assert isinstance(link, ProfinetLink)
+        return link.cyclic_transport()
     raise ConflictError(
         f"the {getattr(link, 'fieldbus', '?')} link has no cyclic process data",
         hint=no_cyclic_reason(link),

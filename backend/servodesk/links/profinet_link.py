@@ -15,11 +15,10 @@ identifier's bit 14, description element 1), which decides what CoE sub 0 means 
 of a simple parameter, the number of entries of an array: description element 2), and the
 format of each element it reads, which a change request must name.
 
-What this link does not do, and why:
-
-- Cyclic process data: the telegram (1, 100, 102, 103) is exchanged with the IO controller
-  over the IO AR it set up from the GSD file (004 §20.1.1); servodesk is a supervisor.
-- NMT: PROFINET has none; the drive's communication state belongs to its IO controller.
+Cyclic data (the telegram, 004 §20.1.2) runs in a second AR, servodesk's IO controller AR
+(links/profinet_io.py), set up when the PDO page starts cyclic data (``nmt("start")``) and
+ended when it stops; a drive whose IO AR is the PLC's refuses it. PROFINET has no NMT
+otherwise: the drive's communication state belongs to its IO controller.
 
 The AR is an IO supervisor AR with device access (ARType 0006h, DeviceAccess): the
 LEC-S-NP's Anybus CompactCom 40 takes IO supervisors next to the PLC's IO AR, and such an AR
@@ -63,6 +62,14 @@ from servodesk.errors import (
     ValidationError,
 )
 from servodesk.links.base import DriveIdentity, DriveLink, LinkParams
+from servodesk.links.profinet_io import (
+    AR_IO,
+    AR_SUPERVISOR,
+    IoController,
+    ProfinetCyclic,
+    check_nic,
+    reduction_ratio,
+)
 
 #: The interface name of this link (the transport: PNIO-CM connectionless RPC on UDP).
 INTERFACE = "profinet"
@@ -136,13 +143,13 @@ class ProfinetLink(DriveLink):
         "with the GSD file (004 §20.1.1); a supervisor does not write them. Edit and export "
         "the layout here for that tool"
     )
-    #: Why there is no cyclic process data here (links/cyclic.py ``transport_for``).
-    no_cyclic = (
-        "a PROFINET IO device exchanges its telegram with the IO controller that set it up "
-        "from the GSD file (004 §20.1.1); servodesk is an IO supervisor (an IO supervisor AR "
-        "with device access, ARType 0006h: the card's Anybus CompactCom 40 accepts supervisors "
-        "next to the PLC's AR and needs no GSD submodules for it, docs/profinet.md) and reads "
-        "and writes the drive's parameters acyclically"
+    #: Why the telegram's cyclic data is not servodesk's here (links/cyclic.py
+    #: ``no_cyclic_reason``) when no network interface carries RT frames to the drive.
+    no_io_nic = (
+        "servodesk reaches this drive as an IO supervisor (an IO supervisor AR with device "
+        "access, ARType 0006h) for its parameters; its telegram is exchanged with an IO "
+        "controller set up from the GSD file (004 §20.1.1), and servodesk is one only where a "
+        "network interface carries its RT frames to the drive"
     )
 
     def __init__(self, params: LinkParams) -> None:
@@ -188,6 +195,58 @@ class ProfinetLink(DriveLink):
         #: Answers dropped (another call's, or no PNIO response) and ARs set up again.
         self.stale = 0
         self.reconnects = 0
+        #: The IO controller AR of cyclic data (links/profinet_io.py), while it runs, and
+        #: what the next one is set up for (:meth:`prepare_io`).
+        self.io: IoController | None = None
+        self._io_plan: tuple[int, int, int, float] | None = None
+        self._io_first = b""
+        self._io_running: tuple[int, int, int, float] | None = None
+
+    @property
+    def no_cyclic(self) -> str | None:
+        """Why there is no cyclic data on this link; None when there can be."""
+        try:
+            check_nic(self.params.extra.get("nic"), self.host)
+        except ServodeskError as exc:
+            return f"{self.no_io_nic}: {exc.message}" + (f" ({exc.hint})" if exc.hint else "")
+        return None
+
+    @property
+    def ar_in_use(self) -> str:
+        """The ARs this session has with the drive, in words (API: the session's ``ar``)."""
+        if self.io is not None:
+            return f"{AR_SUPERVISOR} and {AR_IO}"
+        return AR_SUPERVISOR
+
+    def prepare_io(
+        self,
+        telegram: int | None,
+        rx: int,
+        tx: int,
+        period: float,
+        outputs: bool,
+        first: bytes = b"",
+    ) -> None:
+        """What the next IO AR carries: the drive's telegram (P922) and the lengths of its
+        setpoint (``rx``) and actual-value (``tx``) telegrams, at ``period``, its first
+        outputs ``first`` (services/pdo.py)."""
+        if not outputs:
+            raise ConflictError(
+                "cyclic data over PROFINET runs with outputs on",
+                hint="an IO controller sends the drive its setpoint telegram every cycle; turn "
+                "outputs on (the output image starts from the drive's present values)",
+            )
+        if telegram is None or not rx or not tx:
+            raise ConflictError(
+                "the drive names no telegram with setpoint and actual values (P922)",
+                hint="select telegram 1, 100, 102 or 103 in the drive",
+            )
+        reduction_ratio(period)  # a cycle servodesk does not offer: refused before the AR
+        self._io_plan = (telegram, rx, tx, period)
+        self._io_first = first
+
+    def cyclic_transport(self) -> ProfinetCyclic:
+        return ProfinetCyclic(self)
 
     # Hooks -------------------------------------------------------------------------
 
@@ -212,6 +271,7 @@ class ProfinetLink(DriveLink):
             raise
 
     def _close(self) -> None:
+        self._end_io()
         sock, self._sock = self._sock, None
         if sock is None:
             return
@@ -276,14 +336,59 @@ class ProfinetLink(DriveLink):
         return out
 
     def _nmt(self, command: str) -> None:
+        """PROFINET has no NMT: "start" sets up servodesk's IO controller AR and its cycle
+        (the exchange's OPERATIONAL), "preop" / "stop" end it; the rest, and those without
+        an IO AR, are refused as before."""
+        if command == "start":
+            self._start_io()
+            return
+        if command in ("preop", "stop") and self.io is not None:
+            self._end_io()
+            return
         raise ConflictError(
             f"servodesk sends no NMT command ({command}) over PROFINET",
             hint="PROFINET has no NMT; the drive's communication state belongs to its IO "
             "controller (004 §20.1.1)",
         )
 
+    def _start_io(self) -> None:
+        plan = self._io_plan
+        if plan is None:
+            raise ConflictError(
+                "no telegram planned for the IO AR", hint="start cyclic data from the PDO page"
+            )
+        running = self.io
+        if running is not None and self._io_running == plan and running.health.state == "ok":
+            # Cyclic data started again with the same telegram and cycle: the AR stays (a
+            # Release would take the drive to Switch on disabled, 004 §20.5.2).
+            running.set_outputs(self._io_first.ljust(plan[1], b"\0")[: plan[1]])
+            return
+        self._end_io()
+        telegram, rx, tx, period = plan
+        controller = IoController(
+            self.host,
+            self.port,
+            check_nic(self.params.extra.get("nic"), self.host),
+            object_uuid=self._object_uuid,
+            telegram=telegram,
+            rx_bytes=rx,
+            tx_bytes=tx,
+            cycle_s=period,
+            timeout=self.params.timeout,
+        )
+        controller.set_outputs(self._io_first.ljust(rx, b"\0")[:rx])
+        controller.connect()
+        self.io = controller
+        self._io_running = plan
+
+    def _end_io(self) -> None:
+        controller, self.io = self.io, None
+        if controller is not None:
+            controller.close()
+
     def _network_state(self) -> str:
-        return "unknown"
+        """ "operational" while servodesk's IO AR exchanges the telegram."""
+        return "operational" if self.io is not None else "unknown"
 
     # Objects as parameters -------------------------------------------------------------
 

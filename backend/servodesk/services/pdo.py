@@ -526,6 +526,30 @@ async def start_cyclic(
                         image[s.address] = codec(s.data_type).decode(
                             await session.link.read(s.address)
                         )
+    prepare = getattr(session.link, "prepare_io", None)
+    if prepare is not None:
+        # PROFINET: the IO AR is set up for the drive's telegram at this cycle (its lengths
+        # from the telegram's layout), checked before anything changes; its first frames
+        # carry the image from the drive's present values, not zeros (a controlword 0).
+        first = b"".join(
+            pdomod.pack(
+                session.profile,
+                p,
+                {
+                    s.address: image.get(s.address, 0)
+                    for s in pdomod.layout(session.profile, p)
+                    if s.address is not None
+                },
+            )
+            for p in config.active(pdomod.Direction.RX)
+        )
+        # A telegram's frame is its fixed size (004 §20.1.2: 48 bytes for 102), the mapping
+        # padded with Reserved entries.
+        tel = session.profile.pdo.telegram(config.telegram) if config.telegram else None
+        size = tel.bytes if tel is not None else 0
+        rx = max(size, sum(p.bytes for p in config.active(pdomod.Direction.RX)))
+        tx = max(size, sum(p.bytes for p in config.active(pdomod.Direction.TX)))
+        prepare(config.telegram, rx, tx, period, outputs, first)
     previous = cyclic_of(session)
     stop_cyclic_now(session)
     # CiA 301 §7.3.2.2.1: PDOs are exchanged only in NMT OPERATIONAL. The node is put back

@@ -306,6 +306,8 @@ class Session:
             "profile_name": self.profile.name,
             "fieldbus": self.profile.fieldbus,
             "link": self.link.fieldbus,
+            # PROFINET: the application relations the session holds with the drive.
+            "ar": getattr(self.link, "ar_in_use", None),
             "simulated": self.simulated,
             "note": self.note,
             "identity": asdict(self.identity),

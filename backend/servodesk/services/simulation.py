@@ -99,12 +99,16 @@ async def start_simulation(
     for drive in sim.drives:
         pid, node = drive.profile.id, drive.node_id
         fieldbus, interface, channel, node_id = sim.link_of(drive)
-        extra: dict[str, int] = {}
+        extra: dict[str, int | str] = {}
         if fieldbus == "profinet":
             # The RPC object UUID names the device's vendor and device ID, as its DCP
             # Identify gives them (the profile's dcp quirk on the twin; docs/profinet.md).
             ids = drive.profile.quirk("dcp", None) or {}
             extra = {k: int(ids[k]) for k in ("vendor_id", "device_id") if k in ids}
+            if dcp_pair is not None and sim.profinet and sim.profinet[0].io is not None:
+                # The twin's RT frames are on the pair's slave end: cyclic data from the
+                # master end (servodesk as its IO controller, docs/profinet.md).
+                extra["nic"] = dcp_pair.master
         params = LinkParams(
             interface=interface,
             channel=channel,

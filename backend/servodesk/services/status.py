@@ -86,7 +86,9 @@ def bus_status(sessions: Iterable[Session]) -> list[dict[str, Any]]:
                         "missing_frames": health["missing_frames"],
                         "losses": health["losses"],
                     }
-                    if health
+                    # A PROFINET IO AR's health has no working counter: the PDO page
+                    # shows its frames lost and data-status errors (docs/profinet.md).
+                    if health and first.link.fieldbus == "ethercat"
                     else None
                 ),
             }

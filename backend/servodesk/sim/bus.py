@@ -242,6 +242,8 @@ class SimulatedBus:
                 if dcp is not None:
                     # One device per interface: it answers with the interface's MAC.
                     devices_pn[0].serve_dcp(dcp.slave, manage_addresses=True)
+                    # And takes an IO controller's AR with RT frames there (cyclic data).
+                    devices_pn[0].serve_io(dcp.slave)
             network = cls._connect(interface, channel, bitrate) if on_can else None
             undo.pop_all()
         devices: list[SimCanopenDevice] = []

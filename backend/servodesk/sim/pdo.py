@@ -384,6 +384,12 @@ class PdoEngine:
     def rpdo_names(self) -> list[str]:
         return [f"{r.name}@{r.can_id:03X}" for r in self._rpdos]
 
+    def frame_bytes(self, direction: str) -> int:
+        """Bytes on the bus of the active RxPDOs ("rx") or TxPDOs ("tx"): a telegram's
+        fixed size (PROFINET's IO data lengths, sim/profinet_io.py)."""
+        items: Sequence[_Tpdo | _Rpdo] = self._rpdos if direction == "rx" else self._tpdos
+        return sum(x.layout.frame for x in items)
+
     def configure(self) -> None:
         """Rebuild the active PDOs from the drive's objects (after a write or a reset)."""
         with self._drive.lock:

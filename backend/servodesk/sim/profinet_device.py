@@ -2,7 +2,9 @@
 
 :class:`ProfinetDevice` answers connectionless DCE/RPC on a UDP socket as a PROFINET IO
 device's context manager does (:mod:`servodesk.domain.pnio`): ``Connect`` with a supervisor
-AR with device access, ``Write`` / ``Read`` of records, ``Release``. Two records are served:
+AR with device access, ``Write`` / ``Read`` of records, ``Release``; with :meth:`ProfinetDevice.
+serve_io` also an IO controller's AR, its ``Control`` PrmEnd and RT frames on a network
+interface (sim/profinet_io.py). Two records are served:
 
 - 0xB02E on slot 1, subslot 1 (the PROFIdrive drive object, I&M0 profile ID 3A00h): a
   parameter request written there is carried out on the spot, and its response is read back
@@ -64,6 +66,7 @@ from servodesk.domain.profile import ObjectSpec, ObjectType
 from servodesk.errors import LinkError, ValidationError
 from servodesk.sim.engine import SimAbort, SimulatedDrive
 from servodesk.sim.profinet_dcp import DcpResponder, DcpStation, interface_mac
+from servodesk.sim.profinet_io import IoDevice, Refused
 from servodesk.sim.udp_server import UdpServer
 from servodesk.sim.veth import add_address, delete_address
 
@@ -121,6 +124,10 @@ ID_READ_ONLY = 0x0200
 #: P922 (telegram selection): read-only over PROFIdrive, set by the IO controller's
 #: configuration (004 §20.4.3.1: access R).
 P922 = 0x039A
+#: ARType of an IO controller's AR, the Control operation and its PNIOStatus ErrorCode.
+AR_TYPE_IOCAR = 0x0001
+OP_CONTROL = 4
+ERROR_CODE_CONTROL = 0xDD
 
 
 @dataclass(slots=True)
@@ -196,6 +203,17 @@ class ProfinetDevice(UdpServer):
         #: Longest response body sent in one datagram; a longer one goes in fragments
         #: (C706 §12.5.3.2; PNIO limits a fragment to the UDP payload of one frame).
         self.max_fragment_body = pnio.MAX_DATAGRAM - pnio.RPC_HEADER_LEN
+        #: The IO device for an IO controller's AR and its RT frames (:meth:`serve_io`).
+        self.io: IoDevice | None = None
+
+    # Cyclic IO -------------------------------------------------------------------------
+
+    def serve_io(self, ifname: str) -> IoDevice:
+        """Take an IO controller's AR and exchange its RT frames on ``ifname`` (the device
+        end of a veth pair; sim/profinet_io.py). Without it an IO AR is refused (ARType)."""
+        if self.io is None:
+            self.io = IoDevice(self.drive, ifname).start()
+        return self.io
 
     # DCP -------------------------------------------------------------------------------
 
@@ -211,7 +229,7 @@ class ProfinetDevice(UdpServer):
         responder = DcpResponder(
             self.station,
             interface_mac(ifname),
-            busy=lambda: self.ars > 0,
+            busy=lambda: self.ars > 0 or (self.io is not None and self.io.ar is not None),
             on_ip=self._take_ip,
             on_factory=self._factory,
         )
@@ -260,12 +278,17 @@ class ProfinetDevice(UdpServer):
         """Reset to factory (004 §20.4.5): mode 8 also forgets every stored parameter; both
         reset the drive like a power cycle."""
         self._state.ars.clear()
+        if self.io is not None:
+            self.io.drop()
         if mode == 8:
             self.drive.factory_reset()
         else:
             self.drive.reset_node()
 
     def stop(self) -> None:
+        if self.io is not None:
+            self.io.stop()
+            self.io = None
         if self._dcp is not None:
             self._dcp.stop()
             self._dcp = None
@@ -406,6 +429,7 @@ class ProfinetDevice(UdpServer):
             pnio.OP_RELEASE: pnio.ERROR_CODE_RELEASE,
             pnio.OP_READ: pnio.ERROR_CODE_READ,
             pnio.OP_WRITE: pnio.ERROR_CODE_WRITE,
+            OP_CONTROL: ERROR_CODE_CONTROL,
         }.get(req.opnum)
         if err is None:
             return pnio.pnio_status(0xDD, pnio.DECODE_PNIO, pnio.CMRPC, 0x01), 0, b""
@@ -420,7 +444,11 @@ class ProfinetDevice(UdpServer):
                 return 0, args_max, self._release(args)
             if req.opnum == pnio.OP_WRITE:
                 return self._write(args, args_max)
+            if req.opnum == OP_CONTROL:
+                return 0, args_max, self._control(args)
             return self._read(args, args_max)
+        except Refused as exc:
+            return pnio.pnio_status(err, *exc.codes), args_max, b""
         except pnio.PnioFrameError:
             return pnio.pnio_status(err, pnio.DECODE_PNIO, pnio.CMRPC, 0x01), args_max, b""
         except _Refused as exc:
@@ -440,6 +468,10 @@ class ProfinetDevice(UdpServer):
             if t == pnio.BLOCK_AR_REQ and low != 0:
                 raise _Refused(pnio.DECODE_PNIO, 0x01, field["version_low"])
         ar = pnio.parse_ar_block_req(ar_reqs[0])
+        if ar.ar_type == AR_TYPE_IOCAR and self.io is not None:
+            # An IO controller's AR: the IO device checks its blocks (sim/profinet_io.py).
+            self._check_station(ar)
+            return self.io.connect(ar, blocks, self.peer)
         # Only a supervisor AR with device access: no IO controller, expected submodules or
         # cyclic data come with it (the twin has no IO data to exchange; docs/profinet.md).
         if ar.ar_type != pnio.AR_TYPE_SUPERVISOR:
@@ -454,17 +486,7 @@ class ProfinetDevice(UdpServer):
             or not ar.properties & pnio.AR_PROPERTIES_DEVICE_ACCESS & 0x100
         ):
             raise _Refused(pnio.DECODE_PNIO, 0x01, field["properties"])
-        if ar.udp_rt_port != 0x8892:
-            raise _Refused(pnio.DECODE_PNIO, 0x01, field["udp_rt_port"])
-        if not 1 <= len(ar.station_name) <= 240:
-            raise _Refused(pnio.DECODE_PNIO, 0x01, field["name_length"])
-        try:
-            check_name_of_station(ar.station_name)
-        except ValidationError:
-            raise _Refused(pnio.DECODE_PNIO, 0x01, field["station_name"]) from None
-        low, high = ACTIVITY_FACTOR_RANGE
-        if not low <= ar.timeout_factor <= high:
-            raise _Refused(pnio.DECODE_PNIO, 0x01, FIELD_ACTIVITY_FACTOR)  # faulty ARBlockReq
+        self._check_station(ar)
         initiator = (ar.initiator_mac, ar.station_name)
         live = self._state.ars.get(ar.ar_uuid)
         if live is not None and live.initiator != initiator:
@@ -481,10 +503,36 @@ class ProfinetDevice(UdpServer):
         )
         return pnio.ar_block_res(ar.ar_type, ar.ar_uuid, ar.session_key, self.mac)
 
+    def _check_station(self, ar: pnio.ArRequest) -> None:
+        """The ARBlockReq's fields every AR type shares: UDP RT port, station name, activity
+        time-out factor (IEC 61158-6-10 ARBlockReq)."""
+        field = pnio.AR_FIELD
+        if ar.udp_rt_port != 0x8892:
+            raise _Refused(pnio.DECODE_PNIO, 0x01, field["udp_rt_port"])
+        if not 1 <= len(ar.station_name) <= 240:
+            raise _Refused(pnio.DECODE_PNIO, 0x01, field["name_length"])
+        try:
+            check_name_of_station(ar.station_name)
+        except ValidationError:
+            raise _Refused(pnio.DECODE_PNIO, 0x01, field["station_name"]) from None
+        low, high = ACTIVITY_FACTOR_RANGE
+        if not low <= ar.timeout_factor <= high:
+            raise _Refused(pnio.DECODE_PNIO, 0x01, FIELD_ACTIVITY_FACTOR)  # faulty ARBlockReq
+
+    def _control(self, args: bytes) -> bytes:
+        """Control (opnum 4): an IO controller's PrmEnd for its IO AR."""
+        if self.io is None:
+            raise _Refused(pnio.DECODE_PNIO, pnio.CMRPC, 0x05)  # no IO AR: AR UUID unknown
+        return self.io.control(args)
+
     def _release(self, args: bytes) -> bytes:
         ar_uuid, key, _command = pnio.parse_release_block(
             pnio.one_block(args, pnio.BLOCK_RELEASE_REQ)
         )
+        if self.io is not None:
+            done = self.io.release(ar_uuid, key)
+            if done is not None:
+                return done
         ar = self._state.ars.get(ar_uuid)
         if ar is None:
             raise _Refused(pnio.DECODE_PNIO, pnio.CMRPC, 0x05)  # AR UUID unknown
@@ -796,7 +844,7 @@ class ProfinetDevice(UdpServer):
 
 
 #: The PNIO-CM operations the device interface exports (IEC 61158-6-10: Connect, Release,
-#: Read, Write, Control; Control (4) is the IO controller's, answered as not supported here).
+#: Read, Write, Control; Control (4) carries an IO controller's PrmEnd).
 _OPS = frozenset({pnio.OP_CONNECT, pnio.OP_RELEASE, pnio.OP_READ, pnio.OP_WRITE, 4})
 
 

@@ -36,6 +36,9 @@ class UdpServer(ABC):
         #: Requests answered and datagrams dropped (tests and logs).
         self.answered = 0
         self.dropped = 0
+        #: Who sent the datagram being answered (a device that calls its client back, as a
+        #: PROFINET device calls its IO controller's ApplicationReady, needs it).
+        self.peer: tuple[str, int] = ("", 0)
 
     @abstractmethod
     def answer(self, frame: bytes) -> bytes | None:
@@ -120,6 +123,7 @@ class UdpServer(ABC):
                 continue
             except OSError:
                 return  # Closed.
+            self.peer = (str(peer[0]), int(peer[1]))
             try:
                 datagrams = self.answers(frame)
             except Exception:  # A bug here must not stop the server.

@@ -4540,13 +4540,30 @@ export interface components {
         };
         /**
          * PdoLinkHealth
-         * @description What the cycles say about an EtherCAT line (links/ethercat_health.py).
+         * @description What the cycles say about an EtherCAT line (links/ethercat_health.py) or a PROFINET
+         *     IO AR (links/profinet_io.py: ``ar``, ``data_status_errors``, ``cycle_ms``,
+         *     ``watchdog_ms``; ``missing_frames`` are the input frames lost).
          */
         PdoLinkHealth: {
+            /**
+             * Ar
+             * @description PROFINET: the AR cyclic data runs in
+             */
+            ar?: string | null;
             /** Carrier */
             carrier: boolean | null;
+            /**
+             * Cycle Ms
+             * @description PROFINET: the IOCR's cycle
+             */
+            cycle_ms?: number | null;
             /** Cycles */
             cycles: number;
+            /**
+             * Data Status Errors
+             * @description PROFINET: input frames whose DataStatus or IOPS was not good
+             */
+            data_status_errors?: number | null;
             /** Expected Wkc */
             expected_wkc: number;
             /** Last Wkc */
@@ -4568,6 +4585,11 @@ export interface components {
              * @enum {string}
              */
             state: "ok" | "degraded" | "link lost" | "recovering";
+            /**
+             * Watchdog Ms
+             * @description PROFINET: inputs missing this long make the link lost
+             */
+            watchdog_ms?: number | null;
             /** Wkc Errors */
             wkc_errors: number;
         };
@@ -5839,6 +5861,11 @@ export interface components {
         };
         /** SessionInfo */
         SessionInfo: {
+            /**
+             * Ar
+             * @description PROFINET: the application relations the session holds with the drive (the supervisor AR of parameter access; the IO controller AR while cyclic data runs)
+             */
+            ar?: string | null;
             /** Bitrate */
             bitrate: number | null;
             /** Channel */

@@ -34,6 +34,9 @@ describe('networkState', () => {
     expect(networkState({ link: 'canopen', nmt_state: 'unknown' }).value).toBe('not reported (no heartbeat)');
     expect(networkState({ link: 'ethercat', nmt_state: 'safeop' })).toMatchObject({ label: 'AL state', value: 'safeop' });
     expect(networkState({ link: 'profinet', nmt_state: 'unknown', connected: true })).toMatchObject({ label: 'AR', value: "up (servodesk's supervisor AR)" });
+    expect(networkState({ link: 'profinet', nmt_state: 'operational', connected: true }).value).toBe(
+      "up (servodesk's supervisor AR and its IO AR: cyclic data)",
+    );
     expect(networkState({ link: 'profinet', nmt_state: 'unknown', connected: false }).value).toMatch(/down/);
     expect(networkState({ link: 'cclink-ie-tsn', nmt_state: 'unknown', connected: true })).toMatchObject({ label: 'SLMP link', value: 'answering' });
   });

@@ -53,7 +53,12 @@ export function networkState(s: NetworkSession): NetworkState {
   if (s.link === 'profinet') {
     return {
       label: 'AR',
-      value: up ? "up (servodesk's supervisor AR)" : 'down: the drive does not answer',
+      // "operational": servodesk's IO controller AR runs the drive's telegram (cyclic data).
+      value: !up
+        ? 'down: the drive does not answer'
+        : s.nmt_state === 'operational'
+          ? "up (servodesk's supervisor AR and its IO AR: cyclic data)"
+          : "up (servodesk's supervisor AR)",
       title: `${nmtTitle(s.nmt_state, s.link)} The AR shown is servodesk's own supervisor AR, up while the drive answers.`,
     };
   }

@@ -47,6 +47,14 @@ function LinkCard({ session }: { session: SessionInfo }) {
               {link}
             </td>
           </tr>
+          {session.ar && (
+            <tr>
+              <th>Application relation</th>
+              <td data-testid="network-ar" title="docs/profinet.md: which AR servodesk uses">
+                {session.ar}
+              </td>
+            </tr>
+          )}
           <tr>
             <th>Interface</th>
             <td className="mono" data-testid="network-interface">

@@ -1,0 +1,410 @@
+"""Cyclic PROFINET IO: servodesk as the LECSN-T's IO controller (links/profinet_io.py) and the
+twin as its IO device (sim/profinet_io.py), RT frames on a veth pair (docs/profinet.md,
+"Cyclic data"; needs root, as the EtherCAT and DCP tests).
+
+The connect blocks and the RT frames are dissected with scapy's own PROFINET layers
+(``pnio_rpc``, ``pnio``, ``dcerpc``), not with servodesk's decoder.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import dataclasses
+import itertools
+import socket
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from scapy.contrib.pnio import PNIORealTimeCyclicPDU, ProfinetIO
+from scapy.contrib.pnio_rpc import (
+    AlarmCRBlockReq,
+    ARBlockReq,
+    ExpectedSubmoduleBlockReq,
+    IOCRBlockReq,
+    IODControlReq,
+    PNIOServiceReqPDU,
+)
+from scapy.layers.dcerpc import DceRpc4
+from scapy.layers.l2 import Ether
+
+from servodesk.domain import pnio
+from servodesk.domain.profile_loader import ProfileCatalog
+from servodesk.errors import ConflictError, ValidationError
+from servodesk.links.base import LinkParams
+from servodesk.links.profinet_io import IoController
+from servodesk.links.profinet_link import ProfinetLink
+from servodesk.sim.engine import SimulatedDrive
+from servodesk.sim.profinet_dcp import interface_mac
+from servodesk.sim.profinet_device import ProfinetDevice
+from servodesk.sim.runner import SimRunner
+from servodesk.sim.veth import VethPair, create_veth
+from tests.operation.support import headers, operation_app, take_and_enable, wait_motion
+
+pytestmark = pytest.mark.timeout(90)
+SID = "lecsn-t-1"
+A = headers("A")
+P922 = 0x039A
+
+
+@pytest.fixture(scope="module")
+def veth() -> Iterator[VethPair]:
+    pair = create_veth("sdio")
+    try:
+        yield pair
+    finally:
+        pair.delete()
+
+
+@contextlib.contextmanager
+def _twin(veth: VethPair, telegram: int = 102) -> Iterator[tuple[ProfinetDevice, SimulatedDrive]]:
+    """The LECSN-T twin (PNIO-CM on loopback, RT frames on the pair's slave end), its drive
+    stepped in real time and configured with ``telegram``."""
+    drive = SimulatedDrive(ProfileCatalog().get("lecsn-t"), 1)
+    drive.write(P922, 0, telegram)
+    runner = SimRunner([drive])
+    runner.start()
+    dev = ProfinetDevice(drive).start()
+    dev.serve_io(veth.slave)
+    try:
+        yield dev, drive
+    finally:
+        dev.stop()
+        runner.stop()
+
+
+def _link(veth: VethPair, dev: ProfinetDevice) -> ProfinetLink:
+    return ProfinetLink(
+        LinkParams(interface="profinet", channel=dev.channel, node_id=1, extra={"nic": veth.master})
+    )
+
+
+async def _start(link: ProfinetLink, telegram: int = 102, rx: int = 48, tx: int = 48,
+                 period: float = 0.001) -> None:  # fmt: skip
+    await link.open()
+    link.prepare_io(telegram, rx, tx, period, True)
+    await link.nmt("start")
+
+
+def _outputs(controlword: int, mode: int = 1) -> bytes:
+    """Telegram 102's default setpoint mapping: 6060h (1 byte), Reserved 8, 6040h, ..."""
+    return bytes([mode, 0]) + controlword.to_bytes(2, "big") + bytes(44)
+
+
+def _until(ok: Any, timeout: float = 2.0) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if ok():
+            return True
+        time.sleep(0.005)
+    return bool(ok())
+
+
+def test_the_io_connect_and_the_rt_frames_as_scapy_reads_them(veth: VethPair) -> None:
+    captured: list[bytes] = []
+    frames: list[bytes] = []
+    stop = threading.Event()
+
+    def capture() -> None:
+        # ETH_P_ALL: a socket of one Ethertype is not shown the frames its host sends.
+        with socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.htons(0x0003)) as s:
+            s.bind((veth.master, 0x0003))
+            s.settimeout(0.05)
+            while not stop.is_set():
+                with contextlib.suppress(TimeoutError):
+                    frames.append(s.recv(1600))
+
+    with _twin(veth) as (dev, drive):
+        answers = dev.answers
+
+        def spy(frame: bytes) -> list[bytes]:
+            captured.append(frame)
+            return answers(frame)
+
+        dev.answers = spy  # type: ignore[method-assign]
+        link = _link(veth, dev)
+
+        async def run() -> None:
+            await _start(link)
+            t = threading.Thread(target=capture)
+            t.start()
+            await asyncio.sleep(0.3)
+            stop.set()
+            t.join()
+            assert dev.io is not None and dev.io.ar is not None and dev.io.ar.exchanging
+            assert drive.nmt_state == "operational"
+            await link.close()
+
+        asyncio.run(run())
+        assert dev.io is not None and dev.io.ar is None  # released with the session
+
+    requests = [DceRpc4(f) for f in captured]
+    [connect] = [r for r in requests if r.opnum == 0 and len(r.payload) > 200]
+    blocks = connect[PNIOServiceReqPDU].blocks
+    ar = next(b for b in blocks if isinstance(b, ARBlockReq))
+    assert ar.ARType == 0x0001  # IOCARSingle
+    assert (ar.ARProperties_State, ar.ARProperties_DeviceAccess) == (1, 0)
+    assert ar.CMInitiatorMacAdd == interface_mac(veth.master).hex(":")
+    assert ar.CMInitiatorUDPRTPort == 0x8892
+    iocrs = {b.IOCRType: b for b in blocks if isinstance(b, IOCRBlockReq)}
+    assert sorted(iocrs) == [1, 2]
+    for b in iocrs.values():
+        assert (b.LT, b.IOCRProperties_RTClass) == (0x8892, 1)
+        assert (b.SendClockFactor, b.ReductionRatio) == (32, 1)  # 1 ms
+        assert b.WatchdogFactor == b.DataHoldFactor == 200  # 200 ms
+        assert 0x8000 <= b.FrameID < 0xC000
+    inp, out = iocrs[1], iocrs[2]
+    # Input CR: DAP and drive object without IO data (IOPS only), the actual-value
+    # telegram (48 bytes) and its IOPS, then the IOCS of the setpoint telegram.
+    assert [(o.SlotNumber, o.SubslotNumber, o.FrameOffset) for o in inp.APIs[0].IODataObjects] == [
+        (0, 1, 0),
+        (1, 1, 1),
+        (1, 2, 2),
+    ]
+    assert [(o.SlotNumber, o.SubslotNumber, o.FrameOffset) for o in inp.APIs[0].IOCSs] == [
+        (1, 2, 51)
+    ]
+    assert inp.DataLength == 52 and out.DataLength == 52
+    assert [(o.SlotNumber, o.SubslotNumber, o.FrameOffset) for o in out.APIs[0].IODataObjects] == [
+        (1, 2, 0)
+    ]
+    assert any(isinstance(b, AlarmCRBlockReq) and b.LT == 0x8892 for b in blocks)
+    [expected] = [b for b in blocks if isinstance(b, ExpectedSubmoduleBlockReq)]
+    subs = {(api.SlotNumber, s.SubslotNumber): s for api in expected.APIs for s in api.Submodules}
+    tel = subs[(1, 2)]
+    assert tel.SubmoduleIdentNumber == 102 and tel.SubmoduleProperties_Type == 3
+    assert [(d.DataDescription, d.SubmoduleDataLength) for d in tel.DataDescription] == [
+        (1, 48),
+        (2, 48),
+    ]
+    [prm_end] = [
+        b
+        for r in requests
+        if r.opnum == 4 and PNIOServiceReqPDU in r
+        for b in r[PNIOServiceReqPDU].blocks
+        if isinstance(b, IODControlReq)
+    ]
+    assert prm_end.block_type == 0x0110 and prm_end.ControlCommand_PrmEnd == 1
+
+    # RT_CLASS_1 frames both ways, every 1 ms: FrameID, C_SDU, cycle counter (+32 per
+    # frame), DataStatus 35h (primary, valid, run, no problem), TransferStatus 0.
+    rt = [Ether(f) for f in frames]
+    out_frames = [p for p in rt if ProfinetIO in p and p[ProfinetIO].frameID == out.FrameID]
+    in_frames = [p for p in rt if ProfinetIO in p and p[ProfinetIO].frameID == inp.FrameID]
+    assert len(out_frames) > 100 and len(in_frames) > 100, (len(out_frames), len(in_frames))
+    for p in out_frames[-50:] + in_frames[-50:]:
+        pdu = p[PNIORealTimeCyclicPDU]
+        assert (int(pdu.dataStatus), pdu.transferStatus) == (0x35, 0)
+        assert len(bytes(p[ProfinetIO].payload)) == 52 + 4
+    counters = [p[PNIORealTimeCyclicPDU].cycleCounter for p in out_frames[-50:]]
+    assert all((b - a) & 0xFFFF == 32 for a, b in itertools.pairwise(counters))
+    assert out_frames[-1].src == interface_mac(veth.master).hex(":")
+    assert in_frames[-1].src == interface_mac(veth.slave).hex(":")
+    # The IOPS of the setpoint telegram (after its 48 bytes) is good (80h).
+    assert bytes(out_frames[-1][ProfinetIO].payload)[48] == 0x80
+
+
+def test_watchdogs_on_both_sides(veth: VethPair) -> None:
+    with _twin(veth) as (dev, drive):
+        link = _link(veth, dev)
+
+        async def run() -> None:
+            await _start(link)
+            io = link.io
+            assert io is not None
+            assert _until(lambda: io.health.state == "ok")
+            # Servo on through the setpoint telegram (CiA 402: shutdown, switch on, enable).
+            for word in (0x0006, 0x0007, 0x000F):
+                io.set_outputs(_outputs(word))
+                await asyncio.sleep(0.05)
+            assert _until(lambda: int(drive.read(0x6041)) & 0x6F == 0x27), hex(
+                int(drive.read(0x6041))
+            )
+            # The controller falls silent (its thread gone, no Release): the device's data
+            # hold timer ends the AR and the drive goes to Switch on disabled (004 §20.5.2).
+            io._stop.set()
+            assert io._thread is not None
+            io._thread.join()
+            assert _until(lambda: dev.io is not None and dev.io.aborts == 1, 1.0)
+            assert _until(lambda: int(drive.read(0x6041)) & 0x4F == 0x40, 3.0)
+            assert drive.nmt_state == "preop"
+            await link.nmt("preop")
+
+            # Now the device falls silent: the controller's watchdog makes its inputs stale
+            # and says why.
+            await link.nmt("start")
+            io = link.io
+            assert io is not None and _until(lambda: io.health.state == "ok")
+            assert dev.io is not None
+            dev.io.stop()
+            assert _until(lambda: io.health.state == "link lost", 1.0)
+            view = io.view()
+            assert view["stale"] and "watchdog 200 x 1 ms" in view["reason"], view
+            await link.close()
+
+        asyncio.run(run())
+
+
+def test_a_second_io_controller_is_refused_and_the_first_keeps_its_ar(veth: VethPair) -> None:
+    with _twin(veth) as (dev, _drive):
+        first, second = _link(veth, dev), _link(veth, dev)
+
+        async def run() -> None:
+            await _start(first)
+            with pytest.raises(ConflictError) as err:
+                await _start(second)
+            assert "another IO controller (the PLC)" in err.value.message
+            assert "does not take" in (err.value.hint or "")
+            assert second.io is None
+            io = first.io
+            assert io is not None
+            received = io.health.received
+            await asyncio.sleep(0.1)
+            assert io.health.state == "ok" and io.health.received > received + 50
+            await second.close()
+            await first.close()
+
+        asyncio.run(run())
+
+
+def test_the_twin_checks_the_connect_as_a_device_does(veth: VethPair) -> None:
+    with _twin(veth) as (dev, drive):
+        host, port = dev.address
+
+        async def refused(telegram: int, rx: int, tx: int) -> str:
+            link = _link(veth, dev)
+            try:
+                with pytest.raises(ConflictError) as err:
+                    await _start(link, telegram, rx, tx)
+                return err.value.message
+            finally:
+                await link.close()
+
+        async def run() -> None:
+            # IO data lengths that are not the telegram's (48 bytes each way).
+            msg = await refused(102, 48, 44)
+            assert "faulty ExpectedSubmoduleBlockReq, field 12 (data_length)" in msg, msg
+            assert "(PNIOStatus DB81030Ch)" in msg, msg  # ErrorCode1 03h, ErrorCode2 field
+            # A submodule the device does not have (no telegram 999).
+            msg = await refused(999, 48, 48)
+            assert "field 9 (submodule_ident)" in msg, msg
+            # An input CR shorter than its submodules' data, IOPS and IOCS (52 bytes).
+            c = IoController(host, port, veth.master, object_uuid=pnio.object_uuid(0, 0),
+                             telegram=102, rx_bytes=48, tx_bytes=48, cycle_s=0.001)  # fmt: skip
+            c.in_layout = dataclasses.replace(c.in_layout, length=44)
+            with pytest.raises(ConflictError) as err:
+                await asyncio.to_thread(c.connect)
+            assert "faulty IOCRBlockReq, field 8 (data_length)" in err.value.message
+            # A cycle servodesk does not offer is refused before anything is sent.
+            link = _link(veth, dev)
+            await link.open()
+            with pytest.raises(ValidationError):
+                link.prepare_io(102, 48, 48, 0.003, True)
+            await link.close()
+            assert dev.io is not None and dev.io.ar is None
+            # The controller's configuration chooses the telegram: P922 follows it.
+            link = _link(veth, dev)
+            await _start(link, 100, 4, 4)
+            assert drive.read(P922) == 100
+            await link.close()
+
+        asyncio.run(run())
+
+    # A device that serves no IO data refuses the IO AR's type (ARBlockReq field 4).
+    drive = SimulatedDrive(ProfileCatalog().get("lecsn-t"), 1)
+    with ProfinetDevice(drive) as plain:
+        link = _link(veth, plain)
+
+        async def no_io() -> None:
+            with pytest.raises(ConflictError) as err:
+                await _start(link)
+            assert "faulty ARBlockReq, field 4 (ar_type)" in err.value.message
+            await link.close()
+
+        asyncio.run(no_io())
+    assert pnio.AR_FIELD["ar_type"] == 4
+
+
+@pytest.fixture
+def app(channel: str, tmp_path: Path) -> Iterator[tuple[Any, Any]]:
+    with operation_app(channel, tmp_path, "lecsn-t", sim_dcp=True) as pair:
+        yield pair
+
+
+def test_the_api_runs_cyclic_data_over_profinet_and_moves_the_lecsn(
+    app: tuple[Any, Any],
+) -> None:
+    client, sim = app
+    drive = sim.drives[0]
+    drive.write(P922, 0, 102)  # the drive configured with telegram 102
+    info = client.get(f"/api/v1/sessions/{SID}").json()
+    assert info["ar"].startswith("IO supervisor AR with device access")
+    status = client.get(f"/api/v1/sessions/{SID}/pdo/cyclic").json()
+    assert status["unavailable"] is None, status
+    url = f"/api/v1/sessions/{SID}/pdo/cyclic"
+    with client.websocket_connect("/api/v1/ws?client=A") as ws:
+        beats = take_and_enable(client, SID, "A", ws)
+        try:
+            r = client.post(url, json={"sync_period_ms": 3, "outputs": True}, headers=A)
+            assert r.status_code == 400 and "1, 2, 4, 8 or 16 ms" in r.json()["hint"], r.text
+            r = client.post(url, json={"sync_period_ms": 2, "outputs": False}, headers=A)
+            assert r.status_code == 409 and "outputs on" in r.json()["message"], r.text
+            r = client.post(url, json={"sync_period_ms": 1, "outputs": True}, headers=A)
+            assert r.status_code == 200, r.text
+            info = client.get(f"/api/v1/sessions/{SID}").json()
+            assert "IO controller AR (ARType 0001h" in info["ar"], info
+            assert info["nmt_state"] in ("operational", "unknown")
+            # Starting cyclic data changed nothing on the axis: still servo on.
+            assert int(drive.read(0x6041)) & 0x6F == 0x27
+            assert _until(lambda: client.get(url).json()["link"]["state"] == "ok")
+            st = client.get(url).json()
+            assert st["link"]["ar"].startswith("IO controller AR") and st["link"]["cycle_ms"] == 1
+            assert st["values"]["0x6041:00"]["stale"] is False
+
+            # A move: controlword and target go in the setpoint telegram.
+            sent = dev_outputs = sim.profinet[0].io
+            assert dev_outputs is not None
+            before = sent.outputs_received
+            start = drive.position
+            r = client.post(
+                f"/api/v1/sessions/{SID}/motion/move",
+                json={"mode": "relative", "target": 5000, "velocity": 2000},
+                headers=A,
+            )
+            assert r.status_code == 200, r.text
+            done = wait_motion(client, SID, timeout=15)
+            assert done["state"] == "reached", (done, client.get(url).json()["link"])
+            assert abs(drive.position - start - 5000) <= 20
+            assert sent.outputs_received > before + 100
+            assert client.get(url).json()["values"]["0x607A:00"]["value"] == start + 5000
+            # A jog, then a stop.
+            r = client.post(
+                f"/api/v1/sessions/{SID}/motion/jog",
+                json={"velocity": 2000, "acceleration": 50000},
+                headers=A,
+            )
+            assert r.status_code == 200, r.text
+            time.sleep(0.3)
+            r = client.post(f"/api/v1/sessions/{SID}/motion/stop", json={}, headers=A)
+            assert r.status_code == 200, r.text
+            wait_motion(client, SID, timeout=5)
+            assert drive.position > start + 5000 + 100
+            # Started again at the same cycle: the AR stays (a Release would take the axis
+            # to Switch on disabled) and the drive's state does not change.
+            ar, word = dev_outputs.ar, int(drive.read(0x6041))
+            r = client.post(url, json={"sync_period_ms": 1, "outputs": True}, headers=A)
+            assert r.status_code == 200, r.text
+            assert dev_outputs.ar is ar and ar is not None and dev_outputs.aborts == 0
+            assert int(drive.read(0x6041)) & 0x6F == word & 0x6F
+        finally:
+            beats.stop()
+    r = client.delete(url, headers=A)
+    assert r.status_code == 200, r.text
+    info = client.get(f"/api/v1/sessions/{SID}").json()
+    assert info["ar"] == "IO supervisor AR with device access (ARType 0006h)"
+    dev = sim.profinet[0].io
+    assert dev is not None and dev.ar is None
