@@ -6,6 +6,7 @@ can render one clear message without parsing strings::
 
     ServodeskError
      +-- ProfileError               a profile or device-description file is invalid
+     +-- SettingsError              SERVODESK_* environment settings are invalid (problems listed)
      +-- ValidationError            a value or request is refused before anything is sent
      |    +-- PdoRefused            a PDO mapping breaks the family's rules (problems listed)
      +-- LinkError                  the bus or the device is unreachable or misbehaves
@@ -72,6 +73,15 @@ class ProfileError(ServodeskError):
     def __init__(self, message: str, *, path: str | None = None, hint: str | None = None):
         super().__init__(f"{path}: {message}" if path else message, hint=hint)
         self.path = path
+
+
+class SettingsError(ServodeskError):
+    """``SERVODESK_*`` settings are invalid: ``problems`` has one line per bad setting, each
+    naming the variable, what is wrong with its value and what to write instead."""
+
+    def __init__(self, problems: list[str]) -> None:
+        super().__init__("\n".join(problems))
+        self.problems = list(problems)
 
 
 class ValidationError(ServodeskError):

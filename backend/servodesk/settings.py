@@ -2,18 +2,25 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
+from typing import Any, Self
 
-from pydantic import Field, field_validator
+import pydantic
+from pydantic import Field, ModelWrapValidatorHandler, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from servodesk import hosts
 from servodesk.domain.address import ObjectAddress
-from servodesk.errors import ServodeskError
+from servodesk.errors import ServodeskError, SettingsError
+
+ENV_PREFIX = "SERVODESK_"
+#: The levels uvicorn knows (uvicorn.config.LOG_LEVELS), quietest first.
+LOG_LEVELS = ("critical", "error", "warning", "info", "debug", "trace")
 
 
 class Settings(BaseSettings):
-    model_config = SettingsConfigDict(env_prefix="SERVODESK_", extra="ignore")
+    model_config = SettingsConfigDict(env_prefix=ENV_PREFIX, extra="ignore")
 
     host: str = "127.0.0.1"
     port: int = Field(default=8000, ge=1, le=65535)
@@ -94,6 +101,7 @@ class Settings(BaseSettings):
     #: The viewer's port has no token check: with ``host`` beyond loopback it is started only
     #: when this is set (anyone who reaches host:viewer_port then sees the 3D view).
     viewer_public: bool = False
+    #: uvicorn's log level (its LOG_LEVELS; any case).
     log_level: str = "info"
     #: HTTPS (servodesk/tls.py, docs/security.md "TLS"): the certificate (PEM) and its key.
     #: ``servodesk serve`` beyond loopback fills them with a self-signed pair made in
@@ -115,6 +123,16 @@ class Settings(BaseSettings):
         """Where imported device descriptions are saved as profiles."""
         return self.data_dir / "profiles"
 
+    @model_validator(mode="wrap")
+    @classmethod
+    def _explain(cls, data: Any, handler: ModelWrapValidatorHandler[Self]) -> Self:
+        # pydantic's ValidationError names fields, not variables, and reached the user as a
+        # traceback: one line per bad setting instead, which the CLI prints, exit 2.
+        try:
+            return handler(data)
+        except pydantic.ValidationError as exc:
+            raise SettingsError([_problem(e) for e in exc.errors()]) from None
+
     @field_validator("drift_webhook", "gateway_url")
     @classmethod
     def _http_url(cls, v: str) -> str:
@@ -123,6 +141,14 @@ class Settings(BaseSettings):
         if v and (urlsplit(v).scheme not in ("http", "https") or not urlsplit(v).netloc):
             raise ValueError(f"{v!r} is not an http:// or https:// URL")
         return v.rstrip("/")
+
+    @field_validator("log_level")
+    @classmethod
+    def _log_level(cls, v: str) -> str:
+        # Refused here: uvicorn.run met it as a KeyError traceback after the banner.
+        if v.lower() not in LOG_LEVELS:
+            raise ValueError(f"{v!r} is not a log level")
+        return v
 
     @field_validator("sim_withhold")
     @classmethod
@@ -161,3 +187,73 @@ def withheld(text: str) -> list[tuple[str, ObjectAddress]]:
         except ServodeskError as exc:
             raise ValueError(f"{item!r}: {exc.message}") from None
     return out
+
+
+#: What to write, for the settings whose type and bounds do not say it (see _what_to_write).
+_WRITE = {
+    "drift_webhook": "write an http:// or https:// URL, or leave it empty",
+    "gateway_url": "write an http:// or https:// URL, or leave it empty",
+    "gateway_name": "write at most 64 letters, digits, '.', '_' or '-', or leave it empty",
+    # Their validators' messages already say what to write (e.g. smartris=0x607F:00).
+    "sim_withhold": "",
+    "allowed_hosts": "",
+    "log_level": f"write one of {', '.join(LOG_LEVELS)} (default info)",
+}
+
+
+def _problem(error: Any) -> str:
+    """One line for one pydantic error: the variable, what is wrong, what to write."""
+    name = str(error["loc"][0]) if error["loc"] else ""
+    if name not in Settings.model_fields:
+        return str(error["msg"])
+    var = ENV_PREFIX + name.upper()
+    # Named as the variable where it comes from the environment (matched without case, as
+    # pydantic-settings does); a keyword a command passed is named as itself.
+    where = var if any(k.upper() == var for k in os.environ) else f"setting {name}"
+    value, kind, msg = error.get("input"), error["type"], str(error["msg"])
+    if kind == "value_error":
+        wrong = msg.removeprefix("Value error, ")
+    elif kind in ("int_parsing", "int_from_float"):
+        wrong = f"{value!r} is not a whole number"
+    elif kind == "float_parsing":
+        wrong = f"{value!r} is not a number"
+    elif kind == "bool_parsing":
+        wrong = f"{value!r} is neither true nor false"
+    elif kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
+        wrong = f"{value!r} is out of range"
+    elif kind == "string_too_long":
+        wrong = f"{value!r} is too long"
+    elif kind == "string_pattern_mismatch":
+        wrong = f"{value!r} has a character that is not allowed"
+    else:
+        wrong = f"{value!r}: {msg[:1].lower()}{msg[1:]}"
+    hint = _what_to_write(name)
+    return f"{where}: {wrong}" + (f"; {hint}" if hint else "")
+
+
+def _what_to_write(name: str) -> str:
+    """From the field's type, bounds and default: "write a whole number from 50 to 5000"."""
+    if name in _WRITE:
+        return _WRITE[name]
+    field = Settings.model_fields[name]
+    kind = field.annotation
+    if kind is bool:
+        return "write true or false"
+    if kind not in (int, float):
+        return ""
+    # pydantic keeps Field(ge=, gt=, le=) as annotated_types' Ge, Gt, Le in the metadata.
+    lo = hi = None
+    above = False
+    for m in field.metadata:
+        if getattr(m, "ge", None) is not None:
+            lo = m.ge
+        elif getattr(m, "gt", None) is not None:
+            lo, above = m.gt, True
+        elif getattr(m, "le", None) is not None:
+            hi = m.le
+    what = "a whole number" if kind is int else "a number"
+    if lo is not None:
+        what += f" above {lo}" if above else f" from {lo}"
+    if hi is not None:
+        what += f" up to {hi}" if lo is None or above else f" to {hi}"
+    return f"write {what} (default {field.default})"

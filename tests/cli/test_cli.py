@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -77,6 +78,57 @@ def test_bad_input_exits_2_with_a_message_not_a_traceback(argv: list[str], messa
     )
     assert r.returncode == 2
     assert message in r.stderr and "Traceback" not in r.stderr
+
+
+def test_bad_settings_exit_2_with_one_line_each_not_a_traceback(tmp_path: Path) -> None:
+    # It was pydantic's ValidationError traceback, naming fields rather than variables.
+    bad = {
+        "SERVODESK_DRIFT_WEBHOOK": "ftp://x",
+        "SERVODESK_SIM_WITHHOLD": "nonsense",
+        "SERVODESK_DEADMAN_MS": "soon",
+        "SERVODESK_LOG_LEVEL": "loud",
+    }
+    env = {**os.environ, "SERVODESK_DATA_DIR": str(tmp_path), **bad}
+    for argv in (["serve"], ["profiles"]):
+        r = subprocess.run(
+            [sys.executable, "-m", "servodesk", *argv],
+            capture_output=True,
+            text=True,
+            timeout=60,
+            env=env,
+        )
+        assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+        lines = r.stderr.splitlines()
+        assert len(lines) == len(bad), r.stderr
+        said = {line.split(": ")[2]: line for line in lines}  # servodesk: error: VAR: ...
+        assert set(said) == set(bad), r.stderr
+        assert (
+            "'ftp://x' is not an http:// or https:// URL; write an http"
+            in said["SERVODESK_DRIFT_WEBHOOK"]
+        )
+        assert "write profile=address, e.g. smartris=0x607F:00" in said["SERVODESK_SIM_WITHHOLD"]
+        assert (
+            "'soon' is not a whole number; write a whole number from 50 to 5000 (default 250)"
+            in said["SERVODESK_DEADMAN_MS"]
+        )
+        assert "'loud' is not a log level; write one of" in said["SERVODESK_LOG_LEVEL"]
+
+
+@pytest.mark.parametrize("argv", [["openapi"], ["od", "lecsn-t"]])
+def test_a_reader_that_stops_early_ends_the_command_quietly(argv: list[str]) -> None:
+    # `servodesk openapi | head`: a BrokenPipeError traceback on stderr. Both print far more
+    # than a pipe holds (64 KiB), so the writer meets the closed pipe.
+    p = subprocess.Popen(
+        [sys.executable, "-m", "servodesk", *argv],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    assert p.stdout is not None and p.stderr is not None
+    assert p.stdout.read(100)
+    p.stdout.close()
+    err = p.stderr.read().decode()
+    assert p.wait(timeout=60) == 141, err  # 128 + SIGPIPE, as the shell reports for `seq`.
+    assert err == ""
 
 
 def test_export_refuses_to_overwrite_and_writes_atomically(

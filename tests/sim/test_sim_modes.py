@@ -315,3 +315,27 @@ def test_smartris_max_profile_velocity_is_in_rpm() -> None:
     d.write(0x607F, 0, 1000)
     d.step(4.0)
     assert d.velocity == pytest.approx(1000 * 16384 / 60, rel=0.01)
+
+
+@pytest.mark.parametrize("profile_id", ["hiwin-e", "lecsn-t", "smartris", "ctmm04x"])
+def test_no_mode_is_written_back_where_the_profile_lists_it(profile_id: str) -> None:
+    # A restore sets 6060h back to the twin's power-up 0 ("no mode change / no mode
+    # assigned"); a real drive accepts it and keeps the mode it runs (000 §3.2).
+    profile = _CATALOG.get(profile_id)
+    d = new_drive(profile)
+    assert d.read(0x6060, 0) == 0
+    mode = profile.modes[0] if profile.modes[0] > 0 else profile.modes[1]
+    d.write(0x6060, 0, mode)
+    d.step(0.001)
+    d.write(0x6060, 0, 0)
+    d.step(0.001)
+    assert d.read(0x6060, 0) == 0
+    assert d.read(0x6061, 0) == mode  # No mode change.
+
+
+def test_no_mode_is_refused_where_the_profile_does_not_list_it() -> None:
+    d = new_drive()  # cia402-generic: 6060h lists 1, 3, 4, 6.
+    with pytest.raises(SimAbort) as exc:
+        d.write(0x6060, 0, 0)
+    assert exc.value.code == 0x06090030  # CiA 301 §7.2.4.3.17: invalid value.
+    assert d.read(0x6060, 0) == 1

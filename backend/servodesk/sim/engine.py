@@ -214,6 +214,12 @@ class SimulatedDrive(ObjectAccess):
 
         # Profile data read once.
         self._modes = frozenset(profile.modes)
+        # 6060h = 0 is "no mode change / no mode assigned" (CiA 402-2), not a mode: accepted
+        # where the profile lists 0 among 6060h's values, as the manuals of the drives that
+        # start at 0 do (000 §3.2 6060h, 001 §5-4 6060h); a restore writes it back.
+        mode_spec = self._specs.get(K_MODE)
+        no_mode = mode_spec is not None and 0 in (mode_spec.values or {})
+        self._mode_values = self._modes | ({0} if no_mode else set())
         self._homing_methods = frozenset(profile.homing_methods)
         self._store_cmd = command_quirk(profile, "store_parameters", 0x1010, SIGNATURE_SAVE)
         self._restore_cmd = command_quirk(profile, "restore_defaults", 0x1011, SIGNATURE_LOAD)

@@ -221,6 +221,8 @@ class DriveBase:
     _nv: dict[int, Value | None]
     _history_len: int
     _modes: frozenset[int]
+    #: What 6060h accepts: the modes, and 0 (no mode) where the profile lists it.
+    _mode_values: frozenset[int]
     _homing_methods: frozenset[int]
     _store_cmd: tuple[int, int | None, int]
     _restore_cmd: tuple[int, int | None, int]

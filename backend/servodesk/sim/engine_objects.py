@@ -237,10 +237,12 @@ class ObjectAccess(StateMachine):
             self._controlword(value)
             return
         if k == K_MODE:
-            if value not in self._modes:
-                raise SimAbort(0x06090030, f"supported modes: {sorted(self._modes)}")
+            if value not in self._mode_values:
+                raise SimAbort(0x06090030, f"supported modes: {sorted(self._mode_values)}")
             self._values[k] = value
-            if self._mode != value:
+            # 0 changes nothing: the mode running stays, 6061h with it (000 §3.2: "set to 0
+            # ... the mode is not changed").
+            if value != 0 and self._mode != value:
                 self._enter_mode(int(value))
             return
         if k == K_HOMING_METHOD:
