@@ -24,6 +24,14 @@ on that network interface (CoE SDO; docs/ethercat.md), e.g. the slave end of a v
 ``servodesk sim --profile hiwin-e --interface ethercat --channel veth-s`` (needs root or
 CAP_NET_RAW).
 
+``--esi FILE [--device N]`` (with ``--interface ethercat``) serves a twin made from any ESI in
+place of ``--profile``: its identity, object dictionary, default PDO assignment, sync managers
+and DC modes from the file, completed where the CiA 402 engine needs more (sim/esi_twin.py; what
+was completed is printed); ``--eds FILE`` the same from an EDS, DCF or XDD as a CANopen node.
+Options reproduce what real slaves do differently (docs/ethercat.md, "A twin from an ESI"):
+``--claims-complete-access``, ``--sdo-info``, ``--sii-identity V:P:R``, ``--boot-delay S``,
+``--no-device-name``, ``--no-watchdog``, ``--abort-reserved-bits``.
+
 ``--plant FILE`` simulates the axis a TOML plant file describes (docs/tuning.md, "Plant
 files"; model/plantfile.py) at its loop rate, in place of the profile's ``simulation`` section;
 a file that cannot be read or holds a bad key or value is refused with the message (exit 2).
@@ -36,8 +44,13 @@ import signal
 import sys
 import threading
 from types import FrameType
+from typing import TYPE_CHECKING
 
 from servodesk.errors import ServodeskError, ValidationError
+
+if TYPE_CHECKING:
+    from servodesk.domain.profile import DeviceProfile
+    from servodesk.sim.esi_twin import TwinOptions
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -87,7 +100,146 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         metavar="NIC",
         help="with --interface profinet: also answer PROFINET DCP on this network interface",
     )
+    p.add_argument(
+        "--esi",
+        default=None,
+        metavar="FILE",
+        help="with --interface ethercat: a twin made from this ESI (ETG.2000) instead of --profile",
+    )
+    p.add_argument(
+        "--device", type=int, default=None, metavar="N", help="with --esi: the file's N-th device"
+    )
+    p.add_argument(
+        "--eds",
+        default=None,
+        metavar="FILE",
+        help="a CANopen twin made from this EDS, DCF or XDD instead of --profile",
+    )
+    real = p.add_argument_group(
+        "real-slave behaviour (with --esi)",
+        "what real EtherCAT slaves do differently from the plain twin (docs/ethercat.md)",
+    )
+    real.add_argument(
+        "--claims-complete-access",
+        action="store_true",
+        help="the SII claims SDO complete access, which the firmware aborts (0601 0000h)",
+    )
+    real.add_argument(
+        "--sdo-info",
+        action="store_true",
+        help="offer the SDO Information service (ETG.1000.6 §5.6.3: OD list, descriptions)",
+    )
+    real.add_argument(
+        "--sii-identity",
+        default=None,
+        metavar="V:P:R",
+        help="the SII's vendor id, product code and revision, where they differ from 1018h",
+    )
+    real.add_argument(
+        "--boot-delay",
+        type=float,
+        default=0.0,
+        metavar="S",
+        help="seconds after start during which PRE-OP is not reached (a slow boot)",
+    )
+    real.add_argument("--no-device-name", action="store_true", help="no object 1008h")
+    real.add_argument(
+        "--no-watchdog",
+        action="store_true",
+        help="the SyncManager watchdog is not enforced (no fall back to SAFE-OP)",
+    )
+    real.add_argument(
+        "--abort-reserved-bits",
+        action="store_true",
+        help="SDO aborts with the command byte's reserved bits set (9Fh instead of 80h)",
+    )
     p.set_defaults(func=run)
+
+
+def _twin_options(args: argparse.Namespace) -> TwinOptions:
+    """The real-slave options of the command line (ValidationError for a bad value)."""
+    from servodesk.sim.esi_twin import TwinOptions
+
+    identity: tuple[int, int, int] | None = None
+    text: str | None = getattr(args, "sii_identity", None)
+    if text is not None:
+        try:
+            v, pc, r = (int(x, 0) for x in text.split(":"))
+        except ValueError:
+            raise ValidationError(
+                f"--sii-identity {text!r} is not VENDOR:PRODUCT:REVISION",
+                field="sii_identity",
+                hint="three numbers, e.g. 0x9A:0x30924:0x10000",
+            ) from None
+        if not all(0 <= x <= 0xFFFFFFFF for x in (v, pc, r)):
+            raise ValidationError(
+                f"--sii-identity {text!r}: each number is 32 bits", field="sii_identity"
+            )
+        identity = (v, pc, r)
+    delay = float(getattr(args, "boot_delay", 0.0) or 0.0)
+    if not 0.0 <= delay <= 60.0:
+        raise ValidationError(f"--boot-delay {delay:g} is outside 0..60 s", field="boot_delay")
+    return TwinOptions(
+        claims_complete_access=bool(getattr(args, "claims_complete_access", False)),
+        sdo_info=bool(getattr(args, "sdo_info", False)),
+        sii_identity=identity,
+        boot_delay_s=delay,
+        no_device_name=bool(getattr(args, "no_device_name", False)),
+        watchdog=not getattr(args, "no_watchdog", False),
+        abort_reserved_bits=bool(getattr(args, "abort_reserved_bits", False)),
+    )
+
+
+def _twin(args: argparse.Namespace) -> tuple[DeviceProfile | None, TwinOptions | None]:
+    """The profile of a twin made from ``--esi`` / ``--eds`` (its completions printed), and
+    the real-slave options; (None, None) without either."""
+    from servodesk.devdesc import read_file
+    from servodesk.sim.esi_twin import TwinOptions, twin_profile
+
+    esi: str | None = getattr(args, "esi", None)
+    eds: str | None = getattr(args, "eds", None)
+    options = _twin_options(args)
+    if esi is None and eds is None:
+        if options != TwinOptions():
+            raise ValidationError(
+                "the real-slave options change a twin made from an ESI",
+                hint="add --esi FILE (and --interface ethercat)",
+            )
+        if getattr(args, "device", None) is not None:
+            raise ValidationError("--device picks a device of --esi FILE", field="device")
+        return None, None
+    if esi is not None and eds is not None:
+        raise ValidationError("give --esi or --eds, not both", field="esi")
+    if esi is not None and args.interface != "ethercat":
+        raise ValidationError(
+            "--esi serves an EtherCAT slave", field="esi", hint="add --interface ethercat"
+        )
+    if eds is not None and args.interface in ("ethercat", "slmp", "profinet"):
+        raise ValidationError(
+            "--eds serves a CANopen node",
+            field="eds",
+            hint="use a python-can interface (virtual, udp_multicast, socketcan, ...)",
+        )
+    if eds is not None and options != TwinOptions(no_device_name=options.no_device_name):
+        raise ValidationError(
+            "the EtherCAT options (complete access, SDO information, SII, boot, watchdog, "
+            "abort bits) are for --esi",
+            hint="leave them out with --eds; --no-device-name works with both",
+        )
+    path = esi if esi is not None else eds
+    assert path is not None
+    result = read_file(path, device=getattr(args, "device", None))
+    want = "ethercat" if esi is not None else "canopen"
+    if result.profile.fieldbus != want:
+        raise ValidationError(
+            f"{path}: describes a {result.profile.fieldbus} device, not {want}",
+            field="esi" if esi is not None else "eds",
+            hint="--esi takes an ESI (.xml), --eds an EDS, DCF or XDD",
+        )
+    profile, notes = twin_profile(result.profile, options=options)
+    for note in notes:
+        print(f"servodesk sim: {path}: {note}", flush=True)
+    return profile, options if esi is not None else None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -113,10 +265,12 @@ def run(args: argparse.Namespace) -> int:
             raise ValidationError(
                 f"--axes {axes} is outside 1..4", field="axes", hint="a station has axes X..U"
             )
+        twin, options = _twin(args)
+        profile_id = twin.id if twin is not None else args.profile
         drives = (
-            [(args.profile, args.node_id)]
+            [(profile_id, args.node_id)]
             if axes == 1
-            else [(args.profile, n) for n in range(1, axes + 1)]
+            else [(profile_id, n) for n in range(1, axes + 1)]
         )
         plant: PlantSpec | None = load_plant_file(plant_file) if plant_file else None
         bus = SimulatedBus.start(
@@ -126,6 +280,8 @@ def run(args: argparse.Namespace) -> int:
             bitrate=args.bitrate,
             serials=[args.serial],
             plant=plant,
+            profiles=[twin] if twin is not None else [],
+            twin_options=options,
         )
         dcp_nic: str | None = getattr(args, "dcp", None)
         if dcp_nic is not None:

@@ -433,8 +433,10 @@ CAT_SYNCM = 41
 CAT_END = 0xFFFF
 #: Mailbox protocols word: bit 2 = CoE.
 MBXPROTO_COE = 0x0004
-#: General category CoE details: bit 0 = SDO supported, bit 5 = SDO complete access.
+#: General category CoE details: bit 0 = SDO supported, bit 1 = SDO Information, bit 5 =
+#: SDO complete access.
 COE_DETAILS_SDO = 0x01
+COE_DETAILS_SDO_INFO = 0x02
 COE_DETAILS_COMPLETE_ACCESS = 0x20
 #: SyncManager types in the SyncM category.
 SM_TYPE_MAILBOX_OUT = 1

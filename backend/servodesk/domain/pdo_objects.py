@@ -187,6 +187,10 @@ def parse_config(profile: DeviceProfile, values: Mapping[ObjectAddress, int]) ->
             )
     for d, n in _directions(profile):
         mi = _map_index(d, n)
+        if kind == "ethercat" and not _has(profile, mi, 0):
+            # An ESI lists PDOs its dictionary has no mapping object for (Elmo Gold: RxPdo
+            # 1609h; Inovance IS620N: 1601h): config_addresses reads none, so there is none.
+            continue
         comm: PdoComm | None = None
         ci: int | None = None
         if kind == "canopen":
@@ -215,6 +219,12 @@ def parse_config(profile: DeviceProfile, values: Mapping[ObjectAddress, int]) ->
         assignment = {}
         for d in Direction:
             idx = _ASSIGN[d.value]
+            if not _has(profile, idx, 0):
+                # The dictionary has no assignment object (the Synapticon multi-device
+                # sample ESI): the assignment is fixed, ETG.2000's RxPdo/TxPdo with an Sm
+                # (the default template), else every PDO of the direction.
+                assignment[d] = _fixed_assignment(profile, d, pdos)
+                continue
             cnt = _int(values, ObjectAddress(idx, 0), "number of assigned PDOs")
             room = len([s for s in _subs(profile, idx) if s > 0])
             if cnt > room:
@@ -226,6 +236,14 @@ def parse_config(profile: DeviceProfile, values: Mapping[ObjectAddress, int]) ->
                 _int(values, ObjectAddress(idx, k), "assigned PDO") for k in range(1, cnt + 1)
             )
     return PdoConfig(tuple(pdos), assignment, telegram)
+
+
+def _fixed_assignment(profile: DeviceProfile, d: Direction, pdos: list[Pdo]) -> tuple[int, ...]:
+    """The assignment of a profile without 1C12h / 1C13h (see :func:`parse_config`)."""
+    for t in rules_of(profile).templates:
+        if t.id == "esi-default" and t.assignment and d.value in t.assignment:
+            return tuple(t.assignment[d.value])
+    return tuple(p.mapping_index for p in pdos if p.direction is d)
 
 
 def default_values(profile: DeviceProfile, node_id: int) -> dict[ObjectAddress, int]:

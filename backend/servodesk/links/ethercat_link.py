@@ -57,6 +57,7 @@ from servodesk.errors import (
     LinkTimeoutError,
     LinkUnavailableError,
     NotFoundError,
+    ObjectAccessError,
     ValidationError,
 )
 from servodesk.links.base import (
@@ -448,6 +449,21 @@ class EthercatLink(DriveLink):
             return LinkTimeoutError(
                 f"{op} {address}: no CoE answer from {where} within "
                 f"{self.request_timeout:g} s (working counter {getattr(exc, 'wkc', '?')})"
+            )
+        if isinstance(exc, pysoem.PacketError) and int(getattr(exc, "error_code", 0)) == 1:
+            # SOEM's ecx_SDOread / ecx_SDOwrite take an abort only when its command byte is
+            # exactly 80h; one with the reserved bits 0-4 set (CiA 301 §7.2.4.3.17 says 0,
+            # some firmware sends 1s) is its packet error 1 "unexpected frame", and the
+            # abort code is lost with the frame.
+            return ObjectAccessError(
+                f"{op} {address}: {where} refused it with a frame SOEM does not take as an SDO "
+                "response or abort (unexpected frame: e.g. an SDO abort with reserved bits "
+                "set); its abort code is not known",
+                code=0,
+                meaning="abort code unknown: the answer was no valid SDO abort",
+                address=str(address),
+                hint="the object may not exist or not allow this access; the object "
+                "dictionary page or the drive's ESI says which",
             )
         if isinstance(exc, (pysoem.MailboxError, pysoem.PacketError)):
             return LinkError(

@@ -169,6 +169,17 @@ class SessionManager:
             fieldbus=detection_fieldbus(fieldbus),
         )
 
+    def _scan_profile(self, ident: DriveIdentity, fieldbus: str) -> str | None:
+        """The profile a session opened on this device would get, as far as the identity
+        decides it. On EtherCAT that is the rule of :meth:`open` in full (a match among the
+        EtherCAT profiles, else ``cia402-ethercat``: no EtherCAT profile names its identity
+        elsewhere than 1018h); on CANopen a device no identity matches may still be found by
+        a profile's own identity object when a session opens, so it stays None here."""
+        prof = self._detect(ident, fieldbus)
+        if prof is not None:
+            return prof.id
+        return GENERIC_ETHERCAT if fieldbus == "ethercat" else None
+
     async def _detect_by_objects(self, link: DriveLink) -> DeviceProfile | None:
         """Profiles whose identity lives elsewhere than 1018h name the object to read."""
         only = detection_fieldbus(link.fieldbus)
@@ -267,12 +278,15 @@ class SessionManager:
                     ident = DriveIdentity()
                 finally:
                     await link.close()
-            prof = self._detect(ident, link_type.fieldbus)
+            if node_id in open_nodes:
+                profile_id: str | None = open_nodes[node_id].profile.id
+            else:
+                profile_id = self._scan_profile(ident, link_type.fieldbus)
             out.append(
                 {
                     "node_id": node_id,
                     **asdict(ident),
-                    "profile_id": prof.id if prof else None,
+                    "profile_id": profile_id,
                     "session_id": open_nodes[node_id].id if node_id in open_nodes else None,
                 }
             )

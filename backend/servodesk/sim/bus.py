@@ -44,11 +44,13 @@ import can
 import canopen
 
 from servodesk.domain import pnio, slmp
+from servodesk.domain.profile import DeviceProfile
 from servodesk.domain.profile_loader import ProfileCatalog
 from servodesk.errors import LinkError, LinkUnavailableError, ValidationError
 from servodesk.model.plantfile import PlantSpec
 from servodesk.sim.canopen_device import SimCanopenDevice
 from servodesk.sim.engine import SimulatedDrive
+from servodesk.sim.esi_twin import TwinOptions
 from servodesk.sim.ethercat_slave import EthercatSlaveProcess
 from servodesk.sim.profinet_device import ProfinetDevice
 from servodesk.sim.runner import SimRunner
@@ -118,10 +120,18 @@ class SimulatedBus:
         ethercat: VethPair | None = None,
         profinet_channel: str | None = None,
         dcp: VethPair | None = None,
+        profiles: Sequence[DeviceProfile] = (),
+        twin_options: TwinOptions | None = None,
     ) -> SimulatedBus:
         """Start the drives; raises ValidationError / NotFoundError / LinkError. With
         ``dcp`` (a veth pair the bus then owns) the first PROFINET device also answers DCP
-        on its slave end and takes the addresses set there (docs/profinet.md)."""
+        on its slave end and takes the addresses set there (docs/profinet.md).
+
+        ``profiles``: profiles that are not in the catalog (a twin made from a device
+        description, sim/esi_twin.py), found by id before it; ``twin_options``: the
+        EtherCAT line's slaves are such twins (their SII from the profile's sync managers,
+        and the options' behaviour of real slaves)."""
+        own = {p.id: p for p in profiles}
         catalog = catalog or ProfileCatalog()
         seen: set[int] = set()
         sims: list[SimulatedDrive] = []
@@ -156,7 +166,7 @@ class SimulatedBus:
                 )
             seen.add(node_id)
             serial = serials[i] if serials is not None and i < len(serials) else None
-            profile = catalog.get(profile_id)
+            profile = own.get(profile_id) or catalog.get(profile_id)
             if plant is None:
                 sims.append(SimulatedDrive(profile, node_id, serial))
             else:
@@ -205,7 +215,9 @@ class SimulatedBus:
             if on_line:
                 assert line_nic is not None
                 try:
-                    ecat_line = EthercatSlaveProcess(on_line, line_nic).start()
+                    ecat_line = EthercatSlaveProcess(
+                        on_line, line_nic, options=twin_options
+                    ).start()
                 except ValueError as exc:
                     raise ValidationError(str(exc)) from exc
                 undo.callback(ecat_line.stop)

@@ -37,6 +37,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from multiprocessing.connection import Connection
 
 from servodesk.domain import ethercat as ec
@@ -84,6 +85,19 @@ def _or(a: bytes, b: bytes) -> bytes:
     return bytes(x | y for x, y in zip(a, b, strict=True))
 
 
+@dataclass(frozen=True)
+class EscBehaviour:
+    """What a real slave's ESC and firmware do that the plain twin's do not (the ESI twin's
+    options, sim/esi_twin.py ``TwinOptions``; picklable for the ESC process)."""
+
+    #: Seconds after power-on during which the firmware is not ready: a request of PRE-OP
+    #: leaves the slave in INIT without an error, as a slave whose PDI has not started yet.
+    boot_delay_s: float = 0.0
+    #: False: the SyncManager watchdog is never enforced (a slave whose firmware switches it
+    #: off, whatever 0400h / 0420h say).
+    watchdog: bool = True
+
+
 class EscSlave:
     """One slave's ESC: memory and registers, SII EEPROM, AL state machine and the mailbox.
 
@@ -91,7 +105,10 @@ class EscSlave:
     whose answers come back by :meth:`answer`, at once or later.
     """
 
-    def __init__(self, sii: ec.SiiInfo, *, last: bool = True) -> None:
+    def __init__(
+        self, sii: ec.SiiInfo, *, last: bool = True, behaviour: EscBehaviour = EscBehaviour()
+    ) -> None:
+        self.behaviour = behaviour
         for _, size in (sii.mailbox_out, sii.mailbox_in):
             if not 32 <= size <= 1024:
                 raise ValueError(f"mailbox size {size} is outside 32..1024")
@@ -289,6 +306,8 @@ class EscSlave:
             self._set_al(AlState.INIT, 0)
             self._reset_mailbox()
         elif requested == AlState.PREOP:
+            if self.local_time_ns() < self.behaviour.boot_delay_s * 1e9:
+                return  # The firmware is still booting: the request waits (INIT, no error).
             if self._mailbox_config_ok():
                 self._set_al(AlState.PREOP, 0)
             else:
@@ -430,10 +449,11 @@ class EscSlave:
         except ec.EthercatFrameError:
             self._reply(ec.mailbox_error(ec.MBXERR_SIZE_TOO_SHORT))
             return
-        if service != ec.CoeService.SDO_REQUEST:
+        info = service == ec.CoeService.SDO_INFO and self.sii.coe_details & ec.COE_DETAILS_SDO_INFO
+        if service != ec.CoeService.SDO_REQUEST and not info:
             self._reply(ec.mailbox_error(ec.MBXERR_SERVICE_NOT_SUPPORTED))
             return
-        self.coe(mbx.data)
+        self.coe(mbx.data)  # SDO, or SDO Information where the SII offers it (sim/coe_info.py)
 
     # Process data (FMMUs, SM2 / SM3) --------------------------------------------------
 
@@ -496,7 +516,7 @@ class EscSlave:
             return False
         _, l2, on2 = self._sm(2)
         limit = self.watchdog_s()
-        if not (on2 and l2) or limit <= 0:
+        if not (on2 and l2) or limit <= 0 or not self.behaviour.watchdog:
             return False
         if self._outputs_at is None:
             self._outputs_at = now  # Watched from the first check in OP on.
@@ -704,7 +724,7 @@ def child_main(fd: int) -> None:
     ``fd``, whose first message is (interface name, the slaves' SII)."""
     pdi = Connection(fd)
     try:
-        ifname, siis = pdi.recv()
+        ifname, siis, behaviours = pdi.recv()
     except (EOFError, OSError):
         return
     try:
@@ -712,7 +732,12 @@ def child_main(fd: int) -> None:
     except LinkError as exc:
         pdi.send(("error", exc.message, exc.hint))
         return
-    line = EscLine([EscSlave(s, last=i == len(siis) - 1) for i, s in enumerate(siis)])
+    line = EscLine(
+        [
+            EscSlave(s, last=i == len(siis) - 1, behaviour=b)
+            for i, (s, b) in enumerate(zip(siis, behaviours, strict=True))
+        ]
+    )
     for i, slave in enumerate(line.slaves):
         slave.coe = functools.partial(_coe, pdi, i, slave)
         slave.on_reset = functools.partial(_forward, pdi, "reset", i, None)

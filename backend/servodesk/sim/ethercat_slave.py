@@ -42,9 +42,10 @@ import servodesk
 from servodesk.domain import ethercat as ec
 from servodesk.domain.ethercat import AlState
 from servodesk.errors import LinkError
-from servodesk.sim import esc
+from servodesk.sim import coe_info, esc
 from servodesk.sim.engine import SimAbort, SimulatedDrive
-from servodesk.sim.esc import EscLine, EscSlave
+from servodesk.sim.esc import EscBehaviour, EscLine, EscSlave
+from servodesk.sim.esi_twin import TwinOptions
 from servodesk.sim.pdo import PdoEngine
 
 log = logging.getLogger(__name__)
@@ -56,9 +57,42 @@ MAILBOX_SIZE = 128
 START_TIMEOUT = 30.0
 
 
-def sii_from_drive(drive: SimulatedDrive, mailbox_size: int) -> ec.SiiInfo:
+def sii_from_drive(
+    drive: SimulatedDrive, mailbox_size: int, options: TwinOptions | None = None
+) -> ec.SiiInfo:
     """The SII identity of a drive: what its 1018h and 1008h read (0 / the profile name
-    where the drive has none)."""
+    where the drive has none). With ``options`` (a twin from an ESI) the mailbox and process
+    data SyncManagers are where the profile's ``Sm`` elements put them (ETG.2000
+    DeviceType/Sm: MBoxOut, MBoxIn, Outputs, Inputs), the identity the option's where given,
+    and complete access claimed where the option says so."""
+    info = _sii_from_objects(drive, mailbox_size)
+    if options is None:
+        return info
+    update: dict[str, object] = {}
+    for sm in drive.profile.pdo.sync_managers:
+        kind = sm.kind.lower()
+        if kind in ("mboxout", "mboxin") and sm.start_address is not None:
+            size = sm.default_size or mailbox_size
+            if 32 <= size <= 1024:
+                update["mailbox_out" if kind == "mboxout" else "mailbox_in"] = (
+                    sm.start_address,
+                    size,
+                )
+        elif kind in ("outputs", "inputs") and sm.start_address is not None:
+            update["outputs_start" if kind == "outputs" else "inputs_start"] = sm.start_address
+    if options.sii_identity is not None:
+        vendor, product, revision = options.sii_identity
+        update.update(vendor_id=vendor, product_code=product, revision=revision)
+    details = ec.COE_DETAILS_SDO
+    if options.claims_complete_access:
+        details |= ec.COE_DETAILS_COMPLETE_ACCESS
+    if options.sdo_info:
+        details |= ec.COE_DETAILS_SDO_INFO
+    update["coe_details"] = details
+    return replace(info, **update)  # type: ignore[arg-type]
+
+
+def _sii_from_objects(drive: SimulatedDrive, mailbox_size: int) -> ec.SiiInfo:
 
     def u32(index: int, sub: int) -> int:
         try:
@@ -87,8 +121,11 @@ class CoeServer:
     """The CoE SDO server of one drive (ETG.1000.6 §5.6.2): what the slave's firmware does
     with the mailbox requests its ESC takes."""
 
-    def __init__(self, drive: SimulatedDrive, mailbox_in: int) -> None:
+    def __init__(
+        self, drive: SimulatedDrive, mailbox_in: int, options: TwinOptions | None = None
+    ) -> None:
         self.drive = drive
+        self.options = options or TwinOptions()
         #: SM1's length: what one answer can carry.
         self.mailbox_in = mailbox_in
         #: A segmented download in progress: index, sub, size, bytes so far, next toggle.
@@ -100,8 +137,34 @@ class CoeServer:
         """The mailbox was reset: a transfer in progress ends."""
         self._download = self._upload = None
 
+    def answers(self, data: bytes) -> list[bytes]:
+        """The answers (CoE header on) to a CoE request: one for an SDO (none after an abort
+        from the master), one or more (fragments) for SDO Information, which the ESC passes
+        on only where the SII offers it (option ``sdo_info``; ETG.1000.6 §5.6.3)."""
+        if len(data) >= 2 and int.from_bytes(data[:2], "little") >> 12 == ec.CoeService.SDO_INFO:
+            # What one answer may carry: SM1 less the mailbox header (6 bytes) and the CoE
+            # and SDO Information headers.
+            room = self.mailbox_in - 6 - coe_info.INFO_HEADER
+            return coe_info.answers(self.drive.profile, data, room)
+        answer = self.handle(data)
+        return [] if answer is None else [answer]
+
     def handle(self, data: bytes) -> bytes | None:
         """The answer (CoE header on) to a CoE SDO request, or None when there is none."""
+        answer = self._handle(data)
+        if (
+            answer is not None
+            and self.options.abort_reserved_bits
+            and len(answer) > 2
+            and answer[2] == ec.SDO_ABORT
+            and int.from_bytes(answer[:2], "little") >> 12 == ec.CoeService.SDO_REQUEST
+        ):
+            # Option: the reserved bits 0-4 of the abort's command byte set (CiA 301
+            # §7.2.4.3.17 says 0), as some firmware sends them.
+            answer = answer[:2] + bytes([ec.SDO_ABORT | 0x1F]) + answer[3:]
+        return answer
+
+    def _handle(self, data: bytes) -> bytes | None:
         if len(data) < 3:
             return None
         command = data[2]
@@ -419,7 +482,8 @@ class EthercatSlaveSim:
 
 def _answer_now(slave: EscSlave, server: CoeServer) -> Callable[[bytes], None]:
     def coe(data: bytes) -> None:
-        slave.answer(server.handle(data))
+        for answer in server.answers(data):
+            slave.answer(answer)
 
     return coe
 
@@ -435,17 +499,34 @@ class EthercatSlaveProcess:
         *,
         mailbox_size: int = MAILBOX_SIZE,
         claims_complete_access: bool = False,
+        options: TwinOptions | None = None,
     ) -> None:
         """``claims_complete_access``: the SII's CoE details claim SDO complete access,
         which the firmware refuses (abort 0601 0000h), as some real slaves do: SOEM's
         config_map tries it, gets the abort into its error list and falls back to plain
-        reads, so pysoem raises ConfigMapError for a mapping that succeeded (issue 46)."""
+        reads, so pysoem raises ConfigMapError for a mapping that succeeded (issue 46).
+
+        ``options`` (every slave of the line; a twin from an ESI, sim/esi_twin.py): the
+        SII's SyncManagers from the profile's ``Sm`` elements, and what real slaves do
+        differently (:class:`~servodesk.sim.esi_twin.TwinOptions`)."""
         self.ifname = ifname
-        self.servers = _servers(drives, mailbox_size)
-        self._siis = [sii_from_drive(s.drive, mailbox_size) for s in self.servers]
-        if claims_complete_access:
+        if options is not None and claims_complete_access:
+            options = replace(options, claims_complete_access=True)
+        self._siis = [sii_from_drive(d, mailbox_size, options) for d in drives]
+        if not drives:
+            raise ValueError("an EtherCAT line needs at least one slave")
+        # The CoE server answers within SM1, whatever size the profile gave it.
+        self.servers = [
+            CoeServer(d, sii.mailbox_in[1], options)
+            for d, sii in zip(drives, self._siis, strict=True)
+        ]
+        if claims_complete_access and options is None:
             details = ec.COE_DETAILS_SDO | ec.COE_DETAILS_COMPLETE_ACCESS
             self._siis = [replace(s, coe_details=details) for s in self._siis]
+        self._behaviour = EscBehaviour(
+            boot_delay_s=options.boot_delay_s if options is not None else 0.0,
+            watchdog=options.watchdog if options is not None else True,
+        )
         self.process_data = [
             ProcessDataServer(
                 s.drive,
@@ -486,7 +567,7 @@ class EthercatSlaveProcess:
         theirs.close()
         pdi = Connection(ours.detach())
         try:
-            pdi.send((self.ifname, self._siis))
+            pdi.send((self.ifname, self._siis, [self._behaviour] * len(self._siis)))
             if not pdi.poll(START_TIMEOUT):
                 raise LinkError(
                     f"the simulated EtherCAT slaves on {self.ifname!r} did not start within "
@@ -543,11 +624,14 @@ class EthercatSlaveProcess:
                 mode, cycle = data
                 self.process_data[index].sync(int(mode), int(cycle))
                 continue
-            answer = server.handle(data)
+            # Answered outside the send lock: a write of a PDO configuration object mirrors
+            # it to the ESC process (_push), which takes the lock itself.
+            answers = server.answers(data) or [None]
             self.requests += 1
             try:
                 with self._send_lock:
-                    pdi.send(("coe", index, answer))
+                    for answer in answers:
+                        pdi.send(("coe", index, answer))
             except OSError:
                 return
 
