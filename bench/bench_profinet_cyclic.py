@@ -13,9 +13,16 @@ controller AR (links/profinet_io.py) sends the setpoint telegram on the master e
 - data-status errors (input frames whose DataStatus or IOPS was not good) and watchdog
   expiries on both sides (the controller's "link lost", the device's data hold).
 
+With ``--loss-runs N`` it then cuts the link N times (the device's end of the pair set down
+for ``--cable-out-s``, then up: a cable pulled and put back) and reports, as median, p95 and
+worst, the time from the cut to "link lost" and from the cable back to "ok" again (the IO AR
+set up again by itself: Connect, PrmEnd, ApplicationReady, the first valid input;
+links/profinet_io.py ``_recover``).
+
 Needs root (a veth pair and raw sockets). Prints a summary, or JSON with ``--json``.
 
-    python bench/bench_profinet_cyclic.py [--seconds 60] [--cycle-ms 1] [--json]
+    python bench/bench_profinet_cyclic.py [--seconds 60] [--cycle-ms 1] [--loss-runs 20]
+        [--cable-out-s 2] [--json]
 """
 
 from __future__ import annotations
@@ -25,6 +32,7 @@ import asyncio
 import json
 import os
 import statistics
+import subprocess
 import sys
 import time
 from typing import Any
@@ -45,7 +53,63 @@ def _percentile(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
 
 
-async def measure(seconds: float, cycle_ms: float) -> dict[str, Any]:
+def _spread(values: list[float]) -> dict[str, float | None]:
+    ms = [v * 1000 for v in values]
+    if not ms:
+        return {"median": None, "p95": None, "max": None}
+    return {
+        "median": round(statistics.median(ms), 1),
+        "p95": round(_percentile(ms, 0.95), 1),
+        "max": round(max(ms), 1),
+    }
+
+
+def _cable(ifname: str, *, up: bool) -> None:
+    """The device's end of the pair down (the cable out) or up; the times count from the
+    return of ``ip``, when the change is made for certain."""
+    subprocess.run(["ip", "link", "set", ifname, "up" if up else "down"], check=True)
+
+
+async def _until_state(io: Any, state: str, timeout: float) -> float | None:
+    """Seconds until the controller's link state is ``state`` (polled every ms)."""
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        if io.health.state == state:
+            return time.monotonic() - t0
+        await asyncio.sleep(0.001)
+    return None
+
+
+async def link_losses(io: Any, ifname: str, runs: int, out_s: float) -> dict[str, Any]:
+    """Cut the link ``runs`` times at the device's end (see the module docstring)."""
+    to_lost: list[float] = []
+    to_ok: list[float] = []
+    failed = 0
+    for _ in range(runs):
+        _cable(ifname, up=False)
+        lost = await _until_state(io, "link lost", 2.0)
+        await asyncio.sleep(max(0.0, out_s - (lost or 0.0)))
+        _cable(ifname, up=True)
+        back = await _until_state(io, "ok", 10.0)
+        if lost is None or back is None:
+            failed += 1
+        else:
+            to_lost.append(lost)
+            to_ok.append(back)
+        await asyncio.sleep(0.3)  # settle before the next cut
+    return {
+        "runs": runs,
+        "cable_out_s": out_s,
+        "failed_runs": failed,
+        "link_lost_ms": _spread(to_lost),
+        "running_again_ms": _spread(to_ok),
+        "recoveries": io.health.recoveries,
+    }
+
+
+async def measure(
+    seconds: float, cycle_ms: float, loss_runs: int = 0, out_s: float = 2.0
+) -> dict[str, Any]:
     pair = create_veth("sdbio")
     drive = SimulatedDrive(ProfileCatalog().get("lecsn-t"), 1)
     drive.write(P922, 0, 102)
@@ -82,6 +146,7 @@ async def measure(seconds: float, cycle_ms: float) -> dict[str, Any]:
             h.losses - start[4],
         )
         device_aborts = io_dev.aborts
+        losses_seen = await link_losses(io, pair.slave, loss_runs, out_s) if loss_runs > 0 else None
         await link.close()
     finally:
         dev.stop()
@@ -104,6 +169,7 @@ async def measure(seconds: float, cycle_ms: float) -> dict[str, Any]:
         "data_status_errors": ds_errors,
         "controller_watchdog_expiries": losses,
         "device_watchdog_expiries": device_aborts,
+        "link_loss": losses_seen,
         "load_average_1min": round(os.getloadavg()[0], 2),
         "cores": os.cpu_count(),
     }
@@ -113,15 +179,20 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--cycle-ms", type=float, default=1.0, help="1, 2, 4, 8 or 16")
+    ap.add_argument("--loss-runs", type=int, default=0, help="cut the link this many times")
+    ap.add_argument("--cable-out-s", type=float, default=2.0, help="each cut's length")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args(argv)
     if args.seconds <= 0:
         print("--seconds must be positive", file=sys.stderr)
         return 2
+    if args.loss_runs < 0 or args.cable_out_s <= 0:
+        print("--loss-runs must be 0 or more and --cable-out-s positive", file=sys.stderr)
+        return 2
     if os.geteuid() != 0:
         print("needs root: a veth pair and raw sockets", file=sys.stderr)
         return 2
-    result = asyncio.run(measure(args.seconds, args.cycle_ms))
+    result = asyncio.run(measure(args.seconds, args.cycle_ms, args.loss_runs, args.cable_out_s))
     if args.json:
         print(json.dumps(result, indent=2))
     else:

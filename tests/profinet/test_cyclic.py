@@ -13,6 +13,7 @@ import contextlib
 import dataclasses
 import itertools
 import socket
+import subprocess
 import threading
 import time
 from collections.abc import Iterator
@@ -249,6 +250,63 @@ def test_watchdogs_on_both_sides(veth: VethPair) -> None:
         asyncio.run(run())
 
 
+def _cable(name: str, up: bool) -> None:
+    """The cable at the device's end of the pair out (down) or back in (up)."""
+    subprocess.run(["ip", "link", "set", name, "up" if up else "down"], check=True)
+
+
+def test_the_io_ar_comes_back_by_itself_after_the_link_was_lost(veth: VethPair) -> None:
+    with _twin(veth) as (dev, drive):
+        link = _link(veth, dev)
+
+        async def run() -> None:
+            await _start(link)
+            io = link.io
+            assert io is not None and dev.io is not None
+            assert _until(lambda: io.health.state == "ok")
+            for word in (0x0006, 0x0007, 0x000F):
+                io.set_outputs(_outputs(word))
+                await asyncio.sleep(0.05)
+            assert _until(lambda: int(drive.read(0x6041)) & 0x6F == 0x27)
+            first_ar, key = dev.io.ar, io.session_key
+            # What the exchange does at the loss (services/cyclic.py hold_on_link_loss):
+            # a quick stop in the outputs, so that the new AR does not enable the axis.
+            _cable(veth.slave, up=False)
+            try:
+                assert _until(lambda: io.health.state == "link lost", 1.0)
+                io.set_outputs(_outputs(0x0002))
+                view = io.view()
+                assert view["carrier"] is False and "no carrier" in view["reason"], view
+                # The device's data hold timer ends its AR: Switch on disabled (004 §20.5.2).
+                assert _until(lambda: dev.io is not None and dev.io.aborts == 1, 2.0)
+                assert _until(lambda: int(drive.read(0x6041)) & 0x4F == 0x40, 3.0)
+                await asyncio.sleep(0.3)  # no try while the carrier is out
+                assert io.health.recoveries == 0 and io.health.state == "link lost"
+            finally:
+                _cable(veth.slave, up=True)
+            # Back by itself: a new Connect (the next session key), PrmEnd, ApplicationReady.
+            assert _until(lambda: io.health.state == "ok", 5.0), io.view()
+            assert io.health.recoveries == 1 and io.session_key == key + 1
+            assert dev.io.ar is not None and dev.io.ar is not first_ar and dev.io.ar.exchanging
+            assert link.io is io and io.health.losses == 1
+            assert io.health.last_recovery_s is not None and io.health.last_recovery_s < 5
+            # The inputs show the drive's own state, and it stays there.
+            got: list[bytes] = []
+            io.subscribe(lambda data, _t: got.append(data))
+            assert _until(lambda: bool(got))
+            await asyncio.sleep(0.3)
+            assert int(drive.read(0x6041)) & 0x4F == 0x40
+            # The person in control enables it again through the same AR.
+            for word in (0x0006, 0x0007, 0x000F):
+                io.set_outputs(_outputs(word))
+                await asyncio.sleep(0.05)
+            assert _until(lambda: int(drive.read(0x6041)) & 0x6F == 0x27)
+            assert dev.io.aborts == 1 and io.health.losses == 1
+            await link.close()
+
+        asyncio.run(run())
+
+
 def test_a_second_io_controller_is_refused_and_the_first_keeps_its_ar(veth: VethPair) -> None:
     with _twin(veth) as (dev, _drive):
         first, second = _link(veth, dev), _link(veth, dev)
@@ -408,3 +466,72 @@ def test_the_api_runs_cyclic_data_over_profinet_and_moves_the_lecsn(
     assert info["ar"] == "IO supervisor AR with device access (ARType 0006h)"
     dev = sim.profinet[0].io
     assert dev is not None and dev.ar is None
+
+
+def test_after_a_lost_link_the_api_shows_the_drive_as_it_is_and_nothing_moves_by_itself(
+    app: tuple[Any, Any],
+) -> None:
+    client, sim = app
+    drive = sim.drives[0]
+    drive.write(P922, 0, 102)
+    url = f"/api/v1/sessions/{SID}/pdo/cyclic"
+    with client.websocket_connect("/api/v1/ws?client=A") as ws:
+        beats = take_and_enable(client, SID, "A", ws)
+        try:
+            r = client.post(url, json={"sync_period_ms": 1, "outputs": True}, headers=A)
+            assert r.status_code == 200, r.text
+            assert _until(lambda: client.get(url).json()["link"]["state"] == "ok")
+            dev = sim.profinet[0].io
+            assert dev is not None
+            # The status bar's PROFINET bus: the IO AR's counters while cyclic data runs.
+            bar = _profinet_bus(client)
+            assert bar["state"] == "up" and bar["profinet"]["cycle_ms"] == 1, bar
+            assert bar["profinet"]["output_frames"] > 0 and bar["profinet"]["input_frames"] > 0
+            assert bar["profinet"]["lost"] == 0 and bar["profinet"]["losses"] == 0
+            r = client.post(
+                f"/api/v1/sessions/{SID}/motion/jog",
+                json={"velocity": 2000, "acceleration": 50000},
+                headers=A,
+            )
+            assert r.status_code == 200, r.text
+            time.sleep(0.2)
+            _cable(dev.ifname, up=False)
+            try:
+                assert _until(lambda: client.get(url).json()["link"]["state"] == "link lost", 1.0)
+                # The bus is down in the status bar, though the supervisor AR answers.
+                bar = _profinet_bus(client)
+                assert bar["state"] == "down" and "no carrier" in bar["reason"], bar
+                assert bar["profinet"]["losses"] == 1
+                assert _until(lambda: dev.aborts == 1, 2.0)
+                assert _until(lambda: int(drive.read(0x6041)) & 0x4F == 0x40, 3.0)
+            finally:
+                _cable(dev.ifname, up=True)
+            assert _until(lambda: client.get(url).json()["link"]["state"] == "ok", 5.0)
+            st = client.get(url).json()
+            # The drive's own state (Switch on disabled), fresh; the outputs hold the quick
+            # stop the exchange put in at the loss (CiA 402-2 §6.2.1).
+            assert _until(lambda: int(client.get(url).json()["values"]["0x6041:00"]["value"])
+                          & 0x4F == 0x40)  # fmt: skip
+            st = client.get(url).json()
+            assert st["values"]["0x6041:00"]["stale"] is False, st
+            assert st["values"]["0x6040:00"]["value"] == 0x0002, st["values"]["0x6040:00"]
+            position = drive.position
+            time.sleep(0.5)
+            assert int(drive.read(0x6041)) & 0x4F == 0x40 and drive.position == position
+            # The person in control enables the axis again: over the new AR.
+            r = client.post(f"/api/v1/sessions/{SID}/state", json={"command": "enable"}, headers=A)
+            assert r.status_code == 200 and r.json()["state"] == "Operation enabled", r.text
+            assert dev.aborts == 1
+            bar = _profinet_bus(client)
+            assert bar["state"] == "up" and bar["reason"] is None, bar
+        finally:
+            beats.stop()
+    r = client.delete(url, headers=A)
+    assert r.status_code == 200, r.text
+    assert _profinet_bus(client)["profinet"] is None
+
+
+def _profinet_bus(client: Any) -> dict[str, Any]:
+    buses = client.get("/api/v1/status").json()["buses"]
+    bus: dict[str, Any] = next(b for b in buses if b["link"] == "profinet")
+    return bus

@@ -243,6 +243,9 @@ class PdoLinkHealth(Reply):
         default=None, description="PROFINET: input frames whose DataStatus or IOPS was not good"
     )
     cycle_ms: float | None = Field(default=None, description="PROFINET: the IOCR's cycle")
+    frames_received: int | None = Field(
+        default=None, description="PROFINET: input frames received from the device"
+    )
     watchdog_ms: float | None = Field(
         default=None, description="PROFINET: inputs missing this long make the link lost"
     )

@@ -57,13 +57,28 @@ class BusEthercatOut(Reply):
     losses: int
 
 
+class BusProfinetOut(Reply):
+    """The IO controller AR's counters while cyclic data runs (links/profinet_io.py)."""
+
+    output_frames: int = Field(description="output frames servodesk sent")
+    input_frames: int = Field(description="input frames received from the device")
+    lost: int = Field(description="input frames lost (gaps in their cycle counter)")
+    data_status_errors: int = Field(
+        description="input frames whose DataStatus or IOPS was not good (not used)"
+    )
+    losses: int = Field(description="times the link was lost (watchdog or no carrier)")
+    cycle_ms: float = Field(description="the IOCRs' cycle (SendClockFactor x ReductionRatio)")
+
+
 class BusStatusOut(Reply):
     link: str = Field(description='the link: "canopen", "ethercat", "cclink-ie-tsn", "profinet"')
     interface: str
     channel: str
     bitrate: int | None
     state: Literal["up", "degraded", "down", "reconnecting"]
-    reason: str | None = Field(description="why an EtherCAT line is not up, in words")
+    reason: str | None = Field(
+        description="why an EtherCAT line or a PROFINET IO AR is not up, in words"
+    )
     sessions: list[BusSessionOut]
     requests: int = Field(description="requests servodesk made on this bus's sessions")
     failed_requests: int = Field(
@@ -72,6 +87,9 @@ class BusStatusOut(Reply):
     traffic: BusTrafficOut | None = Field(description="null: this link counts no traffic")
     cycle: BusCycleOut | None = Field(description="null: no cyclic exchange runs")
     ethercat: BusEthercatOut | None = Field(description="null: not an EtherCAT line in cycles")
+    profinet: BusProfinetOut | None = Field(
+        description="null: not a PROFINET IO AR exchanging cyclic data"
+    )
 
 
 class StoreStatusOut(Reply):

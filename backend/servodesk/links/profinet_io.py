@@ -12,9 +12,17 @@ socket of the NIC, and receives the input frames between two sends.
 
 Its watchdog: inputs that have not come for WatchdogFactor cycles are stale and the link
 state is "link lost" (the exchange then puts a quick stop into the output image, as on
-EtherCAT). An input frame whose DataStatus is not "valid, run, primary, no problem" or whose
-IOPS is bad counts as a data-status error and is not handed on. Frames lost are counted from
-the gaps in the input frames' cycle counter.
+EtherCAT); so is a NIC without carrier (the cable out at servodesk's end). Once the carrier
+is back, or at once after a watchdog loss, the same thread sets the IO AR up again by
+itself (:meth:`IoController._recover`: Release of the old AR, Connect with the next session
+key, PrmEnd, ApplicationReady); the link is "recovering" until the first valid input frame,
+then "ok", and the inputs show the drive's own state (a device whose data hold timer ended
+the AR is in Switch on disabled or Fault, 004 §20.5.2). The outputs carry what the exchange
+holds: the quick stop put in at the loss, until the person in control commands again.
+
+An input frame whose DataStatus is not "valid, run, primary, no problem" or whose IOPS is
+bad counts as a data-status error and is not handed on. Frames lost are counted from the
+gaps in the input frames' cycle counter.
 
 A device whose IO AR is another controller's (the PLC's) refuses the connect; the error says
 so and servodesk never takes the AR over.
@@ -35,7 +43,13 @@ from typing import Any, Protocol
 from servodesk import nic
 from servodesk.domain import pnio
 from servodesk.domain import pnio_io as io
-from servodesk.errors import ConflictError, LinkError, LinkTimeoutError, ValidationError
+from servodesk.errors import (
+    ConflictError,
+    LinkError,
+    LinkTimeoutError,
+    ServodeskError,
+    ValidationError,
+)
 from servodesk.links.cyclic import CyclicTransport, FrameCallback
 
 log = logging.getLogger(__name__)
@@ -51,6 +65,15 @@ REDUCTION_RATIOS = (1, 2, 4, 8, 16)
 WATCHDOG_MIN_S = 0.2
 #: How long the device has to call ApplicationReady after PrmEnd [s].
 APPLICATION_READY_S = 3.0
+#: While the link is lost, the pause between two tries to set the IO AR up again [s].
+RECONNECT_EVERY_S = 0.5
+#: A loss is held this long at least before the first try [s]: the exchange's SYNC thread
+#: (one look per cycle, 16 ms at most) must see "link lost" to put its quick stop in first.
+RECONNECT_AFTER_S = 0.05
+#: The RPC time-out of a try [s]: short, so that stopping cyclic data never waits long.
+RECONNECT_RPC_S = 0.3
+#: How often the cycle thread reads the NIC's carrier [s] (as the EtherCAT line does).
+CARRIER_EVERY_S = 0.02
 #: The output and input IOCRs' references and the FrameIDs servodesk proposes.
 OUTPUT_REF, INPUT_REF = 1, 2
 OUTPUT_FRAME_ID, INPUT_FRAME_ID = 0x8000, 0x8001
@@ -76,6 +99,19 @@ class IoHealth:
     last_counter: int | None = None
     #: Send times of the output frames (the last ones): the cycle achieved.
     intervals: list[float] = field(default_factory=list)
+    #: The NIC's carrier (/sys/class/net/<nic>/carrier; None where it cannot be read).
+    carrier: bool | None = None
+    #: When the AR was (set up) again: the watchdog counts from here until a valid input.
+    fresh: float = 0.0
+    lost_at: float = 0.0
+    #: Why the link was lost (kept in ``reason`` while the AR is set up again).
+    cause: str = ""
+    carrier_lost_at: float = 0.0
+    #: When the next try to set the AR up again may start (while the link is lost).
+    retry_at: float = 0.0
+    #: ARs set up again after a loss, and the last one's time from the loss to running.
+    recoveries: int = 0
+    last_recovery_s: float | None = None
 
     @property
     def stale(self) -> bool:
@@ -136,9 +172,15 @@ class IoController:
         self.in_frame_id = INPUT_FRAME_ID
         self._outputs = bytes(rx_bytes)
         self._running = False  # DataStatus "run" once the device's application is ready
+        #: Set once :meth:`connect` is done: from then on the cycle thread owns the RPC
+        #: socket for setting the AR up again (before, connect's wait for ApplicationReady).
+        self._up = False
         self.application_ready = threading.Event()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self._counter = 0
+        self._next_t = 0.0
+        self._last_send = 0.0
         self._receivers: list[FrameCallback] = []
         self._lock = threading.Lock()
         self.health = IoHealth()
@@ -196,6 +238,7 @@ class IoController:
                     )
                 self._serve_once(0.05)
             self._running = True
+            self._up = True
         except BaseException:
             self.close(release=connected)  # a refused connect left no AR to release
             raise
@@ -392,38 +435,15 @@ class IoController:
     def _run(self) -> None:
         raw = self._raw
         assert raw is not None
-        step = round(self.cycle / io.CLOCK_UNIT_S)
-        counter = 0
-        next_t = time.perf_counter()
-        watchdog = self.watchdog_factor * self.cycle
-        started = time.monotonic()
-        last_send = 0.0
         h = self.health
+        self._counter = 0
+        self._next_t = time.perf_counter()
+        self._last_send = 0.0
+        h.fresh = time.monotonic()
+        next_carrier = 0.0
         while not self._stop.is_set():
-            now = time.perf_counter()
-            if now >= next_t:
-                data = io.pack_c_sdu(
-                    self.out_layout, {io.TELEGRAM: self._outputs}, io.IOXS_GOOD, io.IOXS_GOOD
-                )
-                status = io.DATA_STATUS_OK if self._running else io.DATA_STATUS_OK & ~io.DS_RUN
-                frame = io.build_rt(
-                    io.RtFrame(self.device_mac, self.mac, self.out_frame_id, data, counter, status)
-                )
-                try:
-                    raw.send(frame)
-                except OSError as exc:
-                    h.reason = f"the NIC {self.nic} does not send: {exc}"
-                if last_send:
-                    h.intervals.append(now - last_send)
-                    if len(h.intervals) > 4096:
-                        del h.intervals[:2048]
-                last_send = now
-                h.cycles += 1
-                counter = (counter + step) & 0xFFFF
-                next_t += self.cycle
-                if next_t < now - 20 * self.cycle:
-                    next_t = now + self.cycle  # far behind (a stalled machine): resume
-            raw.settimeout(max(0.0002, next_t - time.perf_counter()))
+            self._send_due()
+            raw.settimeout(max(0.0002, self._next_t - time.perf_counter()))
             try:
                 frame = raw.recv(1600)
             except TimeoutError:
@@ -435,15 +455,135 @@ class IoController:
             t = time.monotonic()
             if frame:
                 self._input(frame, t)
-            since = t - (h.last_good or started)
-            if since > watchdog and h.state != LOST and (h.last_good or since > 3 * watchdog):
-                h.state = LOST
-                h.losses += 1
-                h.reason = (
-                    f"no valid input frame for {since * 1000:.0f} ms (watchdog "
-                    f"{self.watchdog_factor} x {self.cycle * 1000:g} ms)"
+            if t >= next_carrier:
+                next_carrier = t + CARRIER_EVERY_S
+                self._carrier(t)
+            self._watch(t)
+            if self._up and h.state == LOST and h.carrier is not False and t >= h.retry_at:
+                self._recover()
+
+    def _send_due(self) -> None:
+        """The output frame, when its cycle has come."""
+        raw = self._raw
+        now = time.perf_counter()
+        if raw is None or now < self._next_t:
+            return
+        h = self.health
+        data = io.pack_c_sdu(
+            self.out_layout, {io.TELEGRAM: self._outputs}, io.IOXS_GOOD, io.IOXS_GOOD
+        )
+        status = io.DATA_STATUS_OK if self._running else io.DATA_STATUS_OK & ~io.DS_RUN
+        frame = io.build_rt(
+            io.RtFrame(self.device_mac, self.mac, self.out_frame_id, data, self._counter, status)
+        )
+        try:
+            raw.send(frame)
+        except OSError as exc:
+            h.reason = f"the NIC {self.nic} does not send: {exc}"
+        if self._last_send:
+            h.intervals.append(now - self._last_send)
+            if len(h.intervals) > 4096:
+                del h.intervals[:2048]
+        self._last_send = now
+        h.cycles += 1
+        self._counter = (self._counter + round(self.cycle / io.CLOCK_UNIT_S)) & 0xFFFF
+        self._next_t += self.cycle
+        if self._next_t < now - 20 * self.cycle:
+            self._next_t = now + self.cycle  # far behind (a stalled machine): resume
+
+    def _watch(self, t: float) -> None:
+        """The controller's watchdog: no valid input for WatchdogFactor cycles (3 times
+        that before the first one after a (re)connect) is a lost link."""
+        h = self.health
+        watchdog = self.watchdog_factor * self.cycle
+        since = t - max(h.last_good, h.fresh)
+        limit = watchdog if h.last_good > h.fresh else 3 * watchdog
+        if since > limit and h.state != LOST:
+            self._lose(
+                t,
+                f"no valid input frame for {since * 1000:.0f} ms (watchdog "
+                f"{self.watchdog_factor} x {self.cycle * 1000:g} ms)",
+            )
+
+    def _carrier(self, t: float) -> None:
+        """The NIC's carrier: 0 is a lost link at once (a cable out at servodesk's end);
+        when it returns after longer than the device's data hold time, the device has ended
+        the AR, and it is set up again without waiting for its inputs."""
+        h = self.health
+        try:
+            with open(f"/sys/class/net/{self.nic}/carrier") as f:
+                carrier: bool | None = f.read().strip() == "1"
+        except OSError:  # EINVAL while the interface is down, or no such file
+            carrier = None if h.carrier is None else False
+        was, h.carrier = h.carrier, carrier
+        if carrier is False and was is not False:
+            h.carrier_lost_at = t
+            self._lose(t, f"no carrier on the network interface {self.nic} (cable out?)")
+        elif carrier and was is False:
+            down = t - h.carrier_lost_at
+            hold = self.watchdog_factor * self.cycle
+            h.retry_at = max(h.lost_at + RECONNECT_AFTER_S, t if down > hold else t + hold)
+
+    def _lose(self, t: float, reason: str) -> None:
+        h = self.health
+        if h.state == LOST:
+            return
+        h.state, h.reason, h.cause = LOST, reason, reason
+        h.losses += 1
+        h.lost_at = t
+        h.retry_at = t + RECONNECT_AFTER_S
+        log.warning("PROFINET IO %s: link lost: %s", self.host, reason)
+
+    def _recover(self) -> None:
+        """Set the IO AR up again after a loss (called by the cycle thread while the link is
+        lost and the NIC has its carrier): Release of the old AR (the device may still hold
+        it), Connect with the next session key, PrmEnd, ApplicationReady. The state stays
+        "link lost" until the device called ApplicationReady, then "recovering" until its
+        first valid input frame; a try that fails is tried again RECONNECT_EVERY_S later.
+        Nothing here touches the outputs: they carry the quick stop the exchange put in at
+        the loss (services/cyclic.py ``hold_on_link_loss``)."""
+        h = self.health
+        self._running = False  # DataStatus STOP until the new AR is in data exchange
+        h.reason = f"{h.cause}; setting the IO AR up again (Connect, PrmEnd, ApplicationReady)"
+        try:
+            with contextlib.suppress(LinkError, pnio.PnioFrameError):
+                args = pnio.release_block(
+                    pnio.BLOCK_RELEASE_REQ, self.ar_uuid, self.session_key, pnio.CONTROL_RELEASE
                 )
-                log.warning("PROFINET IO %s: %s", self.host, h.reason)
+                self._call(pnio.OP_RELEASE, args, sends=1, timeout=RECONNECT_RPC_S)
+            self.session_key = self.session_key % 0xFFFF + 1
+            self.application_ready.clear()
+            status, blocks = self._call(
+                pnio.OP_CONNECT, self._connect_blocks(), timeout=RECONNECT_RPC_S
+            )
+            self._check_connect(status, blocks)
+            args = io.control_block(
+                io.BLOCK_PRM_END_REQ, self.ar_uuid, self.session_key, io.CONTROL_PRM_END
+            )
+            status, _blocks = self._call(io.OP_CONTROL, args, timeout=RECONNECT_RPC_S)
+            if status:
+                raise ConflictError(f"the device refused PrmEnd: {pnio.status_text(status)}")
+            deadline = time.monotonic() + APPLICATION_READY_S
+            while not self.application_ready.is_set():
+                if self._stop.is_set():
+                    return
+                if time.monotonic() > deadline:
+                    raise LinkTimeoutError("the device did not call ApplicationReady")
+                self._send_due()
+                self._serve_once(min(0.01, max(0.0002, self._next_t - time.perf_counter())))
+        except (ServodeskError, OSError, pnio.PnioFrameError) as exc:
+            text = exc.message if isinstance(exc, ServodeskError) else str(exc)
+            h.reason = f"{h.cause}; the IO AR could not be set up again: {text}"
+            h.retry_at = time.monotonic() + RECONNECT_EVERY_S
+            log.info("PROFINET IO %s: %s", self.host, h.reason)
+            return
+        self._running = True
+        h.last_counter = None  # the new AR's cycle counter starts anew
+        h.fresh = time.monotonic()
+        h.state = STARTING
+        h.reason = f"{h.cause}; the IO AR is set up again: waiting for its first input frame"
+        h.recoveries += 1
+        log.info("PROFINET IO %s: IO AR set up again (session key %d)", self.host, self.session_key)
 
     def _input(self, frame: bytes, t: float) -> None:
         f = io.parse_rt(frame, self.in_layout.length)
@@ -465,7 +605,11 @@ class IoController:
             return
         h.last_good = t
         if h.state != OK:
+            if h.lost_at:
+                h.last_recovery_s = t - h.lost_at
+                log.info("PROFINET IO %s: running %.3f s after the loss", self.host, t - h.lost_at)
             h.state, h.reason = OK, None
+            h.lost_at = 0.0
         data = f.data[off : off + n]
         for cb in self._receivers:
             cb(data, t)
@@ -482,12 +626,13 @@ class IoController:
             "missing_frames": h.lost,
             "last_wkc": None,
             "expected_wkc": 0,
-            "carrier": None,
+            "carrier": h.carrier,
             "losses": h.losses,
             "since_good_s": round(now - h.last_good, 3) if h.last_good else None,
             "slaves": [],
             "ar": AR_IO,
             "data_status_errors": h.data_status_errors,
+            "frames_received": h.received,
             "cycle_ms": round(self.cycle * 1000, 3),
             "watchdog_ms": round(self.watchdog_factor * self.cycle * 1000, 3),
         }

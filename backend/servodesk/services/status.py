@@ -17,7 +17,8 @@ from servodesk.services import db
 from servodesk.services.session import Session
 from servodesk.services.store import Store
 
-#: The EtherCAT line's states (links/ethercat_health.py) as a bus's state.
+#: The EtherCAT line's and the PROFINET IO AR's states (links/ethercat_health.py,
+#: links/profinet_io.py) as a bus's state.
 _LINE_STATES = {
     "ok": "up",
     "degraded": "degraded",
@@ -49,6 +50,20 @@ def _cycle(session: Session) -> dict[str, Any] | None:
         # The average since the exchange started: cycles the producer thread counted.
         "measured_ms": round(elapsed / syncs * 1000, 3) if syncs > 0 and elapsed > 0 else None,
         "cycles": syncs,
+    }
+
+
+def _profinet(health: dict[str, Any] | None) -> dict[str, Any] | None:
+    """The IO controller AR's counters (links/profinet_io.py ``view``) while it runs."""
+    if not health or health.get("cycle_ms") is None:
+        return None
+    return {
+        "output_frames": health["cycles"],
+        "input_frames": health.get("frames_received") or 0,
+        "lost": health["missing_frames"],
+        "data_status_errors": health.get("data_status_errors") or 0,
+        "losses": health["losses"],
+        "cycle_ms": health["cycle_ms"],
     }
 
 
@@ -86,11 +101,12 @@ def bus_status(sessions: Iterable[Session]) -> list[dict[str, Any]]:
                         "missing_frames": health["missing_frames"],
                         "losses": health["losses"],
                     }
-                    # A PROFINET IO AR's health has no working counter: the PDO page
-                    # shows its frames lost and data-status errors (docs/profinet.md).
                     if health and first.link.fieldbus == "ethercat"
                     else None
                 ),
+                # A PROFINET IO AR has no working counter: its frames, those lost (the
+                # input cycle counter's gaps) and those with a bad DataStatus or IOPS.
+                "profinet": _profinet(health) if first.link.fieldbus == "profinet" else None,
             }
         )
     return out

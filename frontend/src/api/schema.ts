@@ -2324,6 +2324,42 @@ export interface components {
             /** Wkc Errors */
             wkc_errors: number;
         };
+        /**
+         * BusProfinetOut
+         * @description The IO controller AR's counters while cyclic data runs (links/profinet_io.py).
+         */
+        BusProfinetOut: {
+            /**
+             * Cycle Ms
+             * @description the IOCRs' cycle (SendClockFactor x ReductionRatio)
+             */
+            cycle_ms: number;
+            /**
+             * Data Status Errors
+             * @description input frames whose DataStatus or IOPS was not good (not used)
+             */
+            data_status_errors: number;
+            /**
+             * Input Frames
+             * @description input frames received from the device
+             */
+            input_frames: number;
+            /**
+             * Losses
+             * @description times the link was lost (watchdog or no carrier)
+             */
+            losses: number;
+            /**
+             * Lost
+             * @description input frames lost (gaps in their cycle counter)
+             */
+            lost: number;
+            /**
+             * Output Frames
+             * @description output frames servodesk sent
+             */
+            output_frames: number;
+        };
         /** BusSessionOut */
         BusSessionOut: {
             /**
@@ -2358,9 +2394,11 @@ export interface components {
              * @description the link: "canopen", "ethercat", "cclink-ie-tsn", "profinet"
              */
             link: string;
+            /** @description null: not a PROFINET IO AR exchanging cyclic data */
+            profinet: components["schemas"]["BusProfinetOut"] | null;
             /**
              * Reason
-             * @description why an EtherCAT line is not up, in words
+             * @description why an EtherCAT line or a PROFINET IO AR is not up, in words
              */
             reason: string | null;
             /**
@@ -4566,6 +4604,11 @@ export interface components {
             data_status_errors?: number | null;
             /** Expected Wkc */
             expected_wkc: number;
+            /**
+             * Frames Received
+             * @description PROFINET: input frames received from the device
+             */
+            frames_received?: number | null;
             /** Last Wkc */
             last_wkc: number | null;
             /** Losses */

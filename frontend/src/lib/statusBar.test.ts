@@ -37,6 +37,7 @@ function virtualBus(over: Partial<BusStatus> = {}): BusStatus {
     },
     cycle: null,
     ethercat: null,
+    profinet: null,
     ...over,
   };
 }
@@ -76,6 +77,20 @@ describe('status bar text', () => {
     expect(errorsText(bus)).toBe('2 of 120 requests failed, 4 WKC errors, 1 missing frames');
     expect(cycleText(bus)).toBe('cycle 2 ms set, — measured');
   });
+
+  it("names a PROFINET IO AR's frames, those lost and the data-status errors", () => {
+    const bus = virtualBus({
+      link: 'profinet',
+      interface: 'profinet',
+      channel: '192.168.0.10',
+      traffic: null,
+      profinet: { output_frames: 12034, input_frames: 12001, lost: 3, data_status_errors: 1, losses: 1, cycle_ms: 1 },
+      cycle: { session: 'a-1', sync: 'freerun', configured_ms: 1, measured_ms: 1.0012, cycles: 12030 },
+    });
+    expect(trafficText(bus)).toBe('12,034 frames sent, 12,001 received');
+    expect(errorsText(bus)).toBe('2 of 120 requests failed, 3 frames lost, 1 data-status errors, link lost 1×');
+    expect(cycleText(bus)).toBe('cycle 1 ms set, 1.001 ms measured');
+  });
 });
 
 describe('live link state', () => {
@@ -89,6 +104,12 @@ describe('live link state', () => {
   it("keeps an EtherCAT line's own state over the sessions' polls", () => {
     const line = virtualBus({ state: 'reconnecting', ethercat: { wkc_errors: 0, missing_frames: 9, losses: 1 } });
     expect(withLiveSessions(line, live({ 'a-1': true, 'b-2': true })).state).toBe('reconnecting');
+  });
+
+  it("keeps a PROFINET IO AR's lost link while its supervisor AR still answers", () => {
+    const io = { output_frames: 900, input_frames: 700, lost: 0, data_status_errors: 0, losses: 1, cycle_ms: 1 };
+    const bus = virtualBus({ link: 'profinet', state: 'down', profinet: io });
+    expect(withLiveSessions(bus, live({ 'a-1': true, 'b-2': true })).state).toBe('down');
   });
 
   it('announces a change of state only', () => {

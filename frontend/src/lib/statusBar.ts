@@ -28,8 +28,9 @@ export function busTitle(bus: BusStatus): string {
 
 /**
  * The bus with its sessions' `connected` as the WebSocket last said (the `sessions` message the
- * server sends on every link lost or restored). An EtherCAT line's own state (from its cycles)
- * stays: it is newer than any poll of a session.
+ * server sends on every link lost or restored). An EtherCAT line's or a PROFINET IO AR's own
+ * state (from its cycles) stays: it is newer than any poll of a session (over PROFINET the
+ * supervisor AR still answers while the IO AR's link is lost).
  */
 export function withLiveSessions(bus: BusStatus, live: readonly SessionInfo[] | null): BusStatus {
   if (!live) return bus;
@@ -37,7 +38,8 @@ export function withLiveSessions(bus: BusStatus, live: readonly SessionInfo[] | 
   // A session the list does not name yet (opened since) keeps the poll's word.
   const sessions = bus.sessions.map((s) => ({ ...s, connected: byId.get(s.id)?.connected ?? s.connected }));
   if (sessions.length === 0) return { ...bus, sessions };
-  const lineState = bus.ethercat !== null && bus.state !== 'up' && bus.state !== 'degraded';
+  const cycles = bus.ethercat !== null || bus.profinet !== null;
+  const lineState = cycles && bus.state !== 'up' && bus.state !== 'degraded';
   if (lineState) return { ...bus, sessions };
   const up = sessions.filter((s) => s.connected).length;
   const state: BusState = up === 0 ? 'down' : up === sessions.length ? 'up' : 'degraded';
@@ -60,8 +62,10 @@ function number(value: number, digits: number): string {
   return value.toLocaleString('en-US', { maximumFractionDigits: digits });
 }
 
-/** Frames per second and the load where the link measures them. */
+/** Frames per second and the load where the link measures them; a PROFINET IO AR's frames. */
 export function trafficText(bus: BusStatus): string {
+  const io = bus.profinet;
+  if (io) return `${number(io.output_frames, 0)} frames sent, ${number(io.input_frames, 0)} received`;
   const t = bus.traffic;
   if (!t) return `load ${NOT_REPORTED}`;
   const frames = `${number(t.frames_per_s, 1)} frames/s`;
@@ -73,6 +77,10 @@ export function errorsText(bus: BusStatus): string {
   const parts = [`${bus.failed_requests} of ${bus.requests} requests failed`];
   if (bus.ethercat) {
     parts.push(`${bus.ethercat.wkc_errors} WKC errors`, `${bus.ethercat.missing_frames} missing frames`);
+  }
+  if (bus.profinet) {
+    parts.push(`${bus.profinet.lost} frames lost`, `${bus.profinet.data_status_errors} data-status errors`);
+    if (bus.profinet.losses) parts.push(`link lost ${bus.profinet.losses}×`);
   }
   const t = bus.traffic;
   if (t) {
@@ -89,6 +97,7 @@ export function errorsText(bus: BusStatus): string {
 /** The cycle: what was set and what the producer measured, in ms. */
 export function cycleText(bus: BusStatus): string {
   const c = bus.cycle;
+  if (!c && bus.profinet) return `cycle ${number(bus.profinet.cycle_ms, 3)} ms set, ${UNKNOWN} measured`;
   if (!c) return `cycle ${UNKNOWN}`;
   const measured = c.measured_ms === null ? UNKNOWN : `${number(c.measured_ms, 3)} ms`;
   const dc = c.sync === 'dc' ? ' DC' : '';

@@ -279,7 +279,13 @@ export function CyclicPanel({
       </div>
       {running && link && link.state !== 'ok' && (
         <div className="bk-warn small" data-testid="pdo-cyclic-link">
-          {link.state === 'link lost' ? 'Link lost' : link.state === 'recovering' ? 'Link back, bringing the line back to its state' : 'Working counter errors'}
+          {link.state === 'link lost'
+            ? 'Link lost'
+            : link.state === 'recovering'
+              ? link.ar
+                ? 'Link back, the IO AR set up again'
+                : 'Link back, bringing the line back to its state'
+              : 'Working counter errors'}
           {link.reason ? `: ${link.reason}` : ''}. The greyed values are the last received, not the drive&apos;s present ones.
           {status?.outputs ? ' Motion does not resume by itself: the output image holds a quick stop.' : ''}
         </div>
