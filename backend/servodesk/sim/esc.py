@@ -39,7 +39,6 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
-from typing import Any
 
 from servodesk.domain import ethercat as ec
 from servodesk.domain.ethercat import AlState, Cmd, Reg
@@ -646,9 +645,8 @@ class EscLine:
         are (``"coe"``, slave index, data) tuples."""
         sel = selectors.DefaultSelector()
         sel.register(sock, selectors.EVENT_READ, "ethernet")
-        inbox = _Inbox(pdi) if pdi is not None else None
-        if inbox is not None:
-            sel.register(inbox.wake, selectors.EVENT_READ, "pdi")
+        if pdi is not None:
+            sel.register(pdi.fileno(), selectors.EVENT_READ, "pdi")
         try:
             while not stop.is_set():
                 now = time.monotonic()
@@ -656,23 +654,21 @@ class EscLine:
                     slave.check_watchdog(now)
                 for key, _ in sel.select(0.01):
                     if key.data == "pdi":
-                        assert inbox is not None
-                        for message in inbox.take():
-                            if message is None:
-                                return  # The parent gone.
-                            kind, index, data = message
-                            if kind == "coe":
-                                self.slaves[index].answer(data)
-                            elif kind == "inputs":
-                                self.slaves[index].set_inputs(data)
-                            elif kind == "od":
-                                self.slaves[index].od_cache = data
+                        assert pdi is not None
+                        try:
+                            kind, index, data = pdi.recv()
+                        except (EOFError, OSError):
+                            return
+                        if kind == "coe":
+                            self.slaves[index].answer(data)
+                        elif kind == "inputs":
+                            self.slaves[index].set_inputs(data)
+                        elif kind == "od":
+                            self.slaves[index].od_cache = data
                     elif not self._receive(sock, ifname, stop):
                         return
         finally:
             sel.close()
-            if inbox is not None:
-                inbox.close()
 
     def _receive(self, sock: socket.socket, ifname: str, stop: threading.Event) -> bool:
         """Answer one frame; False when the socket is gone for good."""
@@ -721,110 +717,6 @@ def open_socket(ifname: str) -> socket.socket:
     return sock
 
 
-class _Inbox:
-    """The parent's messages, received by a thread of their own: the frame loop never waits
-    in the middle of one.
-
-    A message over 16 kB (the object mirror of a large ESI's dictionary) is written as a
-    header and a body; when the parent's thread that wrote the header waited for the GIL
-    before the body, which pysoem held in a state or SDO call waiting for this ESC's answer,
-    a ``recv`` in the frame loop waited for the body and the line answered nothing until
-    SOEM's 2 s time-out (working counter -1; about one ESI twin in ten under load)."""
-
-    def __init__(self, pdi: Connection) -> None:
-        self._pdi = pdi
-        self._lock = threading.Lock()
-        self._messages: deque[tuple[str, int, Any] | None] = deque()
-        self.wake, self._poke = socket.socketpair()
-        self.wake.setblocking(False)
-        self._thread = threading.Thread(target=self._run, name="esc-from-firmware", daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        while True:
-            try:
-                message: tuple[str, int, Any] | None = self._pdi.recv()
-            except (EOFError, OSError):
-                message = None
-            with self._lock:
-                self._messages.append(message)
-            try:
-                self._poke.send(b"\x00")
-            except OSError:
-                return
-            if message is None:
-                return
-
-    def take(self) -> list[tuple[str, int, Any] | None]:
-        """Every message received so far, in order (None: the connection closed)."""
-        with contextlib.suppress(BlockingIOError):
-            while self.wake.recv(4096):
-                pass
-        with self._lock:
-            out = list(self._messages)
-            self._messages.clear()
-        return out
-
-    def close(self) -> None:
-        self.wake.close()
-        self._poke.close()
-
-
-class _Sender:
-    """The ESC process's messages to the parent (the drives' firmware), sent by a thread of
-    their own: the ESCs never wait on the parent.
-
-    A blocking send from the frame loop stalled the whole line: while pysoem in the parent
-    holds the GIL in a state call (module doc of sim/ethercat_slave.py), the parent's reader
-    does not run, the socket pair's buffer fills with cycle messages, the send blocks, and the
-    ESCs answered no frame for seconds (SOEM: working counter -1; seen about one ESI twin in
-    ten under load). A cycle's outputs are state, not events: a newer one replaces one of the
-    same slave still waiting, so the queue holds at most one per slave besides the mailbox
-    and AL state messages, which keep their order."""
-
-    def __init__(self, pdi: Connection) -> None:
-        self._pdi = pdi
-        self._cond = threading.Condition()
-        self._queue: deque[tuple[str, int, object]] = deque()
-        self._cycles: dict[int, object] = {}
-        self._closed = False
-        self._thread = threading.Thread(target=self._run, name="esc-to-firmware", daemon=True)
-        self._thread.start()
-
-    def put(self, kind: str, index: int, data: object) -> None:
-        with self._cond:
-            if kind == "cycle":
-                pending = index in self._cycles
-                self._cycles[index] = data
-                if pending:
-                    return
-                self._queue.append((kind, index, None))
-            else:
-                self._queue.append((kind, index, data))
-            self._cond.notify()
-
-    def _run(self) -> None:
-        while True:
-            with self._cond:
-                while not self._queue and not self._closed:
-                    self._cond.wait()
-                if not self._queue:
-                    return
-                kind, index, data = self._queue.popleft()
-                if kind == "cycle":
-                    data = self._cycles.pop(index)
-            try:
-                self._pdi.send((kind, index, data))
-            except OSError:
-                return  # The parent gone: the serve loop ends on the closed connection.
-
-    def close(self) -> None:
-        with self._cond:
-            self._closed = True
-            self._cond.notify()
-        self._thread.join(timeout=1.0)
-
-
 def child_main(fd: int) -> None:
     """The ESCs of a line in a process of their own (``EthercatSlaveProcess``): their
     registers answer SOEM at once, whatever the parent process holds (pysoem keeps the GIL
@@ -846,18 +738,16 @@ def child_main(fd: int) -> None:
             for i, (s, b) in enumerate(zip(siis, behaviours, strict=True))
         ]
     )
-    pdi.send(("ready", None, None))
-    sender = _Sender(pdi)
     for i, slave in enumerate(line.slaves):
-        slave.coe = functools.partial(_coe, sender, i, slave)
-        slave.on_reset = functools.partial(sender.put, "reset", i, None)
-        slave.on_cycle = functools.partial(sender.put, "cycle", i)
-        slave.on_state = functools.partial(_forward_state, sender, i)
-        slave.on_sync = functools.partial(_forward_sync, sender, i)
+        slave.coe = functools.partial(_coe, pdi, i, slave)
+        slave.on_reset = functools.partial(_forward, pdi, "reset", i, None)
+        slave.on_cycle = functools.partial(_forward, pdi, "cycle", i)
+        slave.on_state = functools.partial(_forward_state, pdi, i)
+        slave.on_sync = functools.partial(_forward_sync, pdi, i)
+    pdi.send(("ready", None, None))
     try:
         line.serve(sock, ifname, threading.Event(), pdi)
     finally:
-        sender.close()
         sock.close()
         pdi.close()
 
@@ -891,17 +781,25 @@ def cached_upload(cache: dict[int, bytes], data: bytes) -> bytes | None:
     return ec.build_sdo(response)
 
 
-def _coe(sender: _Sender, index: int, slave: EscSlave, data: bytes) -> None:
+def _coe(pdi: Connection, index: int, slave: EscSlave, data: bytes) -> None:
     answer = cached_upload(slave.od_cache, data)
     if answer is not None:
         slave.answer(answer)
     else:
-        sender.put("coe", index, data)
+        _forward(pdi, "coe", index, data)
 
 
-def _forward_state(sender: _Sender, index: int, state: int, code: int) -> None:
-    sender.put("state", index, (state, code))
+def _forward_state(pdi: Connection, index: int, state: int, code: int) -> None:
+    with contextlib.suppress(OSError):
+        pdi.send(("state", index, (state, code)))
 
 
-def _forward_sync(sender: _Sender, index: int, mode: int, cycle_ns: int) -> None:
-    sender.put("sync", index, (mode, cycle_ns))
+def _forward_sync(pdi: Connection, index: int, mode: int, cycle_ns: int) -> None:
+    with contextlib.suppress(OSError):
+        pdi.send(("sync", index, (mode, cycle_ns)))
+
+
+def _forward(pdi: Connection, kind: str, index: int, data: bytes | None) -> None:
+    # The parent gone: the serve loop ends on the closed connection.
+    with contextlib.suppress(OSError):
+        pdi.send((kind, index, data))
