@@ -208,6 +208,33 @@ SEGMENT_DATA_OFFSET = 9
 SEGMENT_MIN_DATA = 7
 
 
+@dataclass(frozen=True)
+class OdEntryInfo:
+    """One sub-index as a slave's SDO Information describes it (Get Entry Description,
+    ETG.1000.6 §5.6.3.6): its name, CoE data type, bit length and object access (bits 0-2
+    readable in PRE-OP / SAFE-OP / OP, 3-5 writable, 6 RxPDO-, 7 TxPDO-mappable, 8 backup,
+    9 settings)."""
+
+    subindex: int
+    name: str
+    data_type: int
+    bit_length: int
+    access: int
+
+
+@dataclass(frozen=True)
+class OdObjectInfo:
+    """One index of a slave's object list (Get OD List, Get Object Description, ETG.1000.6
+    §5.6.3.3-5): object code 7 VAR, 8 ARRAY, 9 RECORD, and its sub-indices' descriptions
+    (a VAR's is sub-index 0)."""
+
+    index: int
+    name: str
+    object_code: int
+    data_type: int
+    entries: tuple[OdEntryInfo, ...]
+
+
 class EthercatFrameError(ValueError):
     """Bytes that are no EtherCAT frame, datagram or mailbox this module understands."""
 

@@ -20,6 +20,7 @@ from typing import Any, TypeVar
 
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import DataType, codec
+from servodesk.domain.ethercat import OdObjectInfo
 from servodesk.errors import (
     LinkClosedError,
     LinkError,
@@ -325,6 +326,12 @@ class DriveLink(ObjectAccess):
     def bus_traffic(self) -> TrafficView | None:
         """What the bus carries, from counts the link keeps anyway (links/can_traffic.py);
         None where this link counts none (the status bar says "not reported")."""
+        return None
+
+    async def object_list(self) -> tuple[OdObjectInfo, ...] | None:
+        """The device's object dictionary as it describes it itself (EtherCAT's CoE SDO
+        Information, ETG.1000.6 §5.6.3), or None where the device or this fieldbus offers no
+        such service (services/manager.py then takes the fieldbus's generic profile)."""
         return None
 
     async def arm_watchdog(self) -> str | None:

@@ -117,6 +117,14 @@ class SessionManager:
                     or await self._detect_by_objects(link)
                 )
                 if profile is None:
+                    profile = await self._from_sdo_info(link, identity)
+                    if profile is not None:
+                        note = (
+                            f"No profile matches vendor 0x{identity.vendor_id or 0:08X} "
+                            f"product 0x{identity.product_code or 0:08X}; {profile.id} was "
+                            "built from the drive's own object list (SDO Information)."
+                        )
+                if profile is None:
                     profile = self.catalog.get(generic_for(link.fieldbus))
                     note = (
                         f"No profile matches vendor 0x{identity.vendor_id or 0:08X} product "
@@ -169,16 +177,53 @@ class SessionManager:
             fieldbus=detection_fieldbus(fieldbus),
         )
 
-    def _scan_profile(self, ident: DriveIdentity, fieldbus: str) -> str | None:
+    async def _scan_profile(self, ident: DriveIdentity, link: DriveLink) -> str | None:
         """The profile a session opened on this device would get, as far as the identity
         decides it. On EtherCAT that is the rule of :meth:`open` in full (a match among the
-        EtherCAT profiles, else ``cia402-ethercat``: no EtherCAT profile names its identity
-        elsewhere than 1018h); on CANopen a device no identity matches may still be found by
-        a profile's own identity object when a session opens, so it stays None here."""
-        prof = self._detect(ident, fieldbus)
+        EtherCAT profiles, else the profile built from the slave's SDO Information, else
+        ``cia402-ethercat``: no EtherCAT profile names its identity elsewhere than 1018h); on
+        CANopen a device no identity matches may still be found by a profile's own identity
+        object when a session opens, so it stays None here."""
+        prof = self._detect(ident, link.fieldbus)
         if prof is not None:
             return prof.id
-        return GENERIC_ETHERCAT if fieldbus == "ethercat" else None
+        if link.fieldbus != "ethercat":
+            return None
+        built = await self._from_sdo_info(link, ident)
+        return built.id if built is not None else GENERIC_ETHERCAT
+
+    async def _from_sdo_info(self, link: DriveLink, ident: DriveIdentity) -> DeviceProfile | None:
+        """An EtherCAT slave no profile matches, described by its own SDO Information
+        (ETG.1000.6 §5.6.3): its objects merged over ``cia402-ethercat``
+        (devdesc/sdo_info.py), added to the catalog so that backups, reports and the UI's
+        profile page find it by id while servodesk runs. None where the slave offers no SDO
+        Information or its answers cannot be read: ``cia402-ethercat`` as before."""
+        if link.fieldbus != "ethercat":
+            return None
+        from servodesk.devdesc.sdo_info import BASE_PROFILE, profile_from_sdo_info
+
+        where = f"{link.params.node_id} on {link.params.channel}"
+        try:
+            objects = await link.object_list()
+            if objects is None:
+                return None
+            profile = profile_from_sdo_info(
+                objects,
+                self.catalog.get(BASE_PROFILE),
+                vendor_id=ident.vendor_id,
+                product_code=ident.product_code,
+                revision=ident.revision,
+                device_name=ident.device_name,
+                where=where,
+            )
+        except ServodeskError as exc:
+            log.warning("slave %s: SDO Information not used: %s", where, exc.message)
+            return None
+        # The same id for the same identity: the one read last stands (a session already
+        # open keeps the profile object it was given).
+        self.catalog.add(profile)
+        log.info("slave %s: profile %s built from its SDO Information", where, profile.id)
+        return profile
 
     async def _detect_by_objects(self, link: DriveLink) -> DeviceProfile | None:
         """Profiles whose identity lives elsewhere than 1018h name the object to read."""
@@ -259,6 +304,7 @@ class SessionManager:
         }
         out: list[dict[str, Any]] = []
         for node_id in ids:
+            profile_id: str | None = None
             if node_id in open_nodes:
                 ident = open_nodes[node_id].identity
             else:
@@ -274,14 +320,14 @@ class SessionManager:
                 try:
                     await link.open()
                     ident = await link.identity()
+                    profile_id = await self._scan_profile(ident, link)
                 except ServodeskError:
                     ident = DriveIdentity()
+                    profile_id = GENERIC_ETHERCAT if link.fieldbus == "ethercat" else None
                 finally:
                     await link.close()
             if node_id in open_nodes:
-                profile_id: str | None = open_nodes[node_id].profile.id
-            else:
-                profile_id = self._scan_profile(ident, link_type.fieldbus)
+                profile_id = open_nodes[node_id].profile.id
             out.append(
                 {
                     "node_id": node_id,
