@@ -224,6 +224,7 @@ SERIAL_PATHS = (
     "tests/ethercat/test_link_loss.py",
     "tests/ethercat/test_deadman_stop.py",
     "tests/ethercat/test_status.py",
+    "tests/ethercat/test_scope_process_data.py",
     "tests/api/test_status_api.py",
     "tests/homing/test_homing_deadman.py",
     "tests/integration/test_canopen_link.py",

@@ -20,6 +20,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from scapy.contrib.pnio import PNIORealTimeCyclicPDU, ProfinetIO
 from scapy.contrib.pnio_rpc import (
@@ -44,7 +45,14 @@ from servodesk.sim.profinet_dcp import interface_mac
 from servodesk.sim.profinet_device import ProfinetDevice
 from servodesk.sim.runner import SimRunner
 from servodesk.sim.veth import VethPair, create_veth
-from tests.operation.support import headers, operation_app, take_and_enable, wait_motion
+from tests.operation.support import (
+    bind,
+    headers,
+    operation_app,
+    take,
+    take_and_enable,
+    wait_motion,
+)
 
 pytestmark = pytest.mark.timeout(90)
 SID = "lecsn-t-1"
@@ -535,3 +543,53 @@ def _profinet_bus(client: Any) -> dict[str, Any]:
     buses = client.get("/api/v1/status").json()["buses"]
     bus: dict[str, Any] = next(b for b in buses if b["link"] == "profinet")
     return bus
+
+
+def test_the_scope_samples_the_telegram_at_every_send_clock_cycle(app: tuple[Any, Any]) -> None:
+    # Issue 50: the actual-value telegram's objects as scope channels (source pdo), one sample
+    # per cycle of the IO controller's send clock, none lost between the IO thread and the
+    # scope. 6064h and 606Ch are in telegram 102's actual values (profiles/lecsn-t).
+    client, sim = app
+    drive = sim.drives[0]
+    drive.write(P922, 0, 102)
+    url = f"/api/v1/sessions/{SID}/pdo/cyclic"
+    cycle = 0.002
+    with client.websocket_connect("/api/v1/ws?client=A") as ws:
+        take(client, SID, "A")
+        bind(ws, SID, "A")
+        r = client.post(url, json={"sync_period_ms": cycle * 1000, "outputs": True}, headers=A)
+        assert r.status_code == 200, r.text
+        assert _until(lambda: client.get(url).json()["link"]["state"] == "ok")
+        # Every actual-value telegram the exchange decoded, stamped as the scope stamps its
+        # samples (in the IO thread): what the scope should have, frame for frame.
+        exchange = client.app.state.servodesk.manager.get(SID).cyclic
+        seen: list[float] = []
+        exchange.add_listener(lambda t, addresses, values: seen.append(time.time()))
+        chans = [
+            {"id": 0, "session": SID, "address": "0x6064:00", "source": "pdo"},
+            {"id": 1, "session": SID, "address": "0x606C:00", "source": "auto"},
+        ]
+        r = client.put("/api/v1/scope/channels", json={"channels": chans})
+        assert r.status_code == 200, r.text
+        assert [c["source"] for c in r.json()["channels"]] == ["pdo", "pdo"], r.text
+        assert client.post("/api/v1/scope/run", json={"action": "start"}).status_code == 200
+        time.sleep(1.0)
+        st = client.post("/api/v1/scope/run", json={"action": "stop"}).json()
+        rec = client.app.state.servodesk.scope.buffer_recording()
+        r = client.delete(url, headers=A)
+        assert r.status_code == 200, r.text
+    pos, vel = rec.channels
+    assert [c["error"] for c in st["channels"]] == [None, None], st
+    assert len(pos.t) == len(vel.t) == st["channels"][0]["samples"] == st["channels"][1]["samples"]
+    # About one sample per cycle over the second (the IO thread's clock, which a busy
+    # machine's other work can delay, never hasten) ...
+    assert 0.7 / cycle <= len(pos.t) <= 1.05 / cycle, len(pos.t)
+    assert st["channels"][0]["rate_hz"] == pytest.approx(1 / cycle, rel=0.3), st
+    assert float(np.median(np.diff(pos.t))) == pytest.approx(cycle, rel=0.25)
+    # ... and exactly every telegram that arrived while the scope listened.
+    first, last = rec.t_ref + pos.t[0], rec.t_ref + pos.t[-1]
+    arrived = sum(1 for t in seen if first - cycle / 2 <= t <= last + cycle / 2)
+    assert len(pos.t) == arrived, (len(pos.t), arrived)
+    # The values are the drive's: an idle axis at its position, at rest.
+    assert set(pos.v.tolist()) == {float(drive.position)}
+    assert set(vel.v.tolist()) == {0.0}

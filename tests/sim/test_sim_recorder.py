@@ -216,6 +216,69 @@ def test_immediate_trigger_starts_at_the_next_plant_step() -> None:
     assert rows == [(log.pos[first + i], log.vel[first + i]) for i in range(10)]
 
 
+def stream(drive: SimulatedDrive, channels: int) -> tuple[int, int, list[tuple[int, ...]]]:
+    """One read of the stream data (B + 11): (first index, status, rows)."""
+    data = drive.read_bytes(B + 11)
+    first, status, nch, reserved = struct.unpack_from("<IBBH", data)
+    assert (nch, reserved) == (channels, 0)
+    n = (len(data) - 8) // 4
+    flat = struct.unpack(f"<{n}i", data[8:])
+    return first, status, [flat[i : i + channels] for i in range(0, n, channels)]
+
+
+def test_stream_reads_the_filled_part_while_recording() -> None:
+    """docs/scope.md "Streaming while recording": each read brings the samples recorded since
+    the last one; pieced together they are the recording, with no gap and no duplicate."""
+    d = new_drive()
+    enable(d)
+    d.step(0.01)
+    start = d.position
+    level = start + REV // 4
+    depth, pre = 2000, 400
+    configure(d, POS, VEL, depth=depth, trigger=1, level=level, pre=pre)
+    d.write(B + 6, 0, 1)
+    d.step(0.2)
+    # Waiting for the trigger: the pre-trigger ring still turns, no samples yet.
+    assert stream(d, 2) == (0, 1, [])
+    assert d.read(B + 10) == 0
+    move(d, start + REV)
+    got: list[tuple[int, ...]] = []
+    reads = 0
+    while True:
+        first, status, rows = stream(d, 2)
+        assert first == len(got)  # The position moved past the last read's samples.
+        got += rows
+        reads += 1
+        if status == 3:
+            break
+        assert status in (1, 2)
+        d.step(0.02)
+    assert reads > 10 and d.read(B + 10) == depth
+    # Read again from an earlier sample (after a lost answer): the same samples.
+    d.write(B + 10, 0, 1500)
+    assert stream(d, 2) == (1500, 3, got[1500:])
+    assert stream(d, 2) == (depth, 3, [])
+    assert got == words(d, 2) and got[pre - 1][0] < level <= got[pre][0]
+
+
+def test_a_profile_without_stream_objects_has_no_stream() -> None:
+    """The stream objects are optional (a drive that uploads whole recordings only)."""
+    p = generic()
+
+    def without(*indexes: int) -> DeviceProfile:
+        data = p.model_dump()
+        data["objects"] = [o for o in data["objects"] if o["index"] not in indexes]
+        return DeviceProfile.model_validate(data)
+
+    d = SimulatedDrive(without(B + 10, B + 11), 1)
+    assert d.recorder is not None and not d.recorder.streams
+    assert abort_code(d.read, B + 11) == 0x06020000
+    # Both or neither: one of them alone is a profile error.
+    assert recorder_objects(without(B + 11)) == [
+        f"recorder: {B + 10:04X}h without {B + 11:04X}h: streaming needs both"
+    ]
+
+
 def test_recording_does_not_change_the_simulation() -> None:
     a, b = new_drive(), new_drive()
     for d in (a, b):

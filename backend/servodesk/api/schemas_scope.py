@@ -54,15 +54,29 @@ class ScopeTrigger(Reply):
 
 
 class RecorderSourceStatus(Reply):
-    """How one session's drive-side recorder fares (the rest of its time goes to uploads)."""
+    """How one session's drive-side recorder fares (docs/scope.md "Streaming while recording")."""
 
     session: str
     channels: list[int]
     sample_rate_hz: float
     drive_trigger: bool = Field(description="the drive waits for the level crossing itself")
+    streaming: bool = Field(
+        description="the filled part is read while the rest records (false: each recording "
+        "is uploaded whole once done, the drive has no stream objects or refused them)"
+    )
     records: int
-    recording_share: float | None = Field(description="share of the time spent recording")
-    upload_bytes_per_s: int | None
+    recording_share: float | None = Field(
+        description="share of the time the drive recorded (the rest: restarts and, "
+        "without streaming, uploads)"
+    )
+    stream_skips: int = Field(
+        description="times the stream skipped to the newest samples (a gap), behind by more "
+        "than it may lag: the bus carries less than the recorder takes"
+    )
+    stream_lag_s: float | None = Field(
+        description="age of the newest sample when the last stream read handed it on"
+    )
+    upload_bytes_per_s: int | None = Field(description="bytes per second while uploading")
 
 
 class ScopeStatus(Reply):

@@ -19,10 +19,14 @@ Production is never faked: the samples counted are the scope's own count of what
 delivered. Where a source falls short of the issue's 4 kHz x 8 channels per drive, the JSON
 says what it achieved and why (a 1 ms SYNC is the cyclic exchange's fastest period; the
 recorder's data comes by SDO block upload, whose measured throughput bounds its share of
-recording time). The recorder is measured twice in one run: ``recorder_segmented`` with the
-links' block upload switched off (the baseline), then ``recorder``; ``recorder_block_vs_segmented``
-gives the ratios, and every phase the CAN bus load its frames would put on a 1 Mbit/s bus
-(``can_bus``, docs/scope.md "Block upload").
+recording time). The recorder is measured three times in one run: ``recorder_segmented``
+with the links' block upload switched off and whole recordings uploaded once done,
+``recorder_whole`` the same by block upload, then ``recorder``, streamed while it records
+(docs/scope.md "Streaming while recording"); ``recorder_block_vs_segmented`` and
+``recorder_stream_vs_whole`` give the ratios, and every phase the CAN bus load its frames
+would put on a 1 Mbit/s bus (``can_bus``, docs/scope.md "Block upload"). ``--recorder-rate``
+asks the recorder for a lower sample rate (a divider of its 4 kHz), to find the rate a bus
+carries.
 
 Children: ``python -m servodesk.benchmarks.scope --child sim|server ...`` (internal).
 
@@ -268,6 +272,8 @@ def _commands(links: list[Any], loop: asyncio.AbstractEventLoop) -> None:
       or are switched off again (written through the links, not the API: see ``_MOVE``);
     - ``upload segmented`` / ``upload block``: the CANopen links' SDO upload for large reads
       (``CanopenLink.block_upload``), so one run measures both paths;
+    - ``stream on`` / ``stream off``: the recorder source streams while the drive records, or
+      uploads each recording once done (``RecorderSource.streaming_enabled``);
     - ``frames``: the SDO frames each session's link sent and received so far.
     """
     for line in sys.stdin:
@@ -283,6 +289,10 @@ def _commands(links: list[Any], loop: asyncio.AbstractEventLoop) -> None:
             for link in links:
                 if hasattr(link, "block_upload"):
                     link.block_upload = cmd[1] == "block"
+        elif cmd[:1] == ["stream"] and len(cmd) == 2:
+            from servodesk.services.scope_recorder import RecorderSource
+
+            RecorderSource.streaming_enabled = cmd[1] == "on"
         elif cmd == ["frames"]:
             reply["frames"] = [
                 int(getattr(link, "sdo_frames_tx", 0)) + int(getattr(link, "sdo_frames_rx", 0))
@@ -521,6 +531,7 @@ async def _phase(
     compression: bool,
     pids: dict[str, int],
     control: Callable[[str], dict[str, Any]] | None = None,
+    recorder_rate: float = 0.0,
 ) -> dict[str, Any]:
     """One source: configure, stream to the clients, measure, stop, drain, count.
 
@@ -561,8 +572,15 @@ async def _phase(
             )
         else:
             await http.delete(f"/api/v1/sessions/{sid}/pdo/cyclic")
+    rate = recorder_rate if scope_source == "recorder" else 0.0
     chans = [
-        {"id": d * channels + k, "session": sid, "address": OBJECTS[k], "source": scope_source}
+        {
+            "id": d * channels + k,
+            "session": sid,
+            "address": OBJECTS[k],
+            "source": scope_source,
+            "rate_hz": rate,
+        }
         for d, sid in enumerate(sids)
         for k in range(channels)
     ]
@@ -634,7 +652,8 @@ async def _phase(
             }
         )
     lat = np.concatenate(lats) if lats else np.zeros(0)
-    n_expected = len(sids) * channels * (1000.0 / SYNC_PERIOD_MS if source == "pdo" else TARGET_HZ)
+    hz = 1000.0 / SYNC_PERIOD_MS if source == "pdo" else (rate or TARGET_HZ)
+    n_expected = len(sids) * channels * hz
     result: dict[str, Any] = {
         "source": source,
         "ws_extensions_negotiated": sorted({c.extensions for c in tallies}),
@@ -754,18 +773,30 @@ def _why(r: dict[str, Any], channels: int) -> str:
     recs = r.get("recorders") or []
     share = [x["recording_share"] for x in recs if x.get("recording_share") is not None]
     upload = [x["upload_bytes_per_s"] for x in recs if x.get("upload_bytes_per_s")]
-    need = channels * TARGET_HZ * 4
-    block = r["source"] == "recorder"
+    hz = r["source_max_samples_per_s"] / max(r["channels"], 1)
+    need = channels * hz * 4
+    block = r["source"] != "recorder_segmented"
+    streamed = any(x.get("streaming") for x in recs)
     text = (
-        f"the recorder samples at {TARGET_HZ:g} Hz inside the drive, but its data comes by "
-        f"{'block' if block else 'segmented'} SDO upload: {channels} channels x "
-        f"{TARGET_HZ:g} Hz x 4 bytes = {need / 1000:.0f} kB/s per drive"
+        f"the recorder samples at {hz:g} Hz inside the drive, and its data comes by "
+        f"{'block' if block else 'segmented'} SDO upload, "
+        f"{'streamed while it records' if streamed else 'each recording once done'}: "
+        f"{channels} channels x {hz:g} Hz x 4 bytes = {need / 1000:.0f} kB/s per drive"
     )
     if upload:
         per = "889 bytes per acknowledged sub-block" if block else "7 bytes per round trip"
         text += f" against {statistics.median(upload) / 1000:.1f} kB/s uploaded ({per})"
     if share:
         text += f", so it records {statistics.median(share) * 100:.0f} % of the time"
+    lag = [x["stream_lag_s"] for x in recs if x.get("stream_lag_s") is not None]
+    if streamed and lag:
+        text += f"; the newest sample was {statistics.median(lag) * 1000:.0f} ms old when read"
+    skips = sum(int(x.get("stream_skips") or 0) for x in recs)
+    if streamed and skips:
+        text += (
+            f"; the streams skipped ahead {skips} times (gaps): the upload carries less "
+            "than the recorder takes at this rate"
+        )
     return text + f"; achieved {per_drive:.0f} samples/s per drive (target {target:g})"
 
 
@@ -778,6 +809,7 @@ async def bench(
     sources: list[str],
     interface: str,
     compression: bool,
+    recorder_rate: float = 0.0,
 ) -> dict[str, Any]:
     if not 1 <= channels <= len(OBJECTS):
         raise ValueError(f"--channels must be 1..{len(OBJECTS)}")
@@ -803,6 +835,7 @@ async def bench(
             else "python-can virtual, one channel per drive; the drives in the server process"
         ),
         "compression_offered": "permessage-deflate" if compression else "none",
+        "recorder_rate_hz": recorder_rate or TARGET_HZ,
         "cpus": os.cpu_count(),
         "load_before": [round(x, 2) for x in os.getloadavg()],
         "phases": {},
@@ -846,18 +879,20 @@ async def bench(
 
             control("move")
 
-            # The recorder is measured twice in the same run: with the links' block upload
-            # switched off (the baseline, segmented as before issue 50), then on.
+            # The recorder is measured three times in the same run: whole recordings by
+            # segmented upload (as before issue 50), by block upload, then streamed.
+            whole = ["recorder_segmented", "recorder_whole"]
             phases = [
                 p
                 for source in sources
-                for p in (["recorder_segmented", source] if source == "recorder" else [source])
+                for p in ([*whole, source] if source == "recorder" else [source])
             ]
             for source in phases:
                 if source.startswith("recorder"):
                     control(
                         "upload segmented" if source == "recorder_segmented" else "upload block"
                     )
+                    control("stream off" if source in whole else "stream on")
                 out["phases"][source] = await _phase(
                     http,
                     url,
@@ -869,11 +904,15 @@ async def bench(
                     compression=compression,
                     pids=pids,
                     control=control,
+                    recorder_rate=recorder_rate,
                 )
-            if {"recorder", "recorder_segmented"} <= out["phases"].keys():
+            got = out["phases"]
+            if {"recorder_whole", "recorder_segmented"} <= got.keys():
                 out["recorder_block_vs_segmented"] = _ratios(
-                    out["phases"]["recorder"], out["phases"]["recorder_segmented"]
+                    got["recorder_whole"], got["recorder_segmented"]
                 )
+            if {"recorder", "recorder_whole"} <= got.keys():
+                out["recorder_stream_vs_whole"] = _ratios(got["recorder"], got["recorder_whole"])
             control("stop")
             for sid in sids:
                 await http.post(f"/api/v1/sessions/{sid}/control", json={"action": "release"})
@@ -907,6 +946,7 @@ def run(args: argparse.Namespace) -> int:
             sources=sources,
             interface=args.bus,
             compression=not args.no_compression,
+            recorder_rate=args.recorder_rate,
         )
     )
     if args.json:

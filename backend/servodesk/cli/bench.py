@@ -75,7 +75,26 @@ def add_scope_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--no-compression", action="store_true", help="clients do not offer permessage-deflate"
     )
+    p.add_argument(
+        "--recorder-rate",
+        type=_recorder_rate,
+        default=0.0,
+        metavar="HZ",
+        help="the recorder's sample rate (a divider of its 4000 Hz; 0: 4000 Hz): the rate "
+        "at which a bus carries the stream (docs/scope.md)",
+    )
     p.add_argument("--json", action="store_true", help="print the results as JSON")
+
+
+def _recorder_rate(text: str) -> float:
+    """``1000``: a sample rate in Hz, 0 (the recorder's fastest) up to 4000."""
+    try:
+        hz = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of Hz, e.g. 1000") from None
+    if not 0 <= hz <= 4000:
+        raise argparse.ArgumentTypeError(f"{text!r}: give 0 (4000 Hz) to 4000 Hz")
+    return hz
 
 
 def _seed_list(text: str) -> list[int]:

@@ -114,7 +114,8 @@ class RecorderSpec(BaseModel):
 
     #: Offsets from ``index``: channels (ARRAY, sub n = ``index << 16 | sub << 8 | bits``),
     #: divider, depth, trigger, level, pre-trigger, control/status, data (DOMAIN), recorded
-    #: count, trigger sample index.
+    #: count, trigger sample index; optionally the stream position and stream data (the
+    #: filled part read while recording, docs/scope.md "Streaming while recording").
     CHANNELS: ClassVar[int] = 0
     DIVIDER: ClassVar[int] = 1
     DEPTH: ClassVar[int] = 2
@@ -125,9 +126,11 @@ class RecorderSpec(BaseModel):
     DATA: ClassVar[int] = 7
     COUNT: ClassVar[int] = 8
     TRIGGER_INDEX: ClassVar[int] = 9
+    STREAM_POSITION: ClassVar[int] = 10
+    STREAM_DATA: ClassVar[int] = 11
 
     #: First index of the recorder objects (manufacturer area).
-    index: int = Field(ge=0x2000, le=0x5FFF - 9)
+    index: int = Field(ge=0x2000, le=0x5FFF - 11)
     max_channels: int = Field(default=8, ge=1, le=8)
     #: Most samples per channel (the depth object is UNSIGNED16).
     max_depth: int = Field(default=8192, ge=1, le=65535)

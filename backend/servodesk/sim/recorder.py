@@ -5,7 +5,7 @@ live, and hand the recording over afterwards (Siemens "trace", Kollmorgen "recor
 of servodesk's families documents one reachable over the fieldbus, so the profile's
 ``recorder:`` block (:class:`~servodesk.domain.profile.RecorderSpec`) gives the simulated
 twin one, as ``sim_only`` objects at ``index + offset`` (docs/scope.md, "Simulated
-drive-side recorder"; the generic twin uses 2F00h-2F09h):
+drive-side recorder"; the generic twin uses 2F00h-2F0Bh):
 
 ====== ===================================================================================
 +0 n   recorded object n (1..8): ``index << 16 | subindex << 8 | bits``, 0 = unused
@@ -20,7 +20,15 @@ drive-side recorder"; the generic twin uses 2F00h-2F09h):
        one INTEGER32 little-endian word per channel and sample
 +8     samples per channel in the data (while running: recorded so far)
 +9     index of the trigger sample in the data (FFFFFFFFh: no trigger yet)
++10    stream position: index in the data of the next sample +11 answers with (0 at the
+       start; each read of +11 moves it past the samples it sent; write it to read again)
++11    stream data (DOMAIN, read while recording): an 8-byte header (UNSIGNED32 index of
+       the first sample, UNSIGNED8 status as +6, UNSIGNED8 channels, 2 bytes 0), then the
+       samples from the stream position up to those recorded when the read began, as +7
 ====== ===================================================================================
+
++10 and +11 are optional (a profile without them: a drive that only uploads whole
+recordings, which the scope falls back to); docs/scope.md "Streaming while recording".
 
 Choices (documented here once):
 
@@ -50,12 +58,19 @@ Choices (documented here once):
 - A recording stays readable until the next start. The recorder is RAM: NMT reset node
   (a power cycle) loses the configuration and the recording. Reading the data while running
   or with nothing recorded answers 0800 0024h (no data available).
+- Streaming: the data's indexes are fixed once the recording runs (a level trigger's
+  pre-trigger samples are the first ``pre``, the rest follow in order), so the filled part
+  can be read while the rest records, as a real trace's ring read behind its write pointer.
+  Waiting for the trigger, +11 sends no samples (the pre-trigger ring still turns). The
+  header's first index lets the reader see a lost answer (the position moved on past samples
+  it never got: a gap) and write +10 back; nothing is ever overwritten within a recording.
 - Cost: idle, the recorder has no hook in the control cycle at all (the plant runs a cycle's
   sub-steps in one call); running, one call per plant sub-step.
 """
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Callable
 from operator import call
 from typing import TYPE_CHECKING
@@ -70,6 +85,8 @@ if TYPE_CHECKING:
 
 IDLE, WAITING, RECORDING, DONE = 0, 1, 2, 3
 NO_TRIGGER = 0xFFFFFFFF
+#: The stream data's header: first sample index, status, channels, reserved (docs/scope.md).
+STREAM_HEADER = struct.Struct("<IBBH")
 
 TRIGGER_IMMEDIATE, TRIGGER_RISING, TRIGGER_FALLING = 0, 1, 2
 
@@ -95,6 +112,13 @@ class Recorder:
         self._last = base + RecorderSpec.TRIGGER_INDEX
         self._control_index = base + RecorderSpec.CONTROL
         self._channels_index = base + RecorderSpec.CHANNELS
+        self._stream_index = base + RecorderSpec.STREAM_POSITION
+        #: The profile gives the drive the streaming objects (+10, +11): optional.
+        self.streams = drive.has_object(self._stream_index) and drive.has_object(
+            base + RecorderSpec.STREAM_DATA
+        )
+        if self.streams:
+            self._last = base + RecorderSpec.STREAM_DATA
         #: Samples per second at divider 1: the drive's plant rate.
         self.rate_hz = 1.0 / drive.plant_period
         # The hook object is kept so that removing it finds the same bound method.
@@ -109,12 +133,16 @@ class Recorder:
     def live(self) -> dict[int, Getter]:
         """Getters of the read-only objects (status, data, count, trigger index) by key."""
         base = self._first
-        return {
+        getters: dict[int, Getter] = {
             (base + RecorderSpec.CONTROL) << 8: lambda: self.status,
             (base + RecorderSpec.DATA) << 8: self.data,
             (base + RecorderSpec.COUNT) << 8: lambda: self.count,
             (base + RecorderSpec.TRIGGER_INDEX) << 8: lambda: self.trigger_index,
         }
+        if self.streams:
+            getters[self._stream_index << 8] = lambda: self.stream_position
+            getters[(base + RecorderSpec.STREAM_DATA) << 8] = self.stream_data
+        return getters
 
     def write(self, index: int, subindex: int, value: Value) -> Refusal | None:
         """Check (and for the control object, act on) a write; the drive stores the value."""
@@ -125,6 +153,11 @@ class Recorder:
                 self.stop()
                 return None
             return (ABORT_VALUE, "write 1 to start or 0 to stop the recorder")
+        if index == self._stream_index:
+            # Written while recording too: the reader rewinds after a lost answer.
+            assert isinstance(value, int)
+            self.stream_position = value
+            return None
         if self._state in (WAITING, RECORDING):
             return (ABORT_STATE, "the recorder is running: write 0 to the control object first")
         if index == self._channels_index and subindex >= 1:
@@ -159,6 +192,8 @@ class Recorder:
         self.divider = 1
         self._data_first_sample = 0
         self._trigger_sample: int | None = None
+        #: +10: the data index the next read of +11 starts at.
+        self.stream_position = 0
 
     # ------------------------------------------------------------------ the objects
 
@@ -186,6 +221,23 @@ class Recorder:
         if self._data is None:
             self._data = _encode(self._rows, self._kinds)
         return self._data
+
+    def stream_data(self) -> bytes:
+        """+11: the header, then the samples from the stream position to the fill level (none
+        while waiting for the trigger); the position moves past what is sent."""
+        first = self.stream_position
+        state = self._state
+        rows = self._rows
+        if state == WAITING:
+            new: list[tuple[Value | None, ...]] = []
+        elif state == RECORDING:
+            # The data so far is rows (pre-trigger) then post; slice both, copy nothing else.
+            new = rows[first:] + self._post[max(0, first - len(rows)) :]
+        else:
+            new = rows[first:]
+        self.stream_position = first + len(new)
+        header = STREAM_HEADER.pack(first, state, len(self._kinds), 0)
+        return header + _encode(new, self._kinds) if new else header
 
     @property
     def data_first_step(self) -> int | None:
@@ -397,4 +449,28 @@ def recorder_objects(profile: DeviceProfile) -> list[str]:
                     problems.append(f"recorder: {index:04X}h:{n:02X} must be a writable UNSIGNED32")
         elif entry.data_type is not expect[offset]:
             problems.append(f"recorder: {index:04X}h must be {expect[offset].name}")
+    # The streaming objects are optional, but both or neither (docs/scope.md).
+    stream = {
+        RecorderSpec.STREAM_POSITION: (DataType.UNSIGNED32, True),
+        RecorderSpec.STREAM_DATA: (DataType.DOMAIN, False),
+    }
+    present = [offset for offset in stream if spec.object_index(offset) in entries]
+    if len(present) == 1:
+        problems.append(
+            f"recorder: {spec.object_index(present[0]):04X}h without "
+            f"{spec.object_index(({*stream} - {*present}).pop()):04X}h: streaming needs both"
+        )
+    for offset in present:
+        index = spec.object_index(offset)
+        entry = entries[index]
+        data_type, writable = stream[offset]
+        if (
+            entry.data_type is not data_type
+            or entry.access is None
+            or entry.access.writable != writable
+        ):
+            access = "writable" if writable else "read-only"
+            problems.append(f"recorder: {index:04X}h must be a {access} {data_type.name}")
+        if spec.sim_only and not entry.sim_only:
+            problems.append(f"recorder: {index:04X}h is not marked sim_only")
     return problems

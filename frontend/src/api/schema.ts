@@ -5256,7 +5256,7 @@ export interface components {
         };
         /**
          * RecorderSourceStatus
-         * @description How one session's drive-side recorder fares (the rest of its time goes to uploads).
+         * @description How one session's drive-side recorder fares (docs/scope.md "Streaming while recording").
          */
         RecorderSourceStatus: {
             /** Channels */
@@ -5268,7 +5268,7 @@ export interface components {
             drive_trigger: boolean;
             /**
              * Recording Share
-             * @description share of the time spent recording
+             * @description share of the time the drive recorded (the rest: restarts and, without streaming, uploads)
              */
             recording_share: number | null;
             /** Records */
@@ -5277,7 +5277,25 @@ export interface components {
             sample_rate_hz: number;
             /** Session */
             session: string;
-            /** Upload Bytes Per S */
+            /**
+             * Stream Lag S
+             * @description age of the newest sample when the last stream read handed it on
+             */
+            stream_lag_s: number | null;
+            /**
+             * Stream Skips
+             * @description times the stream skipped to the newest samples (a gap), behind by more than it may lag: the bus carries less than the recorder takes
+             */
+            stream_skips: number;
+            /**
+             * Streaming
+             * @description the filled part is read while the rest records (false: each recording is uploaded whole once done, the drive has no stream objects or refused them)
+             */
+            streaming: boolean;
+            /**
+             * Upload Bytes Per S
+             * @description bytes per second while uploading
+             */
             upload_bytes_per_s: number | null;
         };
         /**
