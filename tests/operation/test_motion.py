@@ -5,6 +5,8 @@ from __future__ import annotations
 import re
 import time
 
+import pytest
+
 from tests.operation.support import (
     BusSpy,
     Heartbeats,
@@ -240,3 +242,15 @@ def test_a_backend_stall_stretches_the_cyclic_waveform_instead_of_skipping_it(
             assert int(said[1]) >= 1 and 400 <= int(said[2]) <= 2000, done["message"]
             assert wait_until(lambda: abs(hiwin.position - start) < 500, 1.0)
             beats.stop()
+
+
+def test_a_max_velocity_in_rpm_limits_in_the_set_points_units(channel, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    # smartris holds 607Fh in whole r/min (001 §6-4: 4500 rpm), its set-points in inc/s:
+    # read as 4500 inc/s, every jog above 16.5 rpm was refused. The limit goes through rpm.
+    with operation_app(channel, tmp_path, "smartris") as (client, _sim):
+        sid = client.get("/api/v1/sessions").json()[0]["id"]
+        lim = client.get(f"/api/v1/sessions/{sid}/limits").json()
+        scale = lim["units"]["velocity"]["scale"]  # rpm per raw velocity unit
+        assert lim["units"]["velocity"]["unit"] == "rpm", lim["units"]
+        assert lim["max_velocity"] * scale == pytest.approx(4500, rel=1e-3), lim
+        assert "4500 rpm" in lim["sources"]["max_velocity"], lim["sources"]

@@ -417,10 +417,11 @@ def test_the_api_runs_cyclic_data_over_profinet_and_moves_the_lecsn(
         try:
             r = client.post(url, json={"sync_period_ms": 3, "outputs": True}, headers=A)
             assert r.status_code == 400 and "1, 2, 4, 8 or 16 ms" in r.json()["hint"], r.text
-            r = client.post(url, json={"sync_period_ms": 2, "outputs": False}, headers=A)
-            assert r.status_code == 409 and "outputs on" in r.json()["message"], r.text
-            r = client.post(url, json={"sync_period_ms": 1, "outputs": True}, headers=A)
-            assert r.status_code == 200, r.text
+            # The PDO page's Start asks for inputs only: an IO controller sends its setpoint
+            # telegram every cycle, so it runs with outputs on, from the drive's present
+            # values (it changes nothing on the axis, checked below).
+            r = client.post(url, json={"sync_period_ms": 1, "outputs": False}, headers=A)
+            assert r.status_code == 200 and r.json()["outputs"] is True, r.text
             info = client.get(f"/api/v1/sessions/{SID}").json()
             assert "IO controller AR (ARType 0001h" in info["ar"], info
             assert info["nmt_state"] in ("operational", "unknown")
@@ -593,3 +594,47 @@ def test_the_scope_samples_the_telegram_at_every_send_clock_cycle(app: tuple[Any
     # The values are the drive's: an idle axis at its position, at rest.
     assert set(pos.v.tolist()) == {float(drive.position)}
     assert set(vel.v.tolist()) == {0.0}
+
+
+def test_homing_over_profinet_cyclic_io(app: tuple[Any, Any]) -> None:
+    # Issue 47: homing runs over PROFINET as over EtherCAT. Telegram 102 carries the mode
+    # (6060h) and the controlword: the homing's mode and start bit go in the setpoint
+    # telegram while cyclic data runs. Method 37: homing on the present position (CiA 402-2
+    # §6.7.2, in the LECSN-T's homing_methods): the home offset 607Ch becomes the position.
+    client, sim = app
+    drive = sim.drives[0]
+    drive.write(P922, 0, 102)
+    url = f"/api/v1/sessions/{SID}/pdo/cyclic"
+    with client.websocket_connect("/api/v1/ws?client=A") as ws:
+        beats = take_and_enable(client, SID, "A", ws)
+        try:
+            r = client.post(url, json={"sync_period_ms": 1, "outputs": True}, headers=A)
+            assert r.status_code == 200, r.text
+            assert _until(lambda: client.get(url).json()["link"]["state"] == "ok")
+            # Away from the home offset first, by the setpoint telegram.
+            r = client.post(
+                f"/api/v1/sessions/{SID}/motion/move",
+                json={"mode": "relative", "target": 3000, "velocity": 2000},
+                headers=A,
+            )
+            assert r.status_code == 200, r.text
+            assert wait_motion(client, SID, timeout=15)["state"] == "reached"
+            offset = int(drive.read(0x607C))  # Read-only on the LECSN-T (its Pr. PT07).
+            assert abs(drive.position - offset) > 2000, (drive.position, offset)
+            r = client.post(f"/api/v1/sessions/{SID}/homing", json={"method": 37}, headers=A)
+            assert r.status_code in (200, 202), r.text
+            assert _until(
+                lambda: (
+                    client.get(f"/api/v1/sessions/{SID}/homing").json()["state"]
+                    in ("attained", "error", "failed", "timeout")
+                ),
+                15.0,
+            )
+            st = client.get(f"/api/v1/sessions/{SID}/homing").json()
+            assert st["state"] == "attained", st
+            assert _until(lambda: abs(drive.position - offset) <= 5, 3.0), (drive.position, offset)
+            link = client.get(url).json()["link"]
+            assert link["state"] == "ok" and link["ar"].startswith("IO controller AR"), link
+        finally:
+            beats.stop()
+    assert client.delete(url, headers=A).status_code == 200

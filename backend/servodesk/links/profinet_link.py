@@ -152,6 +152,10 @@ class ProfinetLink(DriveLink):
         "network interface carries its RT frames to the drive"
     )
 
+    #: Cyclic data always carries outputs: an IO controller sends the setpoint telegram every
+    #: cycle (services/pdo.py starts it from the drive's present values).
+    cyclic_outputs_always = True
+
     def __init__(self, params: LinkParams) -> None:
         if params.interface != INTERFACE:
             raise ValidationError(

@@ -515,6 +515,11 @@ async def start_cyclic(
             "no PDO is enabled and mapped: nothing to exchange",
             hint="map objects into a PDO and apply first",
         )
+    if getattr(session.link, "cyclic_outputs_always", False):
+        # An IO controller sends the setpoint telegram every cycle (PROFINET): "inputs only"
+        # is the present values sent back, which the image below is (the PDO page's Start
+        # asks for inputs only; refused, it could not start cyclic data over PROFINET).
+        outputs = True
     image: dict[ObjectAddress, Value] = {}
     if outputs:
         # Start the output image from the drive's present values: turning outputs on

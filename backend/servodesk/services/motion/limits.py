@@ -37,6 +37,7 @@ from servodesk.errors import ObjectAccessError, ValidationError
 from servodesk.services.session import Session
 
 if TYPE_CHECKING:
+    from servodesk.domain.profile import DeviceProfile
     from servodesk.services.motion.axis import Axis, Motion
 
 
@@ -121,6 +122,7 @@ async def read_limits(session: Session) -> Limits:
     if values["max_velocity"] == 0:
         values["max_velocity"] = None
         sources["max_velocity"] = "607Fh = 0: no extra limit"
+    _velocity_in_setpoint_units(profile, values, sources)
     # Without the drive objects, the profile's own range of the set-point objects.
     for name, address in (
         ("max_velocity", TARGET_VELOCITY),
@@ -167,6 +169,27 @@ async def read_limits(session: Session) -> Limits:
         modes=sorted(profile.modes),
         units=units,
         sources=sources,
+    )
+
+
+def _velocity_in_setpoint_units(
+    profile: DeviceProfile, values: dict[str, int | None], sources: dict[str, str]
+) -> None:
+    """607Fh in the velocity set-points' raw unit, which the checks compare it with.
+
+    Most families hold 607Fh in the units of 60FFh / 6081h (CiA 402-2 §6.4.6); smartris holds
+    it in whole r/min (001 §6-4) while its set-points are inc/s: 4500 rpm read as 4500 inc/s
+    refused every jog above 16.5 rpm. Where the raw units differ and the engineering unit is
+    the same, 607Fh goes through it (raw x scale / the set-point's scale)."""
+    v = values.get("max_velocity")
+    cap, target = profile.spec(LIMIT_OBJECTS["max_velocity"]), profile.spec(TARGET_VELOCITY)
+    if v is None or cap is None or target is None or cap.raw_unit == target.raw_unit:
+        return
+    if not cap.unit or cap.unit != target.unit or not cap.scale or not target.scale:
+        return
+    values["max_velocity"] = int(v * cap.scale / target.scale)
+    sources["max_velocity"] = (
+        f"607Fh = {v} {cap.raw_unit} = {v * cap.scale:g} {cap.unit}, in {target.raw_unit}"
     )
 
 
