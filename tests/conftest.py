@@ -225,6 +225,12 @@ SERIAL_PATHS = (
     "tests/ethercat/test_deadman_stop.py",
     "tests/ethercat/test_status.py",
     "tests/ethercat/test_scope_process_data.py",
+    # The ESI twins answered an SDO late under load (issue 46's note): one at a time.
+    "tests/ethercat/test_esi_twins.py",
+    "tests/ethercat/test_sdo_info_profile.py",
+    # PROFINET cyclic IO: RT frames every 1-2 ms with a 200 ms watchdog; beside the shared
+    # part's workers a CI run saw no input frame for 516 ms ("link lost" in a move).
+    "tests/profinet/test_cyclic.py",
     "tests/api/test_status_api.py",
     "tests/homing/test_homing_deadman.py",
     "tests/integration/test_canopen_link.py",
