@@ -498,3 +498,20 @@ async def test_an_idle_event_driven_tpdo_says_why_and_the_fix_works(rig: Rig) ->
             ],
         }
         await rig.client.post(f"{base}/apply", json=body)
+
+
+async def test_a_telegram_is_refused_where_no_io_ar_takes_one(rig: Rig) -> None:
+    """``telegram`` chooses the expected submodule of servodesk's PROFINET IO AR (issue 47);
+    on CANopen the PDO mapping says what is exchanged, so the request is refused before a
+    frame goes out, and the status offers no telegram."""
+    s = sid("cia402-generic")
+    url = f"/api/v1/sessions/{s}/pdo/cyclic"
+    assert (await rig.client.get(url)).json()["telegrams"] is None
+    rig.spy.clear()
+    r = await rig.client.post(url, json={"sync_period_ms": 5, "telegram": 102})
+    assert r.status_code == 400, r.text
+    body = r.json()
+    assert body["field"] == "telegram" and "PROFINET IO AR only" in body["message"], body
+    assert "leave telegram out" in body["hint"]
+    assert not [m for m in rig.spy.frames if m.arbitration_id in (0x000, 0x080)]
+    assert not (await rig.client.get(url)).json()["running"]

@@ -406,22 +406,35 @@ def test_the_api_runs_cyclic_data_over_profinet_and_moves_the_lecsn(
 ) -> None:
     client, sim = app
     drive = sim.drives[0]
-    drive.write(P922, 0, 102)  # the drive configured with telegram 102
+    # A fresh twin has standard telegram 1 (STW1/NSOLL_A, no CiA 402 objects): P922 is
+    # read-only over PROFINET (004 §20.4.3.1), so servodesk's IO AR chooses the telegram as an
+    # IO controller's configuration does (its expected submodule, 004 §20.1.1).
+    assert int(drive.read(P922)) == 1
     info = client.get(f"/api/v1/sessions/{SID}").json()
     assert info["ar"].startswith("IO supervisor AR with device access")
     status = client.get(f"/api/v1/sessions/{SID}/pdo/cyclic").json()
     assert status["unavailable"] is None, status
+    assert [t["number"] for t in status["telegrams"]] == [1, 100, 102, 103], status
+    assert status["telegram"] is None
     url = f"/api/v1/sessions/{SID}/pdo/cyclic"
     with client.websocket_connect("/api/v1/ws?client=A") as ws:
         beats = take_and_enable(client, SID, "A", ws)
         try:
             r = client.post(url, json={"sync_period_ms": 3, "outputs": True}, headers=A)
             assert r.status_code == 400 and "1, 2, 4, 8 or 16 ms" in r.json()["hint"], r.text
+            r = client.post(url, json={"sync_period_ms": 1, "telegram": 111}, headers=A)
+            assert r.status_code == 400, r.text
+            assert r.json()["field"] == "telegram" and "102" in r.json()["hint"], r.text
+            assert int(drive.read(P922)) == 1 and sim.profinet[0].io.ar is None
             # The PDO page's Start asks for inputs only: an IO controller sends its setpoint
             # telegram every cycle, so it runs with outputs on, from the drive's present
             # values (it changes nothing on the axis, checked below).
-            r = client.post(url, json={"sync_period_ms": 1, "outputs": False}, headers=A)
+            r = client.post(
+                url, json={"sync_period_ms": 1, "outputs": False, "telegram": 102}, headers=A
+            )
             assert r.status_code == 200 and r.json()["outputs"] is True, r.text
+            assert r.json()["telegram"] == 102
+            assert int(drive.read(P922)) == 102  # the drive took the AR's telegram
             info = client.get(f"/api/v1/sessions/{SID}").json()
             assert "IO controller AR (ARType 0001h" in info["ar"], info
             assert info["nmt_state"] in ("operational", "unknown")

@@ -77,6 +77,10 @@ class PdoTelegramOut(Reply):
     bytes: int = Field(description="IO data per direction; a variable mapping must fill it")
     max_entries: int
     variable: bool
+    controlword: bool = Field(
+        description="the setpoint telegram carries the controlword 6040h (the CiA 402 state "
+        "machine: servo on, jog and moves)"
+    )
 
 
 class PdoRulesOut(Reply):
@@ -280,6 +284,19 @@ class PdoCyclicStatus(Reply):
     dc_cycle_ns: list[int] | None = Field(
         default=None, description="the SYNC0 cycles the drive takes: [min, max, step] [ns]"
     )
+    periods_ms: list[float] | None = Field(
+        default=None,
+        description="the only cycles the link offers (PROFINET: 1 ms send clock x reduction "
+        "ratio); null: any period from 1 to 1000 ms",
+    )
+    telegrams: list[PdoTelegramOut] | None = Field(
+        default=None,
+        description="PROFINET: the telegrams servodesk's IO AR can be set up with (POST's "
+        "telegram); null where cyclic data has no telegram to choose",
+    )
+    telegram: int | None = Field(
+        default=None, description="PROFINET: the telegram the running IO AR exchanges"
+    )
 
 
 class EntryIn(BaseModel):
@@ -325,6 +342,10 @@ class PdoCyclicRequest(BaseModel):
     #: "dc": the drive's SYNC0 event from the distributed clocks at the period (EtherCAT
     #: drives whose profile names the cycles they take); "freerun": its own cycle.
     sync: Literal["freerun", "dc"] = "freerun"
+    #: PROFINET: the telegram servodesk's IO AR is set up with (its expected submodule, as an
+    #: IO controller's configuration tool chooses it from the GSD file, 004 §20.1.1; the
+    #: drive's P922 follows). Left out: the drive's present telegram.
+    telegram: int | None = Field(default=None, ge=1, le=65535)
 
 
 class OutputsRequest(BaseModel):

@@ -231,6 +231,22 @@ class DriveLink(ObjectAccess):
     #: Whether :meth:`nmt` sends network-management commands on this link.
     sends_nmt: bool = True
 
+    # What this fieldbus's cyclic data offers and needs (services/pdo.py reads them; the
+    # exchange itself is the link's ``cyclic_transport``, links/cyclic.py).
+    #: How cyclic data may be synchronised: "freerun" (the drive's own cycle) everywhere,
+    #: "dc" where distributed clocks fire the drive's SYNC0 (EtherCAT).
+    sync_modes: tuple[str, ...] = ("freerun",)
+    #: The NMT command that starts cyclic data with the outputs off. CiA 301's "start"
+    #: (TPDOs come, RPDOs are not sent); EtherCAT's SAFE-OP, where an OP slave takes the
+    #: outputs of every cycle (ETG.1000.6 §6.4).
+    inputs_only_command: str = "start"
+    #: Cyclic data always carries outputs: a PROFINET IO controller sends its setpoint
+    #: telegram every cycle (IEC 61158-6-10); "inputs only" is the present values sent back.
+    cyclic_outputs_always: bool = False
+    #: The only cycles the link offers, in ms (PROFINET: send clock x reduction ratio);
+    #: None: any period in services/cyclic.py's MIN_PERIOD..MAX_PERIOD.
+    cyclic_periods_ms: tuple[float, ...] | None = None
+
     def __init__(self, params: LinkParams) -> None:
         self.params = params
         self._lock = threading.Lock()

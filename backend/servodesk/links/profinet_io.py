@@ -58,6 +58,8 @@ log = logging.getLogger(__name__)
 SEND_CLOCK_FACTOR = 32
 #: Reduction ratios (RT_CLASS_1: powers of two) servodesk offers: cycles of 1-16 ms.
 REDUCTION_RATIOS = (1, 2, 4, 8, 16)
+#: The cycles those make, in ms (the PDO page offers these and no other).
+PERIODS_MS = tuple(io.cycle_s(SEND_CLOCK_FACTOR, r) * 1000 for r in REDUCTION_RATIOS)
 #: The watchdog time servodesk asks for, at least [s]: its cycle runs on a thread of a
 #: general-purpose OS, whose delays reach tens of milliseconds under load; a watchdog of 3
 #: cycles (a PLC's usual) would fire on them: 100 ms fired once in a test run on 2 cores at

@@ -65,6 +65,7 @@ from servodesk.links.base import DriveIdentity, DriveLink, LinkParams
 from servodesk.links.profinet_io import (
     AR_IO,
     AR_SUPERVISOR,
+    PERIODS_MS,
     IoController,
     ProfinetCyclic,
     check_nic,
@@ -155,6 +156,8 @@ class ProfinetLink(DriveLink):
     #: Cyclic data always carries outputs: an IO controller sends the setpoint telegram every
     #: cycle (services/pdo.py starts it from the drive's present values).
     cyclic_outputs_always = True
+    #: Send clock 1 ms (SendClockFactor 32) x the reduction ratios servodesk offers.
+    cyclic_periods_ms = PERIODS_MS
 
     def __init__(self, params: LinkParams) -> None:
         if params.interface != INTERFACE:

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 from servodesk.domain import pdo as pdomod
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import Value, codec, coerce_int
+from servodesk.domain.profile_pdo import PdoTelegram
 from servodesk.errors import (
     ConflictError,
     LinkError,
@@ -66,8 +67,10 @@ def transmission_text(t: int | None) -> str | None:
 # Reading -------------------------------------------------------------------------------------
 
 
-async def read_config(session: Session) -> pdomod.PdoConfig:
-    """The drive's PDO configuration, read object by object."""
+async def read_config(session: Session, telegram: int | None = None) -> pdomod.PdoConfig:
+    """The drive's PDO configuration, read object by object; with ``telegram``, the drive's
+    mapping under that telegram (the one servodesk's IO AR is about to set up: the IO
+    controller's configuration chooses it, 004 §20.1.1, and the drive's P922 follows)."""
     profile = session.profile
     values: dict[ObjectAddress, int] = {}
     for address in pdomod.config_addresses(profile):
@@ -81,6 +84,9 @@ async def read_config(session: Session) -> pdomod.PdoConfig:
         v = codec(spec.data_type).decode(raw)
         if isinstance(v, bool | int):
             values[address] = int(v)
+    t = profile.pdo.telegram_object
+    if telegram is not None and t:
+        values[ObjectAddress.parse(t)] = telegram
     return pdomod.parse_config(profile, values)
 
 
@@ -188,14 +194,7 @@ async def view(
             # The family's telegrams (PROFIdrive, 004 §20.3): the page labels its telegram
             # choice from them and keeps a fixed telegram's entries as they are.
             "telegrams": [
-                {
-                    "number": t.number,
-                    "name": t.name,
-                    "bytes": t.bytes,
-                    "max_entries": t.max_entries,
-                    "variable": t.variable,
-                }
-                for t in (rules.telegrams if rules.kind == "telegram" else ())
+                _telegram_out(t) for t in (rules.telegrams if rules.kind == "telegram" else ())
             ],
         },
         "pdos": [_pdo_out(session, config, p) for p in config.pdos],
@@ -458,7 +457,7 @@ def sync_modes(session: Session) -> list[str]:
     """How the session's cyclic data may be synchronised: "freerun" always; "dc" where the
     link has distributed clocks (EtherCAT) and the profile says which SYNC0 cycles the drive
     takes (quirk ``dc_cycle_time_ns``)."""
-    modes = list(getattr(session.link, "sync_modes", ("freerun",)))
+    modes = list(session.link.sync_modes)
     if "dc" in modes and session.profile.dc_cycles_ns() is None:
         modes.remove("dc")
     return modes
@@ -473,7 +472,7 @@ def _check_sync(session: Session, sync: str, period: float) -> None:
         raise ValidationError(
             f"sync {sync!r} is not a synchronisation", field="sync", hint="use freerun or dc"
         )
-    if "dc" not in getattr(session.link, "sync_modes", ("freerun",)):
+    if "dc" not in session.link.sync_modes:
         raise ValidationError(
             f"DC synchronisation is EtherCAT's; this session's link is "
             f"{session.link.params.interface}",
@@ -497,8 +496,63 @@ def _check_sync(session: Session, sync: str, period: float) -> None:
         )
 
 
+def _check_telegram(session: Session, telegram: int | None) -> None:
+    """Refuse a telegram where servodesk does not set one up (every link but PROFINET's IO
+    AR) and one the drive does not have, before anything is sent."""
+    if telegram is None:
+        return
+    rules = session.profile.pdo
+    if getattr(session.link, "prepare_io", None) is None or rules.kind != "telegram":
+        raise ValidationError(
+            f"{session.id} is on {session.link.fieldbus}: a telegram is chosen for a PROFINET "
+            "IO AR only",
+            field="telegram",
+            hint="leave telegram out; the PDO mapping says what is exchanged",
+        )
+    if rules.telegram(telegram) is None:
+        raise ValidationError(
+            f"telegram {telegram} is not one of the {session.profile.name}'s telegrams",
+            field="telegram",
+            hint="known: " + ", ".join(str(t.number) for t in rules.telegrams),
+        )
+
+
+def telegram_offer(session: Session) -> list[dict[str, Any]] | None:
+    """The telegrams servodesk's IO AR may be set up with (PROFINET: the expected
+    submodule of the connect, as an IO controller's configuration tool chooses it, 004
+    §20.1.1); None where cyclic data has no telegram to choose."""
+    rules = session.profile.pdo
+    if getattr(session.link, "prepare_io", None) is None or rules.kind != "telegram":
+        return None
+    return [_telegram_out(t) for t in rules.telegrams]
+
+
+def _telegram_out(t: PdoTelegram) -> dict[str, Any]:
+    """A telegram as the API gives it (``PdoTelegramOut``)."""
+    return {
+        "number": t.number,
+        "name": t.name,
+        "bytes": t.bytes,
+        "max_entries": t.max_entries,
+        "variable": t.variable,
+        # The CiA 402 state machine over the telegram: servo on, jog and moves from the
+        # Operation page need the controlword in the setpoint telegram (telegram 1 carries
+        # PROFIdrive's STW1 instead, 004 §20.5.1).
+        "controlword": any(
+            w.address is not None
+            and not w.address.startswith("reserved")
+            and ObjectAddress.parse(w.address).index == 0x6040
+            for w in t.rx
+        ),
+    }
+
+
 async def start_cyclic(
-    session: Session, sync_period_ms: float, outputs: bool, sync: str = "freerun"
+    session: Session,
+    sync_period_ms: float,
+    outputs: bool,
+    sync: str = "freerun",
+    telegram: int | None = None,
 ) -> dict[str, Any]:
     period = sync_period_ms / 1000.0
     if not MIN_PERIOD <= period <= MAX_PERIOD:
@@ -508,14 +562,15 @@ async def start_cyclic(
             field="sync_period_ms",
         )
     _check_sync(session, sync, period)
+    _check_telegram(session, telegram)
     transport = transport_for(session.link)
-    config = await read_config(session)
+    config = await read_config(session, telegram)
     if not config.active(pdomod.Direction.TX) and not config.active(pdomod.Direction.RX):
         raise ValidationError(
             "no PDO is enabled and mapped: nothing to exchange",
             hint="map objects into a PDO and apply first",
         )
-    if getattr(session.link, "cyclic_outputs_always", False):
+    if session.link.cyclic_outputs_always:
         # An IO controller sends the setpoint telegram every cycle (PROFINET): "inputs only"
         # is the present values sent back, which the image below is (the PDO page's Start
         # asks for inputs only; refused, it could not start cyclic data over PROFINET).
@@ -564,7 +619,7 @@ async def start_cyclic(
     # be a heartbeat old, while "start" to an OPERATIONAL node changes nothing (CiA 301 §7.3.2.2.1).
     # With the outputs off, a link whose slaves take the outputs of every cycle in their
     # operational state (EtherCAT) goes to its inputs-only state instead (SAFE-OP).
-    command = "start" if outputs else getattr(session.link, "inputs_only_command", "start")
+    command = "start" if outputs else session.link.inputs_only_command
     configure = getattr(session.link, "configure_sync", None)
     if configure is not None:
         configure(sync, period)
@@ -620,6 +675,11 @@ def _with_offer(session: Session, status: dict[str, Any]) -> dict[str, Any]:
     status["sync_modes"] = sync_modes(session)
     cycles = session.profile.dc_cycles_ns() if "dc" in status["sync_modes"] else None
     status["dc_cycle_ns"] = list(cycles) if cycles is not None else None
+    periods = session.link.cyclic_periods_ms
+    status["periods_ms"] = list(periods) if periods is not None else None
+    status["telegrams"] = telegram_offer(session)
+    ex = cyclic_of(session)
+    status["telegram"] = ex.config.telegram if ex is not None and status["running"] else None
     return status
 
 

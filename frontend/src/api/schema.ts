@@ -4424,6 +4424,8 @@ export interface components {
              * @default 10
              */
             sync_period_ms: number;
+            /** Telegram */
+            telegram?: number | null;
         };
         /**
          * PdoCyclicStatus
@@ -4444,6 +4446,11 @@ export interface components {
             link?: components["schemas"]["PdoLinkHealth"] | null;
             /** Outputs */
             outputs: boolean;
+            /**
+             * Periods Ms
+             * @description the only cycles the link offers (PROFINET: 1 ms send clock x reduction ratio); null: any period from 1 to 1000 ms
+             */
+            periods_ms?: number[] | null;
             /** Running */
             running: boolean;
             /** Rx Pdos */
@@ -4468,6 +4475,16 @@ export interface components {
              * @description SYNCs sent
              */
             syncs: number;
+            /**
+             * Telegram
+             * @description PROFINET: the telegram the running IO AR exchanges
+             */
+            telegram?: number | null;
+            /**
+             * Telegrams
+             * @description PROFINET: the telegrams servodesk's IO AR can be set up with (POST's telegram); null where cyclic data has no telegram to choose
+             */
+            telegrams?: components["schemas"]["PdoTelegramOut"][] | null;
             /** Tx Pdos */
             tx_pdos: components["schemas"]["PdoRate"][];
             /**
@@ -4896,6 +4913,11 @@ export interface components {
              * @description IO data per direction; a variable mapping must fill it
              */
             bytes: number;
+            /**
+             * Controlword
+             * @description the setpoint telegram carries the controlword 6040h (the CiA 402 state machine: servo on, jog and moves)
+             */
+            controlword: boolean;
             /** Max Entries */
             max_entries: number;
             /** Name */

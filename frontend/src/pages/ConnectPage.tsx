@@ -436,8 +436,7 @@ export function ConnectPage() {
             <table className="grid" data-testid="sessions">
               <thead>
                 <tr>
-                  <th>Session</th>
-                  <th>Profile</th>
+                  <th title="the session, and the drive profile it was opened with">Session · profile</th>
                   <th>Node</th>
                   <th title="the drive's fieldbus, and the bus servodesk reaches it on">Fieldbus · bus</th>
                   <th>State</th>
@@ -457,8 +456,10 @@ export function ConnectPage() {
                         </span>
                       )}
                       {!s.connected && <span className="badge badge-bad">disconnected</span>}
+                      <div className="small muted profile-name" title={s.profile_id}>
+                        {s.profile_name}
+                      </div>
                     </td>
-                    <td title={s.profile_id}>{s.profile_name}</td>
                     <td className="mono num">{s.node_id}</td>
                     <td>
                       {s.fieldbus}

@@ -507,7 +507,17 @@ export function PdoPage({ sid }: PageProps) {
           onRefused={(problems) => setCheck((c) => ({ ...c, state: 'done', problems }))}
           onApplied={applied}
         />
-        <CyclicPanel sid={sid} live={live} errors={errors} onApplied={applied} />
+        <CyclicPanel
+          sid={sid}
+          live={live}
+          errors={errors}
+          onApplied={applied}
+          driveTelegram={view?.telegram ?? null}
+          onStarted={(st) => {
+            // The IO AR set the drive up with another telegram (P922 follows): show its layout.
+            if (st.telegram != null && st.telegram !== view?.telegram) void load();
+          }}
+        />
       </div>
 
       <div className="pdo-layout">

@@ -156,9 +156,15 @@ async def pdo_cyclic_start(
             request.headers.get(CONTROL_HEADER),
         )
     out = await pdosvc.start_cyclic(
-        state.manager.get(sid), body.sync_period_ms, body.outputs, body.sync
+        state.manager.get(sid), body.sync_period_ms, body.outputs, body.sync, body.telegram
     )
-    facts = {"sync_period_ms": body.sync_period_ms, "outputs": body.outputs, "sync": body.sync}
+    facts: dict[str, object] = {
+        "sync_period_ms": body.sync_period_ms,
+        "outputs": body.outputs,
+        "sync": body.sync,
+    }
+    if body.telegram is not None:
+        facts["telegram"] = body.telegram
     state.audit.record("write.cyclic_started", drive=sid, details=facts)
     return PdoCyclicStatus.model_validate(out)
 

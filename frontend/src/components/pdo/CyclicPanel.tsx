@@ -72,6 +72,8 @@ export function CyclicPanel({
   errors,
   onStatus,
   onApplied,
+  driveTelegram = null,
+  onStarted,
 }: {
   sid: string;
   live: Observable<PdoLive>;
@@ -79,12 +81,19 @@ export function CyclicPanel({
   onStatus?: (s: PdoCyclicStatus) => void;
   /** A fix of a silent TPDO changed the mapping: the page shows the drive's new one. */
   onApplied?: (r: PdoApplyReport) => void;
+  /** PROFINET: the telegram the drive has now (P922), the choice's starting value. */
+  driveTelegram?: number | null;
+  /** Cyclic data started: on PROFINET the drive's telegram may have changed with it. */
+  onStarted?: (s: PdoCyclicStatus) => void;
 }) {
   const [ask, setAsk] = useState<FixAsk | null>(null);
   const [fixing, setFixing] = useState(false);
   const [status, setStatus] = useState<PdoCyclicStatus | null>(null);
   const [period, setPeriod] = useState(DEFAULT_PERIOD_MS);
   const [sync, setSync] = useState<SyncMode>('freerun');
+  // PROFINET: the telegram servodesk's IO AR is set up with (the expected submodule; the
+  // drive's P922 follows, as from a PLC's configuration, 004 §20.1.1). Starts as the drive's.
+  const [telegram, setTelegram] = useState<number | null>(driveTelegram);
   const [busy, setBusy] = useState(false);
   const [failure, setFailure] = useState<Failure | null>(null);
   // Starting, changing and stopping the cyclic data change the drive: they need control.
@@ -123,14 +132,36 @@ export function CyclicPanel({
   useEffect(() => {
     if (status?.running && status.sync_period_ms) setPeriod(status.sync_period_ms);
     if (status?.running && status.sync) setSync(status.sync);
-    // Only when the server's period or sync changes, not on every poll.
-  }, [status?.running, status?.sync_period_ms, status?.sync]);
+    if (status?.running && status.telegram) setTelegram(status.telegram);
+    // Only when the server's period, sync or telegram changes, not on every poll.
+  }, [status?.running, status?.sync_period_ms, status?.sync, status?.telegram]);
+
+  // A link with a fixed set of cycles (PROFINET: 1 ms send clock x reduction ratio): the
+  // period is one of them, the nearest to what was typed.
+  const periods = status?.periods_ms ?? null;
+  useEffect(() => {
+    if (!periods || periods.length === 0 || periods.includes(period)) return;
+    setPeriod(periods.reduce((a, b) => (Math.abs(b - period) < Math.abs(a - period) ? b : a)));
+  }, [periods?.join(','), period]);
+
+  useEffect(() => {
+    if (!running && driveTelegram !== null) setTelegram(driveTelegram);
+    // The drive's telegram as the page read it; a running AR's telegram wins (above).
+  }, [driveTelegram]);
 
   async function start() {
     setBusy(true);
     setFailure(null);
     try {
-      got(await pdoApi.startCyclic(sid, { sync_period_ms: period, outputs: false, sync }));
+      const offer = status?.telegrams ?? null;
+      const s = await pdoApi.startCyclic(sid, {
+        sync_period_ms: period,
+        outputs: false,
+        sync,
+        ...(offer && telegram !== null ? { telegram } : {}),
+      });
+      got(s);
+      onStarted?.(s);
     } catch (e) {
       setFailure(failureOf(e, 'Start cyclic data', errors));
     } finally {
@@ -170,7 +201,11 @@ export function CyclicPanel({
   /** TPDOs that send nothing because of their configuration (the server says why). */
   const idle = (status?.tx_pdos ?? []).filter((r) => r.idle);
   const offersDc = status?.sync_modes?.includes('dc') ?? false;
-  const periodChanged = running && (status?.sync_period_ms !== period || (status?.sync ?? 'freerun') !== sync);
+  const telegrams = status?.telegrams ?? null;
+  const chosen = telegrams?.find((t) => t.number === telegram) ?? null;
+  const periodChanged =
+    running &&
+    (status?.sync_period_ms !== period || (status?.sync ?? 'freerun') !== sync || (telegrams !== null && status?.telegram !== telegram));
   const cycleProblem = sync === 'dc' ? dcCycleProblem(period, status?.dc_cycle_ns) : null;
   const unavailable = status?.unavailable ?? null;
   const clock = syncText(status?.sync, status?.sync_period_ms);
@@ -201,16 +236,31 @@ export function CyclicPanel({
       </h2>
       <div className="bk-row">
         <label className="pdo-inline small muted">
-          {sync === 'dc' ? 'SYNC0 cycle' : 'SYNC period'}
-          <NumberBox
-            value={period}
-            onChange={setPeriod}
-            parse={decimalParser(1, 1000, 2)}
-            testid="pdo-cyclic-period"
-            label="SYNC period in ms"
-            width={60}
-            title="1 ms to 1000 ms (0.01 ms steps; DC SYNC0: the drive's cycles)"
-          />
+          {periods ? 'Cycle' : sync === 'dc' ? 'SYNC0 cycle' : 'SYNC period'}
+          {periods ? (
+            <select
+              value={period}
+              onChange={(e) => setPeriod(Number(e.target.value))}
+              data-testid="pdo-cyclic-period-choice"
+              title="The IO cycle: the 1 ms send clock times a reduction ratio (RT_CLASS_1)"
+            >
+              {periods.map((p) => (
+                <option key={p} value={p}>
+                  {p}
+                </option>
+              ))}
+            </select>
+          ) : (
+            <NumberBox
+              value={period}
+              onChange={setPeriod}
+              parse={decimalParser(1, 1000, 2)}
+              testid="pdo-cyclic-period"
+              label="SYNC period in ms"
+              width={60}
+              title="1 ms to 1000 ms (0.01 ms steps; DC SYNC0: the drive's cycles)"
+            />
+          )}
           ms
         </label>
         {offersDc && (
@@ -222,6 +272,23 @@ export function CyclicPanel({
             <select value={sync} onChange={(e) => setSync(e.target.value as SyncMode)} data-testid="pdo-cyclic-sync">
               <option value="freerun">FreeRun</option>
               <option value="dc">DC SYNC0</option>
+            </select>
+          </label>
+        )}
+        {telegrams && (
+          <label
+            className="pdo-inline small muted"
+            title="The telegram servodesk's IO AR exchanges: its expected submodule at the connect, as an IO controller's configuration tool sets it up from the GSD file (004 §20.1.1). The drive's P922 follows."
+          >
+            Telegram
+            <select value={telegram ?? ''} onChange={(e) => setTelegram(Number(e.target.value))} data-testid="pdo-cyclic-telegram">
+              {telegram === null && <option value="">choose…</option>}
+              {telegrams.map((t) => (
+                <option key={t.number} value={t.number}>
+                  {t.name}
+                  {t.number === driveTelegram ? ' (the drive’s now)' : ''}
+                </option>
+              ))}
             </select>
           </label>
         )}
@@ -246,6 +313,7 @@ export function CyclicPanel({
             data-testid="pdo-cyclic-reconfigure"
           >
             Use {period} ms{offersDc ? (sync === 'dc' ? ' DC' : ' FreeRun') : ''}
+            {telegrams && chosen ? `, ${chosen.name}` : ''}
           </button>
         )}
         {running && (
@@ -288,6 +356,12 @@ export function CyclicPanel({
               : 'Working counter errors'}
           {link.reason ? `: ${link.reason}` : ''}. The greyed values are the last received, not the drive&apos;s present ones.
           {status?.outputs ? ' Motion does not resume by itself: the output image holds a quick stop.' : ''}
+        </div>
+      )}
+      {chosen && !chosen.controlword && (
+        <div className="bk-warn small" data-testid="pdo-cyclic-telegram-note">
+          {chosen.name} carries no controlword (6040h): the drive follows PROFIdrive&apos;s STW1 over it, so servo on, jog and moves from
+          the Operation page need a telegram with the controlword{telegrams?.some((t) => t.controlword) ? ` (${telegrams.filter((t) => t.controlword).map((t) => t.number).join(', ')})` : ''}.
         </div>
       )}
       {cycleProblem !== null && (
