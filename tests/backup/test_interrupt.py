@@ -5,9 +5,11 @@ from __future__ import annotations
 
 from collections.abc import AsyncIterator, Callable
 
+import can
 import pytest
 import pytest_asyncio
 
+from servodesk.domain import restore_plan
 from servodesk.domain.address import ObjectAddress as A
 from servodesk.sim.canopen_device import NMT_PRE_OPERATIONAL, NMT_STOPPED
 from tests.backup.conftest import Rig, close_rig, make_rig
@@ -123,3 +125,37 @@ async def test_reset_without_silence_is_caught_by_the_final_check(small: Rig) ->
     assert rep["counts"]["pending"] >= 3  # the values the reset took back
     done = await small.restores.resume(rep["id"], s)
     assert done["finished"] and done["counts"]["written"] == len(changed)
+
+
+async def test_the_final_check_reads_again_only_what_the_restore_changed(small: Rig) -> None:
+    """Issue 50: a verified restore reads each entry before (the automatic backup) and after
+    its write (the read-back); the final check reads a third time only the values that
+    differ from the drive's before the restore, the only ones a reset can show (one equal to
+    its old value reads the same after a reset). Counted as SDO upload requests on the bus."""
+    s = small.first["cia402-generic"]
+    info = await small.backups.backup(s)
+    ps = small.backups.load(info["id"])
+    changed = set(await change_plain(s, ps, 3))
+    node = s.link.params.node_id
+    tap = can.Bus(interface="virtual", channel=small.channel)
+    try:
+        rep = await small.restores.restore(s, info["id"], rewrite_all=True, client="t")
+        uploads: dict[A, int] = {}
+        while (m := tap.recv(0)) is not None:
+            # CiA 301 §7.2.4.3.3: an upload request is command specifier 2 (40h).
+            if m.arbitration_id == 0x600 + node and m.data[0] == 0x40:
+                a = A(int.from_bytes(m.data[1:3], "little"), m.data[3])
+                uploads[a] = uploads.get(a, 0) + 1
+    finally:
+        tap.shutdown()
+    assert rep["finished"] and rep["stored"], rep
+    assert rep["counts"]["written"] == len(ps.entries)
+    plain = [e.address for e in ps.entries if not restore_plan.is_pdo_object(e.address.index)]
+    assert len(plain) > 30
+    # (A PDO's objects are written twice, invalid then valid (CiA 301 §7.5.2.36), and read
+    # back after each.)
+    # Unchanged: the backup before and the read-back, no more. Changed: the final check's
+    # read too (at least: a changed limit is read again by whoever uses it).
+    bad = {str(a): uploads.get(a) for a in plain if a not in changed and uploads.get(a) != 2}
+    assert not bad, bad
+    assert all(uploads.get(a, 0) >= 3 for a in changed), {str(a): uploads.get(a) for a in changed}

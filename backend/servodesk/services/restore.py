@@ -233,8 +233,34 @@ class RestoreService:
         ``rewrite_all`` writes (and verifies) unchanged entries too, e.g. to measure the
         write path or to be sure every value went through the drive's own checks.
         """
-        # Off the loop (docs/safety.md): parsing a large backup held it for seconds.
-        ps = await asyncio.to_thread(self.backups.load, backup_id)
+        # Off the loop (docs/safety.md): parsing a large backup held it for seconds. It is
+        # parsed while the drive is read (issue 50: the disk and the bus at once).
+        loading = asyncio.ensure_future(asyncio.to_thread(self.backups.load, backup_id))
+        try:
+            return await self._restore(
+                session, backup_id, loading, dry_run, store, force, map_by_name, client,
+                rewrite_all,
+            )  # fmt: skip
+        finally:
+            if not loading.done():
+                loading.cancel()
+            elif not loading.cancelled():
+                loading.exception()  # Seen: a backup that did not load is the answer's error.
+
+    async def _restore(
+        self,
+        session: Session,
+        backup_id: str,
+        loading: asyncio.Future[ParameterSet],
+        dry_run: bool,
+        store: bool,
+        force: bool,
+        map_by_name: bool,
+        client: str,
+        rewrite_all: bool,
+    ) -> dict[str, Any]:
+        if dry_run:
+            ps = await loading
         async with self._lock(session):
             before: ParameterSet | None = None
             known: dict[ObjectAddress, bytes | None] = {}
@@ -249,6 +275,7 @@ class RestoreService:
                 )
                 known = {e.address: e.raw for e in before.entries}
                 known |= {u.address: None for u in before.unreadable}
+                ps = await loading
             pf, facts = await self.preflight(session, ps, map_names=map_by_name, known=known)
             if not pf.ok:
                 raise refusal(pf)
@@ -288,10 +315,14 @@ class RestoreService:
                     self.store.add_restore, meta, [_item_dict(it) for it in items]
                 )
                 return self.report(rid)
-            pre = await asyncio.to_thread(self.backups.save, before, "pre-restore")
-            meta["pre_backup"] = pre["id"]
             rows = [_item_dict(it, pending=True) for it in items]
-            await asyncio.to_thread(self.store.add_restore, meta, rows)
+
+            def record(before: ParameterSet = before) -> None:
+                # The drive's values saved, then the restore's rows: one trip off the loop.
+                meta["pre_backup"] = self.backups.save(before, "pre-restore")["id"]
+                self.store.add_restore(meta, rows)
+
+            await asyncio.to_thread(record)
             # The audit's old value of each object: the automatic backup's (issue 50: not a
             # read of its own per write); facts.current for what the backup does not hold.
             old = {**facts.current, **{e.address: e.raw for e in before.entries}}
@@ -456,8 +487,19 @@ class RestoreService:
         journal.release()
         await journal.commit()
         # Final check: every written value is still there. A drive that reset (or was
-        # changed by someone else) meanwhile has lost them: pending again, resumable.
-        done = [i for i, st in status.items() if st == "written"]
+        # changed by someone else) meanwhile has lost them: pending again, resumable. Only
+        # a value that differs from the drive's before the restore can show that: one equal
+        # to it reads the same after a reset (the write and its read-back were verified), so
+        # reading it again finds nothing (issue 50: the restore at the bus's pace; a drive
+        # whose RAM differed from its EEPROM before the restore is the case this leaves to
+        # the read-back and the store that follows).
+        done = []
+        for i, st in status.items():
+            if st != "written":
+                continue
+            a = ObjectAddress.parse(rows[i]["address"])
+            if old.get(a) != bytes.fromhex(rows[i]["new_raw_hex"]):
+                done.append(i)
         addrs = [ObjectAddress.parse(rows[i]["address"]) for i in done]
         try:
             results = await session.link.read_many(addrs)  # The bytes are all it compares.
