@@ -18,9 +18,9 @@ Phases:
 - ``capture`` (issue 50): the page receives binary scope frames of 32 channels every 20 ms (80
   samples each, 128,000 samples/s; decoded and stored by the page's own code, ScopePage's
   ``ingestFrame`` hook) after 10 s of them, and follows the newest samples with a 10 s window.
-  The server's scope takes at most 8 channels and its simulated drives do not produce 128,000
-  samples/s (``servodesk bench scope``), so the frames are made in the page at the wire's rate;
-  what is measured is the page's drawing while they arrive.
+  The server's scope takes 32 channels (8 until 2026-12-08), but its simulated drives do not
+  produce 128,000 samples/s (``servodesk bench scope``), so the frames are made in the page at
+  the wire's rate; what is measured is the page's drawing while they arrive.
 - ``drag`` and ``wheel`` (issue 7): shift-drag and wheel pans of a recording of 8 channels x
   40,000 samples (sines with noise and one-sample spikes), the whole recording and half of it
   in view; the input is synthetic mouse and wheel events dispatched in the page every 4 ms

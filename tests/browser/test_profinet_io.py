@@ -78,7 +78,12 @@ def test_jog_and_a_move_through_the_ui_over_profinet_cyclic_io(pn_page: Page) ->
     state = page.get_by_test_id("op-state")
     expect(state).not_to_have_text("—")
     page.get_by_test_id("servo-on").click()
-    expect(state).to_have_text("Operation enabled", timeout=10_000)
+    try:
+        expect(state).to_have_text("Operation enabled", timeout=10_000)
+    except AssertionError as exc:
+        # Say what the IO AR did meanwhile (a watchdog expiry ends it and disables the drive).
+        link = page.request.get(f"/api/v1/sessions/{sid}/pdo/cyclic").json().get("link")
+        raise AssertionError(f"{exc}\nIO AR: {link}") from None
     page.get_by_test_id("units-raw").click()
 
     # Jog: held, the axis runs; let go, it stands.

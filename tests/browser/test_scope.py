@@ -11,6 +11,8 @@ halted and disabled, control released.
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import re
 import time
@@ -357,3 +359,67 @@ def test_channels_of_another_drive_are_said_and_kept_only_by_choice(page: Page) 
             time.sleep(0.1)
     finally:
         reset_scope(page)
+
+
+def test_32_channels_of_four_drives_are_listed_drawn_and_exported(
+    scope_page: Page, tmp_path: Path
+) -> None:
+    # Issue 50: 4 drives x 8 channels. Set over the API (polled, 20 Hz each, from four
+    # sessions on three fieldbuses), run from the page: the measurements (the page's legend)
+    # list all 32 traces with samples in view, each in a colour of its own, the channel table
+    # holds the 32 rows in a box that scrolls inside its card, and the CSV export has 32
+    # value columns.
+    page = scope_page
+    sessions = [s["id"] for s in page.request.get("/api/v1/sessions").json()]
+    drives = [SID, *[s for s in sessions if s != SID and not s.startswith("cia402-generic")]][:4]
+    assert len(drives) == 4, sessions
+    channels = [
+        {
+            "id": i,
+            "session": drives[i // 8],
+            "address": (POSITION, "0x6041:00")[i % 2],
+            "source": "sdo",
+            "rate_hz": 20,
+            "label": f"ch{i:02d} {drives[i // 8]}",
+        }
+        for i in range(32)
+    ]
+    put(page, "/api/v1/scope/channels", {"channels": channels})
+    put(page, "/api/v1/scope/trigger", {"mode": "roll", "window_s": 2})
+    page.reload()
+    expect(page.get_by_test_id("scope-channels")).to_have_attribute("data-count", "32")
+    expect(page.get_by_test_id("scope-add-channel")).to_be_disabled()
+    page.get_by_test_id("scope-run").click()
+    expect(page.get_by_test_id("scope-state")).to_have_attribute("data-state", "rolling")
+    for i in range(32):
+        expect(page.get_by_test_id(f"scope-stats-c{i}")).not_to_have_attribute(
+            "data-n", "0", timeout=10_000
+        )
+    drawn = page.evaluate(
+        """() => {
+            const m = window.__servodeskScope.model;
+            return {traces: m.traces.map((t) => t.colour),
+                    live: [...m.live.entries()].filter(([, s]) => s.n > 0).map(([id]) => id)};
+        }"""
+    )
+    assert len(set(drawn["traces"])) == 32, drawn["traces"]
+    assert sorted(drawn["live"]) == list(range(32)), drawn["live"]
+
+    # The rows scroll inside the card (at 1440 px wide): the box is shorter than its rows
+    # and the last row is reached by scrolling it.
+    box = page.get_by_test_id("scope-channel-rows")
+    size = box.evaluate("(e) => ({client: e.clientHeight, scroll: e.scrollHeight})")
+    assert size["client"] <= 560 < size["scroll"], size
+    last = page.get_by_test_id("scope-channel-31-remove")
+    last.scroll_into_view_if_needed()
+    expect(last).to_be_in_viewport()
+
+    page.get_by_test_id("scope-stop").click()
+    expect(page.get_by_test_id("scope-state")).to_have_attribute("data-running", "false")
+    with page.expect_download() as download:
+        page.get_by_test_id("scope-export-csv").click()
+    path = tmp_path / download.value.suggested_filename
+    download.value.save_as(path)
+    text = path.read_text(encoding="utf-8-sig")
+    header = next(row for row in csv.reader(io.StringIO(text)) if row[:1] == ["time_s"])
+    assert sum(1 for h in header if h != "time_s") == 32, header

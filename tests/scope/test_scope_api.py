@@ -80,9 +80,9 @@ async def test_refusals_name_what_is_wrong(fresh: Rig) -> None:
     )
     assert "nope-9" in body["message"]
     body = await refused(
-        rig, {"channels": [channel(i, "0x6041:00", source="sdo") for i in range(9)]}, 400
+        rig, {"channels": [channel(i, "0x6041:00", source="sdo") for i in range(33)]}, 400
     )
-    assert "9 channels" in body["message"] and "8" in body["message"]
+    assert "33 channels" in body["message"] and "at most 32" in body["message"]
     body = await refused(rig, {"channels": [channel(0, "0x5FFF:00")]}, 404)
     assert "0x5FFF:00" in body["message"]
     body = await refused(rig, {"channels": [channel(0, "0x1008:00")]}, 400)
@@ -91,8 +91,15 @@ async def test_refusals_name_what_is_wrong(fresh: Rig) -> None:
     assert "bogus" in body["message"]
     body = await refused(rig, {"channels": [channel(1, "0x6041:00"), channel(1, "6064")]}, 400)
     assert "same id" in body["message"]
-    body = await refused(rig, {"channels": [channel(8, "0x6041:00")]}, 400)
-    assert "8" in body["message"]
+    body = await refused(rig, {"channels": [channel(32, "0x6041:00")]}, 400)
+    assert "channel id 32 is outside 0..31" in body["message"]
+    # A drive's recorder keeps its own limit (the generic twin's: 8 channels): a ninth
+    # recorder channel is refused naming the drive and the limit.
+    body = await refused(
+        rig, {"channels": [channel(i, "0x6064:00", source="recorder") for i in range(9)]}, 400
+    )
+    assert "channel 8" in body["message"] and GENERIC in body["message"]
+    assert "recorder has 8 channels" in body["message"] and body["field"] == "source"
     # Not in an active TPDO (cyclic data is not running): no PDO source.
     body = await refused(rig, {"channels": [channel(0, "0x6064:00", source="pdo")]}, 400)
     assert "TPDO" in body["message"] and body["field"] == "source"
@@ -117,6 +124,36 @@ async def test_refusals_name_what_is_wrong(fresh: Rig) -> None:
         "/api/v1/scope/channels", json={"channels": [channel(0, "0x6041:00", source="x")]}
     )
     assert r.status_code == 422
+
+
+async def test_a_scope_takes_32_channels_of_two_drives(fresh: Rig) -> None:
+    # Issue 50: 4 drives x 8 channels; here 16 of the generic twin (CANopen) and 16 of the
+    # LECSN-T (PROFINET), polled, with the trigger on the last one. Every channel samples and
+    # the CSV export has a column for each.
+    rig = fresh
+    objects = ("0x6041:00", "0x6064:00", "0x606C:00", "0x6077:00")
+    chans = [
+        {"id": i, "session": GENERIC if i < 16 else LECSN, "address": objects[i % 4]}
+        | {"source": "sdo", "rate_hz": 50.0}
+        for i in range(32)
+    ]
+    st = await put_channels(rig, chans)
+    assert [c["id"] for c in st["channels"]] == list(range(32))
+    r = await rig.client.put(
+        "/api/v1/scope/trigger", json={"mode": "roll", "kind": "level", "channel": 31}
+    )
+    assert r.status_code == 200 and r.json()["trigger"]["channel"] == 31
+    await run(rig, "start")
+    await asyncio.sleep(1.0)
+    st = await run(rig, "stop")
+    assert all(c["samples"] > 0 for c in st["channels"]), [
+        (c["id"], c["samples"], c["error"]) for c in st["channels"]
+    ]
+    r = await rig.client.get("/api/v1/scope/export", params={"format": "csv", "window": "buffer"})
+    assert r.status_code == 200, r.text
+    rows = csv.reader(io.StringIO(r.content.decode("utf-8-sig")))
+    header = next(row for row in rows if row[:1] == ["time_s"])
+    assert sum(1 for h in header if h != "time_s") == 32, header
 
 
 async def test_trigger_and_run_refusals(fresh: Rig) -> None:

@@ -236,7 +236,7 @@ def test_stop_and_roll() -> None:
         ({"mode": "single", "pre": 1.5}, "pre-trigger fraction 1.5 is outside 0..1"),
         ({"mode": "single", "window_s": 0.0}, "window_s must be a positive number"),
         ({"mode": "single", "holdoff_s": -1.0}, "holdoff_s must be zero or a positive"),
-        ({"mode": "single", "channel": 8}, "trigger channel 8 is out of range"),
+        ({"mode": "single", "channel": 32}, "trigger channel 32 is out of range"),
         ({"mode": "single", "level": math.nan}, "trigger level must be a finite number"),
     ],
 )

@@ -9,6 +9,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from servodesk.api.reply import Reply
+from servodesk.domain.scope import MAX_CHANNELS
 
 #: A request body takes only the fields it declares: a misspelt one is a 422 naming it.
 _BODY = ConfigDict(extra="forbid")
@@ -143,7 +144,7 @@ class RecorderInfo(Reply):
 
 class ChannelIn(BaseModel):
     model_config = _BODY
-    id: int = Field(ge=0, le=255, description="Channel id 0..7")
+    id: int = Field(ge=0, le=255, description=f"Channel id 0..{MAX_CHANNELS - 1}")
     session: str = Field(min_length=1, max_length=128)
     address: str = Field(min_length=1, max_length=32, description='e.g. "0x6064:00"')
     source: Literal["auto", "pdo", "sdo", "recorder"] = "auto"
@@ -162,7 +163,8 @@ class ChannelIn(BaseModel):
 
 class ChannelsIn(BaseModel):
     model_config = _BODY
-    # The scope's own limit (8) is checked by the service, which names it in the answer.
+    # The scope's own limit (MAX_CHANNELS) is checked by the service, which names it in the
+    # answer; channel ids too (ChannelIn.id is only bounded by the wire format's u8).
     channels: list[ChannelIn] = Field(max_length=64)
 
 
@@ -170,7 +172,7 @@ class TriggerIn(BaseModel):
     model_config = _BODY
     mode: Literal["roll", "single", "normal"] = "roll"
     kind: Literal["level", "edge", "state", "fault"] = "level"
-    channel: int = Field(default=0, ge=0, le=7)
+    channel: int = Field(default=0, ge=0, le=MAX_CHANNELS - 1)
     level: float = Field(default=0.0, allow_inf_nan=False)
     slope: Literal["rising", "falling", "either"] = "rising"
     pre: float = Field(default=0.2, ge=0.0, le=1.0)

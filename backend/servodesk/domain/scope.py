@@ -40,7 +40,12 @@ FloatArray = npt.NDArray[np.float64]
 MODES = ("roll", "single", "normal")
 KINDS = ("level", "edge", "state", "fault")
 SLOPES = ("rising", "falling", "either")
-MAX_CHANNELS = 8  # docs/scope.md "Model": up to 8 channels per scope.
+#: Channels per scope (docs/scope.md "Model"): 4 drives x 8, issue 50's browser target (a 10 s
+#: window of 32 channels at 4 kHz drawn at >= 30 fps). 8 per drive is Startdrive's trace and
+#: every recorder profile's (profile_tuning.RecorderSpec.max_channels); a drive's recorder
+#: keeps its own limit (services/scope.py refuses recorder channels beyond it). The one
+#: source: services/scope_channels.py, the API's bounds and the UI's ChannelTable.tsx follow.
+MAX_CHANNELS = 32
 MATH_OPS = ("diff", "sum", "deriv")
 
 EngineState = Literal["idle", "armed", "triggered", "done"]

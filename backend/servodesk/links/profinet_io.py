@@ -51,6 +51,7 @@ from servodesk.errors import (
     ValidationError,
 )
 from servodesk.links.cyclic import CyclicTransport, FrameCallback
+from servodesk.realtime import raise_priority
 
 log = logging.getLogger(__name__)
 
@@ -435,6 +436,10 @@ class IoController:
             self._receivers = [c for c in self._receivers if c is not callback]
 
     def _run(self) -> None:
+        # Inputs missing for the watchdog time end the AR on both sides: this thread must
+        # not wait behind a busy machine's other work (servodesk/realtime.py). It sleeps in
+        # recv until its next send.
+        raise_priority("PROFINET IO controller")
         raw = self._raw
         assert raw is not None
         h = self.health

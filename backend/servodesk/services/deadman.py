@@ -17,9 +17,7 @@ happen in normal use.
 
 from __future__ import annotations
 
-import contextlib
 import logging
-import os
 import threading
 import time
 from collections.abc import Callable
@@ -28,6 +26,7 @@ from typing import TYPE_CHECKING
 
 from servodesk.domain.cia402 import CONTROLWORD
 from servodesk.links.base import QUICK_STOP_WORD
+from servodesk.realtime import raise_priority
 
 if TYPE_CHECKING:
     from servodesk.services.session import Session
@@ -158,13 +157,6 @@ class DeadmanWatch:
 
 
 def _raise_priority() -> None:
-    """Best effort: this thread at a real-time priority (Linux SCHED_FIFO 10), so that a
-    busy machine (a build, other servers on a 2-core laptop) does not keep it off the CPU
-    past the dead-man time. Needs root or CAP_SYS_NICE (RLIMIT_RTPRIO); otherwise it keeps
-    the normal priority. The thread sleeps between looks, so it cannot starve the machine."""
-    setter = getattr(os, "sched_setscheduler", None)
-    if setter is None or not hasattr(os, "SCHED_FIFO"):
-        return
-    with contextlib.suppress(OSError):
-        setter(threading.get_native_id(), os.SCHED_FIFO, os.sched_param(10))
-        log.debug("dead-man thread at SCHED_FIFO 10")
+    """The watcher thread at a real-time priority (servodesk/realtime.py), so that a busy
+    machine does not keep it off the CPU past the dead-man time. It sleeps between looks."""
+    raise_priority("dead-man")

@@ -1,7 +1,7 @@
 """The live scope (issue 7, docs/scope.md): channels, sources, triggers and the frame fan-out.
 
-One :class:`ScopeService` belongs to the application. Its channels (up to 8) come from one or
-several sessions and share one time base, the backend's ``time.time()``:
+One :class:`ScopeService` belongs to the application. Its channels (up to 32, 4 drives x 8)
+come from one or several sessions and share one time base, the backend's ``time.time()``:
 
 - ``pdo``: a listener on the session's cyclic exchange (services/cyclic.py) takes every
   decoded TPDO on the bus thread; a sample's time is the frame's bus timestamp.

@@ -18,6 +18,7 @@ from servodesk.domain import scope_wire as wire
 from servodesk.domain.address import ObjectAddress
 from servodesk.domain.datatypes import Value
 from servodesk.domain.profile import ObjectSpec
+from servodesk.domain.scope import MAX_CHANNELS as MAX_CHANNELS  # The domain's: the one limit.
 from servodesk.errors import (
     ValidationError,
 )
@@ -27,8 +28,6 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-#: At most this many channels per scope (docs/scope.md "Model").
-MAX_CHANNELS = 8
 #: The producer's period: a frame carries what arrived since the previous one [s]. A sample
 #: waits half of it on average (all of it at worst) before it is sent, which the live
 #: latency aim (p99 < 50 ms from sample time to client) cannot spare much of; a frame's
@@ -41,7 +40,8 @@ CLIENT_QUEUE = round(0.25 / FRAME_PERIOD_S)
 #: A status frame at least this often [s] (achieved rates, sample counts).
 STATUS_PERIOD_S = 1.0
 #: Seconds of history the rings keep at the fastest rate a source offers (a 4 kHz recorder;
-#: slower sources keep longer).
+#: slower sources keep longer). A ring holds float64 times and values: 40,000 samples are
+#: 640 kB per channel, 20 MB with all 32 (docs/scope.md "Model").
 BUFFER_S = 10.0
 RING_CAPACITY = int(BUFFER_S * 4000)
 #: Window of sample times the achieved rate is measured over [s].

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from servodesk.domain import pnio
 from servodesk.domain import pnio_io as io
 from servodesk.nic import open_raw, require
+from servodesk.realtime import raise_priority
 from servodesk.sim.engine import SimAbort, SimulatedDrive
 from servodesk.sim.pdo import PdoEngine
 from servodesk.sim.profinet_dcp import interface_mac
@@ -362,6 +363,9 @@ class IoDevice:
             self._inputs = data
 
     def _run(self) -> None:
+        # As a device's stack: its data hold must not expire because the host was busy
+        # (servodesk/realtime.py); the thread sleeps in recv between frames.
+        raise_priority("PROFINET IO device (twin)")
         sock = self._sock
         assert sock is not None
         next_t = time.perf_counter()

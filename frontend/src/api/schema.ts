@@ -2611,7 +2611,7 @@ export interface components {
             address: string;
             /**
              * Id
-             * @description Channel id 0..7
+             * @description Channel id 0..31
              */
             id: number;
             /** Label */

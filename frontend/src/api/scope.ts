@@ -21,7 +21,7 @@ export type AchievedSource = S['ScopeChannelStatus']['source'];
 
 /** One channel as the page sends it (PUT /scope/channels). */
 export interface ScopeChannelConfig {
-  /** 0..7. */
+  /** 0..31 (MAX_CHANNELS in components/scope/ChannelTable.tsx). */
   id: number;
   session: string;
   /** "0x6064:00". */

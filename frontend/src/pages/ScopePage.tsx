@@ -1,10 +1,13 @@
 /**
- * Scope (issue 7, docs/scope.md): up to 8 channels from one or several drives on the backend's
- * common time base, streamed over the binary WebSocket and drawn with uPlot; triggers (roll,
- * single, normal on a level, an edge, a state change or a fault) with pre-trigger; zoom, pan,
- * two cursors, per-trace measurements of the visible range, math channels; export as CSV,
- * MDF4 and PNG, and import of a recording back into the view; captures kept in the store with
- * a title and note, listed per drive, opened, exported and attached to the drive's report
+ * Scope (issue 7, docs/scope.md): up to 32 channels (4 drives x 8; issue 50's target is a 10 s
+ * window of 32 channels at 4 kHz drawn at >= 30 fps) from one or several drives on the backend's
+ * common time base, streamed over the binary WebSocket and drawn with uPlot, decimated in a
+ * worker; the channel table scrolls inside its card and every channel has a colour of its own
+ * (8 hues x 4 tones, components/scope/prefs.ts); triggers (roll, single, normal on a level, an
+ * edge, a state change or a fault) with pre-trigger; zoom, pan, two cursors, per-trace
+ * measurements of the visible range, math channels; export as CSV, MDF4 and PNG, and import of
+ * a recording back into the view; captures kept in the store with a title and note, listed per
+ * drive, opened, exported and attached to the drive's report
  * (issue 49, components/scope/KeptCaptures.tsx).
  *
  * The scope belongs to the application: this page shows and edits the one scope of the server

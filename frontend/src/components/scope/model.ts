@@ -10,7 +10,7 @@
  */
 import { DecimationCache, type PlotData, type PlotTrace, buildPlotData } from './decimate';
 import { type MathOp, type Samples, mathChannel, needsSecond, transformed } from './math';
-import { Series, lowerBound, upperBound } from './series';
+import { Series, lowerBound, share, upperBound } from './series';
 import { EMPTY_STATS, type Stats, rangeStats, sampleAt, transformStats } from './stats';
 import { KIND_CAPTURE, KIND_SAMPLES, type ScopeFrame } from '../../scope/wire';
 
@@ -21,7 +21,7 @@ export interface TraceDef {
   /** "c3" for channel 3, "m0" for math channel 0. */
   key: string;
   kind: 'channel' | 'math';
-  /** Channel id 0..7, or the math channel's number. */
+  /** Channel id 0..31, or the math channel's number. */
   id: number;
   label: string;
   colour: string;
@@ -157,6 +157,7 @@ export class ScopeModel {
         if (!s) {
           s = new Series();
           this.live.set(b.id, s);
+          share(this.live);
         }
         this.wireSource.set(b.id, b.source);
         s.append(frame.tRef, b.t0, b.dt, b.dt > 0 ? null : b.times, b.values, b.n);

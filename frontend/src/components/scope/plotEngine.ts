@@ -10,7 +10,7 @@
  * full-rate data, so nothing the worker does can lose a sample.
  */
 import { DecimationCache, type PlotData, type PlotTrace, buildPlotData } from './decimate';
-import { Series } from './series';
+import { Series, share } from './series';
 
 export type Store = 'live' | 'recording';
 
@@ -92,6 +92,7 @@ export class PlotEngine {
         if (!s) {
           s = new Series();
           this.live.set(msg.id, s);
+          share(this.live);
         }
         s.append(0, 0, 0, msg.t, msg.v, Math.min(msg.t.length, msg.v.length));
         return null;

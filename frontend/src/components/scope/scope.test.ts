@@ -3,7 +3,7 @@ import { DecimationCache, buildPlotData, type PlotTrace } from './decimate';
 import { mathChannel, mathUnit } from './math';
 import { ScopeModel, type TraceDef } from './model';
 import { normaliseRecording } from './recording';
-import { Series, lowerBound, nearestIndex, upperBound } from './series';
+import { MAX_SAMPLES, Series, TOTAL_SAMPLES, lowerBound, nearestIndex, share, upperBound } from './series';
 import { cursorDelta, rangeStats, transformStats, windowStats } from './stats';
 import { FLAG_SKIPPED, KIND_CAPTURE, KIND_SAMPLES, KIND_STATUS, decodeFrame } from '../../scope/wire';
 
@@ -90,6 +90,25 @@ describe('Series', () => {
     // Still contiguous: the newest n values are n consecutive samples.
     expect(s.v[0]).toBe(500 - s.n);
     expect(s.dropped).toBe(500 - s.n);
+  });
+
+  it('shares one memory budget among the live channels: 8 keep 131 s at 4 kHz, 32 keep 33 s', () => {
+    const live = new Map<number, Series>();
+    for (let id = 0; id < 8; id++) live.set(id, new Series());
+    share(live);
+    expect([...live.values()].every((s) => s.max === MAX_SAMPLES)).toBe(true);
+    for (let id = 8; id < 32; id++) live.set(id, new Series());
+    share(live);
+    const max = live.get(0)?.max ?? 0;
+    expect(max * 32).toBe(TOTAL_SAMPLES);
+    expect(max / 4000).toBeGreaterThan(30); // still far more than the 10 s window
+    // A series over its new share drops its oldest samples on the next append.
+    const s = new Series(8, 100);
+    s.append(0, 0, 1, null, new Float64Array(100));
+    s.max = 40;
+    s.append(0, 100, 1, null, new Float64Array(1));
+    expect(s.n).toBeLessThanOrEqual(40);
+    expect(s.t[s.n - 1]).toBe(100);
   });
 
   it('finds bounds and the nearest sample', () => {

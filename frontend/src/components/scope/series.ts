@@ -8,6 +8,23 @@
 
 /** Samples kept per channel while rolling: 2^19 is 131 s at 4 kHz, 8 MiB per channel. */
 export const MAX_SAMPLES = 1 << 19;
+/**
+ * Samples all live channels keep together: 8 channels of MAX_SAMPLES (64 MiB of times and
+ * values, as much again in the plot worker's copy). A scope of 8 channels keeps 131 s at 4 kHz
+ * each as before; one of 32 keeps 33 s each rather than growing the tab to half a gigabyte.
+ */
+export const TOTAL_SAMPLES = 8 * MAX_SAMPLES;
+
+/** What each of `channels` live series keeps within TOTAL_SAMPLES. */
+export function perChannel(channels: number): number {
+  return Math.floor(TOTAL_SAMPLES / Math.max(8, channels));
+}
+
+/** Give every series of `live` its share of TOTAL_SAMPLES (called when one is added). */
+export function share(live: Map<number, Series>): void {
+  const max = perChannel(live.size);
+  for (const s of live.values()) s.max = max;
+}
 
 export class Series {
   t: Float64Array;
@@ -20,7 +37,8 @@ export class Series {
 
   constructor(
     capacity = 1024,
-    readonly max = MAX_SAMPLES,
+    /** Samples kept at most; lowered by share() when more channels are live. */
+    public max = MAX_SAMPLES,
   ) {
     this.t = new Float64Array(capacity);
     this.v = new Float64Array(capacity);
