@@ -58,6 +58,7 @@ ROUTE_RIGHTS: dict[str, Right] = {
     "dcp_reset": R.WRITE_PARAMETERS,
     # backups.py
     "create_backup": R.BACKUP,
+    "create_plant_backup": R.BACKUP,
     "list_backups": R.READ,
     "upload_backup": R.BACKUP,
     "get_backup": R.READ,

@@ -16,6 +16,19 @@ class BackupCreate(BaseModel):
     note: str = Field(default="", max_length=4000)
 
 
+class PlantBackupCreate(BaseModel):
+    """POST /backups/plant: a backup of several drives at once (issue 50)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    #: The sessions to back up; left out: every open session.
+    sessions: list[Annotated[str, Field(min_length=1, max_length=128)]] | None = Field(
+        default=None, max_length=256
+    )
+    label: str = Field(default="", max_length=200)
+    note: str = Field(default="", max_length=4000)
+
+
 class BackupPatch(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
@@ -279,3 +292,22 @@ class AuditEntry(BaseModel):
     new_raw_hex: str
     old_value: int | float | bool | str | None
     new_value: int | float | bool | str | None
+
+
+class PlantBackupItem(BaseModel):
+    """One drive of a plant backup: its backup, or why it has none."""
+
+    session: str
+    ok: bool
+    backup: BackupInfo | None = None
+    error: str | None = None
+    hint: str | None = None
+
+
+class PlantBackupReport(BaseModel):
+    """POST /backups/plant's answer: every drive's result and how long the whole took."""
+
+    items: list[PlantBackupItem]
+    saved: int = Field(description="drives backed up")
+    failed: int = Field(description="drives whose backup failed (each item says why)")
+    duration_s: float = Field(description="wall time of the whole, the drives read at once")

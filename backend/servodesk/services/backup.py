@@ -17,6 +17,7 @@ import logging
 import re
 import secrets
 import time
+from collections.abc import Sequence
 from dataclasses import asdict, replace
 from datetime import UTC, datetime
 from pathlib import Path
@@ -223,7 +224,29 @@ class BackupService:
         ps = await self.read_set(session, label=label, note=note)
         # Off the loop: the file's and the store's fsyncs (docs/safety.md: a stop never waits
         # on the disk).
-        return await asyncio.to_thread(self.save, ps, source)
+        info = await asyncio.to_thread(self.save, ps, source)
+        # The reads' last progress came before the file existed: a page that lists the
+        # backups when one ends (All axes) is told again once it is saved.
+        progress(session, "backup", 1.0, f"saved {len(ps.entries)} parameters")
+        return info
+
+    async def backup_many(
+        self, sessions: Sequence[Session], label: str = "", note: str = ""
+    ) -> list[dict[str, Any] | ServodeskError]:
+        """A backup of each session, all at once (issue 50: a plant's drives): each link
+        keeps its own requests in turn, and requests to different drives go out together.
+        On CAN they interleave on the bus (each node answers on its own SDO channel, CiA
+        301 §7.2.4.1: 600h/580h + node id); an EtherCAT slave has its own mailbox, a
+        PROFINET or SLMP drive its own socket. One drive's failure is its own entry: the
+        others are still saved."""
+
+        async def one(s: Session) -> dict[str, Any] | ServodeskError:
+            try:
+                return await self.backup(s, label, note)
+            except ServodeskError as exc:
+                return exc
+
+        return list(await asyncio.gather(*(one(s) for s in sessions)))
 
     # Saving and loading ---------------------------------------------------------------------
 

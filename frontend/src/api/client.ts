@@ -25,6 +25,8 @@ import type {
   JogRequest,
   MoveRequest,
   ObjectWrite,
+  PlantBackupReport,
+  PlantBackupRequest,
   Preflight,
   PreflightRequest,
   RestoreDefaultsRequest,
@@ -106,6 +108,9 @@ export const backupApi = {
   /** Take a backup of the drive now; progress comes over the WebSocket (operation "backup"). */
   take: (sid: string, body: BackupRequest) =>
     apiRequest('Take a backup', 'POST', '/sessions/{sid}/backups', { params: { sid }, body }) as Promise<BackupInfo>,
+  /** A backup of every open drive (or of `sessions`), the drives read at once. */
+  plant: (body: PlantBackupRequest) =>
+    apiRequest('Back up every drive', 'POST', '/backups/plant', { body }) as Promise<PlantBackupReport>,
   /** Newest first; `drive` and `profile` filter (both optional). */
   list: (filter: { drive?: string | null; profile?: string | null }) =>
     apiRequest('List the backups', 'GET', '/backups', { query: { drive: filter.drive, profile: filter.profile } }) as Promise<BackupInfo[]>,

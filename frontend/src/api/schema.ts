@@ -274,6 +274,28 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/backups/plant": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Create Plant Backup
+         * @description A backup of every open drive (or of ``sessions``), the drives read at once: requests
+         *     to different drives interleave on a CAN bus and run side by side on the others. Each
+         *     drive's result is its own item; one that fails leaves the others saved.
+         */
+        post: operations["create_plant_backup"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/backups/upload": {
         parameters: {
             query?: never;
@@ -4992,6 +5014,62 @@ export interface components {
              */
             type: "ping";
         };
+        /**
+         * PlantBackupCreate
+         * @description POST /backups/plant: a backup of several drives at once (issue 50).
+         */
+        PlantBackupCreate: {
+            /**
+             * Label
+             * @default
+             */
+            label: string;
+            /**
+             * Note
+             * @default
+             */
+            note: string;
+            /** Sessions */
+            sessions?: string[] | null;
+        };
+        /**
+         * PlantBackupItem
+         * @description One drive of a plant backup: its backup, or why it has none.
+         */
+        PlantBackupItem: {
+            backup?: components["schemas"]["BackupInfo"] | null;
+            /** Error */
+            error?: string | null;
+            /** Hint */
+            hint?: string | null;
+            /** Ok */
+            ok: boolean;
+            /** Session */
+            session: string;
+        };
+        /**
+         * PlantBackupReport
+         * @description POST /backups/plant's answer: every drive's result and how long the whole took.
+         */
+        PlantBackupReport: {
+            /**
+             * Duration S
+             * @description wall time of the whole, the drives read at once
+             */
+            duration_s: number;
+            /**
+             * Failed
+             * @description drives whose backup failed (each item says why)
+             */
+            failed: number;
+            /** Items */
+            items: components["schemas"]["PlantBackupItem"][];
+            /**
+             * Saved
+             * @description drives backed up
+             */
+            saved: number;
+        };
         /** PlantTagRequest */
         PlantTagRequest: {
             /**
@@ -8937,6 +9015,120 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["BackupInfo"][];
+                };
+            };
+            /** @description Bad value or refused by the drive (with the protocol code) */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not logged in: no valid session cookie or API token (docs/security.md) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The role lacks the route's right (Forbidden), or a state change or WebSocket from a page of another origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description No such session, profile, object or node */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Not possible in the present state, or control held by another client */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The request body is larger than the route takes */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The body is not application/json (multipart/form-data for a file) */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+            /** @description Bus failure */
+            502: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+            /** @description The drive did not answer in time */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ErrorOut"];
+                };
+            };
+        };
+    };
+    create_plant_backup: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["PlantBackupCreate"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["PlantBackupReport"];
                 };
             };
             /** @description Bad value or refused by the drive (with the protocol code) */

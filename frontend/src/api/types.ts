@@ -133,6 +133,10 @@ export type BackupInfo = Always<S['BackupInfo'], 'unreadable'>;
 
 export type BackupRequest = S['BackupCreate'];
 
+/** POST /backups/plant: every open drive (or those named) backed up at once. */
+export type PlantBackupRequest = S['PlantBackupCreate'];
+export type PlantBackupReport = S['PlantBackupReport'];
+
 export type BackupPatch = S['BackupPatch'];
 
 export type BackupFileEntry = S['BackupEntryOut'];

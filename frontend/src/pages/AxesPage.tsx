@@ -12,9 +12,9 @@
  * read again when a backup of a drive finishes (its `progress` message reaches 1).
  */
 import { useEffect, useState } from 'react';
-import type { BackupInfo, SessionInfo } from '../api/types';
+import type { BackupInfo, PlantBackupReport, SessionInfo } from '../api/types';
 import { backupApi, operationApi } from '../api/client';
-import { me } from '../api/auth';
+import { me, rightBlocked } from '../api/auth';
 import { StatePill } from '../components/StatePill';
 import { operationLive, setMotion, startOperationStore } from '../components/operation/operationStore';
 import { alarmText, backupCompleteness, controlCell, lastBackup, protectionText } from '../lib/axes';
@@ -97,6 +97,51 @@ function AxisRow({ session, backup, myUser }: { session: SessionInfo; backup: Ba
   );
 }
 
+/**
+ * "Back up every drive" (issue 50): one request backs up every open drive, read at once
+ * (POST /backups/plant); the Last backup column follows by the `progress` messages. The line
+ * after it says how many were saved, in what time, and names each drive that failed and why.
+ */
+function BackUpAll({ count, onDone }: { count: number; onDone: () => void }) {
+  const [busy, setBusy] = useState(false);
+  const [report, setReport] = useState<PlantBackupReport | null>(null);
+  const blocked = rightBlocked('backup');
+  async function run() {
+    setBusy(true);
+    setReport(null);
+    try {
+      setReport(await backupApi.plant({ label: 'all drives', note: '' }));
+      // Every backup is saved now (each also says so in a last `progress`): the list again.
+      onDone();
+    } catch (e) {
+      notifyError(e);
+    } finally {
+      setBusy(false);
+    }
+  }
+  const failed = report?.items.filter((i) => !i.ok) ?? [];
+  return (
+    <div className="axes-backup" data-testid="axes-backup">
+      <button type="button" onClick={() => void run()} disabled={busy || blocked !== null} title={blocked ?? 'Read every open drive\'s parameters at once and keep a backup of each'} data-testid="axes-backup-all">
+        {busy ? `Backing up ${count} drives…` : 'Back up every drive'}
+      </button>
+      {report && (
+        <span className={failed.length ? 'pdo-over-text small' : 'small'} data-testid="axes-backup-result" data-saved={report.saved} data-failed={report.failed}>
+          {' '}
+          {report.saved} of {report.items.length} backed up in {report.duration_s.toFixed(1)} s
+          {failed.map((i) => (
+            <span key={i.session} data-testid={`axes-backup-failed-${i.session}`}>
+              {' '}
+              · {i.session}: {i.error}
+              {i.hint ? ` (${i.hint})` : ''}
+            </span>
+          ))}
+        </span>
+      )}
+    </div>
+  );
+}
+
 export function AxesPage(_props: PageProps) {
   const list = useObservable(sessions);
   const who = useObservable(me);
@@ -151,6 +196,7 @@ export function AxesPage(_props: PageProps) {
   }
   return (
     <section className="card">
+      <BackUpAll count={list.length} onDone={() => setBackupsAt(Date.now())} />
       <table className="grid axes-table" data-testid="axes-table">
         <thead>
           <tr>

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import time
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Header, Query, Request, Response
@@ -22,6 +23,9 @@ from servodesk.api.schemas_backups import (
     BackupPatch,
     CompareRequest,
     Comparison,
+    PlantBackupCreate,
+    PlantBackupItem,
+    PlantBackupReport,
     PreflightOut,
     PreflightRequest,
     RestoreReport,
@@ -31,7 +35,7 @@ from servodesk.api.schemas_backups import (
     SourceDrive,
 )
 from servodesk.api.uploads import openapi_file_body, read_file
-from servodesk.errors import NotFoundError, ValidationError
+from servodesk.errors import ConflictError, NotFoundError, ServodeskError, ValidationError
 from servodesk.services.session import Session
 
 router = APIRouter(tags=["backups"], responses=ERROR_RESPONSES)
@@ -57,6 +61,53 @@ async def create_backup(sid: str, body: BackupCreate, state: StateDep) -> Backup
         "backup.taken", drive=sid, details={"backup": info.id, "entries": info.entries}
     )
     return info
+
+
+@router.post("/backups/plant", operation_id="create_plant_backup")
+async def create_plant_backup(body: PlantBackupCreate, state: StateDep) -> PlantBackupReport:
+    """A backup of every open drive (or of ``sessions``), the drives read at once: requests
+    to different drives interleave on a CAN bus and run side by side on the others. Each
+    drive's result is its own item; one that fails leaves the others saved."""
+    if body.sessions is None:
+        sessions = state.manager.all()
+        if not sessions:
+            raise ConflictError(
+                "no session is open: nothing to back up", hint="open the drives first"
+            )
+    else:
+        if not body.sessions:
+            raise ValidationError(
+                "sessions is empty", field="sessions", hint="name a session, or leave it out"
+            )
+        twice = sorted({s for s in body.sessions if body.sessions.count(s) > 1})
+        if twice:
+            raise ValidationError(
+                f"sessions names {', '.join(twice)} more than once",
+                field="sessions",
+                hint="name each session once",
+            )
+        sessions = [state.manager.get(sid) for sid in body.sessions]  # 404 names a stranger
+    t0 = time.monotonic()
+    results = await state.backups.backup_many(sessions, body.label, body.note)
+    items: list[PlantBackupItem] = []
+    for session, r in zip(sessions, results, strict=True):
+        if isinstance(r, ServodeskError):
+            items.append(
+                PlantBackupItem(session=session.id, ok=False, error=r.message, hint=r.hint)
+            )
+            continue
+        info = BackupInfo.model_validate(r)
+        state.audit.record(
+            "backup.taken", drive=session.id, details={"backup": info.id, "entries": info.entries}
+        )
+        items.append(PlantBackupItem(session=session.id, ok=True, backup=info))
+    saved = sum(1 for i in items if i.ok)
+    return PlantBackupReport(
+        items=items,
+        saved=saved,
+        failed=len(items) - saved,
+        duration_s=round(time.monotonic() - t0, 3),
+    )
 
 
 @router.get("/backups", operation_id="list_backups")
