@@ -9,8 +9,6 @@ saved; each drive's backup holds what a backup of it alone holds.
 
 from __future__ import annotations
 
-import itertools
-import os
 from collections.abc import AsyncIterator
 
 import can
@@ -18,14 +16,12 @@ import httpx
 import pytest
 import pytest_asyncio
 
-from servodesk.api.app import create_app
 from servodesk.errors import LinkError
-from servodesk.settings import Settings
 from servodesk.sim.canopen_device import NMT_PRE_OPERATIONAL, NMT_STOPPED
 from tests.backup.conftest import Rig, close_rig, make_rig
+from tests.sim_app import sim_client
 
 pytestmark = pytest.mark.asyncio(loop_scope="module")
-_n = itertools.count()
 FAMILIES = ["cia402-generic", "hiwin-e", "smartris"]
 
 
@@ -93,18 +89,9 @@ async def test_a_silent_drive_is_its_own_failure_and_the_others_are_saved(rig: R
 
 @pytest_asyncio.fixture(loop_scope="module", scope="module")
 async def api(tmp_path_factory) -> AsyncIterator[httpx.AsyncClient]:  # type: ignore[no-untyped-def]
-    settings = Settings(
-        sim=True,
-        sim_channel=f"api-plant-{os.getpid()}-{next(_n)}",
-        sim_profiles="cia402-generic,smartris,lecsn-t",
-        data_dir=tmp_path_factory.mktemp("data"),
-        sdo_timeout=0.5,
-    )
-    app = create_app(settings)
-    async with app.router.lifespan_context(app):
-        transport = httpx.ASGITransport(app=app)
-        async with httpx.AsyncClient(transport=transport, base_url="http://t/api/v1") as c:
-            yield c
+    data = tmp_path_factory.mktemp("data")
+    async with sim_client(data, "cia402-generic,smartris,lecsn-t", sdo_timeout=0.5) as c:
+        yield c
 
 
 async def test_the_api_backs_up_every_open_drive_and_refuses_what_it_cannot(

@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import shutil
 import socket
 import subprocess
@@ -186,6 +187,13 @@ def take_control(page: Page, sid: str | None = None, timeout: float = CONTROL_LA
         take.click()
     expect(indicator).to_have_attribute("data-you", "true")
     expect(indicator).to_have_attribute("data-bound", "true")
+
+
+def shown_int(page: Page, testid: str) -> int:
+    """The whole number an element shows (a position or velocity in drive units)."""
+    text = page.get_by_test_id(testid).inner_text().strip()
+    assert re.fullmatch(r"-?\d+", text), f"{testid} shows {text!r}"
+    return int(text)
 
 
 def tab_control(page: Page) -> dict[str, Any] | None:

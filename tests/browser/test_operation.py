@@ -17,7 +17,7 @@ from collections.abc import Iterator
 import pytest
 from playwright.sync_api import Browser, Page, expect
 
-from tests.browser.harness import release_control, take_control
+from tests.browser.harness import release_control, shown_int, take_control
 
 pytestmark = pytest.mark.browser
 
@@ -64,12 +64,6 @@ def operator(page: Page) -> Iterator[Page]:
     finally:
         # Leave the drive as other tests expect it: nobody holds control, servo off.
         release_control(page)
-
-
-def shown_int(page: Page, testid: str) -> int:
-    text = page.get_by_test_id(testid).inner_text().strip()
-    assert re.fullmatch(r"-?\d+", text), f"{testid} shows {text!r}"
-    return int(text)
 
 
 def test_hold_jog_moves_and_release_stops(operator: Page) -> None:

@@ -11,14 +11,13 @@ setpoint telegram every cycle.
 
 from __future__ import annotations
 
-import re
 from collections.abc import Iterator
 
 import pytest
 from playwright.sync_api import Browser, Page, expect
 
 from tests.browser.conftest import fresh_page
-from tests.browser.harness import running_server, take_control
+from tests.browser.harness import running_server, shown_int, take_control
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(180)]
 
@@ -33,12 +32,6 @@ def profinet_url() -> Iterator[str]:
 @pytest.fixture
 def pn_page(browser: Browser, profinet_url: str) -> Iterator[Page]:
     yield from fresh_page(browser, profinet_url)
-
-
-def _shown_int(page: Page, testid: str) -> int:
-    text = page.get_by_test_id(testid).inner_text().strip()
-    assert re.fullmatch(r"-?\d+", text), f"{testid} shows {text!r}"
-    return int(text)
 
 
 def test_jog_and_a_move_through_the_ui_over_profinet_cyclic_io(pn_page: Page) -> None:
@@ -87,17 +80,17 @@ def test_jog_and_a_move_through_the_ui_over_profinet_cyclic_io(pn_page: Page) ->
     page.get_by_test_id("units-raw").click()
 
     # Jog: held, the axis runs; let go, it stands.
-    before = _shown_int(page, "op-position")
+    before = shown_int(page, "op-position")
     page.get_by_test_id("tab-jog").click()
     page.get_by_test_id("jog-plus").hover()
     page.mouse.down()
     expect(page.get_by_test_id("motion-status")).to_have_attribute("data-active", "true")
     page.wait_for_timeout(1000)
-    assert _shown_int(page, "op-velocity") > 0
+    assert shown_int(page, "op-velocity") > 0
     page.mouse.up()
     expect(page.get_by_test_id("op-velocity")).to_have_text("0", timeout=3_000)
     expect(page.get_by_test_id("motion-status")).to_have_attribute("data-state", "halted")
-    jogged = _shown_int(page, "op-position")
+    jogged = shown_int(page, "op-position")
     assert jogged > before, (before, jogged)
 
     # A relative move by 20 000 pulses: controlword and 607Ah in the setpoint telegram.
@@ -109,7 +102,7 @@ def test_jog_and_a_move_through_the_ui_over_profinet_cyclic_io(pn_page: Page) ->
         "data-state", "reached", timeout=20_000
     )
     page.wait_for_timeout(300)
-    moved = _shown_int(page, "op-position")
+    moved = shown_int(page, "op-position")
     assert abs(moved - jogged - 20_000) <= 50, (jogged, moved)
     expect(state).to_have_text("Operation enabled")
 
