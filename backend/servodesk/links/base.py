@@ -246,6 +246,11 @@ class DriveLink(ObjectAccess):
     #: The only cycles the link offers, in ms (PROFINET: send clock x reduction ratio);
     #: None: any period in services/cyclic.py's MIN_PERIOD..MAX_PERIOD.
     cyclic_periods_ms: tuple[float, ...] | None = None
+    #: The link sets the telegram of cyclic data up itself when it starts (PROFINET: the
+    #: expected submodule of servodesk's IO AR, as an IO controller's configuration tool
+    #: does, 004 §20.1.1): services/pdo.py then offers the choice and calls
+    #: :meth:`prepare_io`. Elsewhere the drive's PDO mapping says what is exchanged.
+    sets_up_telegram: bool = False
 
     def __init__(self, params: LinkParams) -> None:
         self.params = params
@@ -257,6 +262,19 @@ class DriveLink(ObjectAccess):
         self.failures = 0
         self._loop: asyncio.AbstractEventLoop | None = None
         self._timeout: float | None = None
+
+    def prepare_io(
+        self,
+        telegram: int | None,
+        rx: int,
+        tx: int,
+        period: float,
+        outputs: bool,
+        first: bytes = b"",
+    ) -> None:
+        """What the next cyclic exchange carries, on a link that ``sets_up_telegram``: the
+        telegram, the setpoint (``rx``) and actual-value (``tx``) lengths in bytes, the
+        cycle [s], and the first outputs. Nothing to set up elsewhere."""
 
     # Lifecycle ---------------------------------------------------------------------
 

@@ -158,6 +158,8 @@ class ProfinetLink(DriveLink):
     cyclic_outputs_always = True
     #: Send clock 1 ms (SendClockFactor 32) x the reduction ratios servodesk offers.
     cyclic_periods_ms = PERIODS_MS
+    #: The telegram is the expected submodule of servodesk's IO AR (:meth:`prepare_io`).
+    sets_up_telegram = True
 
     def __init__(self, params: LinkParams) -> None:
         if params.interface != INTERFACE:

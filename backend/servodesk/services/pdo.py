@@ -502,7 +502,7 @@ def _check_telegram(session: Session, telegram: int | None) -> None:
     if telegram is None:
         return
     rules = session.profile.pdo
-    if getattr(session.link, "prepare_io", None) is None or rules.kind != "telegram":
+    if not session.link.sets_up_telegram or rules.kind != "telegram":
         raise ValidationError(
             f"{session.id} is on {session.link.fieldbus}: a telegram is chosen for a PROFINET "
             "IO AR only",
@@ -522,7 +522,7 @@ def telegram_offer(session: Session) -> list[dict[str, Any]] | None:
     submodule of the connect, as an IO controller's configuration tool chooses it, 004
     §20.1.1); None where cyclic data has no telegram to choose."""
     rules = session.profile.pdo
-    if getattr(session.link, "prepare_io", None) is None or rules.kind != "telegram":
+    if not session.link.sets_up_telegram or rules.kind != "telegram":
         return None
     return [_telegram_out(t) for t in rules.telegrams]
 
@@ -586,8 +586,7 @@ async def start_cyclic(
                         image[s.address] = codec(s.data_type).decode(
                             await session.link.read(s.address)
                         )
-    prepare = getattr(session.link, "prepare_io", None)
-    if prepare is not None:
+    if session.link.sets_up_telegram:
         # PROFINET: the IO AR is set up for the drive's telegram at this cycle (its lengths
         # from the telegram's layout), checked before anything changes; its first frames
         # carry the image from the drive's present values, not zeros (a controlword 0).
@@ -609,7 +608,7 @@ async def start_cyclic(
         size = tel.bytes if tel is not None else 0
         rx = max(size, sum(p.bytes for p in config.active(pdomod.Direction.RX)))
         tx = max(size, sum(p.bytes for p in config.active(pdomod.Direction.TX)))
-        prepare(config.telegram, rx, tx, period, outputs, first)
+        session.link.prepare_io(config.telegram, rx, tx, period, outputs, first)
     previous = cyclic_of(session)
     stop_cyclic_now(session)
     # CiA 301 §7.3.2.2.1: PDOs are exchanged only in NMT OPERATIONAL. The node is put back
