@@ -159,3 +159,36 @@ async def test_the_final_check_reads_again_only_what_the_restore_changed(small: 
     bad = {str(a): uploads.get(a) for a in plain if a not in changed and uploads.get(a) != 2}
     assert not bad, bad
     assert all(uploads.get(a, 0) >= 3 for a in changed), {str(a): uploads.get(a) for a in changed}
+
+
+async def test_a_reset_seen_during_the_writes_makes_the_final_check_read_everything(
+    small: Rig,
+) -> None:
+    """The drive boots (CiA 301: its boot-up message) half way through a restore of values it
+    already has: values equal to the old ones would read the same after the reset, unless the
+    drive's EEPROM held others, so the final check reads every written value once more."""
+    s = small.first["cia402-generic"]
+    dev = small.bus.devices[0]
+    info = await small.backups.backup(s)
+    ps = small.backups.load(info["id"])
+    await s.store()  # The EEPROM holds what the backup holds.
+    node = s.link.params.node_id
+    hook_after(small, 10, dev.reset_node)
+    tap = can.Bus(interface="virtual", channel=small.channel)
+    try:
+        rep = await small.restores.restore(s, info["id"], rewrite_all=True, client="t")
+        uploads: dict[A, int] = {}
+        while (m := tap.recv(0)) is not None:
+            if m.arbitration_id == 0x600 + node and m.data[0] == 0x40:
+                a = A(int.from_bytes(m.data[1:3], "little"), m.data[3])
+                uploads[a] = uploads.get(a, 0) + 1
+    finally:
+        tap.shutdown()
+        unhook(small)
+    assert rep["finished"], rep
+    plain = [e.address for e in ps.entries if not restore_plan.is_pdo_object(e.address.index)]
+    written = {i["address"] for i in rep["items"] if i["status"] == "written"}
+    assert len(written) == len(ps.entries)
+    assert all(uploads.get(a, 0) >= 3 for a in plain), {
+        str(a): uploads.get(a) for a in plain if uploads.get(a, 0) < 3
+    }

@@ -251,6 +251,10 @@ class DriveLink(ObjectAccess):
     #: does, 004 §20.1.1): services/pdo.py then offers the choice and calls
     #: :meth:`prepare_io`. Elsewhere the drive's PDO mapping says what is exchanged.
     sets_up_telegram: bool = False
+    #: Resets of the drive this link has seen (CANopen: its boot-up message, CiA 301
+    #: §7.3.2.1); a restore compares it before and after its writes (services/restore.py).
+    #: A link that cannot see a reset keeps 0.
+    resets_seen: int = 0
 
     def __init__(self, params: LinkParams) -> None:
         self.params = params

@@ -957,6 +957,8 @@ class CanopenLink(DriveLink):
         # A heartbeat the drive sent just before our NMT command can be read just after it:
         # it would undo the commanded state until the next heartbeat, and a cyclic start in
         # that window would believe the node already OPERATIONAL. A boot-up is always news.
+        if name == "bootup":
+            self.resets_seen += 1
         if name != "bootup" and now - self._nmt_commanded_at < HEARTBEAT_STALE_S:
             return
         if name != self.nmt_state:

@@ -360,6 +360,7 @@ class RestoreService:
         before the restore (the audit's old value)."""
         seq = {ObjectAddress.parse(r["address"]): i for i, r in enumerate(rows)}
         status = {i: r["status"] for i, r in enumerate(rows)}
+        resets = session.link.resets_seen
         failed_groups: dict[str, str] = {}
         touched: dict[str, set[ObjectAddress]] = {}
         total = len(steps) or 1
@@ -487,18 +488,18 @@ class RestoreService:
         journal.release()
         await journal.commit()
         # Final check: every written value is still there. A drive that reset (or was
-        # changed by someone else) meanwhile has lost them: pending again, resumable. Only
-        # a value that differs from the drive's before the restore can show that: one equal
-        # to it reads the same after a reset (the write and its read-back were verified), so
-        # reading it again finds nothing (issue 50: the restore at the bus's pace; a drive
-        # whose RAM differed from its EEPROM before the restore is the case this leaves to
-        # the read-back and the store that follows).
+        # changed by someone else) meanwhile has lost them: pending again, resumable. A
+        # value that differs from the drive's before the restore shows that; one equal to it
+        # reads the same after a reset unless the drive's EEPROM held another value than
+        # its RAM, so those are read again only when the link saw the drive reset (CANopen:
+        # a boot-up message) during the writes (issue 50: a restore at the bus's pace).
+        reset = session.link.resets_seen != resets
         done = []
         for i, st in status.items():
             if st != "written":
                 continue
             a = ObjectAddress.parse(rows[i]["address"])
-            if old.get(a) != bytes.fromhex(rows[i]["new_raw_hex"]):
+            if reset or old.get(a) != bytes.fromhex(rows[i]["new_raw_hex"]):
                 done.append(i)
         addrs = [ObjectAddress.parse(rows[i]["address"]) for i in done]
         try:
