@@ -21,9 +21,10 @@ class PlantBackupCreate(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    #: The sessions to back up; left out: every open session.
+    #: The sessions to back up (one named twice is backed up once); left out: every open
+    #: session.
     sessions: list[Annotated[str, Field(min_length=1, max_length=128)]] | None = Field(
-        default=None, max_length=256
+        default=None, min_length=1, max_length=256
     )
     label: str = Field(default="", max_length=200)
     note: str = Field(default="", max_length=4000)

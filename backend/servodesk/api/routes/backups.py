@@ -75,18 +75,9 @@ async def create_plant_backup(body: PlantBackupCreate, state: StateDep) -> Plant
                 "no session is open: nothing to back up", hint="open the drives first"
             )
     else:
-        if not body.sessions:
-            raise ValidationError(
-                "sessions is empty", field="sessions", hint="name a session, or leave it out"
-            )
-        twice = sorted({s for s in body.sessions if body.sessions.count(s) > 1})
-        if twice:
-            raise ValidationError(
-                f"sessions names {', '.join(twice)} more than once",
-                field="sessions",
-                hint="name each session once",
-            )
-        sessions = [state.manager.get(sid) for sid in body.sessions]  # 404 names a stranger
+        # Named twice is the same drive: backed up once, in the order first named.
+        names = list(dict.fromkeys(body.sessions))
+        sessions = [state.manager.get(sid) for sid in names]  # 404 names a stranger
     t0 = time.monotonic()
     results = await state.backups.backup_many(sessions, body.label, body.note)
     items: list[PlantBackupItem] = []
