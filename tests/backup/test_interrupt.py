@@ -4,6 +4,7 @@ was written, the store keeps it item by item, and resume completes it."""
 from __future__ import annotations
 
 from collections.abc import AsyncIterator, Callable
+from typing import Any
 
 import can
 import pytest
@@ -127,6 +128,26 @@ async def test_reset_without_silence_is_caught_by_the_final_check(small: Rig) ->
     assert done["finished"] and done["counts"]["written"] == len(changed)
 
 
+async def restore_counting_uploads(
+    rig: Rig, session: Any, backup: str
+) -> tuple[dict[str, Any], dict[A, int]]:
+    """A restore of ``backup`` with every entry written, and how many SDO upload requests
+    each object got on the bus meanwhile (a plain python-can tap on the rig's channel)."""
+    node = session.link.params.node_id
+    tap = can.Bus(interface="virtual", channel=rig.channel)
+    try:
+        rep = await rig.restores.restore(session, backup, rewrite_all=True, client="t")
+        uploads: dict[A, int] = {}
+        while (m := tap.recv(0)) is not None:
+            # CiA 301 §7.2.4.3.3: an upload request is command specifier 2 (40h).
+            if m.arbitration_id == 0x600 + node and m.data[0] == 0x40:
+                a = A(int.from_bytes(m.data[1:3], "little"), m.data[3])
+                uploads[a] = uploads.get(a, 0) + 1
+    finally:
+        tap.shutdown()
+    return rep, uploads
+
+
 async def test_the_final_check_reads_again_only_what_the_restore_changed(small: Rig) -> None:
     """Issue 50: a verified restore reads each entry before (the automatic backup) and after
     its write (the read-back); the final check reads a third time only the values that
@@ -136,18 +157,7 @@ async def test_the_final_check_reads_again_only_what_the_restore_changed(small: 
     info = await small.backups.backup(s)
     ps = small.backups.load(info["id"])
     changed = set(await change_plain(s, ps, 3))
-    node = s.link.params.node_id
-    tap = can.Bus(interface="virtual", channel=small.channel)
-    try:
-        rep = await small.restores.restore(s, info["id"], rewrite_all=True, client="t")
-        uploads: dict[A, int] = {}
-        while (m := tap.recv(0)) is not None:
-            # CiA 301 §7.2.4.3.3: an upload request is command specifier 2 (40h).
-            if m.arbitration_id == 0x600 + node and m.data[0] == 0x40:
-                a = A(int.from_bytes(m.data[1:3], "little"), m.data[3])
-                uploads[a] = uploads.get(a, 0) + 1
-    finally:
-        tap.shutdown()
+    rep, uploads = await restore_counting_uploads(small, s, info["id"])
     assert rep["finished"] and rep["stored"], rep
     assert rep["counts"]["written"] == len(ps.entries)
     plain = [e.address for e in ps.entries if not restore_plan.is_pdo_object(e.address.index)]
@@ -172,18 +182,10 @@ async def test_a_reset_seen_during_the_writes_makes_the_final_check_read_everyth
     info = await small.backups.backup(s)
     ps = small.backups.load(info["id"])
     await s.store()  # The EEPROM holds what the backup holds.
-    node = s.link.params.node_id
     hook_after(small, 10, dev.reset_node)
-    tap = can.Bus(interface="virtual", channel=small.channel)
     try:
-        rep = await small.restores.restore(s, info["id"], rewrite_all=True, client="t")
-        uploads: dict[A, int] = {}
-        while (m := tap.recv(0)) is not None:
-            if m.arbitration_id == 0x600 + node and m.data[0] == 0x40:
-                a = A(int.from_bytes(m.data[1:3], "little"), m.data[3])
-                uploads[a] = uploads.get(a, 0) + 1
+        rep, uploads = await restore_counting_uploads(small, s, info["id"])
     finally:
-        tap.shutdown()
         unhook(small)
     assert rep["finished"], rep
     plain = [e.address for e in ps.entries if not restore_plan.is_pdo_object(e.address.index)]
